@@ -1,0 +1,7 @@
+"""Registry of job kinds: ``kind`` in a job TOML -> ``"module:attribute"`` of a ``pipeline.types.JobKind``.
+
+Imported lazily by the runner; each entry's module is imported only when a job uses it.
+"""
+
+JOB_KINDS: dict[str, str] = {
+}
