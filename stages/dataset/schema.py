@@ -1,0 +1,344 @@
+"""Typed schema of AgentWorld's demonstration datasets (LeRobot v3.0 as written and read by lerobot 0.6).
+
+Layout of one frame (``fps`` frames per second, 30 by default):
+
+- ``observation.state`` float32 ``(arm_dof + 10,)`` = [arm joint positions (arm_dof) [rad],
+  end-effector pose (7: x, y, z [m], quaternion w, x, y, z) in the robot base frame,
+  base pose (3: x, y [m], theta [rad]) in the world frame];
+- ``action`` float32 ``(arm_dof + 12,)`` = [arm joint targets (arm_dof) [rad], end-effector target
+  (7: x, y, z [m], quaternion w, x, y, z), base velocity (3: vx, vy [m/s], vtheta [rad/s]) in the base
+  frame, gripper command (1: 0 open .. 1 closed), mode (1: 0 locomotion / 1 manipulation)];
+- ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec);
+- ``observation.images.<camera>_depth`` depth uint16 ``(H, W, 1)`` [mm], stored WITHOUT LOSS as a lerobot
+  depth image (``dtype: image``, ``info.is_depth_map: true``, ``info.depth_unit: mm``): raw 16-bit TIFF
+  bytes embedded in the data parquet. ``LeRobotDataset`` returns it as float32 ``(1, H, W)`` millimetres,
+  exact for every uint16 value. (lerobot's depth *video* path quantizes to 12 bits, so it is not used.)
+- the task text (``task``) and, per episode, :class:`EpisodeInfo` as extra ``meta/episodes`` columns
+  prefixed ``agentworld/`` (lerobot carries unknown columns through loading and aggregation).
+
+Nothing here imports torch or lerobot: the schema is plain data, usable by the recorder and tests.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+STATE_KEY = "observation.state"
+ACTION_KEY = "action"
+RGB_KEY = "observation.images.{camera}"
+DEPTH_KEY = "observation.images.{camera}_depth"
+EPISODE_COLUMN_PREFIX = "agentworld/"
+MODE_LOCOMOTION = 0
+MODE_MANIPULATION = 1
+DEPTH_MAX_MM = 65535
+
+_NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+class FrameError(ValueError):
+    """A frame (or episode call) that does not match the dataset spec; the message lists every problem."""
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera: name (``[a-z][a-z0-9_]*``), image size [px], and which streams are recorded."""
+
+    name: str
+    height: int = 240
+    width: int = 320
+    rgb: bool = True
+    depth: bool = True
+
+    def __post_init__(self) -> None:
+        problems = []
+        if not _NAME_RE.match(self.name):
+            problems.append(f"camera name {self.name!r} must match [a-z][a-z0-9_]*")
+        if self.height <= 0 or self.width <= 0:
+            problems.append(f"camera {self.name!r}: size must be positive, got {self.height}x{self.width}")
+        if not (self.rgb or self.depth):
+            problems.append(f"camera {self.name!r} records neither rgb nor depth")
+        if problems:
+            raise ValueError("; ".join(problems))
+
+
+@dataclass(frozen=True)
+class VideoCodecSpec:
+    """Encoder settings of the RGB videos (lerobot's ``RGBEncoderConfig``, encoded with PyAV).
+
+    codec: ``h264`` (libx264), ``libsvtav1`` (lerobot's default) or ``hevc``;
+    preset: codec preset (``"ultrafast"`` for h264, an int 0-13 for libsvtav1);
+    crf: constant rate factor (lower is better quality, bigger files);
+    gop: keyframe interval [frames] (``None``: the codec's default). Random access while training decodes
+    from the previous keyframe, so a short GOP loads faster and encodes slower.
+    """
+
+    codec: str = "h264"
+    preset: str | int | None = "ultrafast"
+    crf: int = 23
+    gop: int | None = 30
+    pix_fmt: str = "yuv420p"
+
+    def __post_init__(self) -> None:
+        if self.codec not in ("h264", "libsvtav1", "hevc"):
+            raise ValueError(f"video codec must be h264, libsvtav1 or hevc, got {self.codec!r}")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything that fixes a dataset's schema and file layout. Shards merged together must share it.
+
+    arm_dof: arm joints (7 for the default arm); fps: frames per second;
+    data_files_size_mb / video_files_size_mb: size after which lerobot rolls over to the next
+    ``chunk-XXX/file-YYY`` file; chunk_size: files per chunk folder.
+    """
+
+    arm_dof: int = 7
+    fps: int = 30
+    robot_type: str = "agentworld_mobile_manipulator"
+    cameras: tuple[CameraSpec, ...] = (
+        CameraSpec("wrist"),
+        CameraSpec("head"),
+        CameraSpec("third_person"),
+    )
+    video: VideoCodecSpec = field(default_factory=VideoCodecSpec)
+    data_files_size_mb: float = 100.0
+    video_files_size_mb: float = 200.0
+    chunk_size: int = 1000
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.arm_dof <= 0:
+            problems.append(f"arm_dof must be positive, got {self.arm_dof}")
+        if self.fps <= 0:
+            problems.append(f"fps must be positive, got {self.fps}")
+        names = [c.name for c in self.cameras]
+        if len(set(names)) != len(names):
+            problems.append(f"camera names must be unique, got {names}")
+        if self.data_files_size_mb <= 0 or self.video_files_size_mb <= 0 or self.chunk_size <= 0:
+            problems.append("file sizes and chunk_size must be positive")
+        if problems:
+            raise ValueError("; ".join(problems))
+
+    @property
+    def state_dim(self) -> int:
+        return self.arm_dof + 7 + 3
+
+    @property
+    def action_dim(self) -> int:
+        return self.arm_dof + 7 + 3 + 1 + 1
+
+    def state_names(self) -> list[str]:
+        return [
+            *(f"arm_q{i}" for i in range(self.arm_dof)),
+            "ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz",
+            "base_x", "base_y", "base_theta",
+        ]  # fmt: skip
+
+    def action_names(self) -> list[str]:
+        return [
+            *(f"arm_q{i}_target" for i in range(self.arm_dof)),
+            "ee_x_target", "ee_y_target", "ee_z_target",
+            "ee_qw_target", "ee_qx_target", "ee_qy_target", "ee_qz_target",
+            "base_vx", "base_vy", "base_vtheta", "gripper", "mode",
+        ]  # fmt: skip
+
+    def rgb_keys(self) -> dict[str, str]:
+        """camera name -> feature key of its RGB video."""
+        return {c.name: RGB_KEY.format(camera=c.name) for c in self.cameras if c.rgb}
+
+    def depth_keys(self) -> dict[str, str]:
+        """camera name -> feature key of its depth image."""
+        return {c.name: DEPTH_KEY.format(camera=c.name) for c in self.cameras if c.depth}
+
+    def features(self) -> dict[str, dict[str, Any]]:
+        """The lerobot ``features`` dict (``meta/info.json``) of this spec."""
+        feats: dict[str, dict[str, Any]] = {
+            STATE_KEY: {"dtype": "float32", "shape": (self.state_dim,), "names": self.state_names()},
+            ACTION_KEY: {"dtype": "float32", "shape": (self.action_dim,), "names": self.action_names()},
+        }
+        hwc = ["height", "width", "channels"]
+        for cam in self.cameras:
+            if cam.rgb:
+                feats[RGB_KEY.format(camera=cam.name)] = {
+                    "dtype": "video", "shape": (cam.height, cam.width, 3), "names": hwc,
+                }  # fmt: skip
+            if cam.depth:
+                feats[DEPTH_KEY.format(camera=cam.name)] = {
+                    "dtype": "image", "shape": (cam.height, cam.width, 1), "names": hwc,
+                    "info": {"is_depth_map": True, "depth_unit": "mm"},
+                }  # fmt: skip
+        return feats
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-able description (written to the shard's and the merged dataset's sidecar)."""
+        return {
+            "arm_dof": self.arm_dof, "fps": self.fps, "robot_type": self.robot_type,
+            "cameras": [vars(c).copy() for c in self.cameras], "video": vars(self.video).copy(),
+            "data_files_size_mb": self.data_files_size_mb, "video_files_size_mb": self.video_files_size_mb,
+            "chunk_size": self.chunk_size,
+        }  # fmt: skip
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DatasetSpec:
+        d = dict(data)
+        d["cameras"] = tuple(CameraSpec(**c) for c in d["cameras"])
+        d["video"] = VideoCodecSpec(**d["video"])
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class EpisodeInfo:
+    """What the recorder knows about an episode before it runs.
+
+    task: the language instruction (lerobot's ``task``); task_kind: the task family
+    (e.g. ``pick_place``); scene_id: the scene it ran in; seed: the episode's seed;
+    asset_ids: ids of the assets involved (target object, container, ...).
+    """
+
+    task: str
+    task_kind: str
+    scene_id: str
+    seed: int
+    asset_ids: tuple[str, ...] = ()
+
+    def problems(self) -> list[str]:
+        out = []
+        if not self.task.strip():
+            out.append("task text is empty")
+        if not self.task_kind or not self.scene_id:
+            out.append("task_kind and scene_id must be non-empty")
+        if not 0 <= int(self.seed) < 2**63:
+            out.append(f"seed must be in [0, 2**63), got {self.seed}")
+        return out
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One recorded time step (all arrays numpy; angles [rad], lengths [m], depth [mm]).
+
+    arm_joint_pos (arm_dof,); ee_pose (7,) xyz + quat wxyz; base_pose (3,) x, y, theta;
+    arm_joint_target (arm_dof,); ee_target (7,); base_velocity (3,) vx, vy [m/s], vtheta [rad/s];
+    gripper in [0, 1]; mode 0 (locomotion) or 1 (manipulation);
+    rgb: camera -> uint8 (H, W, 3); depth_mm: camera -> uint16 (H, W) or (H, W, 1)
+    (use :func:`depth_m_to_mm` to convert a float depth map in metres).
+    """
+
+    arm_joint_pos: np.ndarray
+    ee_pose: np.ndarray
+    base_pose: np.ndarray
+    arm_joint_target: np.ndarray
+    ee_target: np.ndarray
+    base_velocity: np.ndarray
+    gripper: float
+    mode: int
+    rgb: Mapping[str, np.ndarray]
+    depth_mm: Mapping[str, np.ndarray]
+
+    def state(self) -> np.ndarray:
+        """float32 (arm_dof + 10,)."""
+        return np.concatenate([self.arm_joint_pos, self.ee_pose, self.base_pose]).astype(np.float32)
+
+    def action(self) -> np.ndarray:
+        """float32 (arm_dof + 12,)."""
+        return np.concatenate(
+            [self.arm_joint_target, self.ee_target, self.base_velocity, [self.gripper, self.mode]]
+        ).astype(np.float32)
+
+
+def depth_m_to_mm(depth_m: np.ndarray) -> np.ndarray:
+    """float depth [m] (H, W) -> uint16 [mm], rounded; non-finite or <= 0 -> 0 (no return), clipped at 65.535 m."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    mm = np.where(np.isfinite(d) & (d > 0), np.rint(d * 1000.0), 0.0)
+    return np.clip(mm, 0, DEPTH_MAX_MM).astype(np.uint16)
+
+
+def _vector_problems(name: str, value: Any, dim: int) -> list[str]:
+    arr = np.asarray(value)
+    if arr.shape != (dim,):
+        return [f"{name}: shape {arr.shape}, expected ({dim},)"]
+    if not np.issubdtype(arr.dtype, np.number):
+        return [f"{name}: dtype {arr.dtype} is not numeric"]
+    if not np.all(np.isfinite(arr)):
+        return [f"{name}: contains NaN or inf"]
+    return []
+
+
+def _quat_problems(name: str, pose: Any) -> list[str]:
+    arr = np.asarray(pose, dtype=np.float64)
+    if arr.shape == (7,) and np.all(np.isfinite(arr)) and abs(float(np.linalg.norm(arr[3:])) - 1.0) > 1e-3:
+        return [f"{name}: quaternion norm {np.linalg.norm(arr[3:]):.4f}, expected 1 (wxyz)"]
+    return []
+
+
+def _image_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
+    out = []
+    for cam in spec.cameras:
+        if cam.rgb:
+            img = frame.rgb.get(cam.name)
+            if img is None:
+                out.append(f"rgb[{cam.name!r}] missing")
+            elif not isinstance(img, np.ndarray) or img.dtype != np.uint8 or img.shape != (cam.height, cam.width, 3):
+                out.append(f"rgb[{cam.name!r}]: expected uint8 ({cam.height}, {cam.width}, 3), got "
+                           f"{getattr(img, 'dtype', type(img))} {getattr(img, 'shape', '')}")  # fmt: skip
+        if cam.depth:
+            d = frame.depth_mm.get(cam.name)
+            shapes = ((cam.height, cam.width), (cam.height, cam.width, 1))
+            if d is None:
+                out.append(f"depth_mm[{cam.name!r}] missing")
+            elif not isinstance(d, np.ndarray) or d.dtype != np.uint16 or d.shape not in shapes:
+                out.append(f"depth_mm[{cam.name!r}]: expected uint16 ({cam.height}, {cam.width}), got "
+                           f"{getattr(d, 'dtype', type(d))} {getattr(d, 'shape', '')}")  # fmt: skip
+    extra_rgb = set(frame.rgb) - set(spec.rgb_keys())
+    extra_depth = set(frame.depth_mm) - set(spec.depth_keys())
+    if extra_rgb:
+        out.append(f"rgb has cameras not in the spec: {sorted(extra_rgb)}")
+    if extra_depth:
+        out.append(f"depth_mm has cameras not in the spec: {sorted(extra_depth)}")
+    return out
+
+
+def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
+    """Every way ``frame`` does not match ``spec`` (empty list: valid)."""
+    n = spec.arm_dof
+    out = [
+        *_vector_problems("arm_joint_pos", frame.arm_joint_pos, n),
+        *_vector_problems("ee_pose", frame.ee_pose, 7),
+        *_quat_problems("ee_pose", frame.ee_pose),
+        *_vector_problems("base_pose", frame.base_pose, 3),
+        *_vector_problems("arm_joint_target", frame.arm_joint_target, n),
+        *_vector_problems("ee_target", frame.ee_target, 7),
+        *_quat_problems("ee_target", frame.ee_target),
+        *_vector_problems("base_velocity", frame.base_velocity, 3),
+    ]
+    if not (isinstance(frame.gripper, (int, float, np.floating, np.integer)) and math.isfinite(frame.gripper)
+            and 0.0 <= float(frame.gripper) <= 1.0):  # fmt: skip
+        out.append(f"gripper must be a number in [0, 1], got {frame.gripper!r}")
+    if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
+        out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
+    out.extend(_image_problems(spec, frame))
+    return out
+
+
+def validate_frame(spec: DatasetSpec, frame: Frame, where: str = "frame") -> None:
+    """Raise one :class:`FrameError` listing every problem of ``frame`` (nothing if it is valid)."""
+    problems = frame_problems(spec, frame)
+    if problems:
+        raise FrameError(f"{where}: {len(problems)} problem(s): " + "; ".join(problems))
+
+
+def episode_columns(info: EpisodeInfo, success: bool) -> dict[str, Any]:
+    """The extra ``meta/episodes`` columns of one written episode."""
+    p = EPISODE_COLUMN_PREFIX
+    return {
+        f"{p}task_kind": info.task_kind,
+        f"{p}scene_id": info.scene_id,
+        f"{p}seed": int(info.seed),
+        f"{p}asset_ids": list(info.asset_ids),
+        f"{p}success": bool(success),
+    }

@@ -1,0 +1,124 @@
+"""Shards: each worker writes its own LeRobot dataset; a shard is complete or absent.
+
+A shard ``<shards_dir>/<shard_id>`` is written in a temporary sibling folder
+``<shards_dir>/.tmp-<shard_id>-<pid>-<nonce>`` and renamed into place (one atomic ``rename``) only after
+lerobot finalized every file and the sidecar ``meta/agentworld.json`` was written. A worker killed at
+any point (even ``kill -9``) leaves at most a ``.tmp-*`` folder, which no reader lists and which the next
+writer of the same shard id (or :func:`clean_stale_temps`) deletes.
+
+Usage by the recorder::
+
+    with open_shard(shards_dir, "worker-003", spec) as shard:
+        shard.begin_episode(EpisodeInfo(task="put the mug in the bowl", task_kind="pick_place",
+                                        scene_id="scene-0007", seed=seed, asset_ids=("mug_02", "bowl_01")))
+        for step in ...: shard.add_frame(Frame(...))
+        shard.end_episode(success=ok, reason=failure_reason)
+    # leaving the block publishes the shard; an exception deletes the temporary folder instead
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import secrets
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from .schema import DatasetSpec
+from .writer import SIDECAR_PATH, EpisodeWriter, WriterStats, read_sidecar
+
+logger = logging.getLogger(__name__)
+
+TEMP_PREFIX = ".tmp-"
+_SHARD_ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+class ShardExistsError(FileExistsError):
+    """The shard was already completed (a finished shard is never overwritten)."""
+
+
+@dataclass(frozen=True)
+class ShardInfo:
+    """A complete shard on disk: its folder, id, and the counts of its sidecar."""
+
+    path: Path
+    shard_id: str
+    episodes: int
+    frames: int
+    failures: dict[str, int]
+
+
+class ShardWriter(EpisodeWriter):
+    """An :class:`EpisodeWriter` writing into a temporary folder, renamed to ``final`` on close()."""
+
+    def __init__(self, shards_dir: Path, shard_id: str, spec: DatasetSpec, **kwargs) -> None:
+        if not _SHARD_ID_RE.match(shard_id):
+            raise ValueError(f"shard id {shard_id!r} must match [A-Za-z0-9][A-Za-z0-9_.-]*")
+        self.shards_dir = Path(shards_dir)
+        self.shard_id = shard_id
+        self.final = self.shards_dir / shard_id
+        temp = self.shards_dir / f"{TEMP_PREFIX}{shard_id}-{os.getpid()}-{secrets.token_hex(4)}"
+        kwargs.setdefault("repo_id", f"agentworld/{shard_id}")
+        super().__init__(temp, spec, **kwargs)
+
+    def open(self) -> ShardWriter:
+        if self.final.exists():
+            raise ShardExistsError(f"{self.final}: shard already complete")
+        self.shards_dir.mkdir(parents=True, exist_ok=True)
+        removed = clean_stale_temps(self.shards_dir, shard_id=self.shard_id)
+        if removed:
+            logger.warning("%s: removed %d interrupted temporary folder(s)", self.final, len(removed))
+        super().open()
+        return self
+
+    def close(self) -> WriterStats:
+        stats = super().close()
+        _fsync_dir(self.root)
+        os.rename(self.root, self.final)  # atomic on one filesystem; fails if final appeared meanwhile
+        _fsync_dir(self.shards_dir)
+        self.root = self.final
+        return stats
+
+
+def open_shard(shards_dir: Path, shard_id: str, spec: DatasetSpec, **kwargs) -> ShardWriter:
+    """A shard writer (use as a context manager); kwargs go to :class:`EpisodeWriter`."""
+    return ShardWriter(shards_dir, shard_id, spec, **kwargs)
+
+
+def clean_stale_temps(shards_dir: Path, shard_id: str | None = None) -> list[Path]:
+    """Delete temporary folders of interrupted writers: of ``shard_id`` only, or all (only when no
+    writer of ``shards_dir`` is running). Returns the deleted folders."""
+    shards_dir = Path(shards_dir)
+    if not shards_dir.is_dir():
+        return []
+    pattern = f"{TEMP_PREFIX}{shard_id}-*" if shard_id else f"{TEMP_PREFIX}*"
+    removed = []
+    for path in sorted(shards_dir.glob(pattern)):
+        if shard_id and not re.fullmatch(rf"{re.escape(TEMP_PREFIX + shard_id)}-\d+-[0-9a-f]+", path.name):
+            continue  # another shard whose id starts with this one
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(path)
+    return removed
+
+
+def list_shards(shards_dir: Path) -> list[ShardInfo]:
+    """The complete shards of ``shards_dir``, sorted by id (temporary folders are never listed)."""
+    out = []
+    for path in sorted(Path(shards_dir).iterdir()) if Path(shards_dir).is_dir() else []:
+        if path.name.startswith(".") or not path.is_dir():
+            continue
+        if not (path / SIDECAR_PATH).is_file():
+            raise FileNotFoundError(f"{path}: not a complete shard (no {SIDECAR_PATH}); remove it or rewrite it")
+        meta = read_sidecar(path)
+        out.append(ShardInfo(path, path.name, meta["episodes_written"], meta["frames_written"], meta["failures"]))
+    return out
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
