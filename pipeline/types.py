@@ -89,6 +89,11 @@ class PlanContext:
     work_dir: Path
     seed: int
     previous: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # Added by the runner (additive): the name of the step being planned/finalized, and the items of
+    # this and earlier steps that failed, by step name ({item_id: one-line reason}). In ``finalize``,
+    # ``previous[step]`` holds this step's succeeded results and ``failed[step]`` its failures.
+    step: str = ""
+    failed: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,1 @@
+"""Internals of the batch runner; the public surface is ``pipeline`` itself."""
