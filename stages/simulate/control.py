@@ -1,0 +1,249 @@
+"""Robot control: base velocity, arm joint targets, gripper, and end-effector targets by CLIK.
+
+- Base: a command a = (vx, vy, v_theta) in the base frame [m/s, m/s, rad/s] per world. Before
+  every physics step it is rotated into the spawn frame with the current yaw and written as the
+  velocity targets of the base's x, y, yaw joints (velocity drives with force limits, so a wall
+  stops the base instead of the base going through it).
+- Arm: position targets for the 7 joints [rad], clipped to the joint limits.
+- Gripper: a command in [0, 1] (0 open, 1 closed) mapped linearly to both finger targets; the
+  finger force limit bounds the grip force.
+- End-effector: :class:`Clik`, closed-loop inverse kinematics on the Pinocchio model of the same
+  URDF: damped least squares on the SE(3) log error, step clipped, joint limits enforced by
+  clipping every iterate; optionally the base joints move too.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from stages.simulate.robot import RobotDescription
+
+log = logging.getLogger(__name__)
+
+
+def _base_kernel():
+    import warp as wp
+
+    @wp.kernel
+    def base_velocity_to_joint_targets(
+        cmd: wp.array[wp.vec3f], joint_q: wp.array[wp.float32], target_qd: wp.array[wp.float32],
+        yaw_coord: int, dof_x: int, dof_y: int, dof_yaw: int, coords_per_world: int, dofs_per_world: int,
+    ):
+        w = wp.tid()
+        c = cmd[w]
+        th = joint_q[yaw_coord + w * coords_per_world]
+        s = wp.sin(th)
+        co = wp.cos(th)
+        o = w * dofs_per_world
+        target_qd[dof_x + o] = co * c[0] - s * c[1]
+        target_qd[dof_y + o] = s * c[0] + co * c[1]
+        target_qd[dof_yaw + o] = c[2]
+
+    return base_velocity_to_joint_targets
+
+
+_KERNEL = None
+
+
+class RobotControl:
+    """Commands for the robot in every world of a Sim; registers itself as a pre-step callback.
+
+    Arrays: base commands (W, 3); arm and finger targets are written straight into
+    ``sim.control.joint_target_q``.
+    """
+
+    def __init__(self, sim) -> None:
+        import warp as wp
+
+        global _KERNEL
+        if _KERNEL is None:
+            _KERNEL = _base_kernel()
+        self.sim = sim
+        self.desc: RobotDescription = sim.desc
+        nw = sim.world_count
+        self._cmd_np = np.zeros((nw, 3), np.float32)
+        self._cmd = wp.zeros(nw, dtype=wp.vec3f, device=sim.model.device)
+        lo = sim.model.joint_limit_lower.numpy()
+        hi = sim.model.joint_limit_upper.numpy()
+        self.arm_lower = np.array([lo[sim.robot.dof[n]] for n in self.desc.arm_joints])
+        self.arm_upper = np.array([hi[sim.robot.dof[n]] for n in self.desc.arm_joints])
+        self._dirty = False
+        self._targets = sim.control.joint_target_q.numpy().copy()
+        sim.pre_step.append(self._pre_step)
+
+    # -- commands -------------------------------------------------------------------------
+    def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
+        """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""
+        sel = slice(None) if world is None else world
+        self._cmd_np[sel] = (vx, vy, vtheta)
+        self._cmd.assign(self._cmd_np)
+
+    def set_arm_targets(self, q: np.ndarray, world: int | None = None) -> None:
+        """Arm joint position targets (7,) [rad], clipped to the limits."""
+        q = np.clip(np.asarray(q, float), self.arm_lower, self.arm_upper)
+        for w in self._worlds(world):
+            for i, n in enumerate(self.desc.arm_joints):
+                self._targets[self.sim.world_coord(n, w)] = q[i]
+        self._dirty = True
+
+    def set_gripper(self, command: float, world: int | None = None) -> None:
+        """Gripper command in [0, 1]: 0 fully open, 1 fully closed."""
+        g = self.desc.gripper
+        c = float(np.clip(command, 0.0, 1.0))
+        q = g.open_q + c * (g.closed_q - g.open_q)
+        for w in self._worlds(world):
+            for n in g.finger_joints:
+                self._targets[self.sim.world_coord(n, w)] = q
+        self._dirty = True
+
+    def arm_targets(self, world: int = 0) -> np.ndarray:
+        return np.array([self._targets[self.sim.world_coord(n, world)] for n in self.desc.arm_joints])
+
+    def _worlds(self, world):
+        return range(self.sim.world_count) if world is None else (world,)
+
+    # -- per-step --------------------------------------------------------------------------
+    def _pre_step(self, sim) -> None:
+        import warp as wp
+
+        if self._dirty:
+            sim.control.joint_target_q.assign(self._targets.astype(np.float32))
+            self._dirty = False
+        r = sim.robot
+        wp.launch(_KERNEL, dim=sim.world_count, device=sim.model.device,
+                  inputs=[self._cmd, sim.state_0.joint_q, sim.control.joint_target_qd, r.coord["base_yaw"],
+                          r.dof["base_x"], r.dof["base_y"], r.dof["base_yaw"], sim.coords_per_world,
+                          sim.dofs_per_world])
+
+
+# --------------------------------------------------------------------------------------------
+# CLIK
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class IkResult:
+    """q: full Pinocchio configuration (nq,); success: within tolerance; position_error [m];
+    rotation_error [rad]; iterations."""
+
+    q: np.ndarray
+    success: bool
+    position_error: float
+    rotation_error: float
+    iterations: int
+
+
+class Clik:
+    """Closed-loop IK for the robot's end-effector frame on its Pinocchio model.
+
+    Poses are 4x4 in the robot root (spawn) frame; use :meth:`world_to_root` for world targets.
+    ``move_base``: also use the base x, y, yaw joints.
+    """
+
+    def __init__(self, desc: RobotDescription, *, damping: float = 1e-3, max_step: float = 0.2,
+                 move_base: bool = False) -> None:
+        import pinocchio as pin
+
+        from stages.simulate.robot import build_pinocchio_model
+
+        self.desc = desc
+        self.model = build_pinocchio_model(desc)
+        self.data = self.model.createData()
+        self.frame = self.model.getFrameId(desc.ee_frame)
+        self.damping = damping
+        self.max_step = max_step
+        names = list(desc.arm_joints) + (list(desc.base_joints) if move_base else [])
+        self.v_idx = np.array([self.model.joints[self.model.getJointId(n)].idx_v for n in names])
+        self.q_idx = {n: self.model.joints[self.model.getJointId(n)].idx_q for n in self.model.names[1:]}
+        self.lower = self.model.lowerPositionLimit.copy()
+        self.upper = self.model.upperPositionLimit.copy()
+        self._pin = pin
+
+    def neutral(self) -> np.ndarray:
+        q = self._pin.neutral(self.model)
+        for n, v in zip(self.desc.arm_joints, self.desc.arm_home):
+            q[self.q_idx[n]] = v
+        for n in self.desc.gripper.finger_joints:
+            q[self.q_idx[n]] = self.desc.gripper.open_q
+        return q
+
+    def fk(self, q: np.ndarray, frame: str | None = None) -> np.ndarray:
+        """4x4 pose of ``frame`` (default: the end-effector) in the root frame."""
+        pin = self._pin
+        pin.framesForwardKinematics(self.model, self.data, q)
+        fid = self.frame if frame is None else self.model.getFrameId(frame)
+        return self.data.oMf[fid].homogeneous.copy()
+
+    def arm_q(self, q: np.ndarray) -> np.ndarray:
+        return np.array([q[self.q_idx[n]] for n in self.desc.arm_joints])
+
+    def with_arm(self, q: np.ndarray, arm: np.ndarray) -> np.ndarray:
+        q = q.copy()
+        for n, v in zip(self.desc.arm_joints, arm):
+            q[self.q_idx[n]] = v
+        return q
+
+    def solve(self, target: np.ndarray, q0: np.ndarray, *, max_iters: int = 300, pos_tol: float = 1e-4,
+              rot_tol: float = 1e-3) -> IkResult:
+        """Damped least squares: dq = J^T (J J^T + lambda I)^-1 e, with e the SE(3) log error in the
+        local frame; iterates are clipped to the joint limits. ``target`` 4x4 in the root frame."""
+        pin = self._pin
+        goal = pin.SE3(np.asarray(target, float))
+        q = np.clip(np.asarray(q0, float).copy(), self.lower, self.upper)
+        err = np.zeros(6)
+        for it in range(1, max_iters + 1):
+            pin.framesForwardKinematics(self.model, self.data, q)
+            cur = self.data.oMf[self.frame]
+            err = pin.log6(cur.actInv(goal)).vector
+            if np.linalg.norm(err[:3]) < pos_tol and np.linalg.norm(err[3:]) < rot_tol:
+                break
+            pin.computeJointJacobians(self.model, self.data, q)
+            jac = pin.getFrameJacobian(self.model, self.data, self.frame, pin.LOCAL)[:, self.v_idx]
+            jjt = jac @ jac.T + self.damping * np.eye(6)
+            dv = jac.T @ np.linalg.solve(jjt, err)
+            n = np.linalg.norm(dv)
+            if n > self.max_step:
+                dv *= self.max_step / n
+            v = np.zeros(self.model.nv)
+            v[self.v_idx] = dv
+            q = np.clip(pin.integrate(self.model, q, v), self.lower, self.upper)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        m = self.data.oMf[self.frame]
+        pe = float(np.linalg.norm(m.translation - goal.translation))
+        re = float(np.linalg.norm(pin.log3(m.rotation.T @ goal.rotation)))
+        return IkResult(q=q, success=pe < max(pos_tol, 1e-3) and re < max(rot_tol, 1e-2), position_error=pe,
+                        rotation_error=re, iterations=it)
+
+    @staticmethod
+    def world_to_root(spawn_xy_yaw, pose_world: np.ndarray) -> np.ndarray:
+        """A world 4x4 pose expressed in the robot root (spawn) frame."""
+        x, y, yaw = spawn_xy_yaw
+        c, s = np.cos(yaw), np.sin(yaw)
+        t = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+        return np.linalg.inv(t) @ np.asarray(pose_world, float)
+
+    def from_sim(self, sim, world: int = 0) -> np.ndarray:
+        """The Pinocchio configuration (nq,) of the robot's current joint positions in ``sim``."""
+        jq = sim.state_0.joint_q.numpy()
+        q = self._pin.neutral(self.model)
+        for n, i in self.q_idx.items():
+            q[i] = jq[sim.world_coord(n, world)]
+        return q
+
+
+def pose(position, rotation=None) -> np.ndarray:
+    """4x4 from a position (3,) and a rotation matrix (3, 3) (default identity)."""
+    m = np.eye(4)
+    m[:3, 3] = position
+    if rotation is not None:
+        m[:3, :3] = rotation
+    return m
+
+
+def top_down(yaw: float = 0.0) -> np.ndarray:
+    """Rotation of a gripper pointing straight down (tool Z along world -Z), fingers closing along
+    the world direction at angle ``yaw`` + 90 deg."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])

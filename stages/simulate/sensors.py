@@ -1,0 +1,363 @@
+"""Cameras: Newton ``SensorCamera`` RGB, depth and segmentation for a robot's head and wrist
+cameras and fixed third-person cameras, with intrinsics, extrinsics and the scene's lights.
+
+Conventions: a camera frame looks along its local -Z with +Y up and +X right (USD/OpenGL, what
+SensorCamera uses); :attr:`CameraFrame.extrinsics` gives camera-to-world 4x4 in that convention
+and :meth:`CameraFrame.extrinsics_opencv` the world-to-camera 4x4 in the OpenCV convention
+(+Z forward, +Y down). Depth is the planar (forward) depth [m] along the optical axis, 0 where a
+ray hit nothing. Segmentation is the model shape index per pixel (-1 for no hit) and its
+semantic label through ``Sim.shape_label`` (UsdSemantics labels read when the scene was loaded;
+"robot" for the robot).
+
+Lights. SensorCamera renders directional lights, spot lights and point lights (an internal type
+without a spot cone) with Lambert shading, quadratic falloff ``1 / (1 + 0.02 d^2)`` for local
+lights, optional shadows, and hemispheric ambient light. Newton 1.8 does not import UsdLux lights
+itself, so :func:`read_usd_lights` reads them and :func:`apply_lights` maps them:
+
+==================  =========================================================================
+UsdLux              renderer
+==================  =========================================================================
+DistantLight        directional light along the light's -Z, shadows on
+SphereLight         point light at its position (spot light if it has ShapingAPI cone < 90 deg)
+RectLight/DiskLight spot light at its position pointing along its -Z (fixed ~30 deg cone:
+                    the renderer's cone is not adjustable)
+CylinderLight       point light
+DomeLight           ambient sky colour (textures ignored)
+==================  =========================================================================
+
+Radiance: ``colour * intensity * 2^exposure`` (colour temperature ignored), times the emitter
+area [m^2] for local lights (UsdLux intensity is per unit area), then times ``LIGHT_SCALE``.
+The renderer's lights are private arrays of its render context in Newton 1.8 (only one default
+light is public); this module writes them and falls back to the default light when a scene has
+none. When Newton imports USD lights itself this mapping should be dropped.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+LIGHT_SCALE = 1.0
+SPOT, DIRECTIONAL, POINT = 0, 1, 2
+
+
+@dataclass(frozen=True, kw_only=True)
+class UsdLight:
+    """A UsdLux light in world coordinates: kind (the USD type name), position [m] (3,),
+    direction (3,) (the light's -Z axis, where it shines), color linear RGB, intensity, exposure,
+    area [m^2] of the emitter (1 for distant and dome lights), cone_angle [deg] (ShapingAPI, or
+    None), path."""
+
+    kind: str
+    path: str
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    color: tuple[float, float, float]
+    intensity: float
+    exposure: float
+    area: float
+    cone_angle: float | None = None
+
+    @property
+    def radiance(self) -> np.ndarray:
+        return np.asarray(self.color) * self.intensity * 2.0 ** self.exposure * self.area * LIGHT_SCALE
+
+
+def read_usd_lights(stage) -> tuple[UsdLight, ...]:
+    """Every UsdLux light of the stage (world transforms, Z up)."""
+    from pxr import Usd, UsdGeom, UsdLux
+
+    lights = []
+    cache = UsdGeom.XformCache(Usd.TimeCode.Default())
+    for prim in stage.Traverse():
+        if not prim.HasAPI(UsdLux.LightAPI):
+            continue
+        api = UsdLux.LightAPI(prim)
+        m = np.array(cache.GetLocalToWorldTransform(prim), float).T  # USD row-vector -> column
+        pos = m[:3, 3]
+        d = -m[:3, 2]
+        d = d / (np.linalg.norm(d) or 1.0)
+        kind = prim.GetTypeName()
+        area = 1.0
+        if kind == "SphereLight":
+            r = UsdLux.SphereLight(prim).GetRadiusAttr().Get() or 0.5
+            area = 4 * np.pi * r * r
+        elif kind == "RectLight":
+            lt = UsdLux.RectLight(prim)
+            area = (lt.GetWidthAttr().Get() or 1.0) * (lt.GetHeightAttr().Get() or 1.0)
+        elif kind == "DiskLight":
+            r = UsdLux.DiskLight(prim).GetRadiusAttr().Get() or 0.5
+            area = np.pi * r * r
+        elif kind == "CylinderLight":
+            lt = UsdLux.CylinderLight(prim)
+            area = 2 * np.pi * (lt.GetRadiusAttr().Get() or 0.5) * (lt.GetLengthAttr().Get() or 1.0)
+        cone = None
+        if prim.HasAPI(UsdLux.ShapingAPI):
+            cone = UsdLux.ShapingAPI(prim).GetShapingConeAngleAttr().Get()
+        color = api.GetColorAttr().Get()
+        lights.append(UsdLight(
+            kind=kind, path=str(prim.GetPath()), position=tuple(map(float, pos)), direction=tuple(map(float, d)),
+            color=tuple(map(float, color if color is not None else (1, 1, 1))),
+            intensity=float(api.GetIntensityAttr().Get() or 1.0), exposure=float(api.GetExposureAttr().Get() or 0.0),
+            area=float(area), cone_angle=None if cone is None else float(cone)))
+    return tuple(lights)
+
+
+@dataclass(frozen=True)
+class RendererLight:
+    """A light as the renderer takes it: type (SPOT, DIRECTIONAL, POINT), position, direction,
+    color (radiance), shadows."""
+
+    type: int
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    color: tuple[float, float, float]
+    cast_shadow: bool
+    source: str
+
+
+def map_lights(lights: Sequence[UsdLight]) -> tuple[list[RendererLight], np.ndarray | None]:
+    """The renderer lights and the ambient sky colour (from dome lights, or None)."""
+    out: list[RendererLight] = []
+    sky = None
+    for lt in lights:
+        c = tuple(float(x) for x in lt.radiance)
+        if lt.kind == "DomeLight":
+            sky = np.asarray(c) if sky is None else sky + c
+            continue
+        if lt.kind == "DistantLight":
+            t, shadow = DIRECTIONAL, True
+        elif lt.kind in ("RectLight", "DiskLight"):
+            t, shadow = SPOT, False
+        elif lt.kind == "SphereLight" and lt.cone_angle is not None and lt.cone_angle < 90.0:
+            t, shadow = SPOT, False
+        else:
+            t, shadow = POINT, False
+        out.append(RendererLight(t, lt.position, lt.direction, c, shadow, lt.path))
+    return out, sky
+
+
+def apply_lights(camera, lights: Sequence[UsdLight]) -> list[RendererLight]:
+    """Install the scene lights in a SensorCamera (see the module doc); returns what was used."""
+    import warp as wp
+
+    mapped, sky = map_lights(lights)
+    if not mapped:
+        camera.create_default_light(enable_shadows=True)
+        log.info("scene has no UsdLux lights: using the renderer's default directional light")
+    else:
+        rc = camera._render_context  # Newton 1.8 keeps scene lights private (see module doc)
+        dev = rc.device
+        rc._lights_active = wp.array([True] * len(mapped), dtype=wp.bool, device=dev)
+        rc._lights_type = wp.array([m.type for m in mapped], dtype=wp.int32, device=dev)
+        rc._lights_cast_shadow = wp.array([m.cast_shadow for m in mapped], dtype=wp.bool, device=dev)
+        rc._lights_position = wp.array([wp.vec3f(*m.position) for m in mapped], dtype=wp.vec3f, device=dev)
+        rc._lights_orientation = wp.array([wp.vec3f(*m.direction) for m in mapped], dtype=wp.vec3f, device=dev)
+        rc._lights_color = wp.array([wp.vec3f(*m.color) for m in mapped], dtype=wp.vec3f, device=dev)
+    if sky is not None:
+        camera.set_ambient_light(tuple(sky), tuple(0.3 * sky))
+    return mapped
+
+
+# --------------------------------------------------------------------------------------------
+# Cameras
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class CameraSpec:
+    """A camera. link: robot link it rides on (its frame is the optical frame), or None for a
+    fixed camera at ``pose`` (camera-to-world 4x4, optical frame). width, height [px];
+    vertical_fov [rad]."""
+
+    name: str
+    width: int = 128
+    height: int = 128
+    vertical_fov: float = 1.0
+    link: str | None = None
+    pose: tuple[tuple[float, ...], ...] | None = None
+
+    @property
+    def intrinsics(self) -> "Intrinsics":
+        fy = 0.5 * self.height / np.tan(0.5 * self.vertical_fov)
+        return Intrinsics(width=self.width, height=self.height, fx=fy, fy=fy, cx=self.width / 2.0,
+                          cy=self.height / 2.0, vertical_fov=self.vertical_fov)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Intrinsics:
+    """Pinhole intrinsics [px]: fx, fy focal lengths, (cx, cy) principal point (pixel-edge
+    origin: pixel (u, v) centre is at (u + 0.5, v + 0.5)); vertical_fov [rad]."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    vertical_fov: float
+
+    def matrix(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[tuple[float, ...], ...]:
+    """Camera-to-world 4x4 of a camera at ``eye`` looking at ``target`` (optical frame, -Z forward)."""
+    from stages.simulate.robot import look_rotation
+
+    m = np.eye(4)
+    m[:3, :3] = look_rotation(np.asarray(target, float) - np.asarray(eye, float), np.asarray(up, float))
+    m[:3, 3] = eye
+    return tuple(tuple(float(v) for v in row) for row in m)
+
+
+def robot_cameras(desc) -> list[CameraSpec]:
+    """The head and wrist cameras of a robot description."""
+    return [CameraSpec(name=n, width=c.width, height=c.height, vertical_fov=c.vertical_fov, link=c.link)
+            for n, c in desc.cameras.items()]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraFrame:
+    """One camera's images over the rendered worlds. rgb (V, H, W, 3) uint8 sRGB; depth (V, H, W)
+    float32 planar depth [m] (0: no hit); shape (V, H, W) int32 shape index (-1: no hit);
+    extrinsics (V, 4, 4) camera-to-world (optical frame -Z forward, +Y up); worlds (V,)."""
+
+    name: str
+    intrinsics: Intrinsics
+    rgb: np.ndarray | None
+    depth: np.ndarray | None
+    shape: np.ndarray | None
+    extrinsics: np.ndarray
+    worlds: np.ndarray
+
+    def labels(self, shape_label: np.ndarray) -> np.ndarray:
+        """Semantic label per pixel (V, H, W) (str; '' where nothing was hit)."""
+        lab = np.concatenate([np.asarray(shape_label, dtype=object), np.array([""], dtype=object)])
+        idx = np.where(self.shape < 0, len(lab) - 1, self.shape)
+        return lab[idx]
+
+    def extrinsics_opencv(self) -> np.ndarray:
+        """World-to-camera (V, 4, 4) in the OpenCV convention (+Z forward, +Y down)."""
+        flip = np.diag([1.0, -1.0, -1.0, 1.0])
+        return np.linalg.inv(self.extrinsics @ flip)
+
+
+@dataclass
+class CameraRig:
+    """Renders a set of cameras in every world of a :class:`~stages.simulate.world.Sim`.
+
+    The third-person cameras are fixed in each world's frame (worlds share coordinates)."""
+
+    sim: object
+    cameras: list[CameraSpec]
+    rgb: bool = True
+    depth: bool = True
+    segmentation: bool = True
+    lights_used: list[RendererLight] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        import warp as wp
+        from newton.sensors import SensorCamera
+
+        model = self.sim.model
+        self._sensor = SensorCamera(model, load_textures=False)
+        self.lights_used = apply_lights(self._sensor, self.sim.scene.lights)
+        dev = model.device
+        self._rays = {}
+        self._images = {}
+        nw = self.sim.world_count
+        for c in self.cameras:
+            self._rays[c.name] = SensorCamera.compute_camera_rays_pinhole(c.width, c.height,
+                                                                          camera_fov=c.vertical_fov, device=dev)
+            self._images[c.name] = dict(
+                color=self._sensor.allocate_image_color(nw, c.width, c.height) if self.rgb else None,
+                depth=self._sensor.allocate_image_depth_forward(nw, c.width, c.height) if self.depth else None,
+                shape=self._sensor.allocate_image_shape_index(nw, c.width, c.height) if self.segmentation else None)
+        self._world_ids = wp.array(np.arange(nw, dtype=np.int32), dtype=wp.int32, device=dev)
+
+    def camera_to_world(self, cam: CameraSpec) -> np.ndarray:
+        """(W, 4, 4) camera-to-world per world for the current state."""
+        from scipy.spatial.transform import Rotation
+
+        nw = self.sim.world_count
+        if cam.link is None:
+            return np.repeat(np.asarray(cam.pose, float)[None], nw, axis=0)
+        bq = self.sim.state_0.body_q.numpy()
+        idx = self.sim.robot.body[cam.link] + np.arange(nw) * self.sim.bodies_per_world
+        t = bq[idx]
+        m = np.tile(np.eye(4), (nw, 1, 1))
+        m[:, :3, :3] = Rotation.from_quat(t[:, 3:7]).as_matrix()
+        m[:, :3, 3] = t[:, :3]
+        return m
+
+    def _transforms(self, cam: CameraSpec):
+        import warp as wp
+        from scipy.spatial.transform import Rotation
+
+        m = self.camera_to_world(cam)
+        q = Rotation.from_matrix(m[:, :3, :3]).as_quat()
+        data = np.concatenate([m[:, :3, 3], q], axis=1).astype(np.float32)
+        return wp.array(data, dtype=wp.transformf, device=self.sim.model.device), m
+
+    def render(self, *, to_numpy: bool = True) -> dict[str, CameraFrame]:
+        """Render every camera in every world for ``sim.state_0``; returns frames by camera name
+        (with ``to_numpy=False`` the images stay on the device and the frames hold None)."""
+        model, state = self.sim.model, self.sim.state_0
+        model.bvh_refit_shapes(state)
+        frames = {}
+        for cam in self.cameras:
+            tfs, m = self._transforms(cam)
+            img = self._images[cam.name]
+            self._sensor.update(state, tfs, self._rays[cam.name], color_image=img["color"],
+                                forward_depth_image=img["depth"], shape_index_image=img["shape"],
+                                world_indices=self._world_ids)
+            frames[cam.name] = self._frame(cam, img, m) if to_numpy else None
+        return frames
+
+    def _frame(self, cam: CameraSpec, img: dict, m: np.ndarray) -> CameraFrame:
+        rgb = depth = shape = None
+        if img["color"] is not None:
+            packed = img["color"].numpy()
+            rgb = np.stack([(packed >> s) & 0xFF for s in (0, 8, 16)], axis=-1).astype(np.uint8)
+        if img["depth"] is not None:
+            depth = img["depth"].numpy().astype(np.float32)
+            depth[~np.isfinite(depth)] = 0.0
+        if img["shape"] is not None:
+            raw = img["shape"].numpy().astype(np.int64)
+            shape = np.where(raw >= self.sim.model.shape_count, -1, raw).astype(np.int32)
+            if depth is not None:
+                shape[depth <= 0] = -1
+        return CameraFrame(name=cam.name, intrinsics=cam.intrinsics, rgb=rgb, depth=depth, shape=shape,
+                           extrinsics=m, worlds=np.arange(self.sim.world_count))
+
+
+def colorize_labels(labels: np.ndarray, palette: dict[str, tuple[int, int, int]] | None = None) -> np.ndarray:
+    """(H, W) labels -> (H, W, 3) uint8 colours (stable per label; black for '')."""
+    import zlib
+
+    out = np.zeros((*labels.shape, 3), np.uint8)
+    for lab in np.unique(labels):
+        if not lab:
+            continue
+        if palette and lab in palette:
+            col = palette[lab]
+        else:
+            h = zlib.crc32(str(lab).encode())
+            col = (64 + h % 192, 64 + (h >> 8) % 192, 64 + (h >> 16) % 192)
+        out[labels == lab] = col
+    return out
+
+
+def depth_to_png(depth: np.ndarray, max_depth: float | None = None) -> np.ndarray:
+    """(H, W) depth [m] -> (H, W) uint8 (near bright, far dark, 0 for no hit)."""
+    d = np.asarray(depth, float)
+    valid = d > 0
+    top = max_depth or (float(d[valid].max()) if valid.any() else 1.0)
+    out = np.zeros(d.shape, np.uint8)
+    out[valid] = (255 * (1.0 - np.clip(d[valid] / top, 0, 1)) * 0.85 + 38).astype(np.uint8)
+    return out

@@ -1,0 +1,430 @@
+"""Scene loading, robot insertion, world replication and stepping.
+
+:func:`build_sim` turns scene USD files into a Newton model with the robot inserted at a free,
+reachable spawn pose, replicated over ``world_count`` worlds, on a chosen device, with a solver
+whose settings are recorded in :class:`SimSettings`::
+
+    desc = write_robot_urdf(out_dir, panda_root=...)
+    sim = build_sim(SimConfig(scenes=(room_usd,), world_count=1, device="cpu"), desc, rng)
+    sim.step(100)
+
+Solvers: MuJoCo (``"mujoco"``, the default for articulated robots) runs MuJoCo-Warp on CUDA and
+the MuJoCo C library on CPU with a single world (``use_mujoco_cpu``; several CPU worlds use
+MuJoCo-Warp's CPU path). Featherstone, semi-implicit and XPBD need small steps (objects are
+launched at one step per 1/240 s): they run ``substeps`` steps of ``dt / substeps`` with Newton's
+collision pipeline. Every choice is written to :class:`SimSettings`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass, field
+from enum import StrEnum
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.types import ItemError
+from stages.simulate.robot import DriveGains, RobotDescription, RobotIndices, add_robot
+
+log = logging.getLogger(__name__)
+
+ROBOT_LABEL = "robot"
+
+
+class SolverKind(StrEnum):
+    MUJOCO = "mujoco"
+    FEATHERSTONE = "featherstone"
+    SEMI_IMPLICIT = "semi_implicit"
+    XPBD = "xpbd"
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolverSettings:
+    """dt: physics step [s] (the time one :meth:`Sim.step` advances); substeps: solver steps per
+    physics step (1 for MuJoCo; >= dt * 240 * 4 for the others); use_mujoco_cpu: None = auto
+    (True on CPU with one world); iterations / ls_iterations: MuJoCo solver iterations;
+    cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world capacities (None: auto).
+    """
+
+    kind: SolverKind = SolverKind.MUJOCO
+    dt: float = 0.002
+    substeps: int = 1
+    use_mujoco_cpu: bool | None = None
+    iterations: int = 50
+    ls_iterations: int = 25
+    cone: str = "elliptic"
+    impratio: float = 10.0
+    integrator: str = "implicitfast"
+    njmax: int | None = None
+    nconmax: int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimConfig:
+    """scenes: scene USD files: one (replicated to every world) or one per world;
+    world_count; device: "cpu" or "cuda[:n]"; spawn: robot root (x, y, yaw) or None to pick a free
+    spawn pose; spawn_near: with spawn None, the free pose nearest this point (x, y) [m], facing
+    it; add_ground_plane: add an infinite plane (scenes without a floor collider);
+    robot_radius: clearance radius of the base footprint [m] used to pick the spawn."""
+
+    scenes: tuple[Path, ...] = ()
+    world_count: int = 1
+    device: str = "cpu"
+    spawn: tuple[float, float, float] | None = None
+    spawn_near: tuple[float, float] | None = None
+    add_ground_plane: bool = False
+    robot_radius: float = 0.45
+    solver: SolverSettings = field(default_factory=SolverSettings)
+    gains: DriveGains = field(default_factory=DriveGains)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimSettings:
+    """What was actually used (recorded next to episodes): the resolved solver options, the
+    spawn pose, counts per world, and Newton/MuJoCo versions."""
+
+    solver: str
+    dt: float
+    substeps: int
+    device: str
+    world_count: int
+    use_mujoco_cpu: bool | None
+    separate_worlds: bool | None
+    options: dict
+    spawn: tuple[float, float, float]
+    bodies_per_world: int
+    shapes_per_world: int
+    dofs_per_world: int
+    newton_version: str
+    scenes: tuple[str, ...]
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["scenes"] = list(self.scenes)
+        d["spawn"] = list(self.spawn)
+        return d
+
+
+# --------------------------------------------------------------------------------------------
+# Scene loading
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """Per-world-template facts from loading scene USDs: shape labels and prim paths by shape
+    index (world-local), body prim paths by body index, joint prim paths by joint index."""
+
+    shape_label: tuple[str, ...]
+    shape_path: tuple[str, ...]
+    body_path: dict[int, str]
+    joint_path: dict[int, str]
+    lights: tuple = ()
+
+
+def _semantic_label(prim) -> str:
+    """The first UsdSemantics class label on the prim or its nearest labelled ancestor ('' if none)."""
+    from pxr import Usd
+
+    p = prim
+    while p and p.IsValid() and p.GetPath() != p.GetPath().absoluteRootPath:
+        for attr in p.GetAttributes():
+            name = attr.GetName()
+            if name.startswith("semantics:labels:") and attr.HasAuthoredValue():
+                v = attr.Get()
+                if v:
+                    return str(v[0])
+        p = p.GetParent()
+    return ""
+
+
+def load_scene(builder, usd: Path) -> LoadedScene:
+    """Add one scene USD to ``builder`` (``add_usd``) and map each new shape to its semantic label."""
+    from pxr import Usd
+
+    usd = Path(usd)
+    if not usd.is_file():
+        raise ItemError(f"{usd}: scene USD not found")
+    stage = Usd.Stage.Open(str(usd))
+    if stage is None:
+        raise ItemError(f"{usd}: cannot open as USD")
+    shape0 = builder.shape_count
+    try:
+        res = builder.add_usd(stage, load_visual_shapes=True, hide_collision_shapes=True)
+    except ImportError as e:
+        raise ItemError(f"{usd}: Newton's USD importer is unavailable ({e})") from None
+    n = builder.shape_count - shape0
+    paths = [""] * n
+    for path, idx in res.get("path_shape_map", {}).items():
+        if shape0 <= idx < builder.shape_count:
+            paths[idx - shape0] = path
+    labels = []
+    cache: dict[str, str] = {}
+    for p in paths:
+        if p not in cache:
+            prim = stage.GetPrimAtPath(p) if p else None
+            cache[p] = _semantic_label(prim) if prim else ""
+        labels.append(cache[p])
+    from stages.simulate.sensors import read_usd_lights
+
+    return LoadedScene(shape_label=tuple(labels), shape_path=tuple(paths),
+                       body_path={v: k for k, v in res.get("path_body_map", {}).items()},
+                       joint_path={v: k for k, v in res.get("path_joint_map", {}).items()},
+                       lights=read_usd_lights(stage))
+
+
+# --------------------------------------------------------------------------------------------
+# Free spawn pose
+# --------------------------------------------------------------------------------------------
+
+def _shape_aabbs(builder, z_range=(0.03, 1.6)) -> np.ndarray:
+    """World AABBs (K, 4) [xmin, ymin, xmax, ymax] of the builder's shapes that overlap the
+    robot's height band ``z_range`` [m] (floors and ceilings are outside it)."""
+    import newton
+    from scipy.spatial.transform import Rotation
+
+    out = []
+    for s in range(builder.shape_count):
+        gt = int(builder.shape_type[s])
+        if gt == int(newton.GeoType.PLANE):
+            continue
+        sc = np.asarray(builder.shape_scale[s], float)
+        if gt == int(newton.GeoType.BOX):
+            corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float) * sc
+        elif gt in (int(newton.GeoType.MESH), int(newton.GeoType.CONVEX_MESH)):
+            src = builder.shape_source[s]
+            if src is None:
+                continue
+            corners = np.asarray(src.vertices, float) * sc
+        else:
+            r = float(sc[0])
+            hh = float(max(sc[1], sc[0]))
+            corners = np.array([[i * r, j * r, k * hh] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        tf = np.asarray(builder.shape_transform[s], float)
+        b = int(builder.shape_body[s])
+        if b >= 0:
+            bq = np.asarray(builder.body_q[b], float)
+            m_b = np.eye(4)
+            m_b[:3, :3] = Rotation.from_quat(bq[3:7]).as_matrix()
+            m_b[:3, 3] = bq[:3]
+        else:
+            m_b = np.eye(4)
+        m_s = np.eye(4)
+        m_s[:3, :3] = Rotation.from_quat(tf[3:7]).as_matrix()
+        m_s[:3, 3] = tf[:3]
+        pts = corners @ (m_b @ m_s)[:3, :3].T + (m_b @ m_s)[:3, 3]
+        lo, hi = pts.min(0), pts.max(0)
+        if hi[2] < z_range[0] or lo[2] > z_range[1]:
+            continue
+        out.append([lo[0], lo[1], hi[0], hi[1]])
+    return np.asarray(out, float).reshape(-1, 4)
+
+
+def find_free_spawn(builder, rng: np.random.Generator, *, radius: float = 0.45, near=None,
+                    cell: float = 0.05) -> tuple[float, float, float]:
+    """A robot root pose (x, y, yaw) whose footprint disc of ``radius`` [m] touches no shape,
+    inside the largest connected free region of the scene (so the robot can drive from it).
+
+    With ``near`` (x, y): the free cell nearest that point, yawed to face it; else a random free
+    cell from ``rng`` with a random yaw. Raises ItemError when no cell is free.
+    """
+    from scipy import ndimage
+
+    boxes = _shape_aabbs(builder)
+    if len(boxes) == 0:
+        raise ItemError("scene: no obstacles or walls to bound a spawn region")
+    lo, hi = boxes[:, :2].min(0), boxes[:, 2:].max(0)
+    xs = np.arange(lo[0] + cell / 2, hi[0], cell)
+    ys = np.arange(lo[1] + cell / 2, hi[1], cell)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    free = np.ones(gx.shape, bool)
+    occupied = np.zeros(gx.shape, bool)
+    for x0, y0, x1, y1 in boxes:
+        dx = np.maximum(np.maximum(x0 - gx, gx - x1), 0.0)
+        dy = np.maximum(np.maximum(y0 - gy, gy - y1), 0.0)
+        free &= dx * dx + dy * dy > radius * radius
+        occupied |= (dx == 0) & (dy == 0)
+    # the region enclosed by walls: free cells not connected to the grid border
+    lab, n = ndimage.label(free)
+    if n == 0:
+        raise ItemError("scene: no free spawn pose for the robot footprint")
+    border = set(np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))) - {0}
+    sizes = ndimage.sum(free, lab, index=np.arange(1, n + 1))
+    candidates = [i + 1 for i in np.argsort(-sizes) if (i + 1) not in border] or [int(np.argmax(sizes)) + 1]
+    region = lab == candidates[0]
+    ii, jj = np.nonzero(region)
+    px, py = gx[ii, jj], gy[ii, jj]
+    if near is not None:
+        k = int(np.argmin((px - near[0]) ** 2 + (py - near[1]) ** 2))
+        yaw = float(np.arctan2(near[1] - py[k], near[0] - px[k]))
+    else:
+        k = int(rng.integers(len(px)))
+        yaw = float(rng.uniform(-np.pi, np.pi))
+    return float(px[k]), float(py[k]), yaw
+
+
+# --------------------------------------------------------------------------------------------
+# The simulation
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class Sim:
+    """A built simulation: Newton model, states, control, solver, and the robot's indices.
+
+    robot: world-local indices (world 0); per world w, add ``w * dofs_per_world`` to dof indices,
+    ``w * coords_per_world`` to coordinates, ``w * bodies_per_world`` to bodies and
+    ``w * shapes_per_world`` to shapes. shape_label: semantic label of every model shape (N_s,).
+    """
+
+    model: object
+    solver: object
+    state_0: object
+    state_1: object
+    control: object
+    contacts: object | None
+    pipeline: object | None
+    robot: RobotIndices
+    desc: RobotDescription
+    settings: SimSettings
+    scene: LoadedScene
+    shape_label: np.ndarray
+    bodies_per_world: int
+    shapes_per_world: int
+    dofs_per_world: int
+    coords_per_world: int
+    spawn: tuple[float, float, float]
+    time: float = 0.0
+    steps: int = 0
+    pre_step: list = field(default_factory=list)
+
+    @property
+    def world_count(self) -> int:
+        return int(self.model.world_count)
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` physics steps of ``settings.dt`` [s]; callbacks in ``pre_step`` run
+        before each (the controllers use it to update drive targets)."""
+        s = self.settings
+        h = s.dt / s.substeps
+        for _ in range(n):
+            for cb in self.pre_step:
+                cb(self)
+            for _ in range(s.substeps):
+                self.state_0.clear_forces()
+                if self.pipeline is not None:
+                    self.pipeline.collide(self.state_0, self.contacts)
+                self.solver.step(self.state_0, self.state_1, self.control,
+                                 None if self.pipeline is None else self.contacts, h)
+                self.state_0, self.state_1 = self.state_1, self.state_0
+            self.time += s.dt
+            self.steps += 1
+
+    def world_dof(self, name: str, world: int = 0) -> int:
+        return self.robot.dof[name] + world * self.dofs_per_world
+
+    def world_coord(self, name: str, world: int = 0) -> int:
+        return self.robot.coord[name] + world * self.coords_per_world
+
+    def world_body(self, name: str, world: int = 0) -> int:
+        return self.robot.body[name] + world * self.bodies_per_world
+
+    def body_of_path(self, path: str, world: int = 0) -> int:
+        """Model body index of a scene prim path (a rigid body of the scene)."""
+        for b, p in self.scene.body_path.items():
+            if p == path:
+                return b + world * self.bodies_per_world
+        raise KeyError(path)
+
+    def joint_q_of_path(self, path: str, world: int = 0) -> float:
+        """Position of a one-dof scene joint (by prim path) [m or rad]."""
+        for j, p in self.scene.joint_path.items():
+            if p == path:
+                q0 = int(self.model.joint_q_start.numpy()[j]) + world * self.coords_per_world
+                return float(self.state_0.joint_q.numpy()[q0])
+        raise KeyError(path)
+
+
+def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
+    import newton
+    from newton.solvers import SolverMuJoCo
+
+    b = newton.ModelBuilder()
+    SolverMuJoCo.register_custom_attributes(b)
+    loaded = load_scene(b, scene)
+    spawn = cfg.spawn or find_free_spawn(b, rng, radius=cfg.robot_radius, near=cfg.spawn_near)
+    robot = add_robot(b, desc, spawn_xy_yaw=spawn, gains=cfg.gains)
+    labels = list(loaded.shape_label) + [ROBOT_LABEL] * (robot.shape_end - robot.shape_start)
+    return b, loaded, robot, spawn, labels
+
+
+def _make_solver(model, s: SolverSettings, device: str, world_count: int):
+    import newton
+
+    opts: dict = {}
+    if s.kind == SolverKind.MUJOCO:
+        from newton.solvers import SolverMuJoCo
+
+        cpu = s.use_mujoco_cpu if s.use_mujoco_cpu is not None else (device == "cpu" and world_count == 1)
+        separate = not cpu
+        opts = dict(use_mujoco_cpu=cpu, separate_worlds=separate, solver="newton", integrator=s.integrator,
+                    cone=s.cone, impratio=s.impratio, iterations=s.iterations, ls_iterations=s.ls_iterations,
+                    njmax=s.njmax, nconmax=s.nconmax, disable_sensors=True)
+        return SolverMuJoCo(model, **opts), None, cpu, separate, opts
+    if s.substeps < 4:
+        raise ItemError(f"solver {s.kind}: needs substeps (>= 4 at dt {s.dt} s); got {s.substeps}")
+    pipeline = newton.CollisionPipeline(model)
+    if s.kind == SolverKind.FEATHERSTONE:
+        solver = newton.solvers.SolverFeatherstone(model)
+    elif s.kind == SolverKind.SEMI_IMPLICIT:
+        solver = newton.solvers.SolverSemiImplicit(model)
+    else:
+        solver = newton.solvers.SolverXPBD(model, iterations=max(2, s.iterations // 10))
+        opts = {"iterations": max(2, s.iterations // 10)}
+    return solver, pipeline, None, None, opts
+
+
+def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) -> Sim:
+    """Load the scene(s), insert the robot, replicate to ``cfg.world_count`` worlds, finalize on
+    ``cfg.device`` and create the solver. Different scenes per world must have the same number
+    of bodies, joints and shapes for MuJoCo-Warp (it batches identical worlds)."""
+    import newton
+
+    if not cfg.scenes:
+        raise ItemError("simulate: no scene USD given")
+    if len(cfg.scenes) not in (1, cfg.world_count):
+        raise ItemError(f"simulate: {len(cfg.scenes)} scenes for {cfg.world_count} worlds (need 1 or one per world)")
+    tpl, loaded, robot, spawn, labels = _build_template(cfg, cfg.scenes[0], desc, rng)
+    main = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(main)
+    if len(cfg.scenes) == 1:
+        main.replicate(tpl, cfg.world_count)
+        all_labels = labels * cfg.world_count
+    else:
+        all_labels = []
+        for w, scene in enumerate(cfg.scenes):
+            b, _, _, _, lab = (tpl, loaded, robot, spawn, labels) if w == 0 else _build_template(
+                SimConfig(**{**cfg.__dict__, "spawn": spawn}), scene, desc, rng)
+            if (b.body_count, b.shape_count, b.joint_count) != (tpl.body_count, tpl.shape_count, tpl.joint_count):
+                raise ItemError(f"{scene}: differs in structure from {cfg.scenes[0]}; worlds must match")
+            main.add_world(b)
+            all_labels += lab
+    if cfg.add_ground_plane:
+        main.add_ground_plane()
+        all_labels.append("floor")
+    model = main.finalize(device=cfg.device)
+    solver, pipeline, cpu, separate, opts = _make_solver(model, cfg.solver, cfg.device, cfg.world_count)
+    contacts = pipeline.contacts() if pipeline is not None else None
+    state_0, state_1, control = model.state(), model.state(), model.control()
+    newton.eval_fk(model, model.joint_q, model.joint_qd, state_0)
+    settings = SimSettings(
+        solver=cfg.solver.kind.value, dt=cfg.solver.dt, substeps=cfg.solver.substeps, device=cfg.device,
+        world_count=cfg.world_count, use_mujoco_cpu=cpu, separate_worlds=separate,
+        options={k: v for k, v in opts.items() if v is not None}, spawn=tuple(spawn),
+        bodies_per_world=tpl.body_count, shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
+        newton_version=newton.__version__, scenes=tuple(str(s) for s in cfg.scenes))
+    log.info("simulation built: %s", settings)
+    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control, contacts=contacts,
+               pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
+               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count,
+               shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
+               coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn))
