@@ -308,7 +308,9 @@ class _Extractor:
 
         m = self.m
         collides = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
-        alpha = np.where(m.geom_matid >= 0, m.mat_rgba[np.maximum(m.geom_matid, 0), 3], m.geom_rgba[:, 3])
+        alpha = np.array(m.geom_rgba[:, 3], float)
+        has_mat = m.geom_matid >= 0
+        alpha[has_mat] = m.mat_rgba[m.geom_matid[has_mat], 3]
         shown = (m.geom_group <= 2) & (alpha > 0)
         for gid in range(m.ngeom):
             b = int(m.geom_bodyid[gid])

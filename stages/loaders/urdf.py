@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -343,8 +344,11 @@ def resolve_uri(uri: str, urdf: Path, catalog_dir: Path | None) -> Path:
         cur = urdf_dir
         while True:
             for cand in (cur / pkg / sub, cur / sub if cur.name == pkg else None):
-                if cand is not None and cand.exists():
-                    return g.inside_catalog(cand, catalog_dir, source=urdf, what="mesh path")
+                if cand is None:
+                    continue
+                cand = g.inside_catalog(Path(os.path.normpath(cand)), catalog_dir, source=urdf, what="mesh path")
+                if cand.exists():
+                    return cand
             if cur == stop or cur.parent == cur:
                 break
             cur = cur.parent

@@ -1,0 +1,372 @@
+"""URDF and MJCF loaders: the shared articulated assets, the Panda URDF, and bad inputs.
+
+Expected numbers are read from the source XML files (see the comments); kinematics are checked
+against MuJoCo (MJCF) and Pinocchio (URDF) at non-zero joint positions.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from asset_catalog.annotations import AssetAnnotation, load_annotations
+from asset_catalog.asset_model import AssetModel, JointType
+from pipeline.types import ItemError
+from stages.loaders.mjcf import load_mjcf
+from stages.loaders.urdf import load_urdf
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "shared_articulated"
+PANDA = "robots/franka_panda__example_robot_data/example-robot-data/robots/panda_description/urdf/panda.urdf"
+R, P = JointType.REVOLUTE, JointType.PRISMATIC
+_DEG = math.pi / 180.0
+
+# id -> (link count, fixed base, {joint: (type, lower, upper)}), from the XML files
+EXPECTED: dict[str, tuple[int, bool, dict[str, tuple[JointType, float, float]]]] = {
+    # hingecabinet_body.xml: two doors, range -1.57..0 and 0..1.57 (compiler angle radian)
+    "vk_hinge_cabinet": (3, True, {"leftdoorhinge": (R, -1.57, 0.0), "rightdoorhinge": (R, 0.0, 1.57)}),
+    "vk_slide_cabinet": (2, True, {"slidedoor_joint": (P, 0.0, 0.44)}),
+    "vk_box_cabinet": (2, True, {"boxdoorhinge": (R, -1.57, 0.0)}),
+    "vk_microwave": (2, True, {"micro0joint": (R, -2.094, 0.0)}),
+    # oven_body.xml: knobs hinge -1.57..0, burners slide -0.009..0, light switch -0.7..0, light -0.05..0
+    "vk_oven": (11, True, {**{f"knob{i}_joint": (R, -1.57, 0.0) for i in range(1, 5)},
+                           **{f"burner{i}_joint": (P, -0.009, 0.0) for i in range(1, 5)},
+                           "lightswitch_joint": (R, -0.7, 0.0), "light_joint": (P, -0.05, 0.0)}),
+    # dishwasher_body.xml: top rack slide 0..0.274, door hinge -1.5..0 (bottom_rack is commented out)
+    "vk_dishwasher": (3, True, {"top_rack": (P, 0.0, 0.274), "door": (R, -1.5, 0.0)}),
+    # lightButtons: default class range -0.005..0 for the 3 lights and 3 buttons
+    "vk_light_buttons": (7, True, {**{f"{c}_light": (P, -0.005, 0.0) for c in ("red", "green", "blue")},
+                                   **{f"{c}_button": (P, -0.005, 0.0) for c in ("red", "green", "blue")}}),
+    "vk_kettle": (1, False, {}),
+    # LIBERO: 3 slide drawers each
+    "libero_white_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level", "bottom_level")}),
+    "libero_wooden_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level", "bottom_level")}),
+    "libero_short_cabinet": (4, True, {n: (P, -0.005, 0.16) for n in ("middle_level", "top_region", "bottom_region")}),
+    # robosuite door: range "0.0 0.4" read in degrees (no compiler angle="radian" in the file)
+    "robosuite_door": (2, True, {"hinge": (R, 0.0, 0.4 * _DEG)}),
+    "robosuite_door_lock": (3, True, {"hinge": (R, 0.0, 0.4 * _DEG), "latch_joint": (R, -1.57 * _DEG, 1.57 * _DEG)}),
+    "ycb_apple_urdf": (1, False, {}),
+}
+
+
+def _annotations() -> dict[str, AssetAnnotation]:
+    cat = load_annotations(DATA)
+    assert not cat.invalid
+    return {a.id: a for a in cat.assets}
+
+
+def load(ann: AssetAnnotation, catalog: Path) -> AssetModel:
+    loader = load_urdf if ann.source.endswith(".urdf") else load_mjcf
+    return loader(catalog / ann.source, ann, catalog_dir=catalog)
+
+
+def fk(model: AssetModel, q: dict[str, float]) -> dict[str, np.ndarray]:
+    """Link frames (4x4) in the root frame at joint positions ``q`` (missing joints: 0)."""
+    from scipy.spatial.transform import Rotation
+
+    out = {model.links[0].name: model.links[0].pose.matrix()}
+    for j in model.joints:   # loaders emit joints parents-first
+        motion = np.eye(4)
+        v = q.get(j.name, 0.0)
+        if j.type == R:
+            motion[:3, :3] = Rotation.from_rotvec(np.asarray(j.axis) * v).as_matrix()
+        elif j.type == P:
+            motion[:3, 3] = np.asarray(j.axis) * v
+        out[j.child] = out[j.parent] @ j.frame.matrix() @ motion
+    return out
+
+
+def test_annotation_file_covers_every_expected_asset():
+    assert set(_annotations()) == set(EXPECTED)
+
+
+@pytest.mark.parametrize("asset_id", sorted(EXPECTED))
+def test_shared_asset_loads_with_expected_joints(shared_assets, asset_id):
+    ann = _annotations()[asset_id]
+    model = load(ann, shared_assets)
+    n_links, fixed, joints = EXPECTED[asset_id]
+    assert len(model.links) == n_links
+    assert model.fixed_base is fixed
+    got = {j.name: (j.type, j.lower, j.upper) for j in model.joints}
+    assert set(got) == set(joints)
+    for name, (kind, lo, hi) in joints.items():
+        assert got[name][0] == kind, name
+        assert got[name][1] == pytest.approx(lo, abs=1e-6) and got[name][2] == pytest.approx(hi, abs=1e-6), name
+    names = [lk.name for lk in model.links]
+    assert len(set(names)) == len(names)
+    parents_first = {names[0]}
+    for j in model.joints:
+        assert j.parent in parents_first and j.child not in parents_first
+        parents_first.add(j.child)
+        assert abs(np.linalg.norm(j.axis) - 1.0) < 1e-9
+    # zero configuration: composing joint frames reproduces the link poses
+    frames = fk(model, {})
+    for lk in model.links:
+        np.testing.assert_allclose(frames[lk.name], lk.pose.matrix(), atol=1e-9)
+    for lk in model.links:
+        for part in lk.visuals + (lk.collision_source or ()):
+            assert part.vertices.ndim == 2 and part.vertices.shape[1] == 3 and np.isfinite(part.vertices).all()
+            assert part.faces.max() < len(part.vertices)
+            if part.uvs is not None:
+                assert part.uvs.shape == (len(part.vertices), 2)
+            if part.material is not None:
+                assert part.material in model.materials
+    assert any(lk.visuals for lk in model.links)
+    assert any(lk.collision_source for lk in model.links)
+    for spec in model.materials.values():
+        if spec.base_color_texture is not None:
+            assert spec.base_color_texture.is_file()
+            assert spec.base_color_texture.resolve().is_relative_to(shared_assets.resolve())
+    # every moving link has a mass from the source (MuJoCo's compiled inertia) or none at all
+    for lk in model.links:
+        assert (lk.mass is not None) == lk.mass_from_source
+        if lk.mass is not None:
+            assert lk.mass.mass > 0 and min(lk.mass.diagonal_inertia) > 0
+
+
+def test_mjcf_visual_and_collision_split(shared_assets):
+    """furniture_sim: visuals group 1 contype 0 conaffinity 0; colliders group 4 conaffinity 1 (9 boxes in
+    the hinge cabinet's carcass). LIBERO: visual mesh group 1, collision boxes group 0. robosuite door:
+    group 1 colliding geoms only, so they are both visual and collision."""
+    ann = _annotations()
+    cab = load(ann["vk_hinge_cabinet"], shared_assets)
+    assert len(cab.links[0].visuals) == 9 and len(cab.links[0].collision_source) == 9
+    libero = load(ann["libero_short_cabinet"], shared_assets)
+    drawer = libero.link("drawer_middle")
+    assert len(drawer.visuals) == 1 and len(drawer.collision_source) == 10
+    assert drawer.visuals[0].uvs is not None           # the .msh mesh carries texture coordinates
+    door = load(ann["robosuite_door"], shared_assets)
+    assert [len(lk.visuals) for lk in door.links] == [len(lk.collision_source) for lk in door.links] == [2, 3]
+
+
+@pytest.mark.parametrize("asset_id,joint,value", [
+    ("vk_hinge_cabinet", "leftdoorhinge", -1.0), ("vk_microwave", "micro0joint", -1.2),
+    ("robosuite_door_lock", "latch_joint", 0.02), ("libero_short_cabinet", "top_region", 0.12),
+    ("vk_dishwasher", "door", -0.8), ("vk_oven", "knob3_joint", -0.9)])
+def test_mjcf_kinematics_match_mujoco(shared_assets, asset_id, joint, value):
+    """Box collision geoms placed by our joint frames at q != 0 sit where MuJoCo puts them."""
+    import mujoco
+
+    ann = _annotations()[asset_id]
+    model = load(ann, shared_assets)
+    m = mujoco.MjModel.from_xml_path(str(shared_assets / ann.source))
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    top = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0][0]
+    root_world = np.eye(4)
+    root_world[:3, :3], root_world[:3, 3] = d.xmat[top].reshape(3, 3), d.xpos[top]
+    jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint)
+    d.qpos[:] = m.qpos0
+    d.qpos[m.jnt_qposadr[jid]] += value
+    mujoco.mj_kinematics(m, d)
+    frames = fk(model, {joint: value})
+    checked = 0
+    for lk in model.links:
+        for part in lk.collision_source or ():
+            label = part.name[len(f"{lk.name}_collision_"):]
+            gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, label)
+            if gid < 0 and label.startswith("geom") and label[4:].isdigit():
+                gid = int(label[4:])
+            if gid < 0 or m.geom_type[gid] != mujoco.mjtGeom.mjGEOM_BOX:
+                continue
+            centre = root_world @ frames[lk.name] @ np.append(part.vertices.mean(axis=0), 1.0)
+            np.testing.assert_allclose(centre[:3], d.geom_xpos[gid], atol=1e-6)
+            checked += 1
+    assert checked >= 3
+
+
+def test_panda_urdf(shared_assets):
+    """example-robot-data panda.urdf: 7 revolute + 2 prismatic fingers (the second mimics the first;
+    kept as a joint) + 3 fixed joints, 13 links; package:// meshes resolve inside the catalog."""
+    ann = AssetAnnotation(id="panda", source=PANDA, category="robot", material="metal")
+    model = load_urdf(shared_assets / PANDA, ann, catalog_dir=shared_assets)
+    movable = [j for j in model.joints if j.type != JointType.FIXED]
+    assert len(movable) == 9 and len(model.links) == 13
+    assert [j.type for j in movable] == [R] * 7 + [P] * 2
+    j4 = next(j for j in model.joints if j.name == "panda_joint4")
+    assert (j4.lower, j4.upper, j4.max_effort, j4.max_velocity) == (-3.0718, -0.0698, 87.0, 2.175)
+    assert j4.damping == pytest.approx(0.003)
+    f2 = next(j for j in model.joints if j.name == "panda_finger_joint2")
+    assert (f2.lower, f2.upper) == (0.0, 0.04) and f2.axis == (0.0, -1.0, 0.0)
+    assert model.fixed_base is False                   # no 'world' link in this URDF
+    link0 = model.link("panda_link0")
+    assert len(link0.visuals) == 12                    # 12 coloured <triangles> groups in link0.dae
+    assert len(link0.collision_source) == 1
+    assert link0.mass_from_source and link0.mass.mass == pytest.approx(0.629769)
+    colours = {model.materials[p.material].base_color for lk in model.links for p in lk.visuals}
+    assert len(colours) >= 3                            # white, dark grey, black parts of the arm
+    # kinematics agree with Pinocchio's URDF parser at an arbitrary configuration
+    import pinocchio as pin
+
+    pm = pin.buildModelFromUrdf(str(shared_assets / PANDA))
+    pd = pm.createData()
+    q = np.array([0.3, -0.5, 0.7, -1.9, 0.4, 1.6, -0.8, 0.02, 0.03])
+    pin.forwardKinematics(pm, pd, q)
+    pin.updateFramePlacements(pm, pd)
+    ours = fk(model, {j.name: float(v) for j, v in zip(movable, q)})
+    for name in ("panda_link3", "panda_link7", "panda_hand_tcp", "panda_leftfinger", "panda_rightfinger"):
+        ref = pd.oMf[pm.getFrameId(name)].homogeneous
+        np.testing.assert_allclose(ours[name], ref, atol=1e-9, err_msg=name)
+
+
+def test_ycb_urdf_scale_and_texture(shared_assets):
+    ann = _annotations()["ycb_apple_urdf"]
+    model = load(ann, shared_assets)
+    (link,) = model.links
+    v = np.vstack([p.vertices for p in link.visuals])
+    assert 0.06 < float((v.max(0) - v.min(0)).max()) < 0.09       # a 7.5 cm apple, not 75 cm
+    (mat,) = {model.materials[p.material] for p in link.visuals}
+    assert mat.base_color_texture is not None and mat.base_color_texture.name == "texture_map.png"
+    assert link.visuals[0].uvs is not None
+    assert link.mass is None and not link.mass_from_source          # 1 kg placeholder rejected
+
+
+def test_mjcf_fragment_needs_no_file_in_catalog(shared_assets, tmp_path):
+    """The body-chain wrapper lives in a temporary folder: nothing is written beside the source."""
+    ann = _annotations()["vk_kettle"]
+    before = sorted((shared_assets / ann.source).parent.iterdir())
+    model = load(ann, shared_assets)
+    assert sorted((shared_assets / ann.source).parent.iterdir()) == before
+    assert model.links[0].name == "kettleroot0" and model.links[0].mass.mass == pytest.approx(0.88)
+
+
+# ------------------------------------------------------------------------------------ bad inputs
+
+
+def _ann(source: str, **kw) -> AssetAnnotation:
+    return AssetAnnotation(id="bad", source=source, category="test", **kw)
+
+
+_BOX_LINK = '<link name="{n}"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>'
+
+
+def _urdf(tmp: Path, body: str, name: str = "r.urdf") -> Path:
+    p = tmp / name
+    p.write_text(f'<?xml version="1.0"?>\n<robot name="r">{body}</robot>')
+    return p
+
+
+def _expect(loader, path: Path, catalog: Path, *needles: str) -> str:
+    with pytest.raises(ItemError) as e:
+        loader(path, _ann(path.name), catalog_dir=catalog)
+    msg = str(e.value)
+    assert "\n" not in msg and str(path) in msg
+    for n in needles:
+        assert n in msg, msg
+    return msg
+
+
+def _joint(name, parent, child, kind="revolute", origin='xyz="0 0 0.1"', limit='lower="-1" upper="1"'):
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin {origin}/><axis xyz="0 0 1"/><limit {limit} effort="1" velocity="1"/></joint>')
+
+
+def test_urdf_cycle(tmp_path):
+    links = "".join(_BOX_LINK.format(n=n) for n in "abc")
+    p = _urdf(tmp_path, links + _joint("j1", "a", "b") + _joint("j2", "b", "c") + _joint("j3", "c", "a"))
+    msg = _expect(load_urdf, p, tmp_path, "cycle")
+    assert all(n in msg for n in ("a", "b", "c"))
+
+
+def test_urdf_missing_parent(tmp_path):
+    p = _urdf(tmp_path, _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b") + _joint("j", "ghost", "b"))
+    _expect(load_urdf, p, tmp_path, "'j'", "'ghost'", "does not exist")
+
+
+def test_urdf_nan_origin(tmp_path):
+    p = _urdf(tmp_path, _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+              + _joint("j", "a", "b", origin='xyz="0 nan 0"'))
+    _expect(load_urdf, p, tmp_path, "non-finite", "'j'")
+
+
+def test_urdf_limits_axis_duplicates_roots(tmp_path):
+    ab = _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", limit='lower="1" upper="-1"')), tmp_path,
+            "lower limit 1.0 > upper limit -1.0")
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b").replace('xyz="0 0 1"', 'xyz="0 0 0"')),
+            tmp_path, "zero axis")
+    _expect(load_urdf, _urdf(tmp_path, ab + _BOX_LINK.format(n="a")), tmp_path, "duplicate link name 'a'")
+    _expect(load_urdf, _urdf(tmp_path, ab), tmp_path, "exactly one root", "found 2")
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", kind="floating")), tmp_path, "unsupported type")
+
+
+def test_urdf_mesh_escaping_catalog(tmp_path):
+    catalog = tmp_path / "catalog"
+    catalog.mkdir()
+    import trimesh
+
+    trimesh.creation.box().export(tmp_path / "outside.stl")
+    for uri in ("../outside.stl", str(tmp_path / "outside.stl"), "package://x/../../outside.stl"):
+        body = f'<link name="a"><visual><geometry><mesh filename="{uri}"/></geometry></visual></link>'
+        _expect(load_urdf, _urdf(catalog, body), catalog, "escapes the catalog")
+    # the same file inside the catalog loads, with scale applied
+    trimesh.creation.box().export(catalog / "inside.stl")
+    body = '<link name="a"><visual><geometry><mesh filename="inside.stl" scale="2 2 2"/></geometry></visual></link>'
+    p = _urdf(catalog, body)
+    model = load_urdf(p, _ann(p.name), catalog_dir=catalog)
+    np.testing.assert_allclose(np.ptp(model.links[0].visuals[0].vertices, axis=0), [2, 2, 2])
+
+
+def test_urdf_doctype_and_malformed(tmp_path):
+    p = tmp_path / "e.urdf"
+    p.write_text('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaa">]><robot name="r">&a;</robot>')
+    _expect(load_urdf, p, tmp_path, "DOCTYPE")
+    p.write_text('<robot name="r"><link name="a">')
+    _expect(load_urdf, p, tmp_path, "malformed XML")
+
+
+def test_urdf_world_link_fixes_base(tmp_path):
+    p = _urdf(tmp_path, '<link name="world"/>' + _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+              + _joint("w", "world", "a", kind="fixed") + _joint("j", "a", "b"))
+    model = load_urdf(p, _ann(p.name), catalog_dir=tmp_path)
+    assert model.fixed_base and [lk.name for lk in model.links] == ["a", "b"] and len(model.joints) == 1
+    assert load_urdf(p, _ann(p.name, fixed_base=False), catalog_dir=tmp_path).fixed_base is False
+
+
+def _mjcf(tmp: Path, body: str, name: str = "m.xml", extra: str = "") -> Path:
+    p = tmp / name
+    p.write_text(f'<mujoco model="m">{extra}<worldbody>{body}</worldbody></mujoco>')
+    return p
+
+
+def test_mjcf_does_not_compile(tmp_path):
+    p = _mjcf(tmp_path, '<body><geom type="mesh" mesh="nope"/></body>')
+    _expect(load_mjcf, p, tmp_path, "does not compile", "nope")
+
+
+def test_mjcf_unsupported_structures(tmp_path):
+    geom = '<geom type="box" size=".1 .1 .1"/>'
+    _expect(load_mjcf, _mjcf(tmp_path, f'<body>{geom}<body><joint type="ball"/>{geom}</body></body>'),
+            tmp_path, "ball joint")
+    _expect(load_mjcf, _mjcf(tmp_path, f'<body>{geom}</body><body pos="1 0 0">{geom}</body>'), tmp_path,
+            "one top-level body", "found 2")
+    two = f'<body>{geom}<body><joint type="hinge"/><joint type="slide"/>{geom}</body></body>'
+    _expect(load_mjcf, _mjcf(tmp_path, two), tmp_path, "2 joints")
+
+
+def test_mjcf_include_escaping_catalog(tmp_path):
+    catalog = tmp_path / "catalog"
+    catalog.mkdir()
+    (tmp_path / "evil.xml").write_text('<mujocoinclude><body><geom size=".1"/></body></mujocoinclude>')
+    p = _mjcf(catalog, "", extra='<include file="../evil.xml"/>')
+    _expect(load_mjcf, p, catalog, "escapes the catalog")
+
+
+def test_mjcf_free_root_and_welded_bodies(tmp_path):
+    """A free joint on the root gives a movable base; a jointless child body merges into its parent
+    (masses add up); a slide joint anchored off the body origin gets its frame at the anchor."""
+    xml = ('<body><freejoint/><geom type="box" size=".1 .1 .1" mass="2"/>'
+           '<body pos="0 0 .3"><geom type="sphere" size=".05" mass="1"/>'
+           '<body pos=".2 0 0"><joint type="hinge" axis="0 2 0" pos=".1 0 0" range="-30 45"/>'
+           '<geom type="box" size=".05 .05 .05" mass=".5"/></body></body></body>')
+    p = _mjcf(tmp_path, xml)
+    model = load_mjcf(p, _ann(p.name), catalog_dir=tmp_path)
+    assert model.fixed_base is False and len(model.links) == 2
+    root, child = model.links
+    assert root.mass.mass == pytest.approx(3.0) and root.mass.center_of_mass[2] == pytest.approx(0.1)
+    (j,) = model.joints
+    assert j.axis == pytest.approx((0, 1, 0)) and (j.lower, j.upper) == pytest.approx((-30 * _DEG, 45 * _DEG))
+    np.testing.assert_allclose(j.frame.position, (0.3, 0, 0.3), atol=1e-12)
+    np.testing.assert_allclose(child.visuals[0].vertices.mean(axis=0), (-0.1, 0, 0), atol=1e-12)
