@@ -1,0 +1,396 @@
+"""Physics checks of written asset packages with Newton: does the asset behave in simulation?
+
+- ``rest_check``: the asset, dropped from a small height onto a ground plane, comes to rest on it:
+  its lowest collider point ends within a few millimeters of the plane, never sinks through it, is
+  not launched, and its velocities decay to about zero.
+- ``joint_limit_check``: each revolute/prismatic joint, driven (position drive) past its lower and
+  then its upper limit, reaches that limit within a tolerance and never leaves its range. The base
+  is fixed for this check.
+
+Solver: ``SolverMuJoCo`` (MuJoCo's own collision, implicit-fast integrator, CG... as below), with
+MuJoCo's C engine on CPU (``use_mujoco_cpu``) and mujoco-warp on CUDA. One 4 ms step is stable for
+stiff contacts there (Featherstone / semi-implicit would need substeps). The settings used are
+recorded in each report (``solver``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+log = logging.getLogger(__name__)
+
+
+class SolverSettings(BaseModel):
+    """What ran the check: solver name, device, time step [s], iterations, integrator, cone."""
+
+    model_config = ConfigDict(frozen=True)
+
+    solver: str = "SolverMuJoCo"
+    device: str = "cpu"
+    dt: float = 1.0 / 250.0
+    iterations: int = 50
+    ls_iterations: int = 20
+    integrator: str = "implicitfast"
+    cone: str = "elliptic"
+    backend: str = "mujoco-c"
+
+
+class RestReport(BaseModel):
+    """Outcome of ``rest_check``. Heights [m] are of the lowest collider point above the plane
+    (z = 0); speeds: linear [m/s] at the center of mass, angular [rad/s]; maxima over bodies."""
+
+    model_config = ConfigDict(frozen=True)
+
+    usd_path: Path
+    passed: bool
+    reasons: tuple[str, ...]
+    drop_height: float
+    seconds: float
+    final_height: float
+    min_height: float
+    settled_min_height: float
+    max_rise: float
+    final_linear_speed: float
+    final_angular_speed: float
+    body_count: int
+    shape_count: int
+    solver: SolverSettings
+
+
+class JointLimitResult(BaseModel):
+    """One joint: limits and reached positions [rad] or [m]; excursion: the largest distance
+    outside [lower, upper] seen while driven; passed if both limits reached within tolerance."""
+
+    model_config = ConfigDict(frozen=True)
+
+    joint: str
+    kind: str
+    lower: float
+    upper: float
+    reached_lower: float
+    reached_upper: float
+    max_excursion: float
+    tolerance: float
+    passed: bool
+
+
+class JointLimitReport(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
+    usd_path: Path
+    passed: bool
+    reasons: tuple[str, ...]
+    joints: tuple[JointLimitResult, ...]
+    seconds_per_limit: float
+    solver: SolverSettings
+
+
+# ---------------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _solver(model, settings: SolverSettings):
+    import newton
+
+    return newton.solvers.SolverMuJoCo(
+        model, use_mujoco_cpu=settings.backend == "mujoco-c", iterations=settings.iterations,
+        ls_iterations=settings.ls_iterations, integrator=settings.integrator, cone=settings.cone,
+        use_mujoco_contacts=True)
+
+
+def _settings(device: str) -> SolverSettings:
+    import warp as wp
+
+    dev = wp.get_device(device)
+    return SolverSettings(device=str(dev), backend="mujoco-c" if dev.is_cpu else "mujoco-warp")
+
+
+def _collider_points_in_bodies(builder) -> list[tuple[int, np.ndarray]]:
+    """(body index, (K, 3) points [m] in the body frame) of every colliding mesh/convex shape."""
+    import newton
+
+    out = []
+    collide = int(newton.ShapeFlags.COLLIDE_SHAPES)
+    for s in range(builder.shape_count):
+        if not builder.shape_flags[s] & collide:
+            continue
+        src = builder.shape_source[s]
+        verts = getattr(src, "vertices", None)
+        if verts is None:
+            continue
+        tf = np.asarray(builder.shape_transform[s], dtype=np.float64)
+        scale = np.asarray(builder.shape_scale[s], dtype=np.float64)
+        pts = _transform_points(tf, np.asarray(verts, dtype=np.float64) * scale)
+        out.append((int(builder.shape_body[s]), pts))
+    return out
+
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate points v (K, 3) by the unit quaternion q = (x, y, z, w) (warp's order)."""
+    u, w = q[:3], q[3]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _transform_points(tf: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Apply a warp transform (px, py, pz, qx, qy, qz, qw) to points (K, 3)."""
+    return _quat_rotate(tf[3:7], pts) + tf[:3]
+
+
+def _lowest_point(body_q: np.ndarray, shapes: list[tuple[int, np.ndarray]]) -> float:
+    zs = []
+    for body, pts in shapes:
+        world = pts if body < 0 else _transform_points(body_q[body], pts)
+        zs.append(world[:, 2].min())
+    return float(min(zs)) if zs else math.nan
+
+
+def _load(usd_path: Path, *, floating: bool | None, z_offset: float = 0.0):
+    import newton
+    import warp as wp
+
+    import usd_schemas  # noqa: F401  (registers the schema plugins before USD's schema registry is built)
+
+    builder = newton.ModelBuilder()
+    builder.add_usd(str(usd_path), xform=wp.transform((0.0, 0.0, z_offset), wp.quat_identity()),
+                    floating=floating, load_visual_shapes=False)
+    return builder
+
+
+# ---------------------------------------------------------------------------------------------
+# rest check
+
+
+@dataclass(frozen=True)
+class RestTolerances:
+    """rest_height: final lowest point within +-rest_height of the plane [m]; sink: over the last
+    quarter of the run the lowest point never goes below -sink [m]; impact_sink: bound on the
+    transient penetration at impact (MuJoCo's contacts are soft) [m]; launch: the lowest point may never rise more than launch [m]
+    above where it started; speeds: final linear [m/s] / angular [rad/s] speed bounds."""
+
+    rest_height: float = 0.003
+    sink: float = 0.003
+    impact_sink: float = 0.01
+    launch: float = 0.02
+    linear_speed: float = 0.02
+    angular_speed: float = 0.2
+
+
+def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, drop_height: float = 0.05,
+               tolerances: RestTolerances = RestTolerances()) -> RestReport:
+    """Drop the asset from ``drop_height`` [m] (lowest collider point above the plane, asset in its
+    authored orientation) onto a ground plane and simulate ``seconds`` [s] on ``device``."""
+    import newton
+    import warp as wp
+
+    usd_path = Path(usd_path)
+    probe = _load(usd_path, floating=None)
+    shapes0 = _collider_points_in_bodies(probe)
+    if not shapes0:
+        return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, _settings(device), probe)
+    start_low = _lowest_point(np.asarray([_body_q0(probe, b) for b in range(probe.body_count)]), shapes0)
+    builder = _load(usd_path, floating=None, z_offset=drop_height - start_low)
+    builder.add_ground_plane()
+    shapes = _collider_points_in_bodies(builder)
+    settings = _settings(device)
+    with wp.ScopedDevice(device):
+        model = builder.finalize(device=device)
+        solver = _solver(model, settings)
+        s0, s1, control = model.state(), model.state(), model.control()
+        newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
+        steps = max(1, round(seconds / settings.dt))
+        heights = []
+        for _ in range(steps):
+            s0.clear_forces()
+            solver.step(s0, s1, control, None, settings.dt)
+            s0, s1 = s1, s0
+            heights.append(_lowest_point(s0.body_q.numpy().astype(np.float64), shapes))
+        qd = s0.body_qd.numpy().astype(np.float64)
+    lin = float(np.linalg.norm(qd[:, :3], axis=1).max()) if len(qd) else 0.0
+    ang = float(np.linalg.norm(qd[:, 3:], axis=1).max()) if len(qd) else 0.0
+    h = np.asarray(heights)
+    final, low, rise = float(h[-1]), float(h.min()), float(h.max() - drop_height)
+    settled = float(h[len(h) * 3 // 4:].min())
+    t = tolerances
+    reasons = []
+    if not np.isfinite(h).all():
+        reasons.append("simulation produced NaN")
+    if abs(final) > t.rest_height:
+        reasons.append(f"final lowest point {final * 1000:.1f} mm from the plane (tolerance {t.rest_height * 1000:.1f} mm)")
+    if settled < -t.sink:
+        reasons.append(f"sinks {-settled * 1000:.1f} mm below the plane at rest (tolerance {t.sink * 1000:.1f} mm)")
+    if low < -t.impact_sink:
+        reasons.append(f"sank {-low * 1000:.1f} mm below the plane on impact (tolerance {t.impact_sink * 1000:.1f} mm)")
+    if rise > t.launch:
+        reasons.append(f"launched {rise * 1000:.1f} mm above the drop height (tolerance {t.launch * 1000:.1f} mm)")
+    if lin > t.linear_speed or ang > t.angular_speed:
+        reasons.append(f"not at rest after {seconds} s: {lin:.3f} m/s, {ang:.3f} rad/s")
+    report = RestReport(usd_path=usd_path, passed=not reasons, reasons=tuple(reasons), drop_height=drop_height,
+                        seconds=seconds, final_height=final, min_height=low, settled_min_height=settled, max_rise=rise, final_linear_speed=lin,
+                        final_angular_speed=ang, body_count=model.body_count, shape_count=model.shape_count,
+                        solver=settings)
+    log.debug("rest check %s: %s", usd_path, report)
+    return report
+
+
+def _body_q0(builder, b: int) -> np.ndarray:
+    return np.asarray(builder.body_q[b], dtype=np.float64)
+
+
+def _rest_fail(usd_path, reason, drop_height, seconds, settings, builder) -> RestReport:
+    nan = math.nan
+    return RestReport(usd_path=usd_path, passed=False, reasons=(reason,), drop_height=drop_height, seconds=seconds,
+                      final_height=nan, min_height=nan, settled_min_height=nan, max_rise=nan, final_linear_speed=nan,
+                      final_angular_speed=nan, body_count=builder.body_count, shape_count=builder.shape_count,
+                      solver=settings)
+
+
+# ---------------------------------------------------------------------------------------------
+# joint limit check
+
+
+def _subtree_inertia(builder, joint: int) -> float:
+    """Effective inertia [kg m^2] (revolute) or mass [kg] (prismatic) moved by ``joint``: the
+    child subtree's masses, with parallel-axis terms about the joint axis for revolute joints."""
+    import newton
+
+    children: dict[int, list[int]] = {}
+    for j in range(builder.joint_count):
+        children.setdefault(builder.joint_parent[j], []).append(builder.joint_child[j])
+    bodies, stack = [], [builder.joint_child[joint]]
+    while stack:
+        b = stack.pop()
+        bodies.append(b)
+        stack.extend(children.get(b, []))
+    mass = sum(float(builder.body_mass[b]) for b in bodies)
+    if builder.joint_type[joint] == newton.JointType.PRISMATIC:
+        return max(mass, 1e-3)
+    # axis and anchor in world, from the parent pose and joint frame at the initial configuration
+    parent = builder.joint_parent[joint]
+    x_wp = np.asarray(builder.body_q[parent], dtype=np.float64) if parent >= 0 else np.array([0, 0, 0, 0, 0, 0, 1.0])
+    x_pj = np.asarray(builder.joint_X_p[joint], dtype=np.float64)
+    anchor = _transform_points(x_wp, x_pj[None, :3])[0]
+    q_wj = _quat_mul(x_wp[3:7], x_pj[3:7])
+    dof = builder.joint_qd_start[joint]
+    axis = _quat_rotate(q_wj, np.asarray(builder.joint_axis[dof], dtype=np.float64)[None])[0]
+    inertia = 0.0
+    for b in bodies:
+        bq = np.asarray(builder.body_q[b], dtype=np.float64)
+        com = _transform_points(bq, np.asarray(builder.body_com[b], dtype=np.float64)[None])[0]
+        r = com - anchor
+        r_perp = r - axis * np.dot(r, axis)
+        ib = np.asarray(builder.body_inertia[b], dtype=np.float64).reshape(3, 3)
+        a_body = _quat_rotate(bq[3:7] * np.array([-1, -1, -1, 1.0]), axis[None])[0]
+        inertia += float(a_body @ ib @ a_body) + float(builder.body_mass[b]) * float(r_perp @ r_perp)
+    return max(inertia, 1e-5)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+
+
+def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit: float = 1.5,
+                      angular_tolerance: float = math.radians(3.0), linear_tolerance: float = 0.01,
+                      overdrive: float = 0.02, natural_frequency: float = 10.0, angular_speed: float = 1.5,
+                      linear_speed: float = 0.3) -> JointLimitReport:
+    """Drive every revolute/prismatic joint (position drive, critically damped at
+    ``natural_frequency`` [rad/s] from its subtree inertia) first to its lower, then to its upper
+    limit, ``seconds_per_limit`` [s] each, base fixed. The drive target moves at ``angular_speed``
+    [rad/s] / ``linear_speed`` [m/s] (faster if needed to arrive within 60 % of the time) and stops
+    ``overdrive`` x range past the limit, so that the limit, not the drive, stops the joint.
+
+    A joint passes if it ends within the tolerance ([rad] / [m]) of each limit and never goes
+    further than the tolerance outside its range. Joints without both limits are reported failed.
+    """
+    import newton
+    import warp as wp
+
+    usd_path = Path(usd_path)
+    settings = _settings(device)
+    builder = _load(usd_path, floating=False)
+    movable = [j for j in range(builder.joint_count)
+               if builder.joint_type[j] in (newton.JointType.REVOLUTE, newton.JointType.PRISMATIC)]
+    if not movable:
+        return JointLimitReport(usd_path=usd_path, passed=False, reasons=("no revolute or prismatic joint",),
+                                joints=(), seconds_per_limit=seconds_per_limit, solver=settings)
+    dofs = {j: builder.joint_qd_start[j] for j in movable}
+    coords = {j: builder.joint_q_start[j] for j in movable}
+    for j in movable:
+        d = dofs[j]
+        inertia = _subtree_inertia(builder, j)
+        builder.joint_target_ke[d] = inertia * natural_frequency**2
+        builder.joint_target_kd[d] = 2.0 * inertia * natural_frequency
+        builder.joint_target_mode[d] = int(newton.JointTargetMode.POSITION)
+        builder.joint_effort_limit[d] = 1e9
+    lims = {j: (float(builder.joint_limit_lower[dofs[j]]), float(builder.joint_limit_upper[dofs[j]])) for j in movable}
+    reached: dict[int, list[float]] = {j: [] for j in movable}
+    excursion = {j: 0.0 for j in movable}
+    with wp.ScopedDevice(device):
+        model = builder.finalize(device=device)
+        solver = _solver(model, settings)
+        s0, s1, control = model.state(), model.state(), model.control()
+        newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
+        steps = max(1, round(seconds_per_limit / settings.dt))
+        for side in (0, 1):
+            q_start = s0.joint_q.numpy().copy()
+            goal, speed = {}, {}
+            for j in movable:
+                lo, hi = lims[j]
+                span = hi - lo if np.isfinite(hi - lo) else 1.0
+                goal[j] = lo - overdrive * span if side == 0 else hi + overdrive * span
+                revolute = builder.joint_type[j] == newton.JointType.REVOLUTE
+                dist = abs(goal[j] - q_start[coords[j]])
+                speed[j] = max(angular_speed if revolute else linear_speed, dist / (0.6 * seconds_per_limit))
+            target = control.joint_target_q.numpy()
+            for step in range(steps):
+                t = (step + 1) * settings.dt
+                for j in movable:
+                    q0 = q_start[coords[j]]
+                    target[coords[j]] = q0 + np.clip(goal[j] - q0, -speed[j] * t, speed[j] * t)
+                control.joint_target_q.assign(target)
+                s0.clear_forces()
+                solver.step(s0, s1, control, None, settings.dt)
+                s0, s1 = s1, s0
+                q = s0.joint_q.numpy()
+                for j in movable:
+                    lo, hi = lims[j]
+                    x = float(q[coords[j]])
+                    excursion[j] = max(excursion[j], lo - x, x - hi)
+            q = s0.joint_q.numpy()
+            for j in movable:
+                reached[j].append(float(q[coords[j]]))
+    return _limit_report(usd_path, builder, movable, lims, reached, excursion, angular_tolerance, linear_tolerance,
+                         seconds_per_limit, settings)
+
+
+def _limit_report(usd_path, builder, movable, lims, reached, excursion, ang_tol, lin_tol, seconds, settings):
+    import newton
+
+    results, reasons = [], []
+    for j in movable:
+        revolute = builder.joint_type[j] == newton.JointType.REVOLUTE
+        tol = ang_tol if revolute else lin_tol
+        lo, hi = lims[j]
+        r_lo, r_hi = reached[j]
+        name = builder.joint_label[j]
+        bounded = np.isfinite(lo) and np.isfinite(hi) and abs(lo) < 1e6 and abs(hi) < 1e6
+        ok = bool(bounded and abs(r_lo - lo) <= tol and abs(r_hi - hi) <= tol and excursion[j] <= tol)
+        if not bounded:
+            reasons.append(f"{name}: joint has no finite limits")
+        elif not ok:
+            reasons.append(f"{name}: limits [{lo:.4f}, {hi:.4f}] reached [{r_lo:.4f}, {r_hi:.4f}], "
+                           f"excursion {excursion[j]:.4f} (tolerance {tol:.4f})")
+        results.append(JointLimitResult(joint=name, kind="revolute" if revolute else "prismatic", lower=lo, upper=hi,
+                                        reached_lower=r_lo, reached_upper=r_hi, max_excursion=float(excursion[j]),
+                                        tolerance=tol, passed=ok))
+    return JointLimitReport(usd_path=usd_path, passed=not reasons, reasons=tuple(reasons), joints=tuple(results),
+                            seconds_per_limit=seconds, solver=settings)
