@@ -58,9 +58,9 @@ class Executor(Protocol):
     def close(self) -> None: ...
 
 
-def _failure(error: str, tb: str = "") -> Outcome:
+def _failure(error: str, tb: str = "", worker_died: bool = False) -> Outcome:
     return Outcome(ok=False, result_json="", result_type="", error_kind="exception", error=one_line(error),
-                   traceback=tb, started_at=0.0, duration_s=0.0)
+                   traceback=tb, started_at=0.0, duration_s=0.0, worker_died=worker_died)
 
 
 class InlineExecutor:
@@ -131,7 +131,8 @@ class LocalExecutor:
                 out.append((token, fut.result()))
             except BrokenProcessPool as e:
                 broken = True
-                out.append((token, _failure(f"BrokenProcessPool: a worker process died abruptly ({e})")))
+                out.append((token, _failure(f"BrokenProcessPool: a worker process died abruptly ({e})",
+                                            worker_died=True)))
             except Exception as e:  # e.g. an unpicklable argument; reported as the item's failure
                 out.append((token, _failure(f"{type(e).__name__}: {e}")))
         if broken:

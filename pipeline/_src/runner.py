@@ -79,6 +79,7 @@ class _Pending:
     params_type: str
     ctx: ItemContext
     attempts: int = 0
+    suspect: bool = False    # was in a process pool when a worker died: runs alone from now on
 
 
 @dataclass
@@ -334,20 +335,35 @@ class _Run:
         ex = self._executor()
         window = 1 if ex.name == "inline" else max(2 * ex.workers, 4)
         queue = deque(to_run)
+        suspects: deque[_Pending] = deque()
         inflight: dict[int, tuple[_Pending, ItemContext]] = {}
         log.info("step %r: computing %d item(s) on %s (%d workers)", step.name, len(to_run), ex.name, ex.workers)
-        while queue or inflight:
-            while queue and len(inflight) < window:
-                p = queue.popleft()
-                p.attempts += 1
-                ctx = replace(p.ctx, out_dir=p.ctx.out_dir.parent / f"{p.item.item_id}.{uuid.uuid4().hex[:12]}")
-                token = next(self.tokens)
-                inflight[token] = (p, ctx)
-                ex.submit(token, Task(p.item.fn, p.params_json, p.params_type, ctx))
+        while queue or suspects or inflight:
+            # items that were in the pool when a worker died run one at a time, so that only the item
+            # that kills its worker is charged for it; the others go on as if nothing happened
+            if not any(p.suspect for p, _ in inflight.values()):
+                if suspects:
+                    if not inflight:
+                        self._submit(ex, suspects.popleft(), inflight)
+                else:
+                    while queue and len(inflight) < window:
+                        self._submit(ex, queue.popleft(), inflight)
             for token, oc in ex.wait():
                 p, ctx = inflight.pop(token)
-                if self._settle(step.name, p, ctx, oc, st, bar):
-                    queue.append(p)
+                if oc.get("worker_died") and not p.suspect:
+                    p.suspect = True
+                    p.attempts -= 1
+                    _rmtree(ctx.out_dir)
+                    suspects.append(p)
+                elif self._settle(step.name, p, ctx, oc, st, bar):
+                    (suspects if p.suspect else queue).append(p)
+
+    def _submit(self, ex: Executor, p: _Pending, inflight: dict[int, tuple[_Pending, ItemContext]]) -> None:
+        p.attempts += 1
+        ctx = replace(p.ctx, out_dir=p.ctx.out_dir.parent / f"{p.item.item_id}.{uuid.uuid4().hex[:12]}")
+        token = next(self.tokens)
+        inflight[token] = (p, ctx)
+        ex.submit(token, Task(p.item.fn, p.params_json, p.params_type, ctx))
 
     def _settle(self, step: str, p: _Pending, ctx: ItemContext, oc: Outcome, st: _StepState,
                 bar: StepProgress) -> bool:

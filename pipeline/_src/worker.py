@@ -10,7 +10,7 @@ import logging
 import time
 import traceback
 from functools import lru_cache
-from typing import Any, TypedDict
+from typing import Any, NotRequired, TypedDict
 
 from pydantic import BaseModel
 
@@ -27,7 +27,9 @@ class Outcome(TypedDict):
     result_type: ``"module:QualName"`` of the result model ("" for None);
     error_kind: "item" (ItemError), "exception" (anything else) or "" when ok;
     error: one-line reason; traceback: full traceback text for unexpected exceptions;
-    started_at [s since epoch]; duration_s [s]."""
+    started_at [s since epoch]; duration_s [s]; worker_died: set by an executor when the worker
+    process died under the item (the item may be innocent: another item in the same pool may have
+    killed it)."""
 
     ok: bool
     result_json: str
@@ -37,6 +39,7 @@ class Outcome(TypedDict):
     traceback: str
     started_at: float
     duration_s: float
+    worker_died: NotRequired[bool]
 
 
 def one_line(text: str) -> str:

@@ -32,6 +32,7 @@ class TextConfig(_Strict):
     sleep_s: float = 0.0
     bad: list[str] = []             # item ids whose content is "bad" (ItemError)
     crash: list[str] = []           # item ids that always raise RuntimeError
+    die: list[str] = []             # item ids whose worker process dies (os._exit)
     flaky: list[str] = []           # item ids that raise once, then succeed
     flaky_dir: Path | None = Field(default=None, json_schema_extra={"must_exist": False})
     rejected: list[str] = []        # item ids rejected at planning time (PlannedFailure)
@@ -40,7 +41,7 @@ class TextConfig(_Strict):
 class TextParams(_Strict):
     source: Path
     sleep_s: float = 0.0
-    mode: str = "ok"                # ok | bad | crash | flaky
+    mode: str = "ok"                # ok | bad | crash | flaky | die
     flaky_marker: Path | None = None
 
 
@@ -60,6 +61,8 @@ def process_text(params: TextParams, ctx: ItemContext) -> TextResult:
         raise ItemError(f"{params.source}: content is not acceptable\n(second line of detail)")
     if params.mode == "crash":
         raise RuntimeError(f"boom in {ctx.item_id}")
+    if params.mode == "die":
+        os._exit(17)
     if params.mode == "flaky" and params.flaky_marker is not None:
         if not params.flaky_marker.exists():
             params.flaky_marker.parent.mkdir(parents=True, exist_ok=True)
@@ -83,7 +86,7 @@ def plan_texts(cfg: TextConfig, pctx: PlanContext) -> list[WorkItem | PlannedFai
         if iid in cfg.rejected:
             out.append(PlannedFailure(iid, f"{f}: rejected while planning"))
             continue
-        mode = ("bad" if iid in cfg.bad else "crash" if iid in cfg.crash
+        mode = ("bad" if iid in cfg.bad else "crash" if iid in cfg.crash else "die" if iid in cfg.die
                 else "flaky" if iid in cfg.flaky else "ok")
         marker = (cfg.flaky_dir / f"{iid}.marker") if cfg.flaky_dir and mode == "flaky" else None
         out.append(WorkItem(item_id=iid, fn="stagefns:process_text",
@@ -169,3 +172,9 @@ REGISTRY: dict[str, str] = {
     "merge": "stagefns:MERGE_KIND",
     "trivial": "stagefns:TRIVIAL_KIND",
 }
+
+
+def echo_command(argv: list[str]) -> int:
+    """An extra CLI subcommand (see stages/commands.py): prints its arguments, returns their count."""
+    print("echo:", " ".join(argv))
+    return len(argv)
