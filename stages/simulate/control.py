@@ -186,9 +186,27 @@ class Clik:
         return q
 
     def solve(self, target: np.ndarray, q0: np.ndarray, *, max_iters: int = 300, pos_tol: float = 1e-4,
-              rot_tol: float = 1e-3) -> IkResult:
+              rot_tol: float = 1e-3, restarts: int = 0, rng: np.random.Generator | None = None) -> IkResult:
         """Damped least squares: dq = J^T (J J^T + lambda I)^-1 e, with e the SE(3) log error in the
-        local frame; iterates are clipped to the joint limits. ``target`` 4x4 in the root frame."""
+        local frame; iterates are clipped to the joint limits. ``target`` 4x4 in the root frame.
+
+        When a solve ends in a local minimum (a joint limit), up to ``restarts`` more solves start
+        from random in-limit arm configurations drawn from ``rng``; the best result is returned."""
+        best = self._solve(target, q0, max_iters, pos_tol, rot_tol)
+        for _ in range(restarts if not best.success else 0):
+            if rng is None:
+                raise ValueError("restarts need an rng")
+            q = np.asarray(q0, float).copy()
+            idx = self.v_idx[: len(self.desc.arm_joints)]
+            q[idx] = rng.uniform(self.lower[idx], self.upper[idx])
+            res = self._solve(target, q, max_iters, pos_tol, rot_tol)
+            if res.position_error + 0.1 * res.rotation_error < best.position_error + 0.1 * best.rotation_error:
+                best = res
+            if best.success:
+                break
+        return best
+
+    def _solve(self, target, q0, max_iters, pos_tol, rot_tol) -> IkResult:
         pin = self._pin
         goal = pin.SE3(np.asarray(target, float))
         q = np.clip(np.asarray(q0, float).copy(), self.lower, self.upper)

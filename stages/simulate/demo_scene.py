@@ -332,12 +332,12 @@ def _add_lights(w: _Writer, size) -> None:
     q = Rotation.from_euler("xy", [25.0, -20.0], degrees=True).as_quat()  # x, y, z, w
     w.prim("/World/Lights", "Xform")
     w.prim("/World/Lights/Sun", "DistantLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 2.5),
+        "inputs:intensity": (Sdf.ValueTypeNames.Float, 0.8),
         "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
         "xformOp:orient": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2]))),
     })
     w.prim("/World/Lights/Ceiling", "SphereLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 30.0),
+        "inputs:intensity": (Sdf.ValueTypeNames.Float, 3.0),
         "inputs:radius": (Sdf.ValueTypeNames.Float, 0.1),
         "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 1.0, 1.0)),
         **_xform_attrs((size[0] / 2, size[1] / 2, 2.3)),

@@ -352,16 +352,16 @@ def _add_robotiq(robot: ET.Element, robotiq_root: Path) -> None:
 
 
 def default_cameras(base: BaseGeometry, hand_link: str) -> dict[str, CameraMount]:
-    """Head camera on the mast top looking forward and 35 deg down; wrist camera on the hand
+    """Head camera on the mast top looking forward and 45 deg down; wrist camera on the hand
     looking along the fingers."""
-    pitch = np.deg2rad(35.0)
+    pitch = np.deg2rad(45.0)
     fwd = np.array([np.cos(pitch), 0.0, -np.sin(pitch)])
     r_head = look_rotation(fwd, np.array([0.0, 0.0, 1.0]))
     mast_len = base.mast_height - (base.clearance + base.chassis[2])
     head = CameraMount(link="head_camera", parent="mast", xyz=(0.05, 0.0, mast_len - 0.02),
                        rpy=_rpy_from_matrix(r_head), vertical_fov=np.deg2rad(70.0))
-    r_wrist = look_rotation(np.array([-0.25, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
-    wrist = CameraMount(link="wrist_camera", parent=hand_link, xyz=(0.065, 0.0, 0.03),
+    r_wrist = look_rotation(np.array([-0.2, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+    wrist = CameraMount(link="wrist_camera", parent=hand_link, xyz=(0.075, 0.0, -0.01),
                         rpy=_rpy_from_matrix(r_wrist), vertical_fov=np.deg2rad(75.0))
     return {"head": head, "wrist": wrist}
 

@@ -336,15 +336,21 @@ class CameraRig:
                            extrinsics=m, worlds=np.arange(self.sim.world_count))
 
 
+LABEL_COLORS = {"floor": (90, 90, 90), "wall": (200, 190, 160), "table": (150, 90, 40), "mug": (40, 80, 230),
+                "cabinet": (230, 200, 60), "robot": (60, 200, 80), "box": (220, 60, 60)}
+
+
 def colorize_labels(labels: np.ndarray, palette: dict[str, tuple[int, int, int]] | None = None) -> np.ndarray:
-    """(H, W) labels -> (H, W, 3) uint8 colours (stable per label; black for '')."""
+    """(H, W) labels -> (H, W, 3) uint8 colours (fixed for common labels, else a stable hash
+    colour; black for '')."""
     import zlib
 
+    palette = {**LABEL_COLORS, **(palette or {})}
     out = np.zeros((*labels.shape, 3), np.uint8)
     for lab in np.unique(labels):
         if not lab:
             continue
-        if palette and lab in palette:
+        if lab in palette:
             col = palette[lab]
         else:
             h = zlib.crc32(str(lab).encode())

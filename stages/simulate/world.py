@@ -319,6 +319,20 @@ class Sim:
             self.time += s.dt
             self.steps += 1
 
+    def reset(self) -> None:
+        """Back to the model's initial state (joint positions, velocities, drive targets), time 0.
+        Callbacks stay registered; controllers should re-send their commands."""
+        import newton
+
+        m = self.model
+        self.state_0.joint_q.assign(m.joint_q)
+        self.state_0.joint_qd.assign(m.joint_qd)
+        newton.eval_fk(m, m.joint_q, m.joint_qd, self.state_0)
+        self.state_1.assign(self.state_0)
+        self.control.joint_target_q.assign(m.joint_target_q)
+        self.control.joint_target_qd.assign(m.joint_target_qd)
+        self.time, self.steps = 0.0, 0
+
     def world_dof(self, name: str, world: int = 0) -> int:
         return self.robot.dof[name] + world * self.dofs_per_world
 
