@@ -1,0 +1,270 @@
+"""AssetBuilder: compose solids per link, add joints, and finish into an ``AssetModel``.
+
+Geometry is given in the asset's root frame (Z up, +X front, origin at the floor/support centre);
+the builder moves each link's geometry into its link frame (link frames are translated, never
+rotated, from the root frame). Masses come from per-solid densities [kg/m^3], optionally scaled to
+a target total mass [kg] (for hollow or upholstered things where density x volume is wrong).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from manifold3d import Manifold
+
+from asset_catalog.annotations import AssetAnnotation, ColliderKind, PlacementKind, RoomType
+from asset_catalog.asset_model import (
+    AssetModel, Joint, JointType, Link, MassProperties, MaterialSpec, MeshPart, Pose)
+from asset_catalog.generators import _geom
+from asset_catalog.generators._mesh import box_uvs, corner_normals, manifold_arrays, split_corners
+from asset_catalog.materials import MaterialClass
+
+
+@dataclass(frozen=True)
+class HandleInfo:
+    """A graspable handle: ``center`` (3,) [m] in the root frame at the zero configuration,
+    ``grip_width`` [m] = thickness the gripper fingers close on, ``clearance`` [m] = free gap behind
+    the grip (towards the surface it is mounted on), ``bar_axis`` (3,) unit direction of the bar."""
+
+    link: str
+    center: tuple[float, float, float]
+    grip_width: float
+    clearance: float
+    bar_axis: tuple[float, float, float]
+    kind: str = "bar"
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    """What a joint is for: role in {door, drawer, button, knob, lid}."""
+
+    name: str
+    role: str
+
+
+@dataclass(frozen=True, eq=False)
+class GeneratedAsset:
+    """One generated asset: the in-memory model, the source format it is written as, and facts the
+    files cannot carry (handles, joint roles, sampled parameters)."""
+
+    model: AssetModel
+    source_kind: Literal["obj", "urdf"]
+    handles: tuple[HandleInfo, ...]
+    joints: tuple[JointInfo, ...]
+    params: dict[str, float]
+    link_solids: dict[str, Manifold] = field(repr=False)
+
+    @property
+    def annotation(self) -> AssetAnnotation:
+        return self.model.annotation
+
+
+@dataclass
+class _Solid:
+    shape: Manifold
+    material: str
+    collision: list[Manifold] | None
+    density: float
+
+
+@dataclass
+class _LinkDraft:
+    name: str
+    origin: np.ndarray
+    solids: list[_Solid] = field(default_factory=list)
+
+
+@dataclass
+class _JointDraft:
+    name: str
+    type: JointType
+    parent: str
+    child: str
+    axis: tuple[float, float, float]
+    lower: float
+    upper: float
+    effort: float
+    velocity: float
+    damping: float
+    friction: float
+    role: str
+
+
+class AssetBuilder:
+    """Collects materials, links, solids, joints and handles of one asset (root link "base")."""
+
+    def __init__(self, rng: np.random.Generator):
+        self.rng = rng
+        self.materials: dict[str, MaterialSpec] = {}
+        self.links: dict[str, _LinkDraft] = {"base": _LinkDraft("base", np.zeros(3))}
+        self.joints: list[_JointDraft] = []
+        self.handles: list[HandleInfo] = []
+        self.params: dict[str, float] = {}
+
+    # --- declarations -------------------------------------------------------------------------
+    def param(self, name: str, lo: float, hi: float) -> float:
+        """Sample a parameter uniformly in [lo, hi] and record it."""
+        v = float(self.rng.uniform(lo, hi))
+        self.params[name] = round(v, 6)
+        return v
+
+    def choice(self, name: str, options: list):
+        i = int(self.rng.integers(len(options)))
+        self.params[name] = float(i)
+        return options[i]
+
+    def material(self, name: str, color, roughness: float = 0.5, metallic: float = 0.0) -> str:
+        c = tuple(float(np.clip(x, 0.0, 1.0)) for x in color)
+        self.materials[name] = MaterialSpec(name=name, base_color=c, roughness=float(roughness),
+                                            metallic=float(metallic))
+        return name
+
+    def link(self, name: str, *, parent: str, origin, joint: Literal["revolute", "prismatic"], axis,
+             lower: float, upper: float, effort: float, velocity: float, damping: float = 0.0,
+             friction: float = 0.0, role: str = "") -> str:
+        """Declare a moving link whose joint frame sits at ``origin`` (3,) [m] (root frame) with
+        ``axis`` (3,) in the root frame; limits [rad] or [m]."""
+        if name in self.links:
+            raise ValueError(f"duplicate link {name!r}")
+        self.links[name] = _LinkDraft(name, np.asarray(origin, dtype=np.float64))
+        ax = np.asarray(axis, dtype=np.float64)
+        ax = ax / np.linalg.norm(ax)
+        self.joints.append(_JointDraft(f"{name}_joint", JointType(joint), parent, name,
+                                       tuple(float(a) for a in ax), float(lower), float(upper),
+                                       float(effort), float(velocity), float(damping), float(friction), role))
+        return name
+
+    def add(self, link: str, shape: Manifold, material: str, *, density: float,
+            collision: Literal["self", "none"] | list[Manifold] = "self") -> None:
+        """Add a watertight solid to ``link`` (root-frame coordinates). ``collision``: "self" (the
+        solid is convex: use it), "none" (visual only), or a list of convex pieces."""
+        if material not in self.materials:
+            raise KeyError(f"unknown material {material!r}")
+        if shape.is_empty():
+            raise ValueError(f"empty solid added to link {link!r}")
+        col = [shape] if collision == "self" else [] if collision == "none" else list(collision)
+        self.links[link].solids.append(_Solid(shape, material, col, float(density)))
+
+    def handle(self, link: str, center, grip_width: float, clearance: float, bar_axis, kind: str = "bar") -> None:
+        """Record a graspable feature (kind: bar, lever, knob, loop, rim)."""
+        self.handles.append(HandleInfo(link, tuple(float(c) for c in center), float(grip_width),
+                                       float(clearance), tuple(float(a) for a in bar_axis), kind))
+
+    # --- finishing ----------------------------------------------------------------------------
+    def build(self, *, asset_id: str, category: str, source: str, room_types: tuple[RoomType, ...],
+              placement: PlacementKind, material: MaterialClass, interactable: bool,
+              co_occurrence: tuple[str, ...], fixed_base: bool, target_mass: float | None = None,
+              rigid_format: Literal["obj", "urdf"] = "urdf") -> GeneratedAsset:
+        """Finish the asset. ``rigid_format="obj"`` (single link only) means the asset is near-convex
+        and is written as an OBJ whose collider is its convex hull."""
+        masses = {name: _mass(lk) for name, lk in self.links.items()}
+        scales = _mass_scales({k: m[0] for k, m in masses.items()}, target_mass)
+        total = sum(m[0] * scales[k] for k, m in masses.items())
+        links, solids_by_link = [], {}
+        for name, lk in self.links.items():
+            union = _geom.union([s.shape for s in lk.solids])
+            solids_by_link[name] = union.translate(tuple(-lk.origin))
+            mass, com, inertia = masses[name]
+            scale = scales[name]
+            links.append(Link(
+                name=name, pose=Pose(tuple(float(x) for x in lk.origin)),
+                visuals=_visuals(lk, name),
+                collision_source=None if rigid_format == "obj" else _collision(lk, name),
+                mass=_mass_props(mass * scale, com - lk.origin, inertia * scale),
+                mass_from_source=rigid_format == "urdf"))
+        joints = tuple(_joint(j, self.links) for j in self.joints)
+        kind = "obj" if rigid_format == "obj" and not joints else "urdf"
+        is_rigid = not joints
+        ann = AssetAnnotation(
+            id=asset_id, source=source, category=category, room_types=room_types, placement=placement,
+            material=material, interactable=interactable, co_occurrence=co_occurrence,
+            mass=float(f"{total:.6g}") if is_rigid else None,
+            collider=ColliderKind.HULL if kind == "obj" else ColliderKind.AUTO,
+            fixed_base=fixed_base if joints else None)
+        model = AssetModel(name=asset_id, annotation=ann, links=tuple(links), joints=joints,
+                           materials=dict(self.materials), fixed_base=fixed_base)
+        return GeneratedAsset(model=model, source_kind=kind, handles=tuple(self.handles),
+                              joints=tuple(JointInfo(j.name, j.role) for j in self.joints),
+                              params=dict(self.params), link_solids=solids_by_link)
+
+
+def _mass_scales(masses: dict[str, float], target: float | None) -> dict[str, float]:
+    """Per-link mass factors that bring the total to ``target`` [kg]: links holding at least 5 % of the
+    density x volume mass are scaled; small parts (buttons, knobs) keep their density x volume mass."""
+    if not target:
+        return {k: 1.0 for k in masses}
+    total = sum(masses.values())
+    big = {k for k, m in masses.items() if m >= 0.05 * total}
+    small = total - sum(masses[k] for k in big)
+    f = max(target - small, 0.5 * target) / max(total - small, 1e-12)
+    return {k: (f if k in big else 1.0) for k in masses}
+
+
+def _visuals(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
+    solids = [s.shape.as_original() for s in lk.solids]
+    mat_of_id = {s.original_id(): lk.solids[i].material for i, s in enumerate(solids)}
+    union = _geom.union(solids).translate(tuple(-lk.origin))
+    verts, faces, ids = manifold_arrays(union)
+    normals = corner_normals(verts, faces)
+    uvs = box_uvs(verts, faces)
+    mats = np.array([mat_of_id.get(int(i), lk.solids[0].material) for i in ids], dtype=object)
+    parts = []
+    for mat in sorted(set(mats.tolist())):
+        sel = mats == mat
+        v, f, n, uv = split_corners(verts, faces[sel], normals[sel], uvs[sel])
+        parts.append(MeshPart(name=f"{link_name}__{mat}", vertices=v, faces=f, normals=n, uvs=uv, material=mat))
+    return tuple(parts)
+
+
+def _collision(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
+    parts = []
+    for s in lk.solids:
+        for piece in s.collision or []:
+            h = piece.hull().translate(tuple(-lk.origin))
+            v, f, _ = manifold_arrays(h)
+            parts.append(MeshPart(name=f"{link_name}__col{len(parts):02d}", vertices=v, faces=f))
+    return tuple(parts)
+
+
+def _mass(lk: _LinkDraft) -> tuple[float, np.ndarray, np.ndarray]:
+    """Mass [kg], centre of mass (3,) [m] (root frame) and inertia tensor (3, 3) [kg m^2] about it."""
+    import trimesh
+
+    ms, coms, inertias = [], [], []
+    for s in lk.solids:
+        v, f, _ = manifold_arrays(s.shape)
+        tm = trimesh.Trimesh(v, f, process=False)
+        tm.density = s.density
+        mp = tm.mass_properties
+        ms.append(float(mp["mass"]))
+        coms.append(np.asarray(mp["center_mass"]))
+        inertias.append(np.asarray(mp["inertia"]))
+    m = float(sum(ms))
+    com = sum(mi * ci for mi, ci in zip(ms, coms, strict=True)) / m
+    inertia = np.zeros((3, 3))
+    for mi, ci, ii in zip(ms, coms, inertias, strict=True):
+        d = ci - com
+        inertia += ii + mi * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+    return m, com, inertia
+
+
+def _mass_props(mass: float, com: np.ndarray, inertia: np.ndarray) -> MassProperties:
+    from scipy.spatial.transform import Rotation
+
+    w, vecs = np.linalg.eigh((inertia + inertia.T) / 2)
+    if np.linalg.det(vecs) < 0:
+        vecs[:, 2] *= -1
+    x, y, z, qw = Rotation.from_matrix(vecs).as_quat()
+    w = np.maximum(w, 1e-9)
+    return MassProperties(mass=float(mass), center_of_mass=tuple(float(c) for c in com),
+                          diagonal_inertia=tuple(float(i) for i in w),
+                          principal_axes=(float(qw), float(x), float(y), float(z)))
+
+
+def _joint(j: _JointDraft, links: dict[str, _LinkDraft]) -> Joint:
+    rel = links[j.child].origin - links[j.parent].origin
+    return Joint(name=j.name, type=j.type, parent=j.parent, child=j.child,
+                 frame=Pose(tuple(float(x) for x in rel)), axis=j.axis, lower=j.lower, upper=j.upper,
+                 max_effort=j.effort, max_velocity=j.velocity, friction=j.friction, damping=j.damping)
