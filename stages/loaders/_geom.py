@@ -7,6 +7,7 @@ Conventions as in ``asset_catalog.asset_model``: meters, kilograms, radians; qua
 
 from __future__ import annotations
 
+import functools
 import logging
 import re
 import xml.etree.ElementTree as ET
@@ -174,17 +175,58 @@ def _shaded(mesh) -> RawMesh:
 
 
 def box(half_extents) -> RawMesh:
-    """Box centred at the origin with half-extents (3,) [m]."""
-    import trimesh
-
-    return _shaded(trimesh.creation.box(extents=2.0 * np.asarray(half_extents, float)))
+    """Box centred at the origin with half-extents (3,) [m]: 24 vertices with flat face normals."""
+    return _unit_box().scaled(np.asarray(half_extents, float))
 
 
-def cylinder(radius: float, half_length: float, sections: int = 32) -> RawMesh:
-    """Cylinder along +Z centred at the origin [m]."""
-    import trimesh
+def cylinder(radius: float, half_length: float) -> RawMesh:
+    """Cylinder along +Z centred at the origin [m]: smooth sides, flat caps (32 sections)."""
+    return _unit_cylinder().scaled((radius, radius, half_length))
 
-    return _shaded(trimesh.creation.cylinder(radius=radius, height=2.0 * half_length, sections=sections))
+
+@functools.lru_cache(maxsize=1)
+def _unit_box() -> RawMesh:
+    verts, faces, normals = [], [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            u, v = np.eye(3)[(axis + 1) % 3], np.eye(3)[(axis + 2) % 3]
+            corners = [n + a * u + b * v for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+            base = len(verts)
+            verts += corners
+            normals += [n] * 4
+            quad = [(0, 1, 2), (0, 2, 3)] if sign > 0 else [(0, 2, 1), (0, 3, 2)]
+            faces += [[base + i for i in tri] for tri in quad]
+    return _frozen(RawMesh(np.array(verts), np.array(faces, np.int64), np.array(normals)))
+
+
+@functools.lru_cache(maxsize=1)
+def _unit_cylinder(sections: int = 32) -> RawMesh:
+    ang = np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
+    ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(sections)])
+    k = np.arange(sections)
+    k1 = (k + 1) % sections
+    side_v = np.vstack([ring + (0, 0, -1), ring + (0, 0, 1)])
+    side_n = np.vstack([ring, ring])
+    side_f = np.vstack([np.column_stack([k, k1, sections + k1]), np.column_stack([k, sections + k1, sections + k])])
+    verts, normals, faces = [side_v], [side_n], [side_f]
+    off = 2 * sections
+    for z in (-1.0, 1.0):
+        cap = np.vstack([[0, 0, z], ring + (0, 0, z)])
+        tri = np.column_stack([np.zeros(sections, np.int64), 1 + k, 1 + k1]) if z > 0 else \
+            np.column_stack([np.zeros(sections, np.int64), 1 + k1, 1 + k])
+        verts.append(cap)
+        normals.append(np.tile((0.0, 0.0, z), (sections + 1, 1)))
+        faces.append(tri + off)
+        off += sections + 1
+    return _frozen(RawMesh(np.vstack(verts), np.vstack(faces).astype(np.int64), np.vstack(normals)))
+
+
+def _frozen(m: RawMesh) -> RawMesh:
+    for a in (m.vertices, m.faces, m.normals):
+        a.setflags(write=False)
+    return m
 
 
 def capsule(radius: float, half_length: float) -> RawMesh:
@@ -197,11 +239,16 @@ def capsule(radius: float, half_length: float) -> RawMesh:
 
 def ellipsoid(radii) -> RawMesh:
     """Ellipsoid centred at the origin with semi-axes (3,) [m] (a sphere when all equal)."""
+    return _unit_sphere().scaled(radii)
+
+
+@functools.lru_cache(maxsize=1)
+def _unit_sphere() -> RawMesh:
     import trimesh
 
     m = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
-    return RawMesh(np.asarray(m.vertices, float), np.asarray(m.faces, np.int64),
-                   np.asarray(m.vertex_normals, float)).scaled(radii)
+    v = np.asarray(m.vertices, float)
+    return _frozen(RawMesh(v, np.asarray(m.faces, np.int64), v / np.linalg.norm(v, axis=1, keepdims=True)))
 
 
 def box_uvs(mesh: RawMesh, repeat=(1.0, 1.0)) -> RawMesh:

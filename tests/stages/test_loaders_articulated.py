@@ -370,3 +370,76 @@ def test_mjcf_free_root_and_welded_bodies(tmp_path):
     assert j.axis == pytest.approx((0, 1, 0)) and (j.lower, j.upper) == pytest.approx((-30 * _DEG, 45 * _DEG))
     np.testing.assert_allclose(j.frame.position, (0.3, 0, 0.3), atol=1e-12)
     np.testing.assert_allclose(child.visuals[0].vertices.mean(axis=0), (-0.1, 0, 0), atol=1e-12)
+
+
+# ------------------------------------------------------------------ USD package + Newton joint limits
+
+# Joints that do not pass stages.physics_checks.joint_limit_check today, and why (measured on CPU):
+# the check's position drive is sized from the subtree inertia alone (ke = I * (10 rad/s)^2), so it
+# stalls against the sources' joint friction (MuJoCo frictionloss, carried to newton:friction) or
+# against gravity on light, off-axis parts. With the friction set to 0 the hinge cabinet's doors reach
+# both limits within 1e-4 rad, so the USD joints, frames and limits themselves are right.
+_LIMIT_XFAIL = {
+    "vk_hinge_cabinet": "frictionloss 2 N m > drive torque: doors stall at -0.77 / +0.77 rad of +-1.57",
+    "vk_box_cabinet": "frictionloss 2 N m > drive torque: door stalls at -0.77 of -1.57 rad",
+    "vk_microwave": "frictionloss 2 N m > drive torque: door stalls at -1.51 of -2.094 rad",
+    "vk_slide_cabinet": "frictionloss 2 N > drive force: door stalls at 0.389 of 0.44 m",
+    "vk_oven": "lightswitch (frictionloss 1 N m) stalls at -0.09 of -0.7 rad; light block (frictionloss 1 N, "
+               "10 g pushed to 0 by gravity) does not move",
+    "robosuite_door_lock": "latch: gravity torque of the 0.1 kg handle exceeds the drive; it stays at the lower limit",
+}
+_ARTICULATED = sorted(i for i, (_, _, joints) in EXPECTED.items() if joints)
+_DEFAULT_LIMIT_ASSET = "libero_white_cabinet"
+
+
+def with_hull_colliders(model: AssetModel) -> AssetModel:
+    """Colliders = the convex hull of each of the source's collision parts (the sources here give
+    convex primitives or convex pieces)."""
+    import dataclasses
+
+    import trimesh
+
+    from asset_catalog.asset_model import ColliderApprox, MeshPart
+
+    links = []
+    for lk in model.links:
+        cols = []
+        for p in lk.collision_source or ():
+            h = trimesh.convex.convex_hull(p.vertices)
+            cols.append(MeshPart(name=p.name, vertices=np.asarray(h.vertices, float),
+                                 faces=np.asarray(h.faces, np.int64)))
+        links.append(dataclasses.replace(lk, colliders=tuple(cols),
+                                         collider_approx=ColliderApprox.HULL if cols else None))
+    return dataclasses.replace(model, links=tuple(links))
+
+
+def _limit_check(shared_assets: Path, tmp_path: Path, asset_id: str):
+    pytest.importorskip("newton_usd_schemas", reason="newton's USD importer needs newton-usd-schemas")
+    usd_schemas = pytest.importorskip("usd_schemas")
+    physics_checks = pytest.importorskip("stages.physics_checks")
+    model = with_hull_colliders(load(_annotations()[asset_id], shared_assets))
+    pkg = usd_schemas.write_asset_package(model, tmp_path / asset_id, pipeline_version="test")
+    report = usd_schemas.validate_package(pkg.root_path)
+    assert report.ok, report.summary()
+    assert pkg.joint_count == len(model.joints) + 1          # + the joint fixing the root to the world
+    result = physics_checks.joint_limit_check(pkg.root_path, device="cpu")
+    assert len(result.joints) == len(model.joints)
+    return result
+
+
+def test_articulated_package_joints_reach_limits_in_newton(shared_assets, tmp_path):
+    """One representative in the default suite: 3 drawers driven to -0.16 m and +0.01 m."""
+    result = _limit_check(shared_assets, tmp_path, _DEFAULT_LIMIT_ASSET)
+    assert result.passed, result.reasons
+    for j in result.joints:
+        assert j.reached_lower == pytest.approx(-0.16, abs=0.005)
+        assert j.reached_upper == pytest.approx(0.01, abs=0.005)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("asset_id", [
+    pytest.param(i, marks=pytest.mark.xfail(reason=_LIMIT_XFAIL[i], strict=False)) if i in _LIMIT_XFAIL else i
+    for i in _ARTICULATED if i != _DEFAULT_LIMIT_ASSET])
+def test_every_articulated_package_joints_reach_limits_in_newton(shared_assets, tmp_path, asset_id):
+    result = _limit_check(shared_assets, tmp_path, asset_id)
+    assert result.passed, result.reasons
