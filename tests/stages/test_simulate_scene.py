@@ -1,0 +1,189 @@
+"""The robot in a furnished room: driving into walls, free spawn, state, and cameras."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("newton")
+pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
+
+from stages.simulate.control import RobotControl  # noqa: E402
+from stages.simulate.demo_scene import write_demo_room  # noqa: E402
+from stages.simulate.robot import write_robot_urdf  # noqa: E402
+from stages.simulate.sensors import (  # noqa: E402
+    CameraRig,
+    CameraSpec,
+    colorize_labels,
+    depth_to_png,
+    look_at,
+    robot_cameras,
+)
+from stages.simulate.state import read_state  # noqa: E402
+from stages.simulate.world import SimConfig, build_sim, find_free_spawn  # noqa: E402
+
+PANDA = "robots/franka_panda__example_robot_data"
+
+
+@pytest.fixture(scope="module")
+def room(shared_assets, tmp_path_factory):
+    return write_demo_room(tmp_path_factory.mktemp("room") / "room.usda", shared_assets=shared_assets)
+
+
+@pytest.fixture(scope="module")
+def desc(shared_assets, tmp_path_factory):
+    return write_robot_urdf(tmp_path_factory.mktemp("robot"), panda_root=shared_assets / PANDA)
+
+
+@pytest.fixture(scope="module")
+def sim(room, desc):
+    s = build_sim(SimConfig(scenes=(room.usd,), spawn=(1.0, 1.0, 0.0)), desc, np.random.default_rng(0))
+    s.ctl = RobotControl(s)
+    return s
+
+
+def test_drives_across_the_room_and_is_stopped_by_the_wall(sim, room):
+    """Commanded 0.8 m/s east for 7 s (5.6 m, more than the 4.7 m to the wall): the base crosses
+    the room, stops at the east wall, and no robot body ever gets past the wall's inner face."""
+    sim.reset()
+    sim.ctl.set_base_velocity(0.8, 0.0, 0.0)
+    wall_x = room.size[0]
+    import newton
+
+    # bodies with collision geometry (camera and TCP frames are massless markers without any)
+    flags = sim.model.shape_flags.numpy()
+    shape_body = sim.model.shape_body.numpy()
+    colliding = {int(shape_body[s]) for s in range(sim.robot.shape_start, sim.robot.shape_end)
+                 if flags[s] & int(newton.ShapeFlags.COLLIDE_SHAPES)}
+    robot_bodies = np.array(sorted(colliding))
+    assert len(robot_bodies) >= 12
+    max_x = -np.inf
+    for _ in range(70):
+        sim.step(50)
+        bq = sim.state_0.body_q.numpy()
+        max_x = max(max_x, float(bq[robot_bodies, 0].max()))
+    st = read_state(sim, contacts=True)
+    half = sim.desc.base.chassis[0] / 2
+    assert st.robot.base.x > 1.0 + 3.0, "the base did not cross the room"
+    assert st.robot.base.x + half < wall_x + 0.01, "the chassis went through the wall"
+    assert max_x < wall_x + 0.01, f"a robot body reached x={max_x} past the wall at {wall_x}"
+    assert abs(st.robot.base.y - 1.0) < 0.05 and abs(st.robot.base.theta) < 0.05
+    assert abs(st.robot.qd[0]) < 0.05, "the base is still moving into the wall"
+    assert any("wall" in (c.label_a, c.label_b) and "robot" in (c.label_a, c.label_b) for c in st.contacts)
+    # and it drives back when told to
+    sim.ctl.set_base_velocity(-0.5, 0.0, 0.0)
+    sim.step(250)
+    assert read_state(sim).robot.base.x < st.robot.base.x - 0.15
+    sim.ctl.set_base_velocity(0.0, 0.0, 0.0)
+
+
+def test_base_velocity_is_in_the_base_frame(sim):
+    sim.reset()
+    sim.ctl.set_base_velocity(0.0, 0.0, 0.8)
+    sim.step(250)  # turn ~ 0.4 rad
+    theta = read_state(sim).robot.base.theta
+    assert 0.25 < theta < 0.5
+    x0, y0 = read_state(sim).robot.base.x, read_state(sim).robot.base.y
+    sim.ctl.set_base_velocity(0.4, 0.0, 0.0)
+    sim.step(500)
+    st = read_state(sim)
+    heading = np.arctan2(st.robot.base.y - y0, st.robot.base.x - x0)
+    assert abs(heading - st.robot.base.theta) < 0.05, "forward is not along the base's heading"
+    sim.ctl.set_base_velocity(0.0, 0.0, 0.0)
+
+
+def test_free_spawn_is_clear_of_every_obstacle(room, desc):
+    import newton
+
+    b = newton.ModelBuilder()
+    b.add_usd(str(room.usd))
+    rng = np.random.default_rng(11)
+    from stages.simulate.world import _shape_aabbs
+
+    boxes = _shape_aabbs(b)
+    for _ in range(5):
+        x, y, _yaw = find_free_spawn(b, rng, radius=0.45)
+        assert 0.45 <= x <= room.size[0] - 0.45 and 0.45 <= y <= room.size[1] - 0.45
+        dx = np.maximum(np.maximum(boxes[:, 0] - x, x - boxes[:, 2]), 0)
+        dy = np.maximum(np.maximum(boxes[:, 1] - y, y - boxes[:, 3]), 0)
+        assert np.all(np.hypot(dx, dy) > 0.45)
+    x, y, yaw = find_free_spawn(b, rng, radius=0.45, near=(3.0, 3.0))
+    assert np.hypot(x - 3.0, y - 3.0) < 0.9 and abs(np.cos(yaw - np.arctan2(3.0 - y, 3.0 - x)) - 1) < 1e-6
+
+
+def test_state_reports_robot_objects_and_settings(sim, room):
+    sim.reset()
+    sim.step(10)
+    st = read_state(sim)
+    assert st.robot.joint_names[:3] == ("base_x", "base_y", "base_yaw")
+    assert st.robot.q.shape == (12,) and st.robot.qd.shape == (12,)
+    np.testing.assert_allclose(st.robot.q[3:10], sim.desc.arm_home, atol=0.02)
+    assert abs(st.robot.gripper_opening - 0.08) < 0.01
+    assert st.robot.ee_pose.position[2] > 0.3
+    mug = st.objects["/World/Mug"]
+    np.testing.assert_allclose(mug.position[:2], room.mug_position[:2], atol=0.01)
+    assert set(st.scene_joints) == {"/World/Cabinet/DrawerJoint", "/World/Cabinet/DoorJoint"}
+    js = sim.settings.to_json()
+    assert js["solver"] == "mujoco" and js["dt"] == 0.002 and js["world_count"] == 1
+    assert js["options"]["integrator"] == "implicitfast"
+
+
+def _backproject(frame, v: int = 0) -> np.ndarray:
+    """World points (H, W, 3) of every pixel from planar depth, intrinsics and extrinsics."""
+    k = frame.intrinsics
+    h, w = frame.depth.shape[1:]
+    u, vv = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    d = frame.depth[v]
+    pc = np.stack([(u - k.cx) / k.fx * d, -(vv - k.cy) / k.fy * d, -d, np.ones_like(d)], axis=-1)
+    return (pc @ frame.extrinsics[v].T)[..., :3]
+
+
+def test_camera_frames_agree_with_the_geometry(sim, room, desc, tmp_path):
+    """Writes RGB, depth and segmentation PNGs of the head, wrist and a third-person camera, then
+    checks each labelled pixel's back-projected depth lands on that object's geometry."""
+    from PIL import Image
+
+    sim.reset()
+    sim.step(5)
+    third = CameraSpec(name="third", width=160, height=120, vertical_fov=1.0,
+                       pose=look_at((0.4, 0.4, 2.2), (3.0, 3.0, 0.4)))
+    rig = CameraRig(sim, robot_cameras(desc) + [third])
+    frames = rig.render()
+    out = Path(os.environ.get("AGENTWORLD_TEST_ARTIFACTS", tmp_path))
+    out.mkdir(parents=True, exist_ok=True)
+    for name, f in frames.items():
+        labels = f.labels(sim.shape_label)[0]
+        Image.fromarray(f.rgb[0]).save(out / f"{name}_rgb.png")
+        Image.fromarray(depth_to_png(f.depth[0])).save(out / f"{name}_depth.png")
+        Image.fromarray(colorize_labels(labels)).save(out / f"{name}_seg.png")
+        assert (out / f"{name}_rgb.png").stat().st_size > 500
+        assert f.rgb[0].std() > 10, f"{name}: flat image"
+    f = frames["third"]
+    labels = f.labels(sim.shape_label)[0]
+    pts = _backproject(f)
+    for lab in ("floor", "wall", "table", "robot", "cabinet", "mug"):
+        assert (labels == lab).sum() > 3, f"third-person view shows no {lab}"
+    floor = pts[labels == "floor"]
+    assert np.abs(floor[:, 2]).max() < 0.01
+    wall = pts[labels == "wall"]
+    dist = np.min(np.abs(np.stack([wall[:, 0], wall[:, 0] - room.size[0], wall[:, 1], wall[:, 1] - room.size[1]])),
+                  axis=0)
+    assert np.percentile(dist, 99) < 0.01
+    tab = pts[labels == "table"]
+    c, s = np.asarray(room.table.center), np.asarray(room.table.size)
+    assert np.all(tab[:, :2] >= c[:2] - s[:2] / 2 - 0.01) and np.all(tab[:, :2] <= c[:2] + s[:2] / 2 + 0.01)
+    assert tab[:, 2].max() < c[2] + s[2] / 2 + 0.01
+    mug = pts[labels == "mug"]
+    assert np.linalg.norm(mug[:, :2] - np.asarray(room.mug_position[:2]), axis=1).max() < 0.08
+    # the head camera looks over the base and sees the robot's own arm and the floor
+    head_labels = frames["head"].labels(sim.shape_label)[0]
+    assert (head_labels == "robot").any() and (head_labels == "floor").any()
+    # extrinsics: the head camera rides on the mast above the base
+    st = read_state(sim)
+    e = frames["head"].extrinsics[0]
+    assert e[2, 3] > 1.2 and np.hypot(e[0, 3] - st.robot.base.x, e[1, 3] - st.robot.base.y) < 0.35
+    assert np.allclose(frames["head"].extrinsics_opencv()[0] @ np.append(e[:3, 3], 1.0), [0, 0, 0, 1], atol=1e-6)
+    assert rig.lights_used and rig.lights_used[0].source == "/World/Lights/Sun"
