@@ -131,7 +131,7 @@ def _setup_logging(level: str, console: Any) -> None:
 
 
 def _execute(job: Any, args: argparse.Namespace, registry: Any = None) -> int:
-    from pipeline._src.report import render_summary
+    from pipeline._src.report import render_summary, stdout_console
     from pipeline._src.runner import run_job
 
     console = _console()
@@ -139,9 +139,7 @@ def _execute(job: Any, args: argparse.Namespace, registry: Any = None) -> int:
     summary = run_job(job, out=args.out, executor=args.executor, workers=args.workers, retries=args.retries,
                       ray_address=args.ray_address, registry=registry, progress=False if args.no_progress else None,
                       log_level=args.log_level, console=console, retry_failed=args.retry_failed)
-    from rich.console import Console
-
-    render_summary(summary, Console())
+    render_summary(summary, stdout_console())
     return EXIT_FAILED_ITEMS if args.strict and summary.failed else EXIT_OK
 
 
@@ -188,11 +186,11 @@ def _cmd_ingest(args: argparse.Namespace) -> int:
 
 
 def _cmd_catalog_list(args: argparse.Namespace) -> int:
-    from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
     from asset_catalog.index import index_path, query_index
+    from pipeline._src.report import stdout_console
 
     db = args.db or index_path(args.work_dir)
     if not db.is_file():
@@ -207,14 +205,14 @@ def _cmd_catalog_list(args: argparse.Namespace) -> int:
     t = Table(title=Text(f"{len(recs)} asset(s) in {db}"), title_justify="left")
     for col in ("id", "category", "rooms", "placement", "material", "interactable", "size [m]", "mass [kg]",
                 "collider", "status"):
-        t.add_column(col, overflow="fold")
+        t.add_column(col, overflow="fold", no_wrap=col in ("id", "category"))
     for r in recs:
         size = "x".join(f"{v:.2f}" for v in r.dimensions) if r.dimensions else ""
         t.add_row(Text(r.id), Text(r.category), Text(",".join(r.room_types)), Text(r.placement or ""),
                   Text(r.material or ""), "yes" if r.interactable else "no", size,
                   f"{r.mass:.3g}" if r.mass is not None else "", Text(r.collider or ""),
                   Text(r.status if r.status == "ok" else f"failed: {r.error}"))
-    Console().print(t)
+    stdout_console().print(t)
     return EXIT_OK
 
 

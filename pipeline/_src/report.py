@@ -108,13 +108,20 @@ def read_summary(work_dir: Path) -> JobSummary | None:
     return JobSummary.from_dict(json.loads(path.read_text(encoding="utf-8")))
 
 
+def stdout_console() -> Any:
+    """A rich console on stdout; 160 columns wide when stdout is not a terminal (pipes, logs, tests)."""
+    from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=160)
+
+
 def render_summary(summary: JobSummary, console: Any = None, max_failures: int = 50) -> None:
     """Print the summary as a rich table (per step: done / cached / failed, then each failure)."""
-    from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    console = console or Console()
+    console = console or stdout_console()
     title = (f"job {summary.job!r}: {summary.status} in {summary.seconds:.2f} s "
              f"({summary.executor}, {summary.workers} workers) -> {summary.out}")
     table = Table(title=Text(title), title_justify="left")

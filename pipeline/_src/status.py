@@ -29,11 +29,12 @@ def step_counts(work_dir: Path) -> list[tuple[str, dict[str, int], list[tuple[st
 
 def print_status(work_dir: Path, max_failures: int = 50) -> int:
     """Print the item counts per step, the failures and the last run's summary line; exit status."""
-    from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    console = Console()
+    from pipeline._src.report import stdout_console
+
+    console = stdout_console()
     db = Path(work_dir) / STATE_DB
     if not db.is_file():
         print(f"agentworld: error: {db}: no state database (nothing has run in {work_dir})", file=sys.stderr)
