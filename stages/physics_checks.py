@@ -182,7 +182,7 @@ class RestTolerances:
     angular_speed: float = 0.2
 
 
-def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, drop_height: float = 0.05,
+def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, drop_height: float = 0.02,
                tolerances: RestTolerances = RestTolerances()) -> RestReport:
     """Drop the asset from ``drop_height`` [m] (lowest collider point above the plane, asset in its
     authored orientation) onto a ground plane and simulate ``seconds`` [s] on ``device``."""

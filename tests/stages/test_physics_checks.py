@@ -1,0 +1,78 @@
+"""Newton physics checks on asset packages written from models built in code (CPU)."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("newton_usd_schemas", reason="Newton's add_usd needs newton-usd-schemas")
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "usd_schemas"))
+import usd_test_models as M  # noqa: E402
+
+import usd_schemas  # noqa: E402
+from asset_catalog.asset_model import Pose  # noqa: E402
+from stages.physics_checks import joint_limit_check, rest_check  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def packages(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("phys")
+    models = [M.box_model(), M.bowl_model(), M.textured_model(root / "src"), M.cabinet_model(),
+              M.cabinet_model("cabinet_fixed", fixed_base=True), M.tilted_hinge_model()]
+    out = {}
+    for m in models:
+        pkg = usd_schemas.write_asset_package(m, root / m.name, pipeline_version="0.1.0")
+        assert usd_schemas.validate_package(pkg.root_path).ok
+        out[m.name] = pkg.root_path
+    return out
+
+
+@pytest.mark.parametrize("name", ["box_01", "bowl_01", "crate_01"])
+def test_rigid_assets_come_to_rest(packages, name):
+    r = rest_check(packages[name], device="cpu", seconds=1.5)
+    assert r.passed, r.reasons
+    assert abs(r.final_height) < 0.003
+    assert r.settled_min_height > -0.003
+    assert r.max_rise < 0.02
+    assert r.final_linear_speed < 0.02 and r.final_angular_speed < 0.2
+    assert r.solver.solver == "SolverMuJoCo" and r.solver.device == "cpu" and r.solver.backend == "mujoco-c"
+
+
+def test_rest_check_detects_an_asset_that_does_not_rest(tmp_path):
+    """A box authored tilted 30 degrees lands on an edge and topples: not at rest after 0.3 s."""
+    import math
+
+    box = M.box_model("tilted_01")
+    tilted = replace(box.links[0], pose=Pose((0.0, 0.0, 0.0), (math.cos(math.pi / 12), math.sin(math.pi / 12), 0.0, 0.0)))
+    pkg = usd_schemas.write_asset_package(box.replace_links((tilted,)), tmp_path, pipeline_version="0.1.0")
+    r = rest_check(pkg.root_path, seconds=0.3)
+    assert not r.passed and any("not at rest" in x for x in r.reasons), r
+    settled = rest_check(pkg.root_path, seconds=2.0)
+    assert settled.final_linear_speed < 0.02 and abs(settled.final_height) < 0.003, "given time, it settles"
+    no_cols = box.replace_links((replace(box.links[0], colliders=()),))
+    pkg2 = usd_schemas.write_asset_package(no_cols, tmp_path / "nocol", pipeline_version="0.1.0")
+    r2 = rest_check(pkg2.root_path, seconds=0.1)
+    assert not r2.passed and r2.reasons == ("no collider shapes",)
+
+
+@pytest.mark.parametrize("name,joints", [("cabinet_01", 2), ("cabinet_fixed", 2), ("flap_01", 1)])
+def test_articulated_joints_reach_their_limits(packages, name, joints):
+    r = joint_limit_check(packages[name], device="cpu")
+    assert r.passed, r.reasons
+    assert len(r.joints) == joints
+    for j in r.joints:
+        assert j.passed
+        assert abs(j.reached_lower - j.lower) <= j.tolerance
+        assert abs(j.reached_upper - j.upper) <= j.tolerance
+        assert j.max_excursion <= j.tolerance
+    kinds = sorted(j.kind for j in r.joints)
+    assert kinds == (["prismatic", "revolute"] if joints == 2 else ["revolute"])
+
+
+def test_joint_limit_check_without_joints_fails(packages):
+    r = joint_limit_check(packages["box_01"])
+    assert not r.passed and r.reasons == ("no revolute or prismatic joint",)
