@@ -1,0 +1,93 @@
+"""Dataset schema: dimensions, lerobot features, frame validation (no lerobot needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stages.dataset.schema import (
+    CameraSpec,
+    DatasetSpec,
+    EpisodeInfo,
+    FrameError,
+    depth_m_to_mm,
+    frame_problems,
+    validate_frame,
+)
+from stages.dataset.synthetic import synthetic_frame
+
+
+def test_default_spec_dimensions_and_features():
+    spec = DatasetSpec()
+    assert spec.state_dim == 7 + 7 + 3 and spec.action_dim == 7 + 7 + 3 + 1 + 1
+    feats = spec.features()
+    assert feats["observation.state"]["shape"] == (17,) and len(feats["observation.state"]["names"]) == 17
+    assert feats["action"]["shape"] == (19,) and feats["action"]["names"][-2:] == ["gripper", "mode"]
+    for cam in ("wrist", "head", "third_person"):
+        assert feats[f"observation.images.{cam}"] == {
+            "dtype": "video", "shape": (240, 320, 3), "names": ["height", "width", "channels"]}  # fmt: skip
+        depth = feats[f"observation.images.{cam}_depth"]
+        assert depth["dtype"] == "image" and depth["shape"] == (240, 320, 1)
+        assert depth["info"] == {"is_depth_map": True, "depth_unit": "mm"}
+
+
+def test_spec_is_configurable_and_round_trips_json():
+    spec = DatasetSpec(arm_dof=6, cameras=(CameraSpec("head", 64, 80, depth=False),), data_files_size_mb=0.5)
+    assert spec.state_dim == 16 and spec.action_dim == 18
+    assert set(spec.features()) == {"observation.state", "action", "observation.images.head"}
+    assert DatasetSpec.from_json(spec.to_json()) == spec
+
+
+def test_spec_rejects_bad_values_in_one_message():
+    with pytest.raises(ValueError, match="arm_dof.*fps"):
+        DatasetSpec(arm_dof=0, fps=0)
+    with pytest.raises(ValueError, match="unique"):
+        DatasetSpec(cameras=(CameraSpec("a"), CameraSpec("a")))
+    with pytest.raises(ValueError, match="name"):
+        CameraSpec("Wrist Cam")
+
+
+def test_valid_synthetic_frame_has_no_problems():
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 24, 32), CameraSpec("head", 24, 32, rgb=False)))
+    frame = synthetic_frame(spec, 0, 0, 5)
+    assert frame_problems(spec, frame) == []
+    assert frame.state().shape == (spec.state_dim,) and frame.state().dtype == np.float32
+    assert frame.action()[-1] == 1.0  # mode: manipulation from frame 3 on
+
+
+def test_validate_frame_collects_every_problem():
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 24, 32),))
+    good = synthetic_frame(spec, 0, 0, 0)
+    bad = type(good)(
+        arm_joint_pos=np.zeros(6),  # wrong dof
+        ee_pose=np.array([0, 0, 0, 2.0, 0, 0, 0]),  # not a unit quaternion
+        base_pose=np.array([0.0, np.nan, 0.0]),  # NaN
+        arm_joint_target=good.arm_joint_target,
+        ee_target=good.ee_target,
+        base_velocity=good.base_velocity,
+        gripper=1.5,
+        mode=2,
+        rgb={"wrist": good.rgb["wrist"].astype(np.float32), "extra": good.rgb["wrist"]},
+        depth_mm={},
+    )
+    with pytest.raises(FrameError) as err:
+        validate_frame(spec, bad, where="ep 3 frame 7")
+    msg = str(err.value)
+    assert msg.startswith("ep 3 frame 7: 8 problem(s)")
+    for part in ("arm_joint_pos: shape (6,)", "quaternion norm 2.0000", "base_pose: contains NaN",
+                 "gripper", "mode must be 0", "rgb['wrist']: expected uint8", "depth_mm['wrist'] missing",
+                 "not in the spec: ['extra']"):  # fmt: skip
+        assert part in msg
+
+
+def test_depth_m_to_mm_rounds_and_marks_invalid_as_zero():
+    d = np.array([[0.0004, 0.0006, 1.2346], [np.nan, np.inf, 70.0], [-1.0, 65.535, 2.0]], np.float32)
+    mm = depth_m_to_mm(d)
+    assert mm.dtype == np.uint16
+    assert mm.tolist() == [[0, 1, 1235], [0, 0, 65535], [0, 65535, 2000]]
+
+
+def test_episode_info_problems():
+    assert EpisodeInfo("open the fridge", "open_close", "scene-1", 3).problems() == []
+    probs = EpisodeInfo(" ", "", "scene-1", -1).problems()
+    assert len(probs) == 3
