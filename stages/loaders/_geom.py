@@ -564,12 +564,12 @@ def _dae_geometry(geom: ET.Element, sources: dict, binding: dict, colors: dict, 
         mat_name, rgba = colors.get(binding.get(sym, sym), (sym or "material", (0.8, 0.8, 0.8, 1.0)))
         material = MaterialSpec(name=str(mat_name), base_color=tuple(float(c) for c in rgba[:3]),
                                 opacity=float(rgba[3]))
-        raw = _weld(RawMesh(pos, faces, nrm, uv, material))
+        raw = weld(RawMesh(pos, faces, nrm, uv, material))
         out.append(_apply_affine(raw, t))
     return out
 
 
-def _weld(m: RawMesh) -> RawMesh:
+def weld(m: RawMesh) -> RawMesh:
     """Merge identical (position, normal, uv) corners into shared vertices."""
     cols = [m.vertices] + ([m.normals] if m.normals is not None else []) + ([m.uvs] if m.uvs is not None else [])
     key = np.round(np.hstack(cols), 9)

@@ -384,7 +384,7 @@ class _Extractor:
             uvs = np.asarray(m.mesh_texcoord[ta:ta + tn], float)[ftex]
             uvs = np.column_stack([uvs[:, 0], 1.0 - uvs[:, 1]])   # MuJoCo flips v on load; undo it
         corners = g.RawMesh(cols[0], np.arange(len(cols[0]), dtype=np.int64).reshape(-1, 3), normals, uvs)
-        return g._weld(corners)
+        return g.weld(corners)
 
     def _texrepeat(self, gid: int) -> tuple[float, float]:
         mid = int(self.m.geom_matid[gid])
