@@ -69,7 +69,7 @@ def test_second_run_does_no_work_and_changed_input_recomputes_only_it(tmp_path, 
 
 
 def test_seed_change_recomputes_everything(tmp_path, registry):
-    path = text_job(tmp_path, n=3, merge=False)
+    path = text_job(tmp_path, n=3, merge=False, executor="inline")
     run_job(path, registry=registry, progress=False)
     a = tree_hashes(tmp_path / "out" / "t")
     path.write_text(path.read_text().replace("seed = 7", "seed = 8"))
@@ -112,14 +112,16 @@ def test_failures_are_isolated_reported_and_bad_input_is_not_recomputed(tmp_path
 
 
 def test_retries_recover_a_transient_failure(tmp_path, registry):
-    path = text_job(tmp_path, n=3, merge=False, config='flaky = ["t01"]\nflaky_dir = "flaky"', retries=1)
+    path = text_job(tmp_path, n=3, merge=False, config='flaky = ["t01"]\nflaky_dir = "flaky"', retries=1,
+                    executor="inline")
     s = run_job(path, registry=registry, progress=False)
     assert (s.done, s.failed) == (3, 0)
     assert {r[1]: r[6] for r in _rows(tmp_path / "out" / "t")} == {"t00": 1, "t01": 2, "t02": 1}
 
 
 def test_no_retries_fails_a_transient_failure(tmp_path, registry):
-    path = text_job(tmp_path, n=3, merge=False, config='flaky = ["t01"]\nflaky_dir = "flaky"', retries=0)
+    path = text_job(tmp_path, n=3, merge=False, config='flaky = ["t01"]\nflaky_dir = "flaky"', retries=0,
+                    executor="inline")
     s = run_job(path, registry=registry, progress=False)
     assert [(f.item_id, f.reason) for f in s.step("texts").failures] == [("t01", "ConnectionError: transient failure")]
     # not an ItemError: the next run tries again (and the marker now lets it pass)
