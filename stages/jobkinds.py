@@ -4,4 +4,5 @@ Imported lazily by the runner; each entry's module is imported only when a job u
 """
 
 JOB_KINDS: dict[str, str] = {
+    "layout": "stages.layout.job:LAYOUT_JOB",
 }
