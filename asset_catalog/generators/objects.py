@@ -220,16 +220,16 @@ def crumpled_paper(b: AssetBuilder) -> float:
     paper = b.material("paper", pick_color(b, [(0.95, 0.95, 0.92), (0.92, 0.9, 0.8), (0.85, 0.88, 0.95)], 0.02),
                        roughness=0.95)
     r = b.param("radius", 0.025, 0.045)
-    dirs = b.rng.normal(size=(14, 3))
+    dirs = b.rng.normal(size=(40, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    amps = b.rng.uniform(-0.25, 0.25, 14)
+    amps = b.rng.uniform(-0.22, 0.18, 40)
 
     def warp(p: np.ndarray) -> np.ndarray:
         n = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
-        bump = (np.clip(n @ dirs.T, 0, None) ** 6) @ amps
-        return p * (1 + bump)[:, None]
+        bump = (np.clip(n @ dirs.T, 0, None) ** 14) @ amps
+        return p * np.clip(1 + bump, 0.6, 1.4)[:, None]
 
-    ball = g.sphere(r, n=18).warp_batch(warp)
+    ball = g.sphere(r, n=28).warp_batch(warp)
     lo = ball.bounding_box()[2]
     b.add("base", ball.translate((0, 0, -lo)), paper, density=600.0)
     return b.param("mass", 0.004, 0.02)
@@ -240,13 +240,13 @@ def pillow(b: AssetBuilder) -> float:
     sx, sy, sz = b.param("length", 0.4, 0.65), b.param("width", 0.3, 0.45), b.param("thickness", 0.09, 0.16)
 
     def squash(p: np.ndarray) -> np.ndarray:
-        fx = 1 - 0.85 * np.abs(2 * p[:, 0] / sx) ** 3
-        fy = 1 - 0.85 * np.abs(2 * p[:, 1] / sy) ** 3
+        fx = 1 - 0.95 * np.abs(2 * p[:, 0] / sx) ** 2.5
+        fy = 1 - 0.95 * np.abs(2 * p[:, 1] / sy) ** 2.5
         q = p.copy()
-        q[:, 2] = p[:, 2] * np.clip(fx * fy, 0.12, 1.0)
+        q[:, 2] = p[:, 2] * np.clip(fx * fy, 0.05, 1.0) ** 0.8
         return q
 
-    cube = g.box((sx, sy, sz)).refine(10).warp_batch(squash)
+    cube = g.box((sx, sy, sz)).refine(16).warp_batch(squash)
     lo = cube.bounding_box()[2]
     b.add("base", cube.translate((0, 0, -lo)), fab, density=60.0)
     return b.param("mass", 0.3, 0.9)
