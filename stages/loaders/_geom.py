@@ -142,8 +142,10 @@ class RawMesh:
 
     def transformed(self, t: np.ndarray) -> "RawMesh":
         """This mesh moved by the rigid 4x4 transform ``t`` (normals rotated)."""
-        v = self.vertices @ t[:3, :3].T + t[:3, 3]
-        n = None if self.normals is None else self.normals @ t[:3, :3].T
+        if np.array_equal(t, np.eye(4)):
+            return self
+        v = _rotate(self.vertices, t[:3, :3]) + t[:3, 3]
+        n = None if self.normals is None else _rotate(self.normals, t[:3, :3])
         return RawMesh(v, self.faces, n, self.uvs, self.material)
 
     def scaled(self, s) -> "RawMesh":
@@ -163,6 +165,12 @@ class RawMesh:
                         normals=None if self.normals is None else np.ascontiguousarray(self.normals, np.float64),
                         uvs=None if self.uvs is None else np.ascontiguousarray(self.uvs, np.float64),
                         material=material)
+
+
+def _rotate(points: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``points @ r.T`` for (N, 3) points, without a BLAS call (threaded BLAS is slow for thin arrays)."""
+    p = np.asarray(points, float)
+    return p[:, :1] * r[:, 0] + p[:, 1:2] * r[:, 1] + p[:, 2:3] * r[:, 2]
 
 
 def _shaded(mesh) -> RawMesh:
@@ -560,20 +568,36 @@ def _dae_geometry(geom: ET.Element, sources: dict, binding: dict, colors: dict, 
         if pos is None or len(pos) < 3:
             continue
         faces = np.arange(len(pos), dtype=np.int64).reshape(-1, 3)
+        used = sorted({int(i.get("offset", "0")) for i in inputs})
         sym = prim.get("material")
         mat_name, rgba = colors.get(binding.get(sym, sym), (sym or "material", (0.8, 0.8, 0.8, 1.0)))
         material = MaterialSpec(name=str(mat_name), base_color=tuple(float(c) for c in rgba[:3]),
                                 opacity=float(rgba[3]))
-        raw = weld(RawMesh(pos, faces, nrm, uv, material))
+        raw = weld(RawMesh(pos, faces, nrm, uv, material), corners[:, used])
         out.append(_apply_affine(raw, t))
     return out
 
 
-def weld(m: RawMesh) -> RawMesh:
-    """Merge identical (position, normal, uv) corners into shared vertices."""
+def weld(m: RawMesh, keys: np.ndarray | None = None) -> RawMesh:
+    """Merge a corner-per-vertex mesh into shared vertices: corners with equal ``keys`` rows (K, c) int64
+    (source indices of position, normal, uv) or, without keys, equal (position, normal, uv) values."""
+    if keys is not None:
+        keys = np.asarray(keys, np.int64).reshape(len(m.vertices), -1)
+        radix = keys.max(axis=0) + 1
+        if float(np.prod(radix.astype(float))) < 2.0**62:
+            key = np.zeros(len(keys), np.int64)
+            for col, r in zip(keys.T, radix):
+                key = key * r + col
+            _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+            return _gather(m, first, inv)
     cols = [m.vertices] + ([m.normals] if m.normals is not None else []) + ([m.uvs] if m.uvs is not None else [])
-    key = np.round(np.hstack(cols), 9)
-    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    key = np.ascontiguousarray(np.round(np.hstack(cols), 9))
+    _, first, inv = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
+                              return_index=True, return_inverse=True)
+    return _gather(m, first, inv)
+
+
+def _gather(m: RawMesh, first: np.ndarray, inv: np.ndarray) -> RawMesh:
     return RawMesh(m.vertices[first], inv.reshape(-1)[m.faces].astype(np.int64),
                    None if m.normals is None else m.normals[first], None if m.uvs is None else m.uvs[first],
                    m.material)
@@ -782,11 +806,12 @@ def judge_masses(model):
 
 
 def _hull_volume(points: np.ndarray) -> float:
-    import trimesh
+    """Volume [m^3] of the convex hull of (K, 3) points; 0 for flat or degenerate sets."""
+    from scipy.spatial import ConvexHull, QhullError
 
+    pts = np.unique(np.round(np.asarray(points, float), 9), axis=0) if len(points) < 4096 else np.asarray(points)
     try:
-        hull = trimesh.convex.convex_hull(np.asarray(points, float))
-    except Exception as e:  # qhull raises its own error types for flat or degenerate input
+        return float(ConvexHull(pts).volume)
+    except (QhullError, ValueError) as e:
         log.debug("no hull: %s", e)
         return 0.0
-    return float(hull.volume) if hull.is_volume else 0.0

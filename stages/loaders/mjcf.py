@@ -373,18 +373,20 @@ class _Extractor:
         faces = np.asarray(m.mesh_face[fa:fa + fnum], np.int64)
         na, nn = m.mesh_normaladr[mid], m.mesh_normalnum[mid]
         ta, tn = m.mesh_texcoordadr[mid], m.mesh_texcoordnum[mid]
-        cols = [verts[faces.reshape(-1)]]
+        keys = [faces.reshape(-1)]
         normals = uvs = None
         if nn > 0:
             fnorm = np.asarray(m.mesh_facenormal[fa:fa + fnum], np.int64).reshape(-1)
             normals = np.asarray(m.mesh_normal[na:na + nn], float)[fnorm]
-            cols.append(normals)
+            keys.append(fnorm)
         if ta >= 0 and tn > 0:
             ftex = np.asarray(m.mesh_facetexcoord[fa:fa + fnum], np.int64).reshape(-1)
             uvs = np.asarray(m.mesh_texcoord[ta:ta + tn], float)[ftex]
             uvs = np.column_stack([uvs[:, 0], 1.0 - uvs[:, 1]])   # MuJoCo flips v on load; undo it
-        corners = g.RawMesh(cols[0], np.arange(len(cols[0]), dtype=np.int64).reshape(-1, 3), normals, uvs)
-        return g.weld(corners)
+            keys.append(ftex)
+        pos = verts[keys[0]]
+        corners = g.RawMesh(pos, np.arange(len(pos), dtype=np.int64).reshape(-1, 3), normals, uvs)
+        return g.weld(corners, np.column_stack(keys))
 
     def _texrepeat(self, gid: int) -> tuple[float, float]:
         mid = int(self.m.geom_matid[gid])
