@@ -27,7 +27,7 @@ from logging.handlers import QueueListener
 from pathlib import Path
 from typing import Any, Protocol
 
-from pipeline._src.worker import Outcome, execute_item, init_worker_logging, one_line
+from pipeline._src.worker import Outcome, execute_item, init_pool_worker, one_line
 from pipeline.types import ItemContext
 
 log = logging.getLogger(__name__)
@@ -110,7 +110,8 @@ class LocalExecutor:
         if self._pool is None:
             level = logging.getLogger().getEffectiveLevel()
             self._pool = ProcessPoolExecutor(self.workers, mp_context=self._ctx,
-                                             initializer=init_worker_logging, initargs=(self._queue, level))
+                                             initializer=init_pool_worker,
+                                             initargs=(self._queue, level, os.getpid()))
         return self._pool
 
     def submit(self, token: int, task: Task) -> None:

@@ -81,10 +81,31 @@ def execute_item(fn: str, params_json: str, params_type: str, ctx: ItemContext) 
                    started_at=t0, duration_s=time.perf_counter() - p0)
 
 
-def init_worker_logging(queue: Any, level: int) -> None:
-    """Process-pool initializer: send this worker's log records to the main process's queue."""
+def init_pool_worker(queue: Any, level: int, parent_pid: int) -> None:
+    """Process-pool initializer: die with the main process ``parent_pid`` (Linux), and send this
+    worker's log records to the main process's queue."""
+    _die_with_parent(parent_pid)
     from logging.handlers import QueueHandler
 
     root = logging.getLogger()
     root.handlers[:] = [QueueHandler(queue)]
     root.setLevel(level)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies (``kill -9`` of the runner must not
+    leave workers behind that could still write into the work dir)."""
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    import os
+    import signal
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    pr_set_pdeathsig = 1
+    if libc.prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0) != 0:
+        log.warning("prctl(PR_SET_PDEATHSIG) failed: %s", os.strerror(ctypes.get_errno()))
+    if os.getppid() != parent_pid:      # the parent died before prctl took effect
+        os._exit(1)

@@ -3,6 +3,7 @@ the same outputs as an uninterrupted run, one database row per item, no temporar
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sqlite3
@@ -39,16 +40,48 @@ def _start(job: Path, out: Path) -> subprocess.Popen:
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
 
 
-def _kill_when(proc: subprocess.Popen, out: Path, n_done: int, timeout: float = 60.0) -> int:
-    """SIGKILL the job's whole process group once n_done items are done; returns the count seen."""
+def _children(pid: int) -> set[int]:
+    """Live child processes of pid (Linux /proc)."""
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out.add(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _kill_when(proc: subprocess.Popen, out: Path, n_done: int, group: bool, timeout: float = 60.0) -> int:
+    """SIGKILL the job once n_done items are done (its whole process group, or only the main process,
+    whose pool workers must then die too); returns the count seen."""
     t0 = time.monotonic()
     while time.monotonic() - t0 < timeout:
         if proc.poll() is not None:
             raise AssertionError(f"job ended before it was killed: {proc.stderr.read().decode()[-2000:]}")
         seen = _n_done(out)
         if seen >= n_done:
-            os.killpg(proc.pid, signal.SIGKILL)
+            workers = _children(proc.pid)
+            if group:
+                os.killpg(proc.pid, signal.SIGKILL)
+            else:
+                proc.kill()
             proc.wait(timeout=30)
+            deadline = time.monotonic() + 10
+            while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert not [w for w in workers if _alive(w)], "worker processes outlived the killed runner"
+            if not group:
+                with contextlib.suppress(ProcessLookupError):   # nothing should be left; be sure
+                    os.killpg(proc.pid, signal.SIGKILL)
             return seen
         time.sleep(0.02)
     os.killpg(proc.pid, signal.SIGKILL)
@@ -61,8 +94,8 @@ def test_kill_9_then_resume_gives_identical_outputs(tmp_path):
     assert reference.done == N + 1
     out = tmp_path / "crashy"
     seen = []
-    for n_done in (2, 5):                  # two kills at different points
-        seen.append(_kill_when(_start(job, out), out, n_done))
+    for n_done, group in ((2, False), (5, True)):     # two kills at different points
+        seen.append(_kill_when(_start(job, out), out, n_done, group))
     assert seen[0] < N and seen[-1] < N + 1, seen
     con = sqlite3.connect(out / "state.sqlite")
     interrupted = con.execute("SELECT COUNT(*) FROM items WHERE status='running'").fetchone()[0]
