@@ -218,13 +218,26 @@ def _visuals(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
     return tuple(parts)
 
 
+MAX_COLLISION_PIECES = 24     # per link; the collision stage's max_pieces default
+_PIECE_SHRINK = 1e-4          # [m] each convex piece shrinks by this per side about its centre
+
+
 def _collision(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
+    """The link's convex collision pieces. Each is shrunk by 0.1 mm about its centre so that touching
+    pieces share no vertex: a consumer that welds and splits the link's collision meshes into connected
+    pieces gets back exactly these convex pieces."""
     parts = []
     for s in lk.solids:
         for piece in s.collision or []:
             h = piece.hull().translate(tuple(-lk.origin))
+            lo, hi = np.array(h.bounding_box()[:3]), np.array(h.bounding_box()[3:])
+            c = (lo + hi) / 2
+            ext = np.maximum(hi - lo, 4 * _PIECE_SHRINK)
+            h = h.translate(tuple(-c)).scale(tuple(1 - 2 * _PIECE_SHRINK / ext)).translate(tuple(c))
             v, f, _ = manifold_arrays(h)
             parts.append(MeshPart(name=f"{link_name}__col{len(parts):02d}", vertices=v, faces=f))
+    if len(parts) > MAX_COLLISION_PIECES:
+        raise ValueError(f"link {link_name!r} has {len(parts)} collision pieces (at most {MAX_COLLISION_PIECES})")
     return tuple(parts)
 
 

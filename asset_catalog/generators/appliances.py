@@ -215,6 +215,6 @@ def alarm_clock(b: AssetBuilder) -> float:
     b.link("button", parent="base", origin=(0, 0, top), joint="prismatic", axis=(0, 0, -1), lower=0.0,
            upper=travel, effort=5.0, velocity=0.1, damping=0.05, friction=0.01, role="button")
     b.add("button", g.cylinder(0.008, travel + 0.012, (0, 0, top + 0.006 - travel / 2 + 0.0005), n=16), metal,
-          density=2000.0, collision="none")
-    b.add("button", g.cylinder(0.013, 0.005, (0, 0, top + 0.009 + 0.0005), n=20), metal, density=2000.0)
+          density=1000.0, collision="none")
+    b.add("button", g.cylinder(0.013, 0.005, (0, 0, top + 0.009 + 0.0005), n=20), metal, density=1000.0)
     return b.param("mass", 0.18, 0.45)

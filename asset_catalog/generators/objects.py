@@ -50,7 +50,7 @@ def bowl(b: AssetBuilder) -> None:
     wall = b.param("wall", 0.003, 0.005)
     outer, inner = _vessel_profile(rim * b.param("foot_ratio", 0.4, 0.55), rim, h, wall, 0.006,
                                    b.param("bulge", 0.6, 1.0))
-    _vessel(b, m, CERAMIC, outer, inner)
+    _vessel(b, m, CERAMIC, outer, inner, wedges=10)
     b.handle("base", (0.0, rim - wall / 2, h - 0.005), wall, 0.02, (1.0, 0.0, 0.0), kind="rim")
     return None
 
@@ -106,7 +106,7 @@ def pitcher(b: AssetBuilder) -> None:
     r, h = b.param("radius", 0.05, 0.07), b.param("height", 0.17, 0.25)
     wall = b.param("wall", 0.004, 0.006)
     outer, inner = _vessel_profile(r * 0.85, r, h, wall, 0.008, b.param("bulge", 0.0, 0.4), k=6)
-    _vessel(b, m, CERAMIC, outer, inner, bands=2)
+    _vessel(b, m, CERAMIC, outer, inner, bands=1)
     ang = np.radians(np.array([250.0, 270.0, 290.0]))
     rim_pts = [(r * np.cos(a), r * np.sin(a), z) for a in ang for z in (h, h - 0.04)]
     tip = [(0.0, -(r + b.param("spout", 0.02, 0.035)), h + 0.008)]
