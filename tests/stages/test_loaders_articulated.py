@@ -443,3 +443,129 @@ def test_articulated_package_joints_reach_limits_in_newton(shared_assets, tmp_pa
 def test_every_articulated_package_joints_reach_limits_in_newton(shared_assets, tmp_path, asset_id):
     result = _limit_check(shared_assets, tmp_path, asset_id)
     assert result.passed, result.reasons
+
+
+# ------------------------------------------------------------------------ small synthetic sources
+
+
+def test_urdf_primitives_materials_inertia_mimic(tmp_path, caplog):
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(tmp_path / "red.png")
+    body = """
+      <material name="blue"><color rgba="0 0 1 1"/></material>
+      <link name="base">
+        <visual><geometry><box size="0.2 0.4 0.6"/></geometry><material name="blue"/></visual>
+        <collision><origin xyz="0 0 0.5" rpy="0 1.5707963267948966 0"/>
+          <geometry><cylinder radius="0.1" length="0.4"/></geometry></collision>
+        <inertial><origin xyz="0 0 0.1"/><mass value="2.0"/>
+          <inertia ixx="0.08" ixy="0" ixz="0" iyy="0.07" iyz="0" izz="0.03"/></inertial>
+      </link>
+      <link name="ball">
+        <visual><geometry><sphere radius="0.05"/></geometry>
+          <material name="tex"><texture filename="red.png"/></material></visual>
+      </link>
+      <link name="twin"><visual><geometry><capsule radius="0.02" length="0.1"/></geometry></visual></link>
+      <joint name="spin" type="continuous"><parent link="base"/><child link="ball"/>
+        <origin xyz="0 0 0.35"/><axis xyz="0 0 3"/><dynamics damping="0.5" friction="0.1"/></joint>
+      <joint name="copy" type="prismatic"><parent link="base"/><child link="twin"/><axis xyz="1 0 0"/>
+        <limit lower="-0.1" upper="0.2" effort="0" velocity="1"/><mimic joint="spin"/></joint>"""
+    p = _urdf(tmp_path, body)
+    with caplog.at_level("INFO", logger="stages.loaders.urdf"):
+        model = load_urdf(p, _ann(p.name, material="plastic"), catalog_dir=tmp_path)
+    assert any("mimic" in r.message for r in caplog.records)
+    base, ball, twin = model.links
+    box = base.visuals[0]
+    np.testing.assert_allclose(np.ptp(box.vertices, axis=0), [0.2, 0.4, 0.6], atol=1e-12)
+    assert model.materials[box.material].base_color == (0.0, 0.0, 1.0)
+    cyl = base.collision_source[0]                 # rotated about Y: its axis now along X
+    np.testing.assert_allclose(np.ptp(cyl.vertices, axis=0), [0.4, 0.2, 0.2], atol=1e-3)
+    np.testing.assert_allclose(cyl.vertices.mean(axis=0), [0, 0, 0.5], atol=1e-3)
+    sphere = ball.visuals[0]
+    assert np.linalg.norm(sphere.vertices, axis=1).max() == pytest.approx(0.05)
+    assert model.materials[sphere.material].base_color_texture == (tmp_path / "red.png").resolve()
+    assert sphere.uvs is not None                  # box-projected for the texture
+    assert np.ptp(twin.visuals[0].vertices[:, 2]) == pytest.approx(0.14)
+    assert base.mass_from_source and base.mass.mass == 2.0 and base.mass.center_of_mass == (0, 0, 0.1)
+    assert sorted(base.mass.diagonal_inertia) == pytest.approx([0.03, 0.07, 0.08])
+    spin, copy = model.joints
+    assert spin.type == R and spin.lower is None and spin.upper is None and spin.axis == (0, 0, 1)
+    assert (spin.damping, spin.friction) == (0.5, 0.1)
+    assert copy.type == P and (copy.lower, copy.upper) == (-0.1, 0.2) and copy.max_effort is None
+    assert ball.pose.position == pytest.approx((0, 0, 0.35))
+
+
+_DAE = """<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+ <asset><unit name="centimeter" meter="0.01"/><up_axis>Y_UP</up_axis></asset>
+ <library_effects><effect id="e"><profile_COMMON><technique sid="t"><phong>
+   <diffuse><color>0.1 0.2 0.3 1</color></diffuse></phong></technique></profile_COMMON></effect></library_effects>
+ <library_materials><material id="m" name="paint"><instance_effect url="#e"/></material></library_materials>
+ <library_geometries><geometry id="g"><mesh>
+   <source id="p"><float_array id="pa" count="12">0 0 0 10 0 0 10 20 0 0 20 0</float_array>
+     <technique_common><accessor source="#pa" count="4" stride="3"/></technique_common></source>
+   <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+   <polylist material="s" count="1"><input semantic="VERTEX" source="#v" offset="0"/>
+     <vcount>4</vcount><p>0 1 2 3</p></polylist>
+ </mesh></geometry></library_geometries>
+ <library_visual_scenes><visual_scene id="vs"><node id="n"><translate>0 0 5</translate>
+   <instance_geometry url="#g"><bind_material><technique_common>
+     <instance_material symbol="s" target="#m"/></technique_common></bind_material></instance_geometry>
+ </node></visual_scene></library_visual_scenes>
+ <scene><instance_visual_scene url="#vs"/></scene>
+</COLLADA>"""
+
+
+def test_urdf_collada_units_up_axis_and_colour(tmp_path):
+    (tmp_path / "quad.dae").write_text(_DAE)
+    p = _urdf(tmp_path, '<link name="a"><visual><geometry><mesh filename="quad.dae"/></geometry></visual></link>')
+    model = load_urdf(p, _ann(p.name), catalog_dir=tmp_path)
+    (part,) = model.links[0].visuals
+    assert part.faces.shape == (2, 3) and len(part.vertices) == 4      # the quad, fan-triangulated
+    # centimetres -> metres, then Y up -> Z up: (x, y, z) -> (x, -z, y); node translate z = 5 cm
+    np.testing.assert_allclose(part.vertices.min(axis=0), [0.0, -0.05, 0.0], atol=1e-12)
+    np.testing.assert_allclose(part.vertices.max(axis=0), [0.1, -0.05, 0.2], atol=1e-12)
+    mat = model.materials[part.material]
+    assert mat.name == "paint" and mat.base_color == pytest.approx((0.1, 0.2, 0.3))
+
+
+def test_units_and_up_axis_annotation(tmp_path):
+    body = (_BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+            + _joint("j", "a", "b", kind="prismatic", origin='xyz="0 1 0"', limit='lower="0" upper="2"'))
+    p = _urdf(tmp_path, body)
+    model = load_urdf(p, _ann(p.name, meters_per_unit=0.5, up_axis="Y"), catalog_dir=tmp_path)
+    (j,) = model.joints
+    assert (j.lower, j.upper) == (0.0, 1.0) and j.frame.position == pytest.approx((0, 0.5, 0))
+    np.testing.assert_allclose(np.ptp(model.links[0].visuals[0].vertices, axis=0), [0.05] * 3)
+    frames = fk(model, {})
+    np.testing.assert_allclose(frames["b"][:3, 3], [0, 0, 0.5], atol=1e-12)   # source +Y is now up
+
+
+def test_mjcf_reference_position_texture_and_groups(tmp_path):
+    """A joint with ref != 0: limits are relative to the reference pose (the zero configuration).
+    menagerie-style groups: group 2 visual-only mesh, group 3 colliding primitive."""
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (0, 200, 0)).save(tmp_path / "green.png")
+    import trimesh
+
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(tmp_path / "cube.stl")
+    extra = ('<compiler angle="radian"/><asset><mesh name="cube" file="cube.stl"/>'
+             '<texture name="t" type="2d" file="green.png"/><material name="m" texture="t" rgba="1 1 1 1"/></asset>')
+    xml = ('<body><geom type="box" size=".2 .2 .2"/>'
+           '<body pos="0 0 .5"><joint type="hinge" axis="1 0 0" ref="0.3" range="0 1"/>'
+           '<geom type="mesh" mesh="cube" group="2" contype="0" conaffinity="0" material="m"/>'
+           '<geom type="capsule" size=".05 .1" group="3"/></body></body>')
+    p = _mjcf(tmp_path, xml, extra=extra)
+    model = load_mjcf(p, _ann(p.name), catalog_dir=tmp_path)
+    (j,) = model.joints
+    assert (j.lower, j.upper) == pytest.approx((-0.3, 0.7))
+    child = model.links[1]
+    assert len(child.visuals) == 1 and len(child.collision_source) == 1
+    vis = child.visuals[0]
+    assert model.materials[vis.material].base_color_texture == (tmp_path / "green.png").resolve()
+    assert vis.uvs is not None and vis.uvs.shape == (len(vis.vertices), 2)
+    np.testing.assert_allclose(np.ptp(vis.vertices, axis=0), [0.1] * 3, atol=1e-6)
+    np.testing.assert_allclose(np.ptp(child.collision_source[0].vertices, axis=0), [0.1, 0.1, 0.3], atol=1e-6)
+    # the root's box has no visual-only sibling: it is both visual and collider
+    assert len(model.links[0].visuals) == len(model.links[0].collision_source) == 1
