@@ -6,13 +6,21 @@ An item's key is the sha256 of the canonical JSON of::
      code version = package version + sha256 of the stage function's module source file,
      keys of the items it depends on}
 
-so an item is recomputed exactly when something it reads changed. Code outside the stage
-function's module is covered by the package version only; a planner that wants finer tracking can
-list extra source files in ``WorkItem.input_files``.
+so an item is recomputed exactly when something it reads changed.
+
+Code outside the stage function's module is covered by the package version only, unless the module
+declares what else it runs, as a literal tuple of module or package names (a package stands for all
+``.py`` files under it)::
+
+    CODE_DEPS = ("stages.layout", "asset_catalog.materials")
+
+The declaration is read from the module's source (``ast``), without importing it; those files'
+hashes join the code version. A planner can also list extra files in ``WorkItem.input_files``.
 """
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib.metadata
 import importlib.util
@@ -47,19 +55,55 @@ def package_version() -> str:
         return "0+unknown"
 
 
-@lru_cache(maxsize=None)
-def module_source_sha(module_name: str) -> str:
-    """sha256 of the source file of ``module_name``, found without importing the module itself."""
+def module_source(module_name: str) -> Path:
+    """The source file of ``module_name`` (``__init__.py`` for a package), found without importing
+    the module itself (its parent packages are imported)."""
     spec = importlib.util.find_spec(module_name)
     if spec is None or not spec.origin or not Path(spec.origin).is_file():
         raise LookupError(f"cannot find the source of module {module_name!r}")
-    return sha256_file(Path(spec.origin))
+    return Path(spec.origin)
 
 
+@lru_cache(maxsize=None)
+def module_source_sha(module_name: str) -> str:
+    """sha256 of the source file of ``module_name``."""
+    return sha256_file(module_source(module_name))
+
+
+def declared_code_deps(source: Path) -> tuple[str, ...]:
+    """The ``CODE_DEPS = ("pkg.mod", ...)`` literal of a module's source (empty if none)."""
+    tree = ast.parse(source.read_text(encoding="utf-8"), filename=str(source))
+    for node in tree.body:
+        target = node.target if isinstance(node, ast.AnnAssign) else (
+            node.targets[0] if isinstance(node, ast.Assign) and len(node.targets) == 1 else None)
+        if isinstance(target, ast.Name) and target.id == "CODE_DEPS" and node.value is not None:
+            value = ast.literal_eval(node.value)
+            if not isinstance(value, (tuple, list)) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{source}: CODE_DEPS must be a tuple of module names")
+            return tuple(value)
+    return ()
+
+
+def _dep_files(name: str) -> list[Path]:
+    src = module_source(name)
+    if src.name == "__init__.py":
+        return sorted(src.parent.rglob("*.py"))
+    return [src]
+
+
+@lru_cache(maxsize=None)
 def code_version(fn: str) -> str:
-    """``"<package version>+<sha256 of fn's module source>"`` for a ``"module:function"`` string."""
+    """``"<package version>+<sha256 of fn's module source>[+<sha256 of its CODE_DEPS sources>]"`` for a
+    ``"module:function"`` string (computed once per process)."""
     module_name = fn.partition(":")[0]
-    return f"{package_version()}+{module_source_sha(module_name)}"
+    version = f"{package_version()}+{module_source_sha(module_name)}"
+    deps = declared_code_deps(module_source(module_name))
+    if deps:
+        h = hashlib.sha256()
+        for f in sorted({f.resolve() for d in deps for f in _dep_files(d)}):
+            h.update(f"{f.name}\x00{sha256_file(f)}\x00".encode())
+        version += f"+{h.hexdigest()}"
+    return version
 
 
 def item_key(*, fn: str, params_type: str, params_json: str, seed: int, input_shas: list[str],

@@ -94,7 +94,8 @@ class JobSpec(BaseModel):
 
     name, seed, executor, workers, retries, ray_address: from ``[job]``;
     out: the output root (absolute); steps: in run order;
-    job_file: the TOML file (None for a job built in memory); base_dir: where relative paths resolve.
+    job_file: the TOML file (None for a job built in memory); source: the job file's path, or the
+    label of an in-memory job (used in messages); base_dir: where relative paths resolve.
     """
 
     model_config = ConfigDict(frozen=True, arbitrary_types_allowed=True)
@@ -108,6 +109,7 @@ class JobSpec(BaseModel):
     ray_address: str | None = None
     steps: tuple[StepSpec, ...]
     job_file: Path | None = None
+    source: str = ""
     base_dir: Path
 
 
@@ -171,7 +173,8 @@ def build_job(data: Mapping[str, Any], *, source: str | Path, base_dir: Path,
     out = Path(j.out) if j.out else Path("out") / j.name
     return JobSpec(name=j.name, seed=j.seed, out=(base_dir / out).resolve(), executor=j.executor,
                    workers=j.workers, retries=j.retries, ray_address=j.ray_address, steps=tuple(steps),
-                   job_file=Path(source).resolve() if isinstance(source, Path) else None, base_dir=base_dir)
+                   job_file=Path(source).resolve() if isinstance(source, Path) else None, source=str(source),
+                   base_dir=base_dir)
 
 
 def validate_config(model: type[BaseModel], raw: Mapping[str, Any], base_dir: Path

@@ -259,7 +259,7 @@ class _Run:
 
     def _plan_context(self, step_name: str) -> PlanContext:
         spec = self.spec
-        return PlanContext(job_file=spec.job_file or spec.base_dir, job_dir=spec.base_dir,
+        return PlanContext(job_file=spec.job_file or Path(spec.source or spec.name), job_dir=spec.base_dir,
                            work_dir=self.opts.out, seed=spec.seed, previous=dict(self.previous),
                            step=step_name, failed=dict(self.failed))
 
