@@ -205,7 +205,7 @@ def _cmd_catalog_list(args: argparse.Namespace) -> int:
     t = Table(title=Text(f"{len(recs)} asset(s) in {db}"), title_justify="left")
     for col in ("id", "category", "rooms", "placement", "material", "interactable", "size [m]", "mass [kg]",
                 "collider", "status"):
-        t.add_column(col, overflow="fold", no_wrap=col in ("id", "category"))
+        t.add_column(Text(col), overflow="fold", no_wrap=col in ("id", "category"))
     for r in recs:
         size = "x".join(f"{v:.2f}" for v in r.dimensions) if r.dimensions else ""
         t.add_row(Text(r.id), Text(r.category), Text(",".join(r.room_types)), Text(r.placement or ""),

@@ -127,7 +127,7 @@ def render_summary(summary: JobSummary, console: Any = None, max_failures: int =
     table = Table(title=Text(title), title_justify="left")
     for col, just in (("step", "left"), ("kind", "left"), ("done", "right"), ("cached", "right"),
                       ("failed", "right"), ("time [s]", "right")):
-        table.add_column(col, justify=just)  # type: ignore[arg-type]
+        table.add_column(Text(col), justify=just)  # type: ignore[arg-type]
     for s in summary.steps:
         table.add_row(Text(s.name), Text(s.kind), str(s.done), str(s.cached),
                       f"[red]{s.failed}[/red]" if s.failed else "0", f"{s.seconds:.2f}")

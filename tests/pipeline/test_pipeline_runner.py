@@ -221,3 +221,22 @@ def test_work_dir_lock(tmp_path, registry):
     finally:
         os.close(fd)
     assert run_job(path, registry=registry, progress=False, executor="inline").done == 1
+
+
+def test_finalize_failure_is_raised_after_the_summary(tmp_path, registry):
+    from stagefns import TEXT_KIND
+
+    def bad_finalize(cfg, pctx, results):
+        assert pctx.step == "texts" and set(results) == set(pctx.previous["texts"])
+        raise RuntimeError(f"index write failed for {len(results)} items")
+
+    reg = {**registry, "texts": JobKind(name="texts", config=TEXT_KIND.config, plan=TEXT_KIND.plan,
+                                        finalize=bad_finalize)}
+    path = text_job(tmp_path, n=2, executor="inline")
+    with pytest.raises(RuntimeError, match="index write failed for 2 items"):
+        run_job(path, registry=reg, progress=False)
+    summary = json.loads((tmp_path / "out" / "t" / "reports" / "summary.json").read_text())
+    assert summary["status"] == "error" and summary["error"] == "RuntimeError: index write failed for 2 items"
+    # the items themselves are done and cached for the next run
+    s = run_job(path, registry=registry, progress=False)
+    assert (s.step("texts").cached, s.step("merged").done) == (2, 1)
