@@ -243,24 +243,31 @@ def _collision(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
 
 def _mass(lk: _LinkDraft) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass [kg], centre of mass (3,) [m] (root frame) and inertia tensor (3, 3) [kg m^2] about it."""
-    import trimesh
-
-    ms, coms, inertias = [], [], []
+    ms, coms, covs = [], [], []
     for s in lk.solids:
         v, f, _ = manifold_arrays(s.shape)
-        tm = trimesh.Trimesh(v, f, process=False)
-        tm.density = s.density
-        mp = tm.mass_properties
-        ms.append(float(mp["mass"]))
-        coms.append(np.asarray(mp["center_mass"]))
-        inertias.append(np.asarray(mp["inertia"]))
+        vol, com, cov = _solid_moments(v, f)
+        ms.append(vol * s.density)
+        coms.append(com)
+        covs.append(cov * s.density)
     m = float(sum(ms))
     com = sum(mi * ci for mi, ci in zip(ms, coms, strict=True)) / m
-    inertia = np.zeros((3, 3))
-    for mi, ci, ii in zip(ms, coms, inertias, strict=True):
-        d = ci - com
-        inertia += ii + mi * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+    cov = sum(covs) - m * np.outer(com, com)         # second moment about the common centre
+    inertia = np.trace(cov) * np.eye(3) - cov
     return m, com, inertia
+
+
+def _solid_moments(v: np.ndarray, f: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Volume [m^3], centroid (3,) [m] and second moment  integral x x^T dV  (3, 3) [m^5] about the
+    origin of a closed, outward-oriented triangle mesh (sum of signed tetrahedra to the origin)."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    det = np.einsum("ij,ij->i", a, np.cross(b, c))
+    vol = float(det.sum() / 6.0)
+    s = a + b + c
+    com = (det[:, None] * s).sum(0) / (24.0 * vol)
+    outer = (np.einsum("i,ij,ik->jk", det, a, a) + np.einsum("i,ij,ik->jk", det, b, b)
+             + np.einsum("i,ij,ik->jk", det, c, c) + np.einsum("i,ij,ik->jk", det, s, s))
+    return vol, com, outer / 120.0
 
 
 def _mass_props(mass: float, com: np.ndarray, inertia: np.ndarray) -> MassProperties:
