@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+from pxr import Gf, Kind, Sdf, Vt
 
 from usd_schemas._plan import PHYSICS_MATERIAL, BodyPlan, JointPlan, MaterialPlan, MeshPlan, PackagePlan
 
@@ -21,7 +22,6 @@ _SHADER_ST = "stReader"
 
 
 def _prim(layer, path: str, type_name: str = "", api: Iterable[str] = (), specifier=None):
-    from pxr import Sdf
 
     spec = Sdf.CreatePrimInLayer(layer, path)
     spec.specifier = Sdf.SpecifierDef if specifier is None else specifier
@@ -35,7 +35,6 @@ def _prim(layer, path: str, type_name: str = "", api: Iterable[str] = (), specif
 
 def _attr(spec, name: str, type_name, value=None, *, uniform: bool = False, custom: bool = False,
           interpolation: str | None = None, connect: str | None = None):
-    from pxr import Sdf
 
     var = Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying
     a = Sdf.AttributeSpec(spec, name, type_name, var, declaresCustom=custom)
@@ -49,7 +48,6 @@ def _attr(spec, name: str, type_name, value=None, *, uniform: bool = False, cust
 
 
 def _rel(spec, name: str, target: str) -> None:
-    from pxr import Sdf
 
     r = Sdf.RelationshipSpec(spec, name, custom=False)
     r.targetPathList.explicitItems = [Sdf.Path(target)]
@@ -70,8 +68,6 @@ def _stage_metadata(layer, default_prim: str, doc: str) -> None:
 
 def author_root_layer(layer, plan: PackagePlan, payload_rel: str) -> None:
     """The small interface layer: defaultPrim, stage metrics, annotations, labels, payload."""
-    from pxr import Kind, Sdf, Vt
-
     T = Sdf.ValueTypeNames
     with Sdf.ChangeBlock():
         _stage_metadata(layer, plan.asset_id, f"AgentWorld asset package {plan.asset_id}")
@@ -97,7 +93,6 @@ def author_root_layer(layer, plan: PackagePlan, payload_rel: str) -> None:
 
 def author_payload_layer(layer, plan: PackagePlan) -> None:
     """Geometry, materials and physics under the same root path as the root layer."""
-    from pxr import Sdf
 
     with Sdf.ChangeBlock():
         _stage_metadata(layer, plan.asset_id, f"AgentWorld asset package {plan.asset_id}: geometry and physics")
@@ -115,8 +110,6 @@ def author_payload_layer(layer, plan: PackagePlan) -> None:
 
 
 def _physics_material(layer, plan: PackagePlan) -> None:
-    from pxr import Sdf
-
     T = Sdf.ValueTypeNames
     p = plan.physics
     spec = _prim(layer, f"{plan.root}/Looks/{PHYSICS_MATERIAL}", "Material", ("PhysicsMaterialAPI",))
@@ -127,8 +120,6 @@ def _physics_material(layer, plan: PackagePlan) -> None:
 
 
 def _material(layer, m: MaterialPlan) -> None:
-    from pxr import Gf, Sdf
-
     T = Sdf.ValueTypeNames
     mat = _prim(layer, m.path, "Material")
     surf_path = f"{m.path}/{_SHADER_SURFACE}"
@@ -173,8 +164,6 @@ def _tex_out(m: MaterialPlan, role: str) -> str | None:
 
 
 def _body(layer, b: BodyPlan, physics_material: str) -> None:
-    from pxr import Gf, Sdf, Vt
-
     T = Sdf.ValueTypeNames
     api = ("PhysicsRigidBodyAPI", "PhysicsMassAPI") if b.rigid and b.mass is not None else (
         ("PhysicsRigidBodyAPI",) if b.rigid else ())
@@ -203,8 +192,6 @@ def _body(layer, b: BodyPlan, physics_material: str) -> None:
 
 
 def _mesh(layer, m: MeshPlan, physics_material: str) -> None:
-    from pxr import Sdf, Vt
-
     T = Sdf.ValueTypeNames
     api = ("PhysicsCollisionAPI", "PhysicsMeshCollisionAPI", "MaterialBindingAPI") if m.collider else (
         ("MaterialBindingAPI",) if m.material else ())
@@ -228,8 +215,6 @@ def _mesh(layer, m: MeshPlan, physics_material: str) -> None:
 
 
 def _joint(layer, j: JointPlan) -> None:
-    from pxr import Gf, Sdf
-
     T = Sdf.ValueTypeNames
     kind = {"PhysicsRevoluteJoint": "angular", "PhysicsPrismaticJoint": "linear"}.get(j.usd_type)
     api = (f"PhysicsDriveAPI:{kind}",) if j.drive is not None and kind else ()
