@@ -265,3 +265,36 @@ def top_down(yaw: float = 0.0) -> np.ndarray:
     the world direction at angle ``yaw`` + 90 deg."""
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
+
+
+def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration: float, *, world: int = 0,
+            segments: int = 1, settle: float = 0.0, rng: np.random.Generator | None = None) -> IkResult:
+    """Move the end-effector to ``target_world`` (4x4, world frame) in ``duration`` [s]: the
+    straight Cartesian path is cut into ``segments`` poses (orientation slerped), each solved by
+    CLIK from the previous solution, and the joint targets are interpolated linearly between them
+    while the simulation steps; then ``settle`` [s] more. Returns the last IK result (raises
+    RuntimeError if a waypoint is unreachable)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    q_pin = ik.with_arm(ik.from_sim(sim, world), ctl.arm_targets(world))
+    start = ik.fk(q_pin)
+    goal = Clik.world_to_root(sim.spawn, target_world)
+    slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], goal[:3, :3]])))
+    steps_total = max(1, int(round(duration / sim.settings.dt)))
+    per_seg = max(1, steps_total // segments)
+    res = None
+    for k in range(1, segments + 1):
+        a = k / segments
+        wp_pose = pose(start[:3, 3] + a * (goal[:3, 3] - start[:3, 3]), slerp([a]).as_matrix()[0])
+        res = ik.solve(wp_pose, q_pin, restarts=3 if rng is not None else 0, rng=rng)
+        if not res.success:
+            raise RuntimeError(f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)")
+        q0, q1 = ctl.arm_targets(world), ik.arm_q(res.q)
+        chunk = max(1, per_seg // 10)
+        for i in range(0, per_seg, chunk):
+            ctl.set_arm_targets(q0 + (q1 - q0) * min(1.0, (i + chunk) / per_seg), world)
+            sim.step(chunk)
+        q_pin = res.q
+    if settle > 0:
+        sim.step(int(round(settle / sim.settings.dt)))
+    return res

@@ -1,0 +1,194 @@
+"""Benchmark: simulate stage overhead vs. a bare Newton scene of the same size.
+
+For each world count: world-steps/s of the furnished demo room + mobile Panda built through
+``stages.simulate`` (scene USD via add_usd, robot URDF, drives, base-velocity pre-step kernel),
+and of a bare Newton scene built directly with the ModelBuilder (ground, four walls, the same
+number of free boxes, the same robot URDF, no pre-step) stepped with the same solver settings;
+plus RGB-D frames/s of one 128x128 camera per world for both. ratio = bare / ours (our overhead).
+Timings are medians of repeats. Writes ``bench_results/simulate.json``.
+
+Run on the GPU machine::
+
+    python tests/benchmarks/bench_simulate.py --device cuda --worlds 1 64 1024 4096
+    # or: AGENTWORLD_BENCH_DEVICE=cuda pytest -m benchmark tests/benchmarks/bench_simulate.py
+
+On CPU (default) it runs 1 world (MuJoCo C) and optionally 2-4 (MuJoCo-Warp on CPU).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+SHARED = Path(os.environ.get("AGENTWORLD_SHARED_ASSETS", REPO.parent / "shared" / "assets"))
+CLUTTER = 20  # loose objects in the furnished room (the reference scene had 20)
+
+
+def _sync(device):
+    import warp as wp
+
+    wp.synchronize_device(device)
+
+
+def _time_steps(step, device, n_steps: int, repeats: int) -> float:
+    """Median seconds per step."""
+    step(5)
+    _sync(device)
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        step(n_steps)
+        _sync(device)
+        out.append((time.perf_counter() - t) / n_steps)
+    return statistics.median(out)
+
+
+def _ours(device: str, worlds: int, tmp: Path):
+    from stages.simulate.control import RobotControl
+    from stages.simulate.demo_scene import write_demo_room
+    from stages.simulate.robot import write_robot_urdf
+    from stages.simulate.world import SimConfig, build_sim
+
+    room = write_demo_room(tmp / "room.usda", shared_assets=SHARED, clutter=CLUTTER, rng=np.random.default_rng(0))
+    desc = write_robot_urdf(tmp, panda_root=SHARED / "robots/franka_panda__example_robot_data")
+    sim = build_sim(SimConfig(scenes=(room.usd,), world_count=worlds, device=device, spawn=(1.0, 1.0, 0.0)), desc,
+                    np.random.default_rng(0))
+    ctl = RobotControl(sim)
+    ctl.set_base_velocity(0.2, 0.0, 0.1)
+    return sim, desc
+
+
+def _bare(device: str, worlds: int, desc, n_free: int, solver_settings):
+    """ModelBuilder only: ground, walls, n_free boxes, the robot URDF; same solver settings."""
+    import newton
+    import warp as wp
+
+    b = newton.ModelBuilder()
+    for cx, cy, hx, hy in ((3, -0.05, 3.1, 0.05), (3, 5.05, 3.1, 0.05), (-0.05, 2.5, 0.05, 2.5), (6.05, 2.5, 0.05, 2.5)):
+        b.add_shape_box(body=-1, xform=wp.transform((cx, cy, 1.25), wp.quat_identity()), hx=hx, hy=hy, hz=1.25)
+    rng = np.random.default_rng(0)
+    for i in range(n_free):
+        body = b.add_body(xform=wp.transform((rng.uniform(0.5, 5.5), rng.uniform(1.8, 4.5), 0.1), wp.quat_identity()))
+        b.add_shape_box(body=body, hx=0.06, hy=0.06, hz=0.06)
+    b.add_urdf(str(desc.urdf), xform=wp.transform((1.0, 1.0, 0.0), wp.quat_identity()), floating=False,
+               enable_self_collisions=False)
+    main = newton.ModelBuilder()
+    main.replicate(b, worlds)
+    main.add_ground_plane()
+    model = main.finalize(device=device)
+    from stages.simulate.world import _make_solver
+
+    solver, _, _, _, _ = _make_solver(model, solver_settings, device, worlds)
+    s0, s1, ctrl = model.state(), model.state(), model.control()
+    newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
+    state = {"s0": s0, "s1": s1}
+    dt = solver_settings.dt
+
+    def step(n):
+        for _ in range(n):
+            state["s0"].clear_forces()
+            solver.step(state["s0"], state["s1"], ctrl, None, dt)
+            state["s0"], state["s1"] = state["s1"], state["s0"]
+
+    return model, step, state
+
+
+def _render_rate(sensor, model, state, rays, transforms, images, repeats: int) -> float:
+    """Median seconds per render of all views."""
+    out = []
+    for i in range(repeats + 1):
+        t = time.perf_counter()
+        model.bvh_refit_shapes(state)
+        sensor.update(state, transforms, rays, color_image=images[0], forward_depth_image=images[1])
+        _sync(model.device)
+        if i:
+            out.append(time.perf_counter() - t)
+    return statistics.median(out)
+
+
+def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int = 3, width: int = 128) -> dict:
+    import tempfile
+
+    import warp as wp
+    from newton.sensors import SensorCamera
+
+    from stages.simulate.sensors import CameraRig, CameraSpec
+
+    results = {"device": device, "clutter": CLUTTER, "image": [width, width], "rows": []}
+    for n in world_counts:
+        with tempfile.TemporaryDirectory() as td:
+            t0 = time.perf_counter()
+            sim, desc = _ours(device, n, Path(td))
+            build_s = time.perf_counter() - t0
+            ours_dt = _time_steps(sim.step, device, steps, repeats)
+            rig = CameraRig(sim, [CameraSpec(name="head", width=width, height=width, link="head_camera",
+                                             vertical_fov=1.2)], segmentation=False)
+            rig.render(to_numpy=False)
+            _sync(device)
+            rt = []
+            for _ in range(repeats):
+                t = time.perf_counter()
+                rig.render(to_numpy=False)
+                _sync(device)
+                rt.append(time.perf_counter() - t)
+            ours_render = statistics.median(rt)
+            n_free = sum(1 for p in sim.scene.body_path.values() if "Cabinet" not in p)
+            model, bare_step, bstate = _bare(device, n, desc, n_free, sim.settings and _solver_settings(sim))
+            bare_dt = _time_steps(bare_step, device, steps, repeats)
+            sensor = SensorCamera(model, load_textures=False)
+            sensor.create_default_light()
+            rays = SensorCamera.compute_camera_rays_pinhole(width, width, camera_fov=1.2, device=device)
+            tf = wp.array([wp.transform((1.0, 1.0, 1.4), wp.quat_identity())] * n, dtype=wp.transformf, device=device)
+            imgs = (sensor.allocate_image_color(n, width, width), sensor.allocate_image_depth_forward(n, width, width))
+            bare_render = _render_rate(sensor, model, bstate["s0"], rays, tf, imgs, repeats)
+        row = {"worlds": n, "build_s": round(build_s, 2),
+               "ours_world_steps_per_s": n / ours_dt, "bare_world_steps_per_s": n / bare_dt,
+               "step_ratio_bare_over_ours": (n / bare_dt) / (n / ours_dt),
+               "ours_rgbd_frames_per_s": n / ours_render, "bare_rgbd_frames_per_s": n / bare_render,
+               "render_ratio_bare_over_ours": ours_render / bare_render,
+               "bodies_per_world": sim.bodies_per_world, "shapes_per_world": sim.shapes_per_world,
+               "settings": sim.settings.to_json()}
+        print(f"[simulate] {device} worlds={n}: ours {row['ours_world_steps_per_s']:.0f} world-steps/s, "
+              f"bare {row['bare_world_steps_per_s']:.0f} (ratio {row['step_ratio_bare_over_ours']:.2f}); "
+              f"RGB-D ours {row['ours_rgbd_frames_per_s']:.0f} frames/s, bare {row['bare_rgbd_frames_per_s']:.0f}")
+        results["rows"].append(row)
+    out = REPO / "bench_results" / "simulate.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(results, indent=2, default=str))
+    return results
+
+
+def _solver_settings(sim):
+    from stages.simulate.world import SolverKind, SolverSettings
+
+    s = sim.settings
+    return SolverSettings(kind=SolverKind(s.solver), dt=s.dt, substeps=s.substeps, use_mujoco_cpu=s.use_mujoco_cpu)
+
+
+@pytest.mark.benchmark
+def test_bench_simulate(shared_assets):
+    device = os.environ.get("AGENTWORLD_BENCH_DEVICE", "cpu")
+    counts = [1] if device == "cpu" else [1, 64, 1024, 4096]
+    res = run(device, counts)
+    for row in res["rows"]:
+        assert row["ours_world_steps_per_s"] > 0 and row["bare_world_steps_per_s"] > 0
+        assert row["ours_rgbd_frames_per_s"] > 0
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--worlds", type=int, nargs="+", default=None)
+    ap.add_argument("--steps", type=int, default=50)
+    a = ap.parse_args()
+    sys.path.insert(0, str(REPO))
+    run(a.device, a.worlds or ([1] if a.device == "cpu" else [1, 64, 1024, 4096]), steps=a.steps)
