@@ -4,7 +4,7 @@ Every value is a pure function of (shard, episode, frame index), so a reader can
 written. Command (used by the tests to write shards in parallel processes and to kill a writer)::
 
     python -m stages.dataset.synthetic SHARDS_DIR SHARD_ID --shard-index 0 --episodes 2 --frames 12 \
-        --fail-every 3 [--spec-json '{...}'] [--pause-after 5]
+        --fail-every 3 [--spec-json '{...}'] [--pause-after 5] [--backend direct|lerobot]
 """
 
 from __future__ import annotations
@@ -86,6 +86,7 @@ def write_synthetic_shard(
     frames: int,
     fail_every: int = 0,
     pause_after: int | None = None,
+    backend: str = "direct",
 ) -> None:
     """Write a shard of ``episodes`` episodes of ``frames`` frames (failed ones discarded with a reason).
 
@@ -93,7 +94,7 @@ def write_synthetic_shard(
     (the kill test kills the process there)."""
     from .shards import open_shard
 
-    with open_shard(shards_dir, shard_id, spec) as shard:
+    with open_shard(shards_dir, shard_id, spec, backend=backend) as shard:
         for e in range(episodes):
             shard.begin_episode(synthetic_episode_info(shard_index, e))
             for i in range(frames):
@@ -115,10 +116,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fail-every", type=int, default=0)
     p.add_argument("--spec-json", default=None, help="DatasetSpec.to_json() as a string (default spec if absent)")
     p.add_argument("--pause-after", type=int, default=None)
+    p.add_argument("--backend", choices=("direct", "lerobot"), default="direct")
     a = p.parse_args(argv)
     spec = DatasetSpec.from_json(json.loads(a.spec_json)) if a.spec_json else DatasetSpec()
     write_synthetic_shard(a.shards_dir, a.shard_id, spec, shard_index=a.shard_index, episodes=a.episodes,
-                          frames=a.frames, fail_every=a.fail_every, pause_after=a.pause_after)  # fmt: skip
+                          frames=a.frames, fail_every=a.fail_every, pause_after=a.pause_after,
+                          backend=a.backend)  # fmt: skip
     return 0
 
 

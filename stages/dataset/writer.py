@@ -103,6 +103,58 @@ class _State(Enum):
     CLOSED = "closed"
 
 
+class _LerobotBackend:
+    """Writes through ``LeRobotDataset.create`` / ``add_frame`` / ``save_episode`` / ``finalize``."""
+
+    def __init__(self, root: Path, spec: DatasetSpec, repo_id: str, encoder_threads: int | None,
+                 queue_frames: int) -> None:  # fmt: skip
+        self.root, self.spec, self.repo_id = root, spec, repo_id
+        self._encoder_threads, self._queue_frames = encoder_threads, queue_frames
+        self._ds: Any = None
+
+    def open(self) -> None:
+        import_lerobot()
+        from lerobot.configs import RGBEncoderConfig
+
+        v = self.spec.video
+        rgb = RGBEncoderConfig(vcodec=v.codec, pix_fmt=v.pix_fmt, g=v.gop, crf=v.crf, preset=v.preset)
+        self._ds = _blocking_encoder_dataset_class().create(
+            self.repo_id,
+            fps=self.spec.fps,
+            features=self.spec.features(),
+            root=self.root,
+            robot_type=self.spec.robot_type,
+            use_videos=True,
+            video_backend="pyav",
+            rgb_encoder=rgb,
+            streaming_encoding=True,
+            encoder_queue_maxsize=self._queue_frames,
+            encoder_threads=self._encoder_threads,
+            image_writer_threads=2 if self.spec.depth_keys() else 0,
+            data_files_size_in_mb=self.spec.data_files_size_mb,
+            video_files_size_in_mb=self.spec.video_files_size_mb,
+        )
+        self._ds.meta.info.chunks_size = self.spec.chunk_size
+
+    def add(self, frame: Frame, task: str) -> None:
+        row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": task}
+        for cam, key in self.spec.rgb_keys().items():
+            row[key] = frame.rgb[cam]
+        for cam, key in self.spec.depth_keys().items():
+            d = frame.depth_mm[cam]
+            row[key] = d if d.ndim == 3 else d[..., None]
+        self._ds.add_frame(row)
+
+    def save(self, task: str) -> None:
+        self._ds.save_episode()
+
+    def discard(self) -> None:
+        self._ds.clear_episode_buffer()
+
+    def finalize(self) -> None:
+        self._ds.finalize()
+
+
 def _blocking_encoder_dataset_class() -> type:
     """A LeRobotDataset subclass whose streaming encoder never drops frames (blocks on a full queue)."""
     lds = import_lerobot()
@@ -133,9 +185,14 @@ def _blocking_encoder_dataset_class() -> type:
     return _Dataset
 
 
+BACKENDS = ("direct", "lerobot")
+
+
 class EpisodeWriter:
     """Writes episodes of ``spec`` into a new LeRobot v3.0 dataset at ``root`` (see module docstring).
 
+    backend: ``"direct"`` (default; :mod:`stages.dataset.direct`, the same format written without
+    lerobot's per-frame overheads) or ``"lerobot"`` (lerobot's own writer);
     encoder_threads: threads per video encoder (``None``: the codec decides);
     queue_frames: frames buffered per camera before add_frame blocks on the encoder.
     """
@@ -145,63 +202,53 @@ class EpisodeWriter:
         root: Path,
         spec: DatasetSpec,
         *,
+        backend: str = "direct",
         repo_id: str = "agentworld/dataset",
         encoder_threads: int | None = 1,
         queue_frames: int = 60,
     ) -> None:
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         self.root = Path(root)
         self.spec = spec
         self.repo_id = repo_id
+        self.backend = backend
         self.stats = WriterStats()
         self._encoder_threads = encoder_threads
         self._queue_frames = queue_frames
         self._state = _State.NEW
-        self._ds: Any = None
+        self._impl: Any = None
         self._episode: EpisodeInfo | None = None
         self._episode_frames = 0
         self._columns: list[dict[str, Any]] = []  # extra meta/episodes columns, by episode index
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> EpisodeWriter:
-        """Create the dataset folder (must not exist) and lerobot's writer."""
+        """Create the dataset folder (must not exist) and the backend's writer."""
         self._require(_State.NEW, "open")
         if self.root.exists():
             raise FileExistsError(f"{self.root}: dataset folder already exists")
-        import_lerobot()
-        from lerobot.configs import RGBEncoderConfig
+        if self.backend == "lerobot":
+            impl = _LerobotBackend(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
+        else:
+            from .direct import DirectBackend
 
-        v = self.spec.video
-        rgb = RGBEncoderConfig(vcodec=v.codec, pix_fmt=v.pix_fmt, g=v.gop, crf=v.crf, preset=v.preset)
-        self._ds = _blocking_encoder_dataset_class().create(
-            self.repo_id,
-            fps=self.spec.fps,
-            features=self.spec.features(),
-            root=self.root,
-            robot_type=self.spec.robot_type,
-            use_videos=True,
-            video_backend="pyav",
-            rgb_encoder=rgb,
-            streaming_encoding=True,
-            encoder_queue_maxsize=self._queue_frames,
-            encoder_threads=self._encoder_threads,
-            image_writer_threads=2 if self.spec.depth_keys() else 0,
-            data_files_size_in_mb=self.spec.data_files_size_mb,
-            video_files_size_in_mb=self.spec.video_files_size_mb,
-        )
-        self._ds.meta.info.chunks_size = self.spec.chunk_size
+            impl = DirectBackend(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
+        impl.open()
+        self._impl = impl
         self._state = _State.OPEN
         return self
 
     def close(self) -> WriterStats:
-        """Finish the dataset: flush lerobot's writers, add the episode columns, write the sidecar."""
+        """Finish the dataset: flush the writers, add the episode columns, write the sidecar."""
         if self._state is _State.IN_EPISODE:
             raise RuntimeError(f"{self.root}: close() inside an episode; call end_episode() first")
         self._require(_State.OPEN, "close")
         t0 = time.perf_counter()
-        self._ds.finalize()
+        self._impl.finalize()
         if self._columns:
             add_episode_columns(self.root, self._columns)
-        write_sidecar(self.root, self.spec, self.stats, extra={"repo_id": self.repo_id})
+        write_sidecar(self.root, self.spec, self.stats, extra={"repo_id": self.repo_id, "backend": self.backend})
         self.stats.finalize_s = time.perf_counter() - t0
         self._state = _State.CLOSED
         logger.info("%s: %d episodes, %d frames written, %d failed", self.root,
@@ -210,11 +257,11 @@ class EpisodeWriter:
 
     def abort(self) -> None:
         """Stop writing and delete the folder (used when an exception escapes the recording loop)."""
-        if self._state in (_State.OPEN, _State.IN_EPISODE) and self._ds is not None:
+        if self._state in (_State.OPEN, _State.IN_EPISODE) and self._impl is not None:
             try:
                 if self._state is _State.IN_EPISODE:
-                    self._ds.clear_episode_buffer()
-                self._ds.finalize()
+                    self._impl.discard()
+                self._impl.finalize()
             finally:
                 shutil.rmtree(self.root, ignore_errors=True)
         self._state = _State.CLOSED
@@ -239,17 +286,11 @@ class EpisodeWriter:
         self._state = _State.IN_EPISODE
 
     def add_frame(self, frame: Frame) -> None:
-        """Validate and append one frame (timestamp = frame_index / fps, set by lerobot)."""
+        """Validate and append one frame (timestamp = frame_index / fps)."""
         self._require(_State.IN_EPISODE, "add_frame")
         validate_frame(self.spec, frame, where=f"{self.root} frame {self._episode_frames}")
-        row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": self._episode.task}
-        for cam, key in self.spec.rgb_keys().items():
-            row[key] = frame.rgb[cam]
-        for cam, key in self.spec.depth_keys().items():
-            d = frame.depth_mm[cam]
-            row[key] = d if d.ndim == 3 else d[..., None]
         t0 = time.perf_counter()
-        self._ds.add_frame(row)
+        self._impl.add(frame, self._episode.task)
         self.stats.add_frame_s += time.perf_counter() - t0
         self._episode_frames += 1
 
@@ -260,12 +301,12 @@ class EpisodeWriter:
         self._state, self._episode = _State.OPEN, None
         if not success or n == 0:
             why = (reason or "unspecified") if not success else "no frames"
-            self._ds.clear_episode_buffer()
+            self._impl.discard()
             self.stats.failures[why] += 1
             self.stats.frames_discarded += n
             return EpisodeOutcome(False, None, n, why)
         t0 = time.perf_counter()
-        self._ds.save_episode()
+        self._impl.save(info.task)
         self.stats.save_episode_s += time.perf_counter() - t0
         index = self.stats.episodes_written
         self._columns.append(episode_columns(info, success=True))

@@ -53,11 +53,12 @@ def _env() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def merged(tmp_path_factory) -> tuple[Path, object]:
-    """3 shards written by 3 concurrent processes, merged."""
+    """3 shards written by 3 concurrent processes (worker-1 with lerobot's own writer, the others with
+    the direct backend: the merge and every check below also prove the two write the same format)."""
     base = tmp_path_factory.mktemp("ds")
     procs = [
         subprocess.Popen(_writer_cmd(base / "shards", f"worker-{k}", k, SPEC, episodes=EPISODES, frames=FRAMES,
-                                     fail_every=FAIL_EVERY),
+                                     fail_every=FAIL_EVERY, backend="lerobot" if k == 1 else "direct"),
                          cwd=REPO, env=_env(), stderr=subprocess.PIPE, text=True)  # fmt: skip
         for k in range(N_SHARDS)
     ]
@@ -87,6 +88,8 @@ def test_shards_are_complete_and_count_failures(merged):
     assert not list((base / "shards").glob(".tmp-*"))
     assert result.episodes == 6 and result.frames == 6 * FRAMES
     assert result.failures == {"grasp slipped": 3}
+    assert [json.loads((s.path / "meta" / "agentworld.json").read_text())["backend"] for s in shards] == [
+        "direct", "lerobot", "direct"]  # fmt: skip
     side = json.loads((base / "merged" / "meta" / "agentworld.json").read_text())
     assert side["episodes_failed"] == 3 and tuple(s["id"] for s in side["shards"]) == result.shards
 
@@ -174,10 +177,12 @@ def test_killed_writer_leaves_no_shard_and_next_start_cleans_it(tmp_path):
     assert len(load_dataset(shards / "w7")) == 4
 
 
-def test_rollover_to_several_files_loads_every_frame(tmp_path):
-    spec = DatasetSpec(cameras=(CameraSpec("wrist", 48, 64),), data_files_size_mb=0.05, video_files_size_mb=0.001)
+@pytest.mark.parametrize("backend", ["direct", "lerobot"])
+def test_rollover_to_several_files_loads_every_frame(tmp_path, backend):
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 48, 64),), data_files_size_mb=0.01, video_files_size_mb=0.001)
     for k in range(2):
-        write_synthetic_shard(tmp_path / "shards", f"s{k}", spec, shard_index=k, episodes=3, frames=8)
+        write_synthetic_shard(tmp_path / "shards", f"s{k}", spec, shard_index=k, episodes=3, frames=8,
+                              backend=backend)  # fmt: skip
     shard0 = tmp_path / "shards" / "s0"
     assert len(list((shard0 / "data").glob("*/*.parquet"))) >= 2
     assert len(list((shard0 / "videos").glob("*/*/*.mp4"))) >= 2
