@@ -125,8 +125,8 @@ def write_index(db_path: str | Path, records: Iterable[CatalogRecord]) -> Path:
         with con:
             con.executemany("INSERT INTO meta VALUES (?, ?)",
                             [("schema_version", str(SCHEMA_VERSION)), ("written_at", f"{time.time():.3f}")])
-            con.executemany(f"INSERT INTO assets ({', '.join(_COLUMNS)}) VALUES ({', '.join('?' * len(_COLUMNS))})",
-                            [_row(r) for r in recs])
+            cols, marks = ", ".join(_COLUMNS), ", ".join("?" * len(_COLUMNS))
+            con.executemany(f"INSERT INTO assets ({cols}) VALUES ({marks})", [_row(r) for r in recs])
             con.executemany("INSERT INTO asset_rooms VALUES (?, ?)",
                             [(r.id, room) for r in recs for room in sorted(set(r.room_types))])
     except BaseException:

@@ -43,7 +43,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--retries", type=int, help="retries after an unexpected exception (overrides the job)")
     p.add_argument("--retry-failed", action="store_true",
                    help="recompute items that failed with bad input even if their inputs did not change")
-    p.add_argument("--log-level", choices=LOG_LEVELS, default="INFO", help="log level (stderr and logs/job.log)")
+    p.add_argument("--log-level", choices=LOG_LEVELS, default="INFO",
+                   help="log level (stderr and logs/job.log)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit with status 3 if any item failed")
 
@@ -137,7 +138,8 @@ def _execute(job: Any, args: argparse.Namespace, registry: Any = None) -> int:
     console = _console()
     _setup_logging(args.log_level, console)
     summary = run_job(job, out=args.out, executor=args.executor, workers=args.workers, retries=args.retries,
-                      ray_address=args.ray_address, registry=registry, progress=False if args.no_progress else None,
+                      ray_address=args.ray_address, registry=registry,
+                      progress=False if args.no_progress else None,
                       log_level=args.log_level, console=console, retry_failed=args.retry_failed)
     render_summary(summary, stdout_console())
     return EXIT_FAILED_ITEMS if args.strict and summary.failed else EXIT_OK

@@ -115,11 +115,12 @@ class LocalExecutor:
         return self._pool
 
     def submit(self, token: int, task: Task) -> None:
+        args = (task.fn, task.params_json, task.params_type, task.ctx)
         try:
-            fut = self._ensure_pool().submit(execute_item, task.fn, task.params_json, task.params_type, task.ctx)
+            fut = self._ensure_pool().submit(execute_item, *args)
         except BrokenProcessPool:
             self._reset_pool()
-            fut = self._ensure_pool().submit(execute_item, task.fn, task.params_json, task.params_type, task.ctx)
+            fut = self._ensure_pool().submit(execute_item, *args)
         self._futures[fut] = token
 
     def wait(self) -> list[tuple[int, Outcome]]:

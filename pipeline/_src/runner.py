@@ -97,7 +97,8 @@ class _StepState:
 def run_job(job: JobSpec | str | Path, *, out: str | Path | None = None, executor: str | None = None,
             workers: int | None = None, retries: int | None = None, ray_address: str | None = None,
             registry: Registry | None = None, progress: bool | None = None,
-            log_level: int | str | None = None, console: Any = None, retry_failed: bool = False) -> JobSummary:
+            log_level: int | str | None = None, console: Any = None,
+            retry_failed: bool = False) -> JobSummary:
     """Run a job (a JobSpec, or the path of a job TOML) and return its summary.
 
     out / executor / workers / retries / ray_address override the job's values (workers 0 =
@@ -164,7 +165,8 @@ class _Run:
                     steps.append(self._run_step(step))
             except BaseException as e:
                 status = "interrupted" if isinstance(e, KeyboardInterrupt) else "error"
-                summary = self._summary(steps, time.perf_counter() - t0, status, one_line(f"{type(e).__name__}: {e}"))
+                summary = self._summary(steps, time.perf_counter() - t0, status,
+                                        one_line(f"{type(e).__name__}: {e}"))
                 summary.write(self.opts.out)
                 db.end_run(self.run_id, status, canonical_json(summary.to_dict()))
                 raise
@@ -337,7 +339,8 @@ class _Run:
         queue = deque(to_run)
         suspects: deque[_Pending] = deque()
         inflight: dict[int, tuple[_Pending, ItemContext]] = {}
-        log.info("step %r: computing %d item(s) on %s (%d workers)", step.name, len(to_run), ex.name, ex.workers)
+        log.info("step %r: computing %d item(s) on %s (%d workers)", step.name, len(to_run), ex.name,
+                 ex.workers)
         while queue or suspects or inflight:
             # items that were in the pool when a worker died run one at a time, so that only the item
             # that kills its worker is charged for it; the others go on as if nothing happened
@@ -374,8 +377,8 @@ class _Run:
             try:
                 result = _load_result(oc["result_json"], oc["result_type"])
             except Exception as e:  # the result cannot be rebuilt here: the item's failure
-                oc = Outcome(**{**oc, "ok": False, "error_kind": "exception",
-                                "error": one_line(f"result of {p.item.fn} unusable: {type(e).__name__}: {e}")})
+                reason = f"result of {p.item.fn} unusable: {type(e).__name__}: {e}"
+                oc = Outcome(**{**oc, "ok": False, "error_kind": "exception", "error": one_line(reason)})
             else:
                 _commit_outputs(ctx.out_dir, ctx.final_dir)
                 self.db.mark_done(step, iid, key=p.key, attempts=p.attempts, duration_s=oc["duration_s"],
@@ -391,8 +394,9 @@ class _Run:
         if oc["error_kind"] == "exception" and p.attempts <= self.opts.retries:
             log.warning("%s/%s: attempt %d failed (%s); retrying", step, iid, p.attempts, oc["error"])
             return True
-        self._fail(step, iid, p.key, p.item.fn, oc["error"], oc["error_kind"], st, bar, traceback=oc["traceback"],
-                   attempts=p.attempts, duration_s=oc["duration_s"], final_dir=ctx.final_dir)
+        self._fail(step, iid, p.key, p.item.fn, oc["error"], oc["error_kind"], st, bar,
+                   traceback=oc["traceback"], attempts=p.attempts, duration_s=oc["duration_s"],
+                   final_dir=ctx.final_dir)
         return False
 
     def _fail(self, step: str, iid: str, key: str, fn: str, reason: str, kind: str, st: _StepState,

@@ -116,8 +116,8 @@ class StateDB:
 
     def items(self, step: str | None = None) -> dict[tuple[str, str], ItemRow]:
         """All rows (of one step), keyed by (step, item_id)."""
-        sql = ("SELECT step, item_id, key, status, outcome, error, error_kind, attempts, duration_s, result_json, "
-               "result_type FROM items")
+        sql = ("SELECT step, item_id, key, status, outcome, error, error_kind, attempts, duration_s, "
+               "result_json, result_type FROM items")
         rows = self._con.execute(sql + (" WHERE step=?" if step else ""), (step,) if step else ())
         return {(r[0], r[1]): ItemRow(*r) for r in rows}
 
@@ -136,8 +136,9 @@ class StateDB:
     def mark_done(self, step: str, item_id: str, *, key: str, attempts: int, duration_s: float,
                   result_json: str, result_type: str, run_id: int) -> None:
         self._con.execute(
-            "UPDATE items SET key=?, status='done', outcome='done', error='', error_kind='', traceback='', attempts=?, "
-            "finished_at=?, duration_s=?, result_json=?, result_type=?, run_id=? WHERE step=? AND item_id=?",
+            "UPDATE items SET key=?, status='done', outcome='done', error='', error_kind='', traceback='', "
+            "attempts=?, finished_at=?, duration_s=?, result_json=?, result_type=?, run_id=? "
+            "WHERE step=? AND item_id=?",
             (key, attempts, time.time(), duration_s, result_json, result_type, run_id, step, item_id))
 
     def mark_cached(self, step: str, item_ids: Iterable[str], run_id: int) -> None:
@@ -171,8 +172,8 @@ class StateDB:
         return row[0] if row else None
 
     def remember_hash(self, path: str, size: int, mtime_ns: int, sha: str) -> None:
-        self._con.execute("INSERT OR REPLACE INTO file_hashes (path, size, mtime_ns, sha256) VALUES (?,?,?,?)",
-                          (path, size, mtime_ns, sha))
+        self._con.execute("INSERT OR REPLACE INTO file_hashes (path, size, mtime_ns, sha256) "
+                          "VALUES (?, ?, ?, ?)", (path, size, mtime_ns, sha))
 
     def transaction(self) -> "_Tx":
         """A context manager grouping writes into one transaction (BEGIN IMMEDIATE ... COMMIT)."""

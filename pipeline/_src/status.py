@@ -57,7 +57,8 @@ def print_status(work_dir: Path, max_failures: int = 50) -> int:
         console.print(ft)
     summary = read_summary(Path(work_dir))
     if summary is not None:
+        written = time.ctime((Path(work_dir) / "reports" / "summary.json").stat().st_mtime)
         console.print(Text(f"last run: job {summary.job!r} {summary.status} in {summary.seconds:.2f} s "
                            f"(done {summary.done}, cached {summary.cached}, failed {summary.failed}); "
-                           f"summary written {time.ctime((Path(work_dir) / 'reports' / 'summary.json').stat().st_mtime)}"))
+                           f"summary written {written}"))
     return 0
