@@ -45,7 +45,7 @@ from pipeline._src.jobspec import JobError, JobSpec, StepSpec, load_job
 from pipeline._src.progress import StepProgress, make_progress
 from pipeline._src.registry import KindError, Registry, import_object, resolve_kind, type_ref
 from pipeline._src.report import Failure, JobSummary, StepSummary
-from pipeline._src.state import StateDB
+from pipeline._src.state import StateDB, StateVersionError
 from pipeline._src.worker import Outcome, one_line
 from pipeline.types import ItemContext, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
 
@@ -155,7 +155,11 @@ class _Run:
         t0 = time.perf_counter()
         _remove_stale_tmp(self.opts.out, self.spec.steps)
         steps: list[StepSummary] = []
-        with StateDB(self.opts.out / STATE_DB) as db, self.progress:
+        try:
+            db = StateDB(self.opts.out / STATE_DB)
+        except StateVersionError as e:
+            raise JobError(str(e)) from None
+        with db, self.progress:
             self.db = db
             self.run_id = db.begin_run(self.spec.name)
             log.info("job %r: %d step(s), out=%s, executor=%s, workers=%d", self.spec.name,
@@ -450,8 +454,11 @@ def _load_result(result_json: str | None, result_type: str) -> Any:
 
 
 def load_results(work_dir: str | Path, step: str) -> dict[str, Any]:
-    """The results of a step's ``done`` items in a work directory ({item_id: result model})."""
-    with StateDB(Path(work_dir) / STATE_DB) as db:
+    """The results of a step's ``done`` items in a work directory ({item_id: result model}, by id)."""
+    path = Path(work_dir) / STATE_DB
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no state database (nothing has run in {work_dir})")
+    with StateDB(path) as db:
         rows = db.items(step)
     return {iid: _load_result(r.result_json, r.result_type) for (_, iid), r in sorted(rows.items())
             if r.status == "done"}

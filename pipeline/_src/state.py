@@ -22,6 +22,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+SCHEMA_VERSION = 1
+
+
+class StateVersionError(RuntimeError):
+    """The work dir's state database was written by an incompatible runner version."""
+
+
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS items (
     step TEXT NOT NULL,
@@ -83,9 +90,15 @@ class StateDB:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._con = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+        version = self._con.execute("PRAGMA user_version").fetchone()[0]
+        if version not in (0, SCHEMA_VERSION):
+            self._con.close()
+            raise StateVersionError(f"{self.path}: state database has schema version {version}, this runner "
+                                    f"uses {SCHEMA_VERSION}; use another --out or delete the work dir")
         self._con.execute("PRAGMA journal_mode=WAL")
         self._con.execute("PRAGMA synchronous=NORMAL")
         self._con.executescript(_SCHEMA)
+        self._con.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
     def close(self) -> None:
         self._con.close()

@@ -240,3 +240,14 @@ def test_finalize_failure_is_raised_after_the_summary(tmp_path, registry):
     # the items themselves are done and cached for the next run
     s = run_job(path, registry=registry, progress=False)
     assert (s.step("texts").cached, s.step("merged").done) == (2, 1)
+
+
+def test_incompatible_state_database_is_a_clear_error(tmp_path, registry):
+    path = text_job(tmp_path, n=1, merge=False, executor="inline")
+    out = tmp_path / "out" / "t"
+    out.mkdir(parents=True)
+    con = sqlite3.connect(out / "state.sqlite")
+    con.execute("PRAGMA user_version=99")
+    con.close()
+    with pytest.raises(JobError, match="schema version 99"):
+        run_job(path, registry=registry, progress=False)
