@@ -11,7 +11,8 @@ Bodies and joints:
   the body frame moved to the joint's anchor (``pos``); limits are ``range`` relative to ``qpos0``
   (None where not ``limited``); ``damping``, ``frictionloss`` and ``stiffness`` (a passive spring towards
   the reference position, kept as drive stiffness with target 0) carry over; ``armature`` is ignored;
-  ``actuatorfrcrange`` gives the effort limit;
+  the joint's ``actuatorfrcrange``, else the ``forcerange`` x gear of the actuators on it, gives the
+  effort limit (actuator gains are not carried);
 - a body without joints is welded to its parent: its geoms and inertia merge into the parent's link;
 - a free joint on the root body means a movable base; without one the base is fixed (the annotation's
   ``fixed_base`` overrides both); a free joint elsewhere, a ball joint, or several joints in one body
@@ -278,10 +279,29 @@ class _Extractor:
         effort = None
         if m.jnt_actfrclimited[j]:
             effort = float(np.max(np.abs(m.jnt_actfrcrange[j]))) or None
+        else:   # else the force range of the joint's actuators, times their gear
+            limits = [self._actuator_force(a) for a in range(m.nu)
+                      if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and m.actuator_trnid[a, 0] == j]
+            limits = [f for f in limits if f is not None]
+            effort = sum(limits) or None if limits else None
         return Joint(name=jnames.add(name, f"joint{j}"), type=kind, parent=parent.name, child=child.name,
                      frame=g.pose_of(g.inverse(parent.world) @ child.world), axis=tuple(float(a) for a in axis / n),
                      lower=lower, upper=upper, max_effort=effort, friction=float(m.dof_frictionloss[dof]),
                      damping=float(m.dof_damping[dof]), stiffness=float(m.jnt_stiffness[j]))
+
+    def _actuator_force(self, a: int) -> float | None:
+        """Largest joint force/torque [N] / [N m] actuator ``a`` can apply: its force range, or for a
+        plain motor (fixed gain, no bias) its control range x gain; times the gear. None if unbounded."""
+        import mujoco
+
+        m = self.m
+        gear = abs(float(m.actuator_gear[a, 0]))
+        if m.actuator_forcelimited[a]:
+            return float(np.max(np.abs(m.actuator_forcerange[a]))) * gear
+        if (m.actuator_ctrllimited[a] and m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+                and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE):
+            return float(np.max(np.abs(m.actuator_ctrlrange[a]))) * abs(float(m.actuator_gainprm[a, 0])) * gear
+        return None
 
     def _mass(self, b: int, acc: _LinkAcc) -> None:
         mass = float(self.m.body_mass[b])

@@ -579,3 +579,19 @@ def test_rigid_urdf_mjcf_package_comes_to_rest_in_newton(shared_assets, tmp_path
     assert usd_schemas.validate_package(pkg.root_path).ok
     report = physics_checks.rest_check(pkg.root_path, device="cpu")
     assert report.passed, report.reasons
+
+
+def test_mjcf_robots_free_base_actuator_limits(shared_assets):
+    """newton-assets h1.xml: free joint at the pelvis (movable base), 19 hinges, effort limits from the
+    motors' ctrlrange (knee 300 N m, ankle 40 N m). menagerie 2f85.xml: its 4-bar linkage closes through
+    equality constraints (dropped), leaving a tree of 8 hinges on a fixed base."""
+    src = "robots/unitree_h1__newton_assets/mjcf/h1.xml"
+    h1 = load_mjcf(shared_assets / src, AssetAnnotation(id="h1", source=src, category="robot", material="metal"),
+                   catalog_dir=shared_assets)
+    assert h1.fixed_base is False and len(h1.joints) == 19 and all(j.type == R for j in h1.joints)
+    effort = {j.name: j.max_effort for j in h1.joints}
+    assert effort["left_knee_joint"] == 300.0 and effort["right_ankle_joint"] == 40.0
+    src = "robots/robotiq_2f85__menagerie/2f85.xml"
+    grip = load_mjcf(shared_assets / src, AssetAnnotation(id="g", source=src, category="robot", material="metal"),
+                     catalog_dir=shared_assets)
+    assert grip.fixed_base is True and len(grip.joints) == 8 and len(grip.links) == 9
