@@ -65,7 +65,8 @@ class RestReport(BaseModel):
 
 class JointLimitResult(BaseModel):
     """One joint: limits and reached positions [rad] or [m]; excursion: the largest distance
-    outside [lower, upper] seen while driven; passed if both limits reached within tolerance."""
+    outside [lower, upper] seen while driven; drive_stiffness: the check's drive gain [N m/rad] or
+    [N/m]; passed if both limits reached within tolerance."""
 
     model_config = ConfigDict(frozen=True)
 
@@ -77,6 +78,7 @@ class JointLimitResult(BaseModel):
     reached_upper: float
     max_excursion: float
     tolerance: float
+    drive_stiffness: float
     passed: bool
 
 
@@ -255,9 +257,17 @@ def _rest_fail(usd_path, reason, drop_height, seconds, settings, builder) -> Res
 # joint limit check
 
 
-def _subtree_inertia(builder, joint: int) -> float:
-    """Effective inertia [kg m^2] (revolute) or mass [kg] (prismatic) moved by ``joint``: the
-    child subtree's masses, with parallel-axis terms about the joint axis for revolute joints."""
+@dataclass(frozen=True)
+class _JointLoad:
+    """What the check's drive must move and hold for one joint: inertia [kg m^2] or mass [kg] of
+    the child subtree about the axis, and its worst static load: joint friction plus the largest
+    gravity torque [N m] (revolute) or force [N] (prismatic) over the joint's travel."""
+
+    inertia: float
+    static_load: float
+
+
+def _joint_load(builder, joint: int, gravity: float = 9.81) -> _JointLoad:
     import newton
 
     children: dict[int, list[int]] = {}
@@ -268,27 +278,31 @@ def _subtree_inertia(builder, joint: int) -> float:
         b = stack.pop()
         bodies.append(b)
         stack.extend(children.get(b, []))
-    mass = sum(float(builder.body_mass[b]) for b in bodies)
-    if builder.joint_type[joint] == newton.JointType.PRISMATIC:
-        return max(mass, 1e-3)
+    masses = np.array([float(builder.body_mass[b]) for b in bodies])
+    mass = float(masses.sum())
+    dof = builder.joint_qd_start[joint]
+    friction = float(builder.joint_friction[dof])
     # axis and anchor in world, from the parent pose and joint frame at the initial configuration
     parent = builder.joint_parent[joint]
     x_wp = np.asarray(builder.body_q[parent], dtype=np.float64) if parent >= 0 else np.array([0, 0, 0, 0, 0, 0, 1.0])
     x_pj = np.asarray(builder.joint_X_p[joint], dtype=np.float64)
     anchor = _transform_points(x_wp, x_pj[None, :3])[0]
-    q_wj = _quat_mul(x_wp[3:7], x_pj[3:7])
-    dof = builder.joint_qd_start[joint]
-    axis = _quat_rotate(q_wj, np.asarray(builder.joint_axis[dof], dtype=np.float64)[None])[0]
-    inertia = 0.0
-    for b in bodies:
+    axis = _quat_rotate(_quat_mul(x_wp[3:7], x_pj[3:7]), np.asarray(builder.joint_axis[dof], dtype=np.float64)[None])[0]
+    if builder.joint_type[joint] == newton.JointType.PRISMATIC:
+        return _JointLoad(inertia=max(mass, 1e-3), static_load=friction + mass * gravity * abs(axis[2]))
+    inertia, moment = 0.0, np.zeros(3)
+    for b, m in zip(bodies, masses):
         bq = np.asarray(builder.body_q[b], dtype=np.float64)
         com = _transform_points(bq, np.asarray(builder.body_com[b], dtype=np.float64)[None])[0]
         r = com - anchor
         r_perp = r - axis * np.dot(r, axis)
+        moment += m * r_perp
         ib = np.asarray(builder.body_inertia[b], dtype=np.float64).reshape(3, 3)
         a_body = _quat_rotate(bq[3:7] * np.array([-1, -1, -1, 1.0]), axis[None])[0]
-        inertia += float(a_body @ ib @ a_body) + float(builder.body_mass[b]) * float(r_perp @ r_perp)
-    return max(inertia, 1e-5)
+        inertia += float(a_body @ ib @ a_body) + m * float(r_perp @ r_perp)
+    # gravity torque about the axis is |moment x g . axis| <= |moment| g |axis x z|, whatever the angle
+    lever = float(np.linalg.norm(moment)) * float(np.linalg.norm(np.cross(axis, (0.0, 0.0, 1.0))))
+    return _JointLoad(inertia=max(inertia, 1e-5), static_load=friction + gravity * lever)
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -300,13 +314,17 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit: float = 1.5,
                       angular_tolerance: float = math.radians(3.0), linear_tolerance: float = 0.01,
-                      overdrive: float = 0.02, natural_frequency: float = 10.0, angular_speed: float = 1.5,
+                      natural_frequency: float = 10.0, angular_speed: float = 1.5,
                       linear_speed: float = 0.3) -> JointLimitReport:
-    """Drive every revolute/prismatic joint (position drive, critically damped at
-    ``natural_frequency`` [rad/s] from its subtree inertia) first to its lower, then to its upper
-    limit, ``seconds_per_limit`` [s] each, base fixed. The drive target moves at ``angular_speed``
-    [rad/s] / ``linear_speed`` [m/s] (faster if needed to arrive within 60 % of the time) and stops
-    ``overdrive`` x range past the limit, so that the limit, not the drive, stops the joint.
+    """Drive every revolute/prismatic joint first to its lower, then to its upper limit,
+    ``seconds_per_limit`` [s] each, with the base fixed, and check where it ends.
+
+    The drive is a position drive per joint. Its stiffness is the larger of subtree inertia x
+    ``natural_frequency``^2 and what holds 2x the joint's static load (joint friction plus the
+    worst gravity torque/force on the subtree) at half the tolerance; damping is critical; armature
+    is added where the stiffness would make the joint too fast for the time step. The target moves
+    at ``angular_speed`` [rad/s] / ``linear_speed`` [m/s] (faster if needed to arrive within 60 %
+    of the time) and stops half a tolerance past the limit, so that the limit stops the joint.
 
     A joint passes if it ends within the tolerance ([rad] / [m]) of each limit and never goes
     further than the tolerance outside its range. Joints without both limits are reported failed.
@@ -324,13 +342,21 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
                                 joints=(), seconds_per_limit=seconds_per_limit, solver=settings)
     dofs = {j: builder.joint_qd_start[j] for j in movable}
     coords = {j: builder.joint_q_start[j] for j in movable}
+    tolerance = {j: angular_tolerance if builder.joint_type[j] == newton.JointType.REVOLUTE else linear_tolerance
+                 for j in movable}
+    max_omega = 0.5 / settings.dt
+    gains = {}
     for j in movable:
         d = dofs[j]
-        inertia = _subtree_inertia(builder, j)
-        builder.joint_target_ke[d] = inertia * natural_frequency**2
-        builder.joint_target_kd[d] = 2.0 * inertia * natural_frequency
+        load = _joint_load(builder, j)
+        ke = max(load.inertia * natural_frequency**2, 4.0 * load.static_load / tolerance[j])
+        inertia = max(load.inertia + float(builder.joint_armature[d]), ke / max_omega**2)
+        builder.joint_armature[d] = inertia - load.inertia
+        builder.joint_target_ke[d] = ke
+        builder.joint_target_kd[d] = 2.0 * math.sqrt(ke * inertia)
         builder.joint_target_mode[d] = int(newton.JointTargetMode.POSITION)
         builder.joint_effort_limit[d] = 1e9
+        gains[j] = ke
     lims = {j: (float(builder.joint_limit_lower[dofs[j]]), float(builder.joint_limit_upper[dofs[j]])) for j in movable}
     reached: dict[int, list[float]] = {j: [] for j in movable}
     excursion = {j: 0.0 for j in movable}
@@ -345,8 +371,7 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
             goal, speed = {}, {}
             for j in movable:
                 lo, hi = lims[j]
-                span = hi - lo if np.isfinite(hi - lo) else 1.0
-                goal[j] = lo - overdrive * span if side == 0 else hi + overdrive * span
+                goal[j] = lo - 0.5 * tolerance[j] if side == 0 else hi + 0.5 * tolerance[j]
                 revolute = builder.joint_type[j] == newton.JointType.REVOLUTE
                 dist = abs(goal[j] - q_start[coords[j]])
                 speed[j] = max(angular_speed if revolute else linear_speed, dist / (0.6 * seconds_per_limit))
@@ -368,17 +393,17 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
             q = s0.joint_q.numpy()
             for j in movable:
                 reached[j].append(float(q[coords[j]]))
-    return _limit_report(usd_path, builder, movable, lims, reached, excursion, angular_tolerance, linear_tolerance,
+    return _limit_report(usd_path, builder, movable, lims, reached, excursion, tolerance, gains,
                          seconds_per_limit, settings)
 
 
-def _limit_report(usd_path, builder, movable, lims, reached, excursion, ang_tol, lin_tol, seconds, settings):
+def _limit_report(usd_path, builder, movable, lims, reached, excursion, tolerance, gains, seconds, settings):
     import newton
 
     results, reasons = [], []
     for j in movable:
         revolute = builder.joint_type[j] == newton.JointType.REVOLUTE
-        tol = ang_tol if revolute else lin_tol
+        tol = tolerance[j]
         lo, hi = lims[j]
         r_lo, r_hi = reached[j]
         name = builder.joint_label[j]
@@ -391,6 +416,6 @@ def _limit_report(usd_path, builder, movable, lims, reached, excursion, ang_tol,
                            f"excursion {excursion[j]:.4f} (tolerance {tol:.4f})")
         results.append(JointLimitResult(joint=name, kind="revolute" if revolute else "prismatic", lower=lo, upper=hi,
                                         reached_lower=r_lo, reached_upper=r_hi, max_excursion=float(excursion[j]),
-                                        tolerance=tol, passed=ok))
+                                        tolerance=tol, drive_stiffness=float(gains[j]), passed=ok))
     return JointLimitReport(usd_path=usd_path, passed=not reasons, reasons=tuple(reasons), joints=tuple(results),
                             seconds_per_limit=seconds, solver=settings)

@@ -22,7 +22,7 @@ from stages.physics_checks import joint_limit_check, rest_check  # noqa: E402
 def packages(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("phys")
     models = [M.box_model(), M.bowl_model(), M.textured_model(root / "src"), M.cabinet_model(),
-              M.cabinet_model("cabinet_fixed", fixed_base=True), M.tilted_hinge_model()]
+              M.cabinet_model("cabinet_fixed", fixed_base=True), M.tilted_hinge_model(), M.loaded_hinge_model()]
     out = {}
     for m in models:
         pkg = usd_schemas.write_asset_package(m, root / m.name, pipeline_version="0.1.0")
@@ -59,7 +59,7 @@ def test_rest_check_detects_an_asset_that_does_not_rest(tmp_path):
     assert not r2.passed and r2.reasons == ("no collider shapes",)
 
 
-@pytest.mark.parametrize("name,joints", [("cabinet_01", 2), ("cabinet_fixed", 2), ("flap_01", 1)])
+@pytest.mark.parametrize("name,joints", [("cabinet_01", 2), ("cabinet_fixed", 2), ("flap_01", 1), ("lid_01", 1)])
 def test_articulated_joints_reach_their_limits(packages, name, joints):
     r = joint_limit_check(packages[name], device="cpu")
     assert r.passed, r.reasons
@@ -69,6 +69,8 @@ def test_articulated_joints_reach_their_limits(packages, name, joints):
         assert abs(j.reached_lower - j.lower) <= j.tolerance
         assert abs(j.reached_upper - j.upper) <= j.tolerance
         assert j.max_excursion <= j.tolerance
+    if name == "lid_01":  # 2 N m friction + lid weight (1.68 kg at 0.15 m): stiffness sized from the load
+        assert r.joints[0].drive_stiffness > 4 * (2.0 + 1.68 * 9.81 * 0.15) / r.joints[0].tolerance * 0.99
     kinds = sorted(j.kind for j in r.joints)
     assert kinds == (["prismatic", "revolute"] if joints == 2 else ["revolute"])
 

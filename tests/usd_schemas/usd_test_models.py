@@ -189,3 +189,23 @@ def textured_model(tex_dir: Path, asset_id: str = "crate_01") -> AssetModel:
                 collider_approx=ColliderApprox.HULL, mass=mass_properties([mesh], WOOD.density))
     return AssetModel(name=asset_id, annotation=annotation(asset_id, "crate"), links=(link,),
                       materials={"crate": mat}, physics_material=WOOD)
+
+
+def loaded_hinge_model(asset_id: str = "lid_01", friction: float = 2.0) -> AssetModel:
+    """A box with a lid on a horizontal hinge (axis -Y along the back edge): the check's drive must
+    lift the lid's weight and beat ``friction`` [N m] of joint friction."""
+    base = trimesh.creation.box((0.3, 0.4, 0.2))
+    base.apply_translation((0, 0, 0.1))
+    lid = trimesh.creation.box((0.3, 0.4, 0.02))
+    lid_pose = Pose((0.0, 0.0, 0.211))
+    links = (
+        Link(name="base", visuals=(part("box", base),), colliders=hulls([base]),
+             mass=mass_properties([base], WOOD.density)),
+        Link(name="lid", pose=lid_pose, visuals=(part("lid", lid),), colliders=hulls([lid]),
+             mass=mass_properties([lid], WOOD.density)),
+    )
+    joints = (Joint(name="lid_hinge", type=JointType.REVOLUTE, parent="base", child="lid",
+                    frame=Pose((-0.15, 0.0, 0.211)), axis=(0.0, -1.0, 0.0), lower=0.0, upper=1.9,
+                    friction=friction),)
+    return AssetModel(name=asset_id, annotation=annotation(asset_id, "chest"), links=links, joints=joints,
+                      physics_material=WOOD)
