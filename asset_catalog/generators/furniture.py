@@ -333,7 +333,7 @@ def _hanging(b: AssetBuilder, w: float, d: float, h: float, plinth: float, doors
     dw = (w - 2 * t) / doors
     for i in range(doors):
         y0 = -w / 2 + t + i * dw
-        hinge = "left" if i % 2 == 0 else "right"
+        hinge = "left" if i < doors / 2 else "right"   # never two hinges on one divider (handles would meet)
         hinged_door(b, f"door_{i}", parent="base", mat=front, handle_mat=handle, density=WOOD, x_front=d / 2,
                     y0=y0 - (t if i == 0 else 0), y1=y0 + dw + (t if i == doors - 1 else 0), z0=plinth,
                     z1=h, hinge=hinge, handle_len=0.3, handle_z=1.05, effort=60.0)
@@ -416,6 +416,6 @@ def kitchen_counter(b: AssetBuilder) -> float:
                        inner_z0=zz0 + (0.008 if r > 0 else t))
         else:
             hinged_door(b, f"door_{u}", parent="base", mat=front, handle_mat=handle, density=WOOD, x_front=d / 2,
-                        y0=y0, y1=y1, z0=z0, z1=z1, hinge="left" if u % 2 == 0 else "right",
+                        y0=y0, y1=y1, z0=z0, z1=z1, hinge="left",
                         handle_len=0.16, handle_z=z1 - 0.1)
     return b.param("mass", 45.0, 60.0) * w

@@ -175,6 +175,12 @@ def test_moving_parts_clear_their_frame(assets, category):
                     continue
                 ov = _overlap(moving, _moved_pieces(a, other.name, {}))
                 assert ov < 2e-6, f"{a.model.name}: {j.child} at {val:.3f} overlaps {other.name} by {ov:.2e} m^3"
+    # all joints at their upper limits at once (the joint-limit check drives them together)
+    q = {j.name: j.upper for j in a.model.joints}
+    pieces = {lk.name: _moved_pieces(a, lk.name, q) for lk in a.model.links}
+    for x, y in itertools.combinations(pieces, 2):
+        ov = _overlap(pieces[x], pieces[y])
+        assert ov < 2e-6, f"{a.model.name}: with every joint open, {x} overlaps {y} by {ov:.2e} m^3"
 
 
 @pytest.mark.parametrize("category", CATEGORIES)
