@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from stages.layout.floorplan import FloorPlan, to_floor_plan, write_floor_plan
-from stages.layout.occupancy import OccupancyGrid, occupancy_grid
-from stages.layout.plan import HousePlan, sample_plan
+from stages.layout.occupancy import OccupancyGrid
+from stages.layout.plan import HousePlan, sample_plan_and_grids
 from stages.layout.spec import LayoutSpec
 
 log = logging.getLogger(__name__)
@@ -23,7 +23,7 @@ PLAN_NAME = "floorplan.json"
 @dataclass(frozen=True, eq=False)
 class LayoutOutput:
     """usd, plan_json: written files; plan: the JSON model; house: the plan in cm; grids: one per
-    floor; seconds: wall time per step (plan, grids, json, geometry, usd)."""
+    floor; seconds: wall time per step (plan incl. checks and grids, json, geometry, usd)."""
 
     usd: Path
     plan_json: Path
@@ -35,9 +35,7 @@ class LayoutOutput:
 
 def plan_house(spec: LayoutSpec, seed: int) -> tuple[HousePlan, list[OccupancyGrid]]:
     """Sample a checked plan and its occupancy grids (no files)."""
-    house = sample_plan(spec, np.random.default_rng(seed))
-    grids = [occupancy_grid(house, f, spec.cell_size, spec.robot_radius) for f in range(len(house.floors))]
-    return house, grids
+    return sample_plan_and_grids(spec, np.random.default_rng(seed))
 
 
 def generate_layout(spec: LayoutSpec, seed: int, out_dir: Path, *, usd_name: str = USD_NAME) -> LayoutOutput:
@@ -48,11 +46,8 @@ def generate_layout(spec: LayoutSpec, seed: int, out_dir: Path, *, usd_name: str
     out_dir = Path(out_dir)
     t = {}
     t0 = time.perf_counter()
-    house = sample_plan(spec, np.random.default_rng(seed))
+    house, grids = sample_plan_and_grids(spec, np.random.default_rng(seed))
     t["plan"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    grids = [occupancy_grid(house, f, spec.cell_size, spec.robot_radius) for f in range(len(house.floors))]
-    t["grids"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fp = to_floor_plan(house, spec, seed, grids)
     plan_json = write_floor_plan(fp, grids, out_dir, PLAN_NAME)

@@ -858,16 +858,22 @@ def _sample_once(spec: LayoutSpec, floor_types: list[list[RoomType]], rng: np.ra
                      spec.ceiling_thickness, spec.door_height, tuple(plan_floors), stairs, score)
 
 
-def sample_plan(spec: LayoutSpec, rng: np.random.Generator, *, check: bool = True) -> HousePlan:
+def sample_plan(spec: LayoutSpec, rng: np.random.Generator) -> HousePlan:
     """Sample plans until ``spec.candidates`` pass every check; return the best-scoring one.
 
-    Raises LayoutError (naming the most common rejection) when ``spec.max_attempts`` are used up.
+    Raises LayoutError (naming the most common rejections) when ``spec.max_attempts`` are used up.
     """
+    return sample_plan_and_grids(spec, rng)[0]
+
+
+def sample_plan_and_grids(spec: LayoutSpec, rng: np.random.Generator) -> tuple[HousePlan, list]:
+    """``sample_plan`` plus the plan's occupancy grids (one ``OccupancyGrid`` per floor)."""
     from stages.layout.checks import plan_problems
+    from stages.layout.occupancy import occupancy_grid
 
     floor_types = rooms_per_floor(spec)
     reasons: Counter[str] = Counter()
-    best: HousePlan | None = None
+    best: tuple[HousePlan, list] | None = None
     found = 0
     for attempt in range(1, spec.max_attempts + 1):
         try:
@@ -875,19 +881,22 @@ def sample_plan(spec: LayoutSpec, rng: np.random.Generator, *, check: bool = Tru
         except PlanRejected as e:
             reasons[str(e).split(":")[-1].strip()[:60]] += 1
             continue
-        if check:
-            probs = plan_problems(cand, spec)
-            if probs:
-                reasons["check: " + probs[0][:60]] += 1
-                log.debug("plan rejected by checks: %s", probs)
-                continue
+        if cand.score < spec.min_score:
+            reasons["score below min_score"] += 1
+            continue
+        grids = [occupancy_grid(cand, f, spec.cell_size, spec.robot_radius) for f in range(len(cand.floors))]
+        probs = plan_problems(cand, spec, grids)
+        if probs:
+            reasons["check: " + probs[0][:60]] += 1
+            log.debug("plan rejected by checks: %s", probs)
+            continue
         found += 1
-        if best is None or cand.score > best.score:
-            best = cand
+        if best is None or cand.score > best[0].score:
+            best = (cand, grids)
         if found >= spec.candidates:
             break
     if best is None:
         common = ", ".join(f"{r} ({n})" for r, n in reasons.most_common(3))
         raise LayoutError(f"no valid plan in {spec.max_attempts} attempts; most common rejections: {common}")
-    log.debug("plan found after %d attempts (score %.3f)", attempt, best.score)
-    return replace(best, attempts=attempt)
+    log.debug("plan found after %d attempts (score %.3f)", attempt, best[0].score)
+    return replace(best[0], attempts=attempt), best[1]

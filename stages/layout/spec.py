@@ -93,6 +93,8 @@ class LayoutSpec(_Strict):
     robot_radius: radius of the navigating base for the occupancy grid inflation [m];
     cell_size: occupancy grid cell [m];
     l_shape_probability: chance that a plan tries to make one room L-shaped [-];
+    min_score: plans whose shape score (mean over rooms of aspect-ratio and floor/bbox-area terms,
+      see ``stages.layout.plan.room_score``) is lower are rejected and resampled;
     candidates: valid plans sampled per house; the best-scoring one is kept;
     max_attempts: sampled plans before giving up.
     """
@@ -115,7 +117,8 @@ class LayoutSpec(_Strict):
     robot_radius: float = Field(default=0.25, ge=0.05, le=0.5)
     cell_size: float = Field(default=0.05, ge=0.01, le=0.25)
     l_shape_probability: float = Field(default=0.35, ge=0.0, le=1.0)
-    candidates: int = Field(default=2, ge=1, le=16)
+    min_score: float = Field(default=0.65, ge=0.0, le=1.0)
+    candidates: int = Field(default=1, ge=1, le=16)
     max_attempts: int = Field(default=400, ge=1)
 
     @field_validator("rooms")
