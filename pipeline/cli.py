@@ -83,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--work-dir", type=Path, default=Path("out/main"), help="work dir holding catalog.sqlite")
     c.add_argument("--db", type=Path, help="catalog index file (default: <work-dir>/catalog.sqlite)")
     c.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
+    csub.add_parser("build-default", help="write the built-in procedural catalog (--out DIR [--variants N])",
+                    add_help=False)
 
     p = sub.add_parser("status", help="show the state of a work dir")
     p.add_argument("--out", type=Path, default=Path("out/main"), help="work dir")
@@ -100,6 +102,10 @@ def main(argv: list[str] | None = None) -> int:
         from pipeline._src.registry import import_object
 
         return int(import_object(extras[argv[0]])(argv[1:]) or 0)
+    if argv[:2] == ["catalog", "build-default"]:
+        from asset_catalog.default_catalog import main as build_default
+
+        return int(build_default(argv[2:]) or 0)
     args = build_parser().parse_args(argv)
     try:
         if args.command == "run":
