@@ -614,6 +614,19 @@ def inside_catalog(path: Path, catalog_dir: Path | None, *, source: Path, what: 
     return resolved
 
 
+def source_defines_collision(model):
+    """The model with ``collision_source = ()`` (no colliders) on links without collision geometry when
+    the source gives collision geometry to some link: a URDF/MJCF that models collision leaves the other
+    links non-colliding on purpose (visual-only knobs, lights, frames). A source with no collision
+    geometry anywhere keeps ``None`` everywhere, so colliders are computed from the visuals."""
+    from dataclasses import replace
+
+    if not any(lk.collision_source for lk in model.links):
+        return model
+    return replace(model, links=tuple(lk if lk.collision_source else replace(lk, collision_source=())
+                                      for lk in model.links))
+
+
 # ------------------------------------------------------------------------------------------ inertia
 
 

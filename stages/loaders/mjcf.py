@@ -27,7 +27,9 @@ tessellated; planes, height fields and SDFs are skipped with a log line. A geom 
 not collide, lies in group 0-2 and is not fully transparent, or when it collides and its link has no
 visual-only geoms (sources whose geoms serve both roles, such as robosuite's door). Colours come from
 the geom's material (``rgba``, and the image file of its RGB texture) or the geom's ``rgba``; meshes
-without texture coordinates under a textured material get box-projected UVs.
+without texture coordinates under a textured material get box-projected UVs. When some geom collides,
+links without colliding geoms get ``collision_source = ()`` (they do not collide, as in MuJoCo); a source
+without colliding geoms keeps ``None`` (colliders are then computed from the visuals).
 
 Body-chain fragments: a source whose root element is ``<mujocoinclude>`` holding bodies (e.g. furniture_sim's
 ``kettle/kettle_body0.xml``) is compiled through a wrapper written into a temporary folder: it includes
@@ -85,7 +87,8 @@ def load_mjcf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
     mujoco.mj_kinematics(model, data)
     model_out = _Extractor(model, data, path, annotation).run()
     model_out = replace(model_out, source_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
-    return g.judge_masses(g.scale_and_up(model_out, annotation.meters_per_unit, annotation.up_axis))
+    return g.judge_masses(g.source_defines_collision(
+        g.scale_and_up(model_out, annotation.meters_per_unit, annotation.up_axis)))
 
 
 # --------------------------------------------------------------------------------------- compiling

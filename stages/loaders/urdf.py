@@ -12,6 +12,10 @@ Mesh filenames: ``package://<pkg>/<rest>`` is looked up in the URDF's folder and
 never above ``catalog_dir``; ``file://`` and plain paths are taken relative to the URDF's folder. With a
 ``catalog_dir`` every resolved file must lie inside it (after following symbolic links).
 
+Collision: each ``<collision>`` becomes a part of the link's ``collision_source``; when the URDF has
+collision elements, links without one get ``collision_source = ()`` (they do not collide); a URDF
+without any keeps ``None`` (colliders are then computed from the visuals).
+
 Frames: a link's frame is its parent joint's frame at zero; link poses are composed into the root
 link's frame. A fixed joint from a link named ``world`` fixes the base (that link is dropped).
 """
@@ -97,7 +101,8 @@ def load_urdf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
     model = AssetModel(name=annotation.id, annotation=annotation, links=tuple(links), joints=tuple(out_joints),
                        materials=dict(ctx.materials), fixed_base=bool(fixed_base),
                        source_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
-    return g.judge_masses(g.scale_and_up(model, annotation.meters_per_unit, annotation.up_axis))
+    return g.judge_masses(g.source_defines_collision(
+        g.scale_and_up(model, annotation.meters_per_unit, annotation.up_axis)))
 
 
 # ------------------------------------------------------------------------------------------ structure

@@ -139,6 +139,10 @@ def test_mjcf_visual_and_collision_split(shared_assets):
     assert drawer.visuals[0].uvs is not None           # the .msh mesh carries texture coordinates
     door = load(ann["robosuite_door"], shared_assets)
     assert [len(lk.visuals) for lk in door.links] == [len(lk.collision_source) for lk in door.links] == [2, 3]
+    # the oven's burners have visual geoms only: the source says they do not collide (not "unknown")
+    oven = load(ann["vk_oven"], shared_assets)
+    assert oven.link("Burner_1").collision_source == () and oven.link("Burner_1").visuals
+    assert len(oven.link("knob_1").collision_source) == 2
 
 
 @pytest.mark.parametrize("asset_id,joint,value", [
@@ -221,6 +225,7 @@ def test_ycb_urdf_scale_and_texture(shared_assets):
     assert mat.base_color_texture is not None and mat.base_color_texture.name == "texture_map.png"
     assert link.visuals[0].uvs is not None
     assert link.mass is None and not link.mass_from_source          # 1 kg placeholder rejected
+    assert len(link.collision_source) == 1                          # the VHACD OBJ
 
 
 def test_mjcf_fragment_needs_no_file_in_catalog(shared_assets, tmp_path):
