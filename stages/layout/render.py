@@ -110,9 +110,12 @@ def render_plan_png(plan: FloorPlan, out_path: Path, *, px_per_m: int = 60, grid
             hinge = (px - hw, py) if horiz else (px, py - hw)
             r = d.width * px_per_m
             hx, hy = P(*hinge)
-            ang = -math.degrees(math.atan2(ny, nx))
-            a0, a1 = (ang, ang + 90) if horiz else (ang - 90, ang)
-            draw.arc([hx - r, hy - r, hx + r, hy + r], a0, a1, fill=(90, 90, 90))
+            closed = 0.0 if horiz else 270.0           # PIL angles: clockwise from +x, image y down
+            opened = math.degrees(math.atan2(-ny, nx)) % 360
+            a0, a1 = (opened, closed) if (closed - opened) % 360 == 90 else (closed, opened)
+            draw.arc([hx - r, hy - r, hx + r, hy + r], a0, a1 if a1 > a0 else a1 + 360, fill=(90, 90, 90))
+            leaf = P(hinge[0] + nx * d.width, hinge[1] + ny * d.width)
+            draw.line([(hx, hy), leaf], fill=(90, 90, 90), width=2)
         for wdw in fl.windows:
             wall = next(w for w in fl.walls if w.id == wdw.wall)
             horiz = abs(wall.end[1] - wall.start[1]) < 1e-9
