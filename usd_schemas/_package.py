@@ -105,7 +105,10 @@ def write_asset_package(model: AssetModel, out_dir: Path, *, pipeline_version: s
         dst = out_dir / rel
         dst.parent.mkdir(parents=True, exist_ok=True)
         tmp = dst.with_name(dst.name + ".tmp")
-        shutil.copyfile(src, tmp)
+        try:
+            shutil.copyfile(src, tmp)
+        except OSError as e:
+            raise ItemError(f"{src}: cannot copy texture of asset {aid!r}: {e.strerror or e}") from None
         os.replace(tmp, dst)
 
     payload = Sdf.Layer.CreateAnonymous(f"{aid}_payload.usdc")
