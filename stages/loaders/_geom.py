@@ -162,7 +162,8 @@ class RawMesh:
     def part(self, name: str, material: str | None) -> MeshPart:
         return MeshPart(name=name, vertices=np.ascontiguousarray(self.vertices, dtype=np.float64),
                         faces=np.ascontiguousarray(self.faces, dtype=np.int64),
-                        normals=None if self.normals is None else np.ascontiguousarray(self.normals, np.float64),
+                        normals=None if self.normals is None
+                        else np.ascontiguousarray(self.normals, np.float64),
                         uvs=None if self.uvs is None else np.ascontiguousarray(self.uvs, np.float64),
                         material=material)
 
@@ -217,7 +218,8 @@ def _unit_cylinder(sections: int = 32) -> RawMesh:
     k1 = (k + 1) % sections
     side_v = np.vstack([ring + (0, 0, -1), ring + (0, 0, 1)])
     side_n = np.vstack([ring, ring])
-    side_f = np.vstack([np.column_stack([k, k1, sections + k1]), np.column_stack([k, sections + k1, sections + k])])
+    side_f = np.vstack([np.column_stack([k, k1, sections + k1]),
+                        np.column_stack([k, sections + k1, sections + k])])
     verts, normals, faces = [side_v], [side_n], [side_f]
     off = 2 * sections
     for z in (-1.0, 1.0):
@@ -268,7 +270,8 @@ def box_uvs(mesh: RawMesh, repeat=(1.0, 1.0)) -> RawMesh:
     axis = np.argmax(np.abs(fn), axis=1)
     planes = np.array([[1, 2], [0, 2], [0, 1]])[axis]                   # (M, 2) coordinates kept
     uv = np.take_along_axis(tri, planes[:, None, :].repeat(3, axis=1), axis=2) * np.asarray(repeat, float)
-    normals = mesh.normals[mesh.faces].reshape(-1, 3) if mesh.normals is not None else np.repeat(fn, 3, axis=0)
+    normals = (mesh.normals[mesh.faces].reshape(-1, 3) if mesh.normals is not None
+               else np.repeat(fn, 3, axis=0))
     return RawMesh(tri.reshape(-1, 3), np.arange(3 * len(tri), dtype=np.int64).reshape(-1, 3),
                    normals, uv.reshape(-1, 2), mesh.material)
 
@@ -315,8 +318,8 @@ def _load_trimesh(path: Path, *, source: Path) -> list[RawMesh]:
     try:
         scene = trimesh.load(str(path), force="scene", process=False)
     except Exception as e:  # trimesh raises many types for bad files; keep the reason, one line
-        raise ItemError(f"{source}: cannot read mesh {path.name}: {type(e).__name__}: {e}".replace("\n", " ")) \
-            from None
+        why = " ".join(f"{type(e).__name__}: {e}".split())
+        raise ItemError(f"{source}: cannot read mesh {path.name}: {why}") from None
     mtl = _mtl_textures(path) if path.suffix.lower() == ".obj" else {}
     out = []
     for node in scene.graph.nodes_geometry:
@@ -332,7 +335,8 @@ def _load_trimesh(path: Path, *, source: Path) -> list[RawMesh]:
             raw = _shaded(g)
         else:
             raw = RawMesh(np.asarray(g.vertices, float), np.asarray(g.faces, np.int64),
-                          np.asarray(g.vertex_normals, float), None if uvs is None else np.asarray(uvs, float))
+                          np.asarray(g.vertex_normals, float),
+                          None if uvs is None else np.asarray(uvs, float))
         raw = RawMesh(raw.vertices, raw.faces, raw.normals, raw.uvs, material)
         out.append(raw.transformed(np.asarray(tf, float)))
     return out
@@ -414,7 +418,8 @@ def load_dae(path: Path, *, source: Path) -> list[RawMesh]:
     scene = root.find("scene/instance_visual_scene")
     vs = None
     if scene is not None:
-        vs = next((v for v in root.iter("visual_scene") if "#" + (v.get("id") or "") == scene.get("url")), None)
+        vs = next((v for v in root.iter("visual_scene")
+                   if "#" + (v.get("id") or "") == scene.get("url")), None)
     vs = vs if vs is not None else root.find("library_visual_scenes/visual_scene")
     if vs is None:  # no scene: every geometry at identity
         for g in geometries.values():
@@ -590,7 +595,7 @@ def weld(m: RawMesh, keys: np.ndarray | None = None) -> RawMesh:
                 key = key * r + col
             _, first, inv = np.unique(key, return_index=True, return_inverse=True)
             return _gather(m, first, inv)
-    cols = [m.vertices] + ([m.normals] if m.normals is not None else []) + ([m.uvs] if m.uvs is not None else [])
+    cols = [a for a in (m.vertices, m.normals, m.uvs) if a is not None]
     key = np.ascontiguousarray(np.round(np.hstack(cols), 9))
     _, first, inv = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
                               return_index=True, return_inverse=True)
@@ -668,7 +673,8 @@ def implausible_inertia(mp: MassProperties, points: np.ndarray | None) -> str | 
     where the link has geometry ``points`` (K, 3) [m], no moment larger than 4 x mass x (largest distance
     from the centre of mass to the geometry)^2 (placeholder inertias such as 1 kg m^2 on a 20 cm drawer)."""
     vals = np.array(mp.diagonal_inertia)
-    if not (np.isfinite(mp.mass) and mp.mass > 0 and np.isfinite(vals).all() and np.isfinite(mp.center_of_mass).all()):
+    if not (np.isfinite(mp.mass) and mp.mass > 0 and np.isfinite(vals).all()
+            and np.isfinite(mp.center_of_mass).all()):
         return "non-finite or non-positive mass/inertia"
     if (vals <= 0).any():
         return f"non-positive principal inertia {tuple(vals)}"
@@ -678,7 +684,8 @@ def implausible_inertia(mp: MassProperties, points: np.ndarray | None) -> str | 
     if points is not None and len(points):
         r2 = float(np.max(np.sum((points - np.asarray(mp.center_of_mass)) ** 2, axis=1)))
         if vals.max() > 4.0 * mp.mass * max(r2, 1e-8):
-            return f"inertia {vals.max():.3g} kg m^2 too large for mass {mp.mass:.3g} kg within {np.sqrt(r2):.3g} m"
+            return (f"inertia {vals.max():.3g} kg m^2 too large for mass {mp.mass:.3g} kg "
+                    f"within {np.sqrt(r2):.3g} m")
     return None
 
 
@@ -756,7 +763,8 @@ def scale_and_up(model, meters_per_unit: float | None, up_axis: str | None):
                            diagonal_inertia=tuple(i * s * s for i in mass.diagonal_inertia))
         links.append(replace(
             lk, pose=pose(lk.pose, True), visuals=tuple(part(p) for p in lk.visuals),
-            collision_source=None if lk.collision_source is None else tuple(part(p) for p in lk.collision_source),
+            collision_source=None if lk.collision_source is None
+            else tuple(part(p) for p in lk.collision_source),
             colliders=tuple(part(p) for p in lk.colliders), mass=mass))
     joints = []
     for j in model.joints:
@@ -801,7 +809,8 @@ def judge_masses(model):
                 mp, why = None, (f"mass {mp.mass:.4g} kg in a hull of {vol:.3g} m^3 is denser than 3 x "
                                  f"{model.annotation.material} ({density:.0f} kg/m^3)")
         if mp is None:
-            log.warning("%s: link %r: source mass ignored (%s); it will be computed", model.name, lk.name, why)
+            log.warning("%s: link %r: source mass ignored (%s); it will be computed",
+                        model.name, lk.name, why)
             links.append(replace(lk, mass=None, mass_from_source=False))
             continue
         why = implausible_inertia(mp, pts)
@@ -822,7 +831,9 @@ def _hull_volume(points: np.ndarray) -> float:
     """Volume [m^3] of the convex hull of (K, 3) points; 0 for flat or degenerate sets."""
     from scipy.spatial import ConvexHull, QhullError
 
-    pts = np.unique(np.round(np.asarray(points, float), 9), axis=0) if len(points) < 4096 else np.asarray(points)
+    pts = np.asarray(points, float)
+    if len(pts) < 4096:
+        pts = np.unique(np.round(pts, 9), axis=0)
     try:
         return float(ConvexHull(pts).volume)
     except (QhullError, ValueError) as e:

@@ -207,7 +207,8 @@ class _Extractor:
         m = self.m
         top = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
         if len(top) != 1:
-            raise ItemError(f"{self.path}: expected one top-level body (one asset per file), found {len(top)}")
+            raise ItemError(f"{self.path}: expected one top-level body (one asset per file), "
+                            f"found {len(top)}")
         self._log_ignored()
         names, jnames = g.NameTable(), g.NameTable()
         accs: list[_LinkAcc] = []
@@ -220,12 +221,14 @@ class _Extractor:
             bname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
             what = f"body {bname or b!r}"
             if len(jids) > 1:
-                raise ItemError(f"{self.path}: {what} has {len(jids)} joints; one hinge or slide per body is supported")
+                raise ItemError(f"{self.path}: {what} has {len(jids)} joints; "
+                                "one hinge or slide per body is supported")
             if kinds and kinds[0] == mujoco.mjtJoint.mjJNT_BALL:
                 raise ItemError(f"{self.path}: {what} has a ball joint, which is not supported")
             if kinds and kinds[0] == mujoco.mjtJoint.mjJNT_FREE:
                 if b != top[0]:
-                    raise ItemError(f"{self.path}: {what} has a free joint below the root body (a second object)")
+                    raise ItemError(f"{self.path}: {what} has a free joint below the root body "
+                                    "(a second object)")
                 free_root = True
                 kinds, jids = [], []
             if b == top[0] and kinds:
@@ -235,7 +238,8 @@ class _Extractor:
             body_world = g.transform(self.d.xpos[b], self.d.xmat[b].reshape(3, 3))
             if b == top[0] or jids:
                 t = body_world @ g.transform(m.jnt_pos[jids[0]]) if jids else body_world
-                accs.append(_LinkAcc(name=names.add(bname, "base" if b == top[0] else f"body{b}"), world=t, body=b))
+                fallback = "base" if b == top[0] else f"body{b}"
+                accs.append(_LinkAcc(name=names.add(bname, fallback), world=t, body=b))
                 link_of[b] = len(accs) - 1
                 if jids:
                     joints.append((jids[0], link_of[int(m.body_parentid[b])], link_of[b]))
@@ -288,7 +292,8 @@ class _Extractor:
             limits = [f for f in limits if f is not None]
             effort = sum(limits) or None if limits else None
         return Joint(name=jnames.add(name, f"joint{j}"), type=kind, parent=parent.name, child=child.name,
-                     frame=g.pose_of(g.inverse(parent.world) @ child.world), axis=tuple(float(a) for a in axis / n),
+                     frame=g.pose_of(g.inverse(parent.world) @ child.world),
+                     axis=tuple(float(a) for a in axis / n),
                      lower=lower, upper=upper, max_effort=effort, friction=float(m.dof_frictionloss[dof]),
                      damping=float(m.dof_damping[dof]), stiffness=float(m.jnt_stiffness[j]))
 
@@ -303,7 +308,8 @@ class _Extractor:
             return float(np.max(np.abs(m.actuator_forcerange[a]))) * gear
         if (m.actuator_ctrllimited[a] and m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
                 and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE):
-            return float(np.max(np.abs(m.actuator_ctrlrange[a]))) * abs(float(m.actuator_gainprm[a, 0])) * gear
+            ctrl = float(np.max(np.abs(m.actuator_ctrlrange[a])))
+            return ctrl * abs(float(m.actuator_gainprm[a, 0])) * gear
         return None
 
     def _mass(self, b: int, acc: _LinkAcc) -> None:
@@ -318,7 +324,8 @@ class _Extractor:
         if acc.masses:
             total, com, tensor = g.combine_mass(acc.masses)         # world frame
             inv = g.inverse(acc.world)
-            mass = g.mass_properties(total, inv[:3, :3] @ com + inv[:3, 3], inv[:3, :3] @ tensor @ inv[:3, :3].T)
+            rot = inv[:3, :3]
+            mass = g.mass_properties(total, rot @ com + inv[:3, 3], rot @ tensor @ rot.T)
             from_source = True
         return Link(name=acc.name, pose=g.pose_of(root_inv @ acc.world), visuals=tuple(acc.visuals),
                     collision_source=tuple(acc.collisions) if acc.collisions else None, mass=mass,
@@ -355,7 +362,8 @@ class _Extractor:
                 skipped[kind] = skipped.get(kind, 0) + 1
                 continue
             gname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, gid)
-            local = g.inverse(acc.world) @ g.transform(self.d.geom_xpos[gid], self.d.geom_xmat[gid].reshape(3, 3))
+            geom_world = g.transform(self.d.geom_xpos[gid], self.d.geom_xmat[gid].reshape(3, 3))
+            local = g.inverse(acc.world) @ geom_world
             raw = raw.transformed(local)
             g.check_finite_mesh(raw, file=self.path, what=f"geom {gname or gid!r}")
             label = g.NameTable().add(gname, f"geom{gid}")

@@ -76,7 +76,8 @@ def load_urdf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
     for j in joints:
         for end in ("parent", "child"):
             if getattr(j, end) not in link_els:
-                raise ItemError(f"{path}: joint {j.name!r} names {end} link {getattr(j, end)!r}, which does not exist")
+                raise ItemError(f"{path}: joint {j.name!r} names {end} link {getattr(j, end)!r}, "
+                                "which does not exist")
     order, parent_joint = _tree(link_els, joints, path)
     fixed_base = annotation.fixed_base
     if order[0] == WORLD and not _has_geometry(link_els[WORLD]):
@@ -98,7 +99,8 @@ def load_urdf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
         links.append(_link(link_els[src], out_name[src], world_of[src], ctx))
         if pj is not None:
             out_joints.append(pj.to_joint(jnames.add(pj.name, "joint"), out_name[pj.parent], out_name[src]))
-    model = AssetModel(name=annotation.id, annotation=annotation, links=tuple(links), joints=tuple(out_joints),
+    model = AssetModel(name=annotation.id, annotation=annotation, links=tuple(links),
+                       joints=tuple(out_joints),
                        materials=dict(ctx.materials), fixed_base=bool(fixed_base),
                        source_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
     return g.judge_masses(g.source_defines_collision(
@@ -138,7 +140,8 @@ class _SrcJoint:
     friction: float
 
     def to_joint(self, name: str, parent: str, child: str) -> Joint:
-        return Joint(name=name, type=self.type, parent=parent, child=child, frame=g.pose_of(self.frame_matrix),
+        return Joint(name=name, type=self.type, parent=parent, child=child,
+                     frame=g.pose_of(self.frame_matrix),
                      axis=self.axis, lower=self.lower, upper=self.upper, max_effort=self.effort,
                      max_velocity=self.velocity, friction=self.friction, damping=self.damping)
 
@@ -162,7 +165,8 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
     what = f"joint {name!r}"
     kind = el.get("type", "")
     if kind not in _JOINT_TYPES:
-        raise ItemError(f"{path}: {what} has unsupported type {kind!r} (revolute, continuous, prismatic, fixed)")
+        raise ItemError(f"{path}: {what} has unsupported type {kind!r} "
+                        "(revolute, continuous, prismatic, fixed)")
     parent, child = el.find("parent"), el.find("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
         raise ItemError(f"{path}: {what} lacks a parent or child link")
@@ -328,7 +332,8 @@ def _mesh(el: ET.Element, ctx: _Ctx, what: str) -> list[g.RawMesh]:
     uri = el.get("filename")
     if not uri:
         raise ItemError(f"{ctx.file}: {what} has no filename")
-    scale = g.parse_floats(el.get("scale"), None, file=ctx.file, what=f"{what} scale", default=(1.0, 1.0, 1.0))
+    scale = g.parse_floats(el.get("scale"), None, file=ctx.file, what=f"{what} scale",
+                           default=(1.0, 1.0, 1.0))
     if len(scale) == 1:
         scale = scale * 3
     if len(scale) != 3 or min(abs(s) for s in scale) <= 0:
@@ -351,7 +356,8 @@ def resolve_uri(uri: str, urdf: Path, catalog_dir: Path | None) -> Path:
             for cand in (cur / pkg / sub, cur / sub if cur.name == pkg else None):
                 if cand is None:
                     continue
-                cand = g.inside_catalog(Path(os.path.normpath(cand)), catalog_dir, source=urdf, what="mesh path")
+                cand = g.inside_catalog(Path(os.path.normpath(cand)), catalog_dir, source=urdf,
+                                        what="mesh path")
                 if cand.exists():
                     return cand
             if cur == stop or cur.parent == cur:
@@ -384,7 +390,8 @@ def _material(el: ET.Element | None, ctx: _Ctx) -> MaterialSpec | None:
             if "escapes" in str(e):
                 raise
             log.warning("%s; colour only", e)
-    return MaterialSpec(name=el.get("name") or "material", base_color=tuple(float(np.clip(c, 0, 1)) for c in rgba[:3]),
+    return MaterialSpec(name=el.get("name") or "material",
+                        base_color=tuple(float(np.clip(c, 0, 1)) for c in rgba[:3]),
                         opacity=float(np.clip(rgba[3], 0, 1)), base_color_texture=texture)
 
 
