@@ -286,7 +286,7 @@ def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration
     for k in range(1, segments + 1):
         a = k / segments
         wp_pose = pose(start[:3, 3] + a * (goal[:3, 3] - start[:3, 3]), slerp([a]).as_matrix()[0])
-        res = ik.solve(wp_pose, q_pin, restarts=3 if rng is not None else 0, rng=rng)
+        res = ik.solve(wp_pose, q_pin, max_iters=600, restarts=10 if rng is not None else 0, rng=rng)
         if not res.success:
             raise RuntimeError(f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)")
         q0, q1 = ctl.arm_targets(world), ik.arm_q(res.q)
