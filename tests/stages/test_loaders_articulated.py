@@ -41,12 +41,16 @@ EXPECTED: dict[str, tuple[int, bool, dict[str, tuple[JointType, float, float]]]]
                                    **{f"{c}_button": (P, -0.005, 0.0) for c in ("red", "green", "blue")}}),
     "vk_kettle": (1, False, {}),
     # LIBERO: 3 slide drawers each
-    "libero_white_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level", "bottom_level")}),
-    "libero_wooden_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level", "bottom_level")}),
-    "libero_short_cabinet": (4, True, {n: (P, -0.005, 0.16) for n in ("middle_level", "top_region", "bottom_region")}),
+    "libero_white_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level",
+                                                                      "bottom_level")}),
+    "libero_wooden_cabinet": (4, True, {n: (P, -0.16, 0.01) for n in ("top_level", "middle_level",
+                                                                       "bottom_level")}),
+    "libero_short_cabinet": (4, True, {n: (P, -0.005, 0.16) for n in ("middle_level", "top_region",
+                                                                       "bottom_region")}),
     # robosuite door: range "0.0 0.4" read in degrees (no compiler angle="radian" in the file)
     "robosuite_door": (2, True, {"hinge": (R, 0.0, 0.4 * _DEG)}),
-    "robosuite_door_lock": (3, True, {"hinge": (R, 0.0, 0.4 * _DEG), "latch_joint": (R, -1.57 * _DEG, 1.57 * _DEG)}),
+    "robosuite_door_lock": (3, True, {"hinge": (R, 0.0, 0.4 * _DEG),
+                                      "latch_joint": (R, -1.57 * _DEG, 1.57 * _DEG)}),
     "ycb_apple_urdf": (1, False, {}),
 }
 
@@ -93,7 +97,8 @@ def test_shared_asset_loads_with_expected_joints(shared_assets, asset_id):
     assert set(got) == set(joints)
     for name, (kind, lo, hi) in joints.items():
         assert got[name][0] == kind, name
-        assert got[name][1] == pytest.approx(lo, abs=1e-6) and got[name][2] == pytest.approx(hi, abs=1e-6), name
+        assert got[name][1] == pytest.approx(lo, abs=1e-6), name
+        assert got[name][2] == pytest.approx(hi, abs=1e-6), name
     names = [lk.name for lk in model.links]
     assert len(set(names)) == len(names)
     parents_first = {names[0]}
@@ -107,7 +112,8 @@ def test_shared_asset_loads_with_expected_joints(shared_assets, asset_id):
         np.testing.assert_allclose(frames[lk.name], lk.pose.matrix(), atol=1e-9)
     for lk in model.links:
         for part in lk.visuals + (lk.collision_source or ()):
-            assert part.vertices.ndim == 2 and part.vertices.shape[1] == 3 and np.isfinite(part.vertices).all()
+            assert part.vertices.ndim == 2 and part.vertices.shape[1] == 3
+            assert np.isfinite(part.vertices).all()
             assert part.faces.max() < len(part.vertices)
             if part.uvs is not None:
                 assert part.uvs.shape == (len(part.vertices), 2)
@@ -294,7 +300,8 @@ def test_urdf_limits_axis_duplicates_roots(tmp_path):
             tmp_path, "zero axis")
     _expect(load_urdf, _urdf(tmp_path, ab + _BOX_LINK.format(n="a")), tmp_path, "duplicate link name 'a'")
     _expect(load_urdf, _urdf(tmp_path, ab), tmp_path, "exactly one root", "found 2")
-    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", kind="floating")), tmp_path, "unsupported type")
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", kind="floating")), tmp_path,
+            "unsupported type")
 
 
 def test_urdf_mesh_escaping_catalog(tmp_path):
@@ -308,7 +315,8 @@ def test_urdf_mesh_escaping_catalog(tmp_path):
         _expect(load_urdf, _urdf(catalog, body), catalog, "escapes the catalog")
     # the same file inside the catalog loads, with scale applied
     trimesh.creation.box().export(catalog / "inside.stl")
-    body = '<link name="a"><visual><geometry><mesh filename="inside.stl" scale="2 2 2"/></geometry></visual></link>'
+    body = ('<link name="a"><visual><geometry><mesh filename="inside.stl" scale="2 2 2"/>'
+            '</geometry></visual></link>')
     p = _urdf(catalog, body)
     model = load_urdf(p, _ann(p.name), catalog_dir=catalog)
     np.testing.assert_allclose(np.ptp(model.links[0].visuals[0].vertices, axis=0), [2, 2, 2])
@@ -500,7 +508,8 @@ _DAE = """<?xml version="1.0"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
  <asset><unit name="centimeter" meter="0.01"/><up_axis>Y_UP</up_axis></asset>
  <library_effects><effect id="e"><profile_COMMON><technique sid="t"><phong>
-   <diffuse><color>0.1 0.2 0.3 1</color></diffuse></phong></technique></profile_COMMON></effect></library_effects>
+   <diffuse><color>0.1 0.2 0.3 1</color></diffuse></phong></technique></profile_COMMON></effect>
+ </library_effects>
  <library_materials><material id="m" name="paint"><instance_effect url="#e"/></material></library_materials>
  <library_geometries><geometry id="g"><mesh>
    <source id="p"><float_array id="pa" count="12">0 0 0 10 0 0 10 20 0 0 20 0</float_array>
@@ -519,7 +528,8 @@ _DAE = """<?xml version="1.0"?>
 
 def test_urdf_collada_units_up_axis_and_colour(tmp_path):
     (tmp_path / "quad.dae").write_text(_DAE)
-    p = _urdf(tmp_path, '<link name="a"><visual><geometry><mesh filename="quad.dae"/></geometry></visual></link>')
+    link = '<link name="a"><visual><geometry><mesh filename="quad.dae"/></geometry></visual></link>'
+    p = _urdf(tmp_path, link)
     model = load_urdf(p, _ann(p.name), catalog_dir=tmp_path)
     (part,) = model.links[0].visuals
     assert part.faces.shape == (2, 3) and len(part.vertices) == 4      # the quad, fan-triangulated
@@ -552,7 +562,8 @@ def test_mjcf_reference_position_texture_and_groups(tmp_path):
 
     trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(tmp_path / "cube.stl")
     extra = ('<compiler angle="radian"/><asset><mesh name="cube" file="cube.stl"/>'
-             '<texture name="t" type="2d" file="green.png"/><material name="m" texture="t" rgba="1 1 1 1"/></asset>')
+             '<texture name="t" type="2d" file="green.png"/>'
+             '<material name="m" texture="t" rgba="1 1 1 1"/></asset>')
     xml = ('<body><geom type="box" size=".2 .2 .2"/>'
            '<body pos="0 0 .5"><joint type="hinge" axis="1 0 0" ref="0.3" range="0 1"/>'
            '<geom type="mesh" mesh="cube" group="2" contype="0" conaffinity="0" material="m"/>'
@@ -591,12 +602,14 @@ def test_mjcf_robots_free_base_actuator_limits(shared_assets):
     motors' ctrlrange (knee 300 N m, ankle 40 N m). menagerie 2f85.xml: its 4-bar linkage closes through
     equality constraints (dropped), leaving a tree of 8 hinges on a fixed base."""
     src = "robots/unitree_h1__newton_assets/mjcf/h1.xml"
-    h1 = load_mjcf(shared_assets / src, AssetAnnotation(id="h1", source=src, category="robot", material="metal"),
+    h1 = load_mjcf(shared_assets / src,
+                   AssetAnnotation(id="h1", source=src, category="robot", material="metal"),
                    catalog_dir=shared_assets)
     assert h1.fixed_base is False and len(h1.joints) == 19 and all(j.type == R for j in h1.joints)
     effort = {j.name: j.max_effort for j in h1.joints}
     assert effort["left_knee_joint"] == 300.0 and effort["right_ankle_joint"] == 40.0
     src = "robots/robotiq_2f85__menagerie/2f85.xml"
-    grip = load_mjcf(shared_assets / src, AssetAnnotation(id="g", source=src, category="robot", material="metal"),
+    grip = load_mjcf(shared_assets / src,
+                     AssetAnnotation(id="g", source=src, category="robot", material="metal"),
                      catalog_dir=shared_assets)
     assert grip.fixed_base is True and len(grip.joints) == 8 and len(grip.links) == 9
