@@ -139,14 +139,15 @@ class LoadedCatalog:
     invalid: tuple[InvalidEntry, ...]
 
 
-def load_annotations(catalog_dir: Path) -> LoadedCatalog:
-    """Read and validate ``<catalog_dir>/annotations.toml``.
+def load_annotations(catalog_dir: Path, annotations_file: Path | None = None) -> LoadedCatalog:
+    """Read and validate ``<catalog_dir>/annotations.toml`` (or ``annotations_file``, an explicit
+    annotation file kept elsewhere; sources still resolve against ``catalog_dir``).
 
     A file-level problem (missing, not TOML, unknown top-level key, bad [defaults]) raises one
     CatalogError naming the file. A bad ``[[asset]]`` entry is returned in ``invalid`` with a one-line
     reason naming the file and every problem of that entry; the other entries load.
     """
-    path = Path(catalog_dir) / ANNOTATION_FILENAME
+    path = Path(annotations_file) if annotations_file is not None else Path(catalog_dir) / ANNOTATION_FILENAME
     try:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:

@@ -4,6 +4,7 @@ Imported lazily by the runner; each entry's module is imported only when a job u
 """
 
 JOB_KINDS: dict[str, str] = {
+    "ingest": "stages.ingest:INGEST_JOB",
     "default_catalog": "stages.catalog:DEFAULT_CATALOG_JOB",
     "layout": "stages.layout.job:LAYOUT_JOB",
 }

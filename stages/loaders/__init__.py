@@ -87,4 +87,4 @@ def load_source(path: Path, annotation: "AssetAnnotation", *, limits: LoadLimits
 
         return load_mesh_asset(path, annotation, limits=limits, catalog_root=catalog_root)
     fn = getattr(importlib.import_module(module_name), fn_name)
-    return fn(path, annotation)
+    return fn(path, annotation, catalog_dir=catalog_root)
