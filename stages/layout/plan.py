@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -246,7 +246,6 @@ class _Draft:
     run: int = 27
     passage: int = 120
     stair_y0: int = 0
-    floors: list[list[tuple[RoomType, Rect | tuple[Rect, Rect, tuple[Point, ...]]]]] = field(default_factory=list)
 
 
 def _uniform_int(rng: np.random.Generator, lo: int, hi: int, step: int = 1) -> int:

@@ -23,7 +23,7 @@ MIXES: dict[str, LayoutSpec] = {
     "twostorey6": LayoutSpec(rooms={R.LIVING_ROOM: 1, R.KITCHEN: 1, R.BEDROOM: 3, R.BATHROOM: 1}, floors=2),
     "threestorey7": LayoutSpec(rooms={R.LIVING_ROOM: 1, R.KITCHEN: 1, R.BEDROOM: 3, R.BATHROOM: 2}, floors=3),
 }
-CI_SEEDS = 60
+CI_SEEDS = 100
 FULL_SEEDS = 1000
 PROBE = 0.3    # [m] beyond the wall face
 CLEAR = 0.6    # [m] clear depth in front of a door
