@@ -39,6 +39,8 @@ from .writer import import_lerobot
 logger = logging.getLogger(__name__)
 
 PNG_LEVEL = 1  # zlib level of the depth PNGs: fast, and most of the gain of higher levels
+STATS_MAX_SIDE = 80  # image stats use frames subsampled to at most this many pixels per side
+QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # lerobot's DEFAULT_QUANTILES (stats keys q01 ... q99)
 
 
 class _VideoStream:
@@ -161,8 +163,6 @@ class DirectBackend:
 
     # -- frames ------------------------------------------------------------------------------------
     def add(self, frame: Frame, task: str) -> None:
-        from lerobot.datasets.compute_stats import auto_downsample_height_width
-
         if not self._states:
             self._open_videos()
         self._states.append(frame.state())
@@ -170,11 +170,11 @@ class DirectBackend:
         for cam, key in self.spec.rgb_keys().items():
             img = frame.rgb[cam]
             self._videos[key].put(img)
-            self._samples.setdefault(key, []).append(auto_downsample_height_width(img.transpose(2, 0, 1)).copy())
+            self._samples.setdefault(key, []).append(_stats_sample(img.transpose(2, 0, 1)))
         for cam, key in self.spec.depth_keys().items():
             d = frame.depth_mm[cam].reshape(frame.depth_mm[cam].shape[:2])
             self._depth_png[key].append(self._pool.submit(_png16, d.copy()))
-            self._samples.setdefault(key, []).append(auto_downsample_height_width(d[None]).copy())
+            self._samples.setdefault(key, []).append(_stats_sample(d[None]))
 
     def _open_videos(self) -> None:
         chunk, file = divmod(self._video_file, self.spec.chunk_size)
@@ -268,15 +268,33 @@ class DirectBackend:
         return self.root / self.meta.data_path.format(chunk_index=chunk, file_index=file)
 
     def _episode_stats(self, columns: dict[str, np.ndarray]) -> dict:
-        """lerobot's per-episode stats: numeric columns whole, images on lerobot's sampled frames
-        (per channel; RGB scaled to [0, 1], depth in mm)."""
-        from lerobot.datasets.compute_stats import compute_episode_stats, get_feature_stats, sample_indices
+        """lerobot's per-episode stats: numeric columns with lerobot's compute_episode_stats; images on
+        the frames lerobot's sample_indices picks, per channel, (C, 1, 1) arrays (RGB scaled to [0, 1],
+        depth in mm), with exact quantiles where lerobot uses histogram estimates."""
+        from lerobot.datasets.compute_stats import compute_episode_stats, sample_indices
 
         stats = compute_episode_stats(columns, self.meta.features)
         depth_keys = set(self.spec.depth_keys().values())
         for key, frames in self._samples.items():
             sampled = np.stack([frames[i] for i in sample_indices(len(frames))])
-            st = get_feature_stats(sampled, axis=(0, 2, 3), keepdims=True)
-            scale = 1.0 if key in depth_keys else 255.0
-            stats[key] = {k: v if k == "count" else np.squeeze(v / scale, axis=0) for k, v in st.items()}
+            stats[key] = image_stats(sampled, scale=1.0 if key in depth_keys else 255.0)
         return stats
+
+
+def _stats_sample(chw: np.ndarray) -> np.ndarray:
+    """A strided copy of a (C, H, W) frame with at most STATS_MAX_SIDE pixels per side."""
+    step = max(1, -(-max(chw.shape[1:]) // STATS_MAX_SIDE))
+    return chw[:, ::step, ::step].copy()
+
+
+def image_stats(sampled: np.ndarray, scale: float) -> dict[str, np.ndarray]:
+    """Per-channel stats of (N, C, h, w) frames in lerobot's layout: (C, 1, 1) arrays divided by
+    ``scale`` for min/max/mean/std/q01..q99, and ``count`` = [N]."""
+    n, c = sampled.shape[:2]
+    x = sampled.transpose(1, 0, 2, 3).reshape(c, -1).astype(np.float64) / scale
+    qs = np.quantile(x, QUANTILES, axis=1)
+    out = {"min": x.min(1), "max": x.max(1), "mean": x.mean(1), "std": x.std(1)}
+    out.update({f"q{round(q * 100):02d}": qs[i] for i, q in enumerate(QUANTILES)})
+    stats = {k: v.reshape(c, 1, 1) for k, v in out.items()}
+    stats["count"] = np.array([n])
+    return stats
