@@ -204,8 +204,12 @@ def _mesh(layer, m: MeshPlan, physics_material: str) -> None:
     _attr(spec, "subdivisionScheme", T.Token, "none", uniform=True)
     if m.normals is not None:
         _attr(spec, "primvars:normals", T.Normal3fArray, Vt.Vec3fArray.FromNumpy(m.normals), interpolation="vertex")
+        if m.normals_indices is not None:
+            _attr(spec, "primvars:normals:indices", T.IntArray, Vt.IntArray.FromNumpy(m.normals_indices))
     if m.st is not None:
         _attr(spec, "primvars:st", T.TexCoord2fArray, Vt.Vec2fArray.FromNumpy(m.st), interpolation="vertex")
+        if m.st_indices is not None:
+            _attr(spec, "primvars:st:indices", T.IntArray, Vt.IntArray.FromNumpy(m.st_indices))
     if m.collider:
         _attr(spec, "purpose", T.Token, "guide", uniform=True)
         _attr(spec, "physics:approximation", T.Token, "convexHull", uniform=True)

@@ -27,8 +27,10 @@ class PlanError(ValueError):
 
 @dataclass(frozen=True)
 class MeshPlan:
-    """A Mesh prim. points (N, 3) float32 [m]; indices (3M,) int32; normals (N, 3) float32 or None;
-    st (N, 2) float32 or None; extent (2, 3) float32; material: prim path or None."""
+    """A Mesh prim. points (N, 3) float32 [m]; indices (3M,) int32; normals: (K, 3) float32 unit
+    vectors, per vertex through normals_indices (N,) int32 when given (indexed primvar, repeated
+    values stored once), else K = N; st likewise (K, 2) float32 with st_indices; extent (2, 3)
+    float32; material: prim path or None."""
 
     path: str
     points: np.ndarray
@@ -38,6 +40,8 @@ class MeshPlan:
     extent: np.ndarray
     material: str | None
     collider: bool = False
+    normals_indices: np.ndarray | None = None
+    st_indices: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -182,8 +186,22 @@ def _mesh_plan(asset_id: str, link: str, path: str, part: MeshPart, material: st
                 raise PlanError(f"asset {asset_id!r}, mesh {part.name!r}: uvs shape {st.shape} != ({len(v)}, 2)")
     pts = np.ascontiguousarray(v.astype(np.float32))
     extent = np.stack([pts.min(axis=0), pts.max(axis=0)]).astype(np.float32)
+    normals, n_idx = _indexed(normals)
+    st, st_idx = _indexed(st)
     return MeshPlan(path=path, points=pts, indices=np.ascontiguousarray(f.reshape(-1).astype(np.int32)),
-                    normals=normals, st=st, extent=extent, material=material, collider=collider)
+                    normals=normals, st=st, extent=extent, material=material, collider=collider,
+                    normals_indices=n_idx, st_indices=st_idx)
+
+
+def _indexed(values: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(unique rows, per-vertex indices) if some rows repeat, else (values, None). Deterministic:
+    unique rows in lexicographic order."""
+    if values is None or len(values) < 2:
+        return values, None
+    uniq, inv = np.unique(values, axis=0, return_inverse=True)
+    if len(uniq) == len(values):
+        return values, None
+    return np.ascontiguousarray(uniq), np.ascontiguousarray(inv.reshape(-1).astype(np.int32))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -112,7 +112,11 @@ def test_meshes_colliders_and_physics(written):
     assert np.array_equal(np.asarray(vis.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3), src.faces)
     assert vis.GetSubdivisionSchemeAttr().Get() == "none"
     normals = UsdGeom.PrimvarsAPI(vis).GetPrimvar("normals")
-    assert normals.GetInterpolation() == "vertex" and len(normals.Get()) == len(src.vertices)
+    assert normals.GetInterpolation() == "vertex"
+    flat = np.asarray(normals.ComputeFlattened())
+    assert flat.shape == src.vertices.shape
+    assert np.allclose(flat, src.normals, atol=1e-6)
+    assert normals.IsIndexed() and len(normals.Get()) < len(src.vertices), "repeated normals stored once"
     ext = np.asarray(vis.GetExtentAttr().Get())
     assert np.allclose(ext, [src.vertices.min(0), src.vertices.max(0)], atol=1e-6)
     assert UsdGeom.Imageable(vis).ComputePurpose() == UsdGeom.Tokens.default_
@@ -176,7 +180,8 @@ def test_textures_are_copied_and_bound(written):
 
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetTypeName() == Sdf.ValueTypeNames.TexCoord2fArray and st.GetInterpolation() == "vertex"
-    assert np.allclose(np.asarray(st.Get()), model.links[0].visuals[0].uvs)
+    assert np.allclose(np.asarray(st.ComputeFlattened()), model.links[0].visuals[0].uvs)
+    assert st.IsIndexed() and len(st.Get()) == 4, "a cube's 24 corners use 4 distinct UVs"
 
 
 def test_package_is_relocatable(written, tmp_path):
