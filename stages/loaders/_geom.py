@@ -289,10 +289,12 @@ def check_finite_mesh(mesh: RawMesh, *, file: Path, what: str) -> None:
 # ---------------------------------------------------------------------------------------- mesh files
 
 
-def load_mesh_file(path: Path, *, source: Path) -> list[RawMesh]:
+def load_mesh_file(path: Path, *, source: Path, catalog_dir: Path | None = None) -> list[RawMesh]:
     """Triangle meshes of a mesh file (STL, OBJ(+MTL), PLY, glTF/GLB via trimesh; DAE by a built-in reader)
     in the file's own units, one RawMesh per material group. ``source`` is the URDF/MJCF naming it
-    (for messages). Raises ItemError for missing, oversized, unreadable or empty files."""
+    (for messages); texture files the mesh names (MTL ``map_Kd``, Collada images) must lie inside
+    ``catalog_dir`` when given. Raises ItemError for missing, oversized, unreadable or empty files and
+    for escaping texture paths; a missing texture only loses the texture (logged)."""
     if not path.is_file():
         raise ItemError(f"{source}: mesh file not found: {path}")
     size = path.stat().st_size
@@ -300,9 +302,9 @@ def load_mesh_file(path: Path, *, source: Path) -> list[RawMesh]:
         raise ItemError(f"{source}: mesh file {path.name} too large ({size} bytes)")
     suffix = path.suffix.lower()
     if suffix == ".dae":
-        meshes = load_dae(path, source=source)
+        meshes = load_dae(path, source=source, catalog_dir=catalog_dir)
     elif suffix in (".stl", ".obj", ".ply", ".glb", ".gltf", ".off"):
-        meshes = _load_trimesh(path, source=source)
+        meshes = _load_trimesh(path, source=source, catalog_dir=catalog_dir)
     else:
         raise ItemError(f"{source}: unsupported mesh file type {suffix!r}: {path.name}")
     if not meshes:
@@ -312,7 +314,7 @@ def load_mesh_file(path: Path, *, source: Path) -> list[RawMesh]:
     return meshes
 
 
-def _load_trimesh(path: Path, *, source: Path) -> list[RawMesh]:
+def _load_trimesh(path: Path, *, source: Path, catalog_dir: Path | None) -> list[RawMesh]:
     import trimesh
 
     try:
@@ -320,7 +322,7 @@ def _load_trimesh(path: Path, *, source: Path) -> list[RawMesh]:
     except Exception as e:  # trimesh raises many types for bad files; keep the reason, one line
         why = " ".join(f"{type(e).__name__}: {e}".split())
         raise ItemError(f"{source}: cannot read mesh {path.name}: {why}") from None
-    mtl = _mtl_textures(path) if path.suffix.lower() == ".obj" else {}
+    mtl = _mtl_textures(path, catalog_dir, source) if path.suffix.lower() == ".obj" else {}
     out = []
     for node in scene.graph.nodes_geometry:
         tf, geom_name = scene.graph[node]
@@ -342,7 +344,7 @@ def _load_trimesh(path: Path, *, source: Path) -> list[RawMesh]:
     return out
 
 
-def _mtl_textures(obj: Path) -> dict[str, Path]:
+def _mtl_textures(obj: Path, catalog_dir: Path | None, source: Path) -> dict[str, Path]:
     """newmtl name -> absolute map_Kd path, from the MTL files an OBJ names (missing files skipped)."""
     out: dict[str, Path] = {}
     try:
@@ -352,7 +354,8 @@ def _mtl_textures(obj: Path) -> dict[str, Path]:
     for line in lines:
         if not line.startswith("mtllib"):
             continue
-        mtl = obj.parent / line.split(None, 1)[1].strip()
+        mtl = inside_catalog(obj.parent / line.split(None, 1)[1].strip(), catalog_dir, source=source,
+                             what="MTL file")
         if not mtl.is_file():
             log.warning("%s: MTL file %s not found", obj, mtl)
             continue
@@ -364,7 +367,7 @@ def _mtl_textures(obj: Path) -> dict[str, Path]:
             if parts[0] == "newmtl" and len(parts) > 1:
                 name = parts[1]
             elif parts[0] == "map_Kd" and name is not None and len(parts) > 1:
-                tex = (mtl.parent / parts[-1]).resolve()
+                tex = inside_catalog(mtl.parent / parts[-1], catalog_dir, source=source, what="texture")
                 if tex.is_file():
                     out[name] = tex
                 else:
@@ -386,8 +389,10 @@ def _trimesh_material(g, mtl: dict[str, Path]) -> MaterialSpec | None:
         diffuse = getattr(mat, "baseColorFactor", None)
     c = np.asarray(diffuse if diffuse is not None else (204, 204, 204, 255), float)
     c = c / 255.0 if c.max() > 1.0 else c
-    return MaterialSpec(name=name, base_color=tuple(float(v) for v in c[:3]),
-                        opacity=float(c[3]) if len(c) > 3 else 1.0, base_color_texture=mtl.get(name))
+    texture = mtl.get(name)
+    rgb = (1.0, 1.0, 1.0) if texture is not None else tuple(float(v) for v in c[:3])
+    return MaterialSpec(name=name, base_color=rgb, opacity=float(c[3]) if len(c) > 3 else 1.0,
+                        base_color_texture=texture)
 
 
 # ------------------------------------------------------------------------------------------- Collada
@@ -401,17 +406,18 @@ def _strip_ns(root: ET.Element) -> None:
         el.tag = _DAE_NS.sub("", el.tag)
 
 
-def load_dae(path: Path, *, source: Path) -> list[RawMesh]:
+def load_dae(path: Path, *, source: Path, catalog_dir: Path | None = None) -> list[RawMesh]:
     """A small Collada 1.4/1.5 reader: <triangles> and <polylist> (fan-triangulated) with POSITION,
     NORMAL and TEXCOORD inputs, node matrices/translate/rotate/scale, <unit meter>, <up_axis>, and
-    diffuse colours of the bound effects. Returns meshes in meters, Z up, one per primitive group."""
+    diffuse colours or image textures of the bound effects. Returns meshes in meters, Z up, one per
+    primitive group."""
     root = read_xml(path)
     _strip_ns(root)
     unit = root.find("asset/unit")
     meter = float(unit.get("meter", "1")) if unit is not None else 1.0
     up = (root.findtext("asset/up_axis") or "Y_UP").strip().upper()
     sources = {el.get("id"): el for el in root.iter("source")}
-    colors = _dae_material_colors(root)
+    colors = _dae_materials(root, path, catalog_dir, source)
     geometries = {g.get("id"): g for g in root.iter("geometry")}
     nodes_lib = {n.get("id"): n for n in root.iter("node")}
     out: list[RawMesh] = []
@@ -489,25 +495,47 @@ def _dae_node_transform(node: ET.Element, path: Path) -> np.ndarray:
     return t
 
 
-def _dae_material_colors(root: ET.Element) -> dict[str, tuple[str, tuple[float, float, float, float]]]:
-    """material id -> (name, diffuse rgba) through instance_effect."""
-    effects: dict[str, tuple[float, float, float, float]] = {}
+def _dae_materials(root: ET.Element, path: Path, catalog_dir: Path | None, source: Path
+                   ) -> dict[str, MaterialSpec]:
+    """Collada material id -> MaterialSpec (name; diffuse colour, or diffuse image through
+    sampler2D -> surface -> image, resolved beside the file and kept inside the catalog)."""
+    images = {im.get("id"): (im.findtext("init_from") or im.findtext("init_from/ref") or "").strip()
+              for im in root.iter("image")}
+    effects: dict[str, tuple[tuple[float, ...], Path | None]] = {}
     for eff in root.iter("effect"):
+        params = {npm.get("sid"): npm for npm in eff.iter("newparam")}
         col = eff.find(".//diffuse/color")
         rgba = (0.8, 0.8, 0.8, 1.0)
         if col is not None and col.text:
             v = [float(x) for x in col.text.split()]
             rgba = tuple((v + [1.0] * 4)[:4])
-        tr = eff.find(".//transparency/float")
-        if tr is not None and tr.text and col is not None:
-            pass  # Collada transparency conventions vary between exporters; colour alpha is used
-        effects[eff.get("id")] = rgba
-    out = {}
+        tex_el = eff.find(".//diffuse/texture")
+        texture = None
+        if tex_el is not None:
+            ref = tex_el.get("texture") or ""
+            if ref in params:   # sampler2D -> source (surface sid) -> init_from (image id)
+                src = params[ref].findtext(".//source") or ""
+                ref = (params[src].findtext(".//init_from") if src in params else None) or ref
+            uri = images.get(ref.strip(), "")
+            if uri:
+                from urllib.parse import unquote, urlparse
+
+                rel = unquote(urlparse(uri).path if uri.startswith("file:") else uri)
+                tex = inside_catalog(path.parent / rel, catalog_dir, source=source, what="Collada texture")
+                if tex.is_file():
+                    texture, rgba = tex, (1.0, 1.0, 1.0, rgba[3])
+                else:
+                    log.warning("%s: Collada texture %s not found; colour only", path, tex)
+        effects[eff.get("id")] = (rgba, texture)
+    out: dict[str, MaterialSpec] = {}
     for mat in root.iter("material"):
         ie = mat.find("instance_effect")
-        if ie is not None:
-            out[mat.get("id")] = (mat.get("name") or mat.get("id"),
-                                  effects.get((ie.get("url") or "").lstrip("#"), (0.8, 0.8, 0.8, 1.0)))
+        if ie is None:
+            continue
+        rgba, texture = effects.get((ie.get("url") or "").lstrip("#"), ((0.8, 0.8, 0.8, 1.0), None))
+        out[mat.get("id")] = MaterialSpec(name=str(mat.get("name") or mat.get("id")),
+                                          base_color=tuple(float(c) for c in rgba[:3]),
+                                          opacity=float(rgba[3]), base_color_texture=texture)
     return out
 
 
@@ -575,9 +603,7 @@ def _dae_geometry(geom: ET.Element, sources: dict, binding: dict, colors: dict, 
         faces = np.arange(len(pos), dtype=np.int64).reshape(-1, 3)
         used = sorted({int(i.get("offset", "0")) for i in inputs})
         sym = prim.get("material")
-        mat_name, rgba = colors.get(binding.get(sym, sym), (sym or "material", (0.8, 0.8, 0.8, 1.0)))
-        material = MaterialSpec(name=str(mat_name), base_color=tuple(float(c) for c in rgba[:3]),
-                                opacity=float(rgba[3]))
+        material = colors.get(binding.get(sym, sym)) or MaterialSpec(name=str(sym or "material"))
         raw = weld(RawMesh(pos, faces, nrm, uv, material), corners[:, used])
         out.append(_apply_affine(raw, t))
     return out

@@ -340,7 +340,7 @@ def _mesh(el: ET.Element, ctx: _Ctx, what: str) -> list[g.RawMesh]:
         raise ItemError(f"{ctx.file}: {what} scale must be 1 or 3 non-zero numbers, got {el.get('scale')!r}")
     file = resolve_uri(uri, ctx.file, ctx.catalog_dir)
     if file not in ctx.mesh_cache:
-        ctx.mesh_cache[file] = g.load_mesh_file(file, source=ctx.file)
+        ctx.mesh_cache[file] = g.load_mesh_file(file, source=ctx.file, catalog_dir=ctx.catalog_dir)
     return [m.scaled(scale) for m in ctx.mesh_cache[file]]
 
 

@@ -646,3 +646,53 @@ def test_newton_kinematics_of_written_package_match_the_model(shared_assets, tmp
         np.testing.assert_allclose(body_q[b, :3], ours[link][:3, 3], atol=1e-5, err_msg=link)
         r = Rotation.from_quat(body_q[b, 3:7]).as_matrix()
         np.testing.assert_allclose(r, ours[link][:3, :3], atol=1e-5, err_msg=link)
+
+
+_DAE_TEX = """<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+ <asset><up_axis>Z_UP</up_axis></asset>
+ <library_images><image id="img"><init_from>{uri}</init_from></image></library_images>
+ <library_effects><effect id="e"><profile_COMMON>
+   <newparam sid="surf"><surface type="2D"><init_from>img</init_from></surface></newparam>
+   <newparam sid="samp"><sampler2D><source>surf</source></sampler2D></newparam>
+   <technique sid="t"><lambert><diffuse><texture texture="samp" texcoord="UV"/></diffuse></lambert></technique>
+ </profile_COMMON></effect></library_effects>
+ <library_materials><material id="m" name="wood"><instance_effect url="#e"/></material></library_materials>
+ <library_geometries><geometry id="g"><mesh>
+   <source id="p"><float_array id="pa" count="9">0 0 0 1 0 0 0 1 0</float_array>
+     <technique_common><accessor source="#pa" count="3" stride="3"/></technique_common></source>
+   <source id="t"><float_array id="ta" count="6">0 0 1 0 0 1</float_array>
+     <technique_common><accessor source="#ta" count="3" stride="2"/></technique_common></source>
+   <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+   <triangles material="s" count="1"><input semantic="VERTEX" source="#v" offset="0"/>
+     <input semantic="TEXCOORD" source="#t" offset="1"/><p>0 0 1 1 2 2</p></triangles>
+ </mesh></geometry></library_geometries>
+ <library_visual_scenes><visual_scene id="vs"><node id="n"><instance_geometry url="#g"><bind_material>
+   <technique_common><instance_material symbol="s" target="#m"/></technique_common></bind_material>
+ </instance_geometry></node></visual_scene></library_visual_scenes>
+ <scene><instance_visual_scene url="#vs"/></scene>
+</COLLADA>"""
+
+
+def test_mesh_textures_stay_inside_the_catalog(tmp_path):
+    """Collada image textures (sampler2D -> surface -> image) load with their UVs; a Collada image or
+    an MTL map_Kd outside the catalog folder is rejected like a mesh path."""
+    from PIL import Image
+
+    catalog = tmp_path / "catalog"
+    catalog.mkdir()
+    Image.new("RGB", (2, 2)).save(catalog / "wood%20grain.png".replace("%20", " "))
+    Image.new("RGB", (2, 2)).save(tmp_path / "outside.png")
+    (catalog / "tri.dae").write_text(_DAE_TEX.format(uri="wood%20grain.png"))
+    link = '<link name="a"><visual><geometry><mesh filename="{}"/></geometry></visual></link>'
+    p = _urdf(catalog, link.format("tri.dae"))
+    model = load_urdf(p, _ann(p.name), catalog_dir=catalog)
+    (part,) = model.links[0].visuals
+    mat = model.materials[part.material]
+    assert mat.name == "wood" and mat.base_color_texture == (catalog / "wood grain.png").resolve()
+    np.testing.assert_allclose(sorted(map(tuple, part.uvs)), [(0, 0), (0, 1), (1, 0)])
+    (catalog / "tri.dae").write_text(_DAE_TEX.format(uri="../outside.png"))
+    _expect(load_urdf, p, catalog, "Collada texture", "escapes the catalog")
+    (catalog / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n")
+    (catalog / "m.mtl").write_text("newmtl x\nmap_Kd ../outside.png\n")
+    _expect(load_urdf, _urdf(catalog, link.format("m.obj")), catalog, "texture", "escapes the catalog")
