@@ -655,7 +655,8 @@ _DAE_TEX = """<?xml version="1.0"?>
  <library_effects><effect id="e"><profile_COMMON>
    <newparam sid="surf"><surface type="2D"><init_from>img</init_from></surface></newparam>
    <newparam sid="samp"><sampler2D><source>surf</source></sampler2D></newparam>
-   <technique sid="t"><lambert><diffuse><texture texture="samp" texcoord="UV"/></diffuse></lambert></technique>
+   <technique sid="t"><lambert><diffuse><texture texture="samp" texcoord="UV"/></diffuse></lambert>
+   </technique>
  </profile_COMMON></effect></library_effects>
  <library_materials><material id="m" name="wood"><instance_effect url="#e"/></material></library_materials>
  <library_geometries><geometry id="g"><mesh>
