@@ -7,6 +7,7 @@ entry; the built-in names (run, ingest, catalog, status) cannot be overridden.
 """
 
 COMMANDS: dict[str, str] = {
+    "render-dataset": "stages.dataset.render:cli",
     "render-layout": "stages.layout.render:cli",
     "catalog-build-default": "asset_catalog.default_catalog:main",
     "render-assets": "stages.render_assets:main",
