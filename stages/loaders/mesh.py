@@ -401,20 +401,21 @@ def _cache_pil(img, cache: Path) -> Path:
     return _cache_bytes(buf.getvalue(), ".png", cache)
 
 
-def _check_texture(tex: Path, root: Path, referrer: Path, what: str) -> Path:
-    """The resolved texture path, inside ``root``, existing and decodable; else ItemError."""
+def _check_texture(base: Path, ref: str, root: Path, referrer: Path, what: str) -> Path:
+    """The resolved path of texture ``ref`` (relative to ``base``), inside ``root``, existing and
+    decodable; else ItemError naming the referring file and the texture as written."""
     from PIL import Image, UnidentifiedImageError
 
-    p = tex.resolve()
+    p = (base / ref).resolve()
     if not p.is_relative_to(root):
-        raise ItemError(f"{referrer}: {what} '{tex}' escapes the catalog folder")
+        raise ItemError(f"{referrer}: {what} '{ref}' escapes the catalog folder")
     if not p.is_file():
-        raise ItemError(f"{referrer}: {what} '{tex}' not found")
+        raise ItemError(f"{referrer}: {what} '{ref}' not found (looked for {p})")
     try:
         with Image.open(p) as im:
             im.verify()
     except (UnidentifiedImageError, OSError, SyntaxError) as e:
-        raise ItemError(f"{referrer}: {what} '{tex}' is unreadable: {_one_line(e)}") from e
+        raise ItemError(f"{referrer}: {what} '{ref}' is unreadable: {_one_line(e)}") from e
     return p
 
 
@@ -503,7 +504,7 @@ def _read_mtl(mtl: Path, root: Path) -> dict[str, MaterialSpec]:
                 raise ItemError(f"{mtl}: bad number in '{line.strip()}'") from None
         elif key in _MTL_MAPS and len(tokens) > 1:
             tex = _strip_map_options(tokens[1:])
-            cur[_MTL_MAPS[key]] = _check_texture(mtl.parent / tex, root, mtl, "texture")
+            cur[_MTL_MAPS[key]] = _check_texture(mtl.parent, tex, root, mtl, "texture")
     close()
     return specs
 
@@ -606,7 +607,7 @@ def _gltf_image(doc: dict, i: int, path: Path, root: Path, binary: bytes | None,
     if uri:
         if uri.lower().endswith(".ktx2"):
             return None  # KTX2 (basisu) images are used only through a PNG/JPEG fallback
-        return _check_texture(path.parent / _uri_path(uri), root, path, "texture")
+        return _check_texture(path.parent, _uri_path(uri), root, path, "texture")
     bv = img.get("bufferView")
     if bv is None or binary is None:
         raise ItemError(f"{path}: image {i} has neither a URI nor an embedded buffer view")

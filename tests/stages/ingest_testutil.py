@@ -13,9 +13,9 @@ SHARED_RIGID_ANNOTATIONS = REPO / "tests" / "data" / "shared_rigid" / "annotatio
 def write_obj(path: Path, vertices, faces, *, mtl: str | None = None, uvs=None) -> Path:
     """A Wavefront OBJ (1-based faces); optional ``mtllib`` and per-vertex UVs."""
     lines = [f"mtllib {mtl}"] if mtl else []
-    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(vertices, dtype=float)]
+    lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in np.asarray(vertices, dtype=float)]
     if uvs is not None:
-        lines += [f"vt {u!r} {v!r}" for u, v in uvs]
+        lines += [f"vt {float(u)!r} {float(v)!r}" for u, v in uvs]
         lines.append("usemtl mat0")
         lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in faces]
     else:
