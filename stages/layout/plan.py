@@ -277,10 +277,12 @@ def _stair_run_length(d: _Draft, n_risers: int) -> tuple[int, int, int]:
 
 
 def _treemap(rect: Rect, items: list[tuple[int, float]], rng: np.random.Generator,
-             out: dict[int, Rect], pairs: list[tuple[int, int]]) -> None:
+             out: dict[int, Rect], pairs: list[tuple[int, int]], columns: bool = False) -> None:
     """Split ``rect`` among ``items`` ((key, weight)) by recursive area-balanced slicing.
 
-    Records sibling leaf pairs (two leaves whose union is a rectangle) in ``pairs``.
+    Records sibling leaf pairs (two leaves whose union is a rectangle) in ``pairs``. With
+    ``columns`` every cut is horizontal (rooms stacked along y, each spanning the full width, so
+    each touches both long sides of the region).
     """
     if len(items) == 1:
         out[items[0][0]] = rect
@@ -295,7 +297,7 @@ def _treemap(rect: Rect, items: list[tuple[int, float]], rng: np.random.Generato
             best_gap, best_k = gap, k
     g1, g2 = order[:best_k], order[best_k:]
     frac = sum(w for _, w in g1) / total
-    if rect.w >= rect.h:
+    if rect.w >= rect.h and not columns:
         x = rect.x0 + snap(frac * rect.w, STEP)
         if not rect.x0 < x < rect.x1:
             raise PlanRejected("degenerate split")
@@ -307,8 +309,8 @@ def _treemap(rect: Rect, items: list[tuple[int, float]], rng: np.random.Generato
         r1, r2 = Rect(rect.x0, rect.y0, rect.x1, y), Rect(rect.x0, y, rect.x1, rect.y1)
     if len(g1) == 1 and len(g2) == 1:
         pairs.append((g1[0][0], g2[0][0]))
-    _treemap(r1, g1, rng, out, pairs)
-    _treemap(r2, g2, rng, out, pairs)
+    _treemap(r1, g1, rng, out, pairs, columns)
+    _treemap(r2, g2, rng, out, pairs, columns)
 
 
 def _l_outline(u: Rect, corner: int, wn: int, hn: int) -> tuple[tuple[Rect, Rect], tuple[Point, ...], Rect]:
@@ -335,6 +337,22 @@ def _rect_outline(r: Rect) -> tuple[Point, ...]:
     return ((r.x0, r.y0), (r.x1, r.y0), (r.x1, r.y1), (r.x0, r.y1))
 
 
+def _notch(u: Rect, area_n: float, t_r: RoomType, t_n: RoomType, corners: tuple[int, ...],
+           rng: np.random.Generator) -> tuple[tuple[Rect, Rect], tuple[Point, ...], Rect] | None:
+    """Place a room of area ``area_n`` [cm^2] in one of ``corners`` of ``u``; the rest of ``u`` is an
+    L-shaped room of type t_r. None when the sizes cannot satisfy both rooms' rules."""
+    rule_r, rule_n = ROOM_RULES[t_r], ROOM_RULES[t_n]
+    arm, nmin = int(rule_r.min_arm * 100), int(rule_n.min_side * 100)
+    try:
+        wn = _uniform_int(rng, max(nmin, math.ceil(area_n / max(u.h - arm, 1))), u.w - arm, STEP)
+    except PlanRejected:
+        return None
+    hn = snap(area_n / wn, STEP)
+    if not (nmin <= hn <= u.h - arm) or max(wn, hn) / min(wn, hn) > rule_n.max_aspect:
+        return None
+    return _l_outline(u, corners[int(rng.integers(len(corners)))], wn, hn)
+
+
 def _try_l_shape(types: list[RoomType], rects: dict[int, Rect], pairs: list[tuple[int, int]],
                  rng: np.random.Generator) -> dict[int, tuple[tuple[Rect, ...], tuple[Point, ...]]]:
     """Turn one sibling pair (R, N) into an L-shaped R with N in a corner of their union."""
@@ -349,20 +367,38 @@ def _try_l_shape(types: list[RoomType], rects: dict[int, Rect], pairs: list[tupl
     r, n = cands[int(rng.integers(len(cands)))]
     ra, rn = rects[r], rects[n]
     u = Rect(min(ra.x0, rn.x0), min(ra.y0, rn.y0), max(ra.x1, rn.x1), max(ra.y1, rn.y1))
-    rule_r, rule_n = ROOM_RULES[types[r]], ROOM_RULES[types[n]]
-    arm, nmin = int(rule_r.min_arm * 100), int(rule_n.min_side * 100)
-    area_n = rn.area
-    try:
-        wn = _uniform_int(rng, max(nmin, math.ceil(area_n / max(u.h - arm, 1))), u.w - arm, STEP)
-    except PlanRejected:
-        return shapes
-    hn = snap(area_n / wn, STEP)
-    if not (nmin <= hn <= u.h - arm) or max(wn, hn) / min(wn, hn) > rule_n.max_aspect:
-        return shapes
-    corner = int(rng.integers(4))
-    pieces, outline, notch = _l_outline(u, corner, wn, hn)
-    shapes[r] = (pieces, outline)
-    shapes[n] = ((notch,), _rect_outline(notch))
+    placed = _notch(u, rn.area, types[r], types[n], (0, 1, 2, 3), rng)
+    if placed is not None:
+        pieces, outline, notch = placed
+        shapes[r] = (pieces, outline)
+        shapes[n] = ((notch,), _rect_outline(notch))
+    return shapes
+
+
+def _columns_with_ensuite(d: _Draft, reg: Rect, idx: list[int], types: list[RoomType], areas: list[float],
+                          pairs: list[tuple[int, int]]) -> dict[int, tuple[tuple[Rect, ...], tuple[Point, ...]]]:
+    """Rooms of a region beside the hallway stacked along y (each touches the hallway); a bathroom
+    becomes an en-suite notch in the far corner of one bedroom (or other room)."""
+    rng = d.rng
+    baths = [i for i in idx if types[i] == RoomType.BATHROOM]
+    host = None
+    if baths and len(idx) >= 3:
+        others = [i for i in idx if types[i] != RoomType.BATHROOM]
+        beds = [i for i in others if types[i] == RoomType.BEDROOM] or others
+        host, bath = beds[int(rng.integers(len(beds)))], baths[0]
+    items = [(i, areas[i] + (areas[bath] if i == host else 0.0)) for i in idx if host is None or i != bath]
+    out: dict[int, Rect] = {}
+    _treemap(reg, items, rng, out, pairs, columns=True)
+    shapes = {k: ((r,), _rect_outline(r)) for k, r in out.items()}
+    if host is not None:
+        assert d.strip is not None
+        far = (0, 3) if reg.x1 <= d.strip.x0 else (1, 2)
+        placed = _notch(out[host], areas[bath], types[host], RoomType.BATHROOM, far, rng)
+        if placed is None:
+            raise PlanRejected("no room for the en-suite bathroom")
+        pieces, outline, notch = placed
+        shapes[host] = (pieces, outline)
+        shapes[bath] = ((notch,), _rect_outline(notch))
     return shapes
 
 
@@ -467,10 +503,14 @@ def _floor_rooms(d: _Draft, f: int, types: list[RoomType], areas: list[float],
     for reg, idx in zip(regs, groups, strict=True):
         out: dict[int, Rect] = {}
         pairs: list[tuple[int, int]] = []
-        _treemap(reg, [(i, areas[i]) for i in idx], rng, out, pairs)
-        shapes = {k: ((r,), _rect_outline(r)) for k, r in out.items()}
-        if pairs and rng.random() < d.spec.l_shape_probability:
-            shapes = _try_l_shape(types, out, pairs, rng)
+        n_stacked = len(idx) - (1 if any(types[i] == RoomType.BATHROOM for i in idx) and len(idx) >= 3 else 0)
+        if d.strip is not None and n_stacked <= 3 and rng.random() < 0.7:
+            shapes = _columns_with_ensuite(d, reg, idx, types, areas, pairs)
+        else:
+            _treemap(reg, [(i, areas[i]) for i in idx], rng, out, pairs)
+            shapes = {k: ((r,), _rect_outline(r)) for k, r in out.items()}
+            if pairs and rng.random() < d.spec.l_shape_probability:
+                shapes = _try_l_shape(types, out, pairs, rng)
         for i in sorted(idx):
             pieces, outline = shapes[i]
             rooms.append(Room(rid(types[i]), types[i], f, tuple(pieces), outline))
@@ -703,6 +743,27 @@ def _spanning_doors(d: _Draft, f: int, rooms: list[Room], walls: list[Wall],
     return doors
 
 
+PRIVATE_ACCESS = (RoomType.HALLWAY, RoomType.LIVING_ROOM)
+
+
+def private_access_misses(rooms: tuple[Room, ...] | list[Room], openings) -> int:
+    """Bedrooms entered only through a kitchen, bathroom or another bedroom on a floor that has a
+    hallway or living room (counted against the plan's score)."""
+    ids = {r.id: r for r in rooms}
+    hubs = {r.id for r in rooms if r.type in PRIVATE_ACCESS}
+    if not hubs:
+        return 0
+    misses = 0
+    for r in rooms:
+        if r.type != RoomType.BEDROOM:
+            continue
+        nbrs = {b if a == r.id else a for o in openings if o.kind == "door" and r.id in o.rooms
+                for a, b in [o.rooms]}
+        if not nbrs & hubs and all(n in ids for n in nbrs):
+            misses += 1
+    return misses
+
+
 def _exterior_edges(room: Room, fp: Rect) -> list[Edge]:
     return [e for e in room.edges if _on_boundary(e, fp)]
 
@@ -853,6 +914,7 @@ def _sample_once(spec: LayoutSpec, floor_types: list[list[RoomType]], rng: np.ra
         windows = _windows(d, f, rooms, walls, doors, fp)
         plan_floors.append(FloorLayout(f, tuple(rooms), tuple(walls), tuple(doors + windows)))
     score = float(np.mean([room_score(r) for fl in plan_floors for r in fl.rooms]))
+    score -= 0.1 * sum(private_access_misses(fl.rooms, fl.openings) for fl in plan_floors)
     return HousePlan(fp, d.t_ext, d.t_int, spec.floor_height, spec.ceiling_height, spec.slab_thickness,
                      spec.ceiling_thickness, spec.door_height, tuple(plan_floors), stairs, score)
 
