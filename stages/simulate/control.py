@@ -90,10 +90,12 @@ class RobotControl:
         self._dirty = True
 
     def set_gripper(self, command: float, world: int | None = None) -> None:
-        """Gripper command in [0, 1]: 0 fully open, 1 fully closed."""
+        """Gripper command in [0, 1]: 0 fully open, 1 fully closed. The finger targets go linearly
+        from open to closed, and at 1 ``squeeze`` past closed so that the drive pushes with up to
+        its force limit on whatever is between the fingers (joint limits stop empty fingers)."""
         g = self.desc.gripper
         c = float(np.clip(command, 0.0, 1.0))
-        q = g.open_q + c * (g.closed_q - g.open_q)
+        q = g.open_q + c * (g.closed_q - g.open_q) - c * g.squeeze * np.sign(g.open_q - g.closed_q)
         for w in self._worlds(world):
             for n in g.finger_joints:
                 self._targets[self.sim.world_coord(n, w)] = q

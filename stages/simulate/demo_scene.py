@@ -208,16 +208,17 @@ def _table_parts(center_xy, top_size=(0.6, 0.9), height=0.55) -> list[BoxSpec]:
     return parts
 
 
-def _add_mug(w: _Writer, mug_dir: Path, pos) -> None:
+def _add_mug(w: _Writer, mug_dir: Path, pos, scale: float = 1.0) -> None:
     import trimesh
     from pxr import Sdf
 
     visual = trimesh.load(mug_dir / "mug.stl", force="mesh")
+    visual.apply_scale(scale)
     # the mug's origin is its centre; put the origin at the base so the position is "on the table"
     lift = -float(visual.bounds[0, 2])
     la, lv = _labels("mug")
     attrs = {**_xform_attrs(pos), **lv,
-             "physics:mass": (Sdf.ValueTypeNames.Float, 0.30)}
+             "physics:mass": (Sdf.ValueTypeNames.Float, 0.30 * scale ** 3)}
     w.prim("/World/Mug", "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la], attrs=attrs)
     _mesh(w, "/World/Mug/Visual", visual.vertices + [0, 0, lift], visual.faces, (0.1, 0.2, 0.75), collide=False)
     pieces = sorted(mug_dir.glob("contact*.stl"), key=lambda p: int(p.stem[7:]))
@@ -225,6 +226,7 @@ def _add_mug(w: _Writer, mug_dir: Path, pos) -> None:
         raise ItemError(f"{mug_dir}: no contact*.stl collision pieces")
     for i, p in enumerate(pieces):
         m = trimesh.load(p, force="mesh")
+        m.apply_scale(scale)
         _mesh(w, f"/World/Mug/Collision{i}", m.vertices + [0, 0, lift], m.faces, (0.1, 0.2, 0.75), collide=True,
               visible=False)
 
@@ -346,10 +348,11 @@ def _add_lights(w: _Writer, size) -> None:
 
 def write_demo_room(path: Path, *, shared_assets: Path | None = None, size=(6.0, 5.0),
                     table_xy=(3.0, 3.6), mug_xy: tuple[float, float] | None = None,
-                    cabinet: CabinetSpec | None = CabinetSpec(), clutter: int = 0,
+                    cabinet: CabinetSpec | None = CabinetSpec(), clutter: int = 0, mug_scale: float = 1.0,
                     rng: np.random.Generator | None = None) -> DemoRoom:
     """Author the room at ``path`` (.usda). The mug needs ``shared_assets`` (the third-party
-    assets folder); without it there is no mug. ``clutter`` adds that many loose boxes (rigid,
+    assets folder); without it there is no mug. ``mug_scale`` scales the mug mesh (the real one
+    is 82 mm across, wider than the Franka hand's 80 mm stroke). ``clutter`` adds that many loose boxes (rigid,
     0.1-0.2 m) on the floor at positions from ``rng``.
     """
     from pxr import Gf, Sdf
@@ -377,7 +380,7 @@ def write_demo_room(path: Path, *, shared_assets: Path | None = None, size=(6.0,
     if shared_assets is not None:
         mxy = mug_xy or (table_xy[0] - 0.12, table_xy[1] - 0.2)
         mug_pos = (mxy[0], mxy[1], top.center[2] + top.size[2] / 2 + 0.001)
-        _add_mug(w, Path(shared_assets) / MUG_REL, mug_pos)
+        _add_mug(w, Path(shared_assets) / MUG_REL, mug_pos, mug_scale)
         labels["Mug"] = "mug"
     handles: dict = {}
     if cabinet is not None:

@@ -99,8 +99,10 @@ class BaseGeometry:
 @dataclass(frozen=True, kw_only=True)
 class GripperSpec:
     """finger_joints: joint names; open_q / closed_q: finger joint position [m] at command 0 (open)
-    and 1 (closed); max_force [N] per finger; tcp: end-effector frame name; hand_link: the link
-    the fingers hang from."""
+    and 1 (closed); squeeze [m]: how far past ``closed_q`` the command-1 target lies, so that a
+    grasped object is squeezed with about ``finger_ke * (squeeze + penetration)``, capped at
+    max_force [N] per finger; tcp: end-effector frame name; hand_link: the link the fingers hang
+    from."""
 
     kind: GripperKind
     finger_joints: tuple[str, str]
@@ -109,6 +111,7 @@ class GripperSpec:
     max_force: float
     tcp: str
     hand_link: str
+    squeeze: float = 0.02
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -476,6 +479,7 @@ def add_robot(builder, desc: RobotDescription, *, spawn_xy_yaw: tuple[float, flo
     if missing:
         raise ItemError(f"{desc.urdf}: joints {missing} not found after loading into Newton")
     _set_drives(builder, desc, gains, dof, coord, arm_q or desc.arm_home)
+    _set_finger_contacts(builder, desc, body, shape0)
     if gains.gravity_compensation:
         _set_gravity_compensation(builder, desc, body)
     return RobotIndices(dof=dof, coord=coord, body=body, shape_start=shape0, shape_end=builder.shape_count)
@@ -508,6 +512,28 @@ def _set_drives(builder, desc: RobotDescription, gains: DriveGains, dof, coord, 
         builder.joint_armature[d] = gains.finger_armature
         builder.joint_q[coord[name]] = desc.gripper.open_q
         builder.joint_target_q[coord[name]] = desc.gripper.open_q
+
+
+def _set_finger_contacts(builder, desc: RobotDescription, body: dict[str, int], shape0: int) -> None:
+    """Finger pads get torsional friction (MuJoCo ``condim`` 4, Newton's ``mu_torsional``): with
+    point contacts only, an object pinched off its centre of mass (a mug by its handle) spins
+    freely about the line between the pads."""
+    from newton.solvers import SolverMuJoCo
+
+    key = "mujoco:condim"
+    if key not in builder.custom_attributes:
+        SolverMuJoCo.register_custom_attributes(builder)
+    attr = builder.custom_attributes[key]
+    if attr.values is None:
+        attr.values = {}
+    fingers = set()
+    for j in desc.gripper.finger_joints:
+        k = next(i for i in range(builder.joint_count) if _short(builder.joint_label[i]) == j)
+        fingers.add(builder.joint_child[k])
+    for s in range(shape0, builder.shape_count):
+        if builder.shape_body[s] in fingers:
+            attr.values[s] = 4
+            builder.shape_material_mu_torsional[s] = 0.01
 
 
 def _set_gravity_compensation(builder, desc: RobotDescription, body: dict[str, int]) -> None:

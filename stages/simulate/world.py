@@ -66,7 +66,10 @@ class SimConfig:
     world_count; device: "cpu" or "cuda[:n]"; spawn: robot root (x, y, yaw) or None to pick a free
     spawn pose; spawn_near: with spawn None, the free pose nearest this point (x, y) [m], facing
     it; add_ground_plane: add an infinite plane (scenes without a floor collider);
-    robot_radius: clearance radius of the base footprint [m] used to pick the spawn."""
+    robot_radius: clearance radius of the base footprint [m] used to pick the spawn;
+    contact_ke / contact_kd: default contact stiffness and damping of shapes without their own
+    (MuJoCo maps them to solref: time constant 2/kd = 5 ms, damping ratio 1; Newton's default
+    20 ms lets a squeezing gripper sink centimetres into light objects)."""
 
     scenes: tuple[Path, ...] = ()
     world_count: int = 1
@@ -75,6 +78,8 @@ class SimConfig:
     spawn_near: tuple[float, float] | None = None
     add_ground_plane: bool = False
     robot_radius: float = 0.45
+    contact_ke: float = 4.0e4
+    contact_kd: float = 400.0
     solver: SolverSettings = field(default_factory=SolverSettings)
     gains: DriveGains = field(default_factory=DriveGains)
 
@@ -363,6 +368,8 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
     from newton.solvers import SolverMuJoCo
 
     b = newton.ModelBuilder()
+    b.default_shape_cfg.ke = cfg.contact_ke
+    b.default_shape_cfg.kd = cfg.contact_kd
     SolverMuJoCo.register_custom_attributes(b)
     loaded = load_scene(b, scene)
     spawn = cfg.spawn or find_free_spawn(b, rng, radius=cfg.robot_radius, near=cfg.spawn_near)
@@ -433,7 +440,8 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
     settings = SimSettings(
         solver=cfg.solver.kind.value, dt=cfg.solver.dt, substeps=cfg.solver.substeps, device=cfg.device,
         world_count=cfg.world_count, use_mujoco_cpu=cpu, separate_worlds=separate,
-        options={k: v for k, v in opts.items() if v is not None}, spawn=tuple(spawn),
+        options={**{k: v for k, v in opts.items() if v is not None}, "contact_ke": cfg.contact_ke,
+                 "contact_kd": cfg.contact_kd}, spawn=tuple(spawn),
         bodies_per_world=tpl.body_count, shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
         newton_version=newton.__version__, scenes=tuple(str(s) for s in cfg.scenes))
     log.info("simulation built: %s", settings)
