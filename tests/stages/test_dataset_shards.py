@@ -239,3 +239,22 @@ def test_merge_refuses_shards_with_different_specs(tmp_path):
     with pytest.raises(MergeError, match=r"\['s1'\] have a different spec than s0"):
         merge_shards(tmp_path, tmp_path / "merged")
     assert not (tmp_path / "merged").exists() and not list(tmp_path.glob(".tmp-*"))
+
+
+def test_render_contact_sheet_command(merged, tmp_path):
+    from PIL import Image
+
+    from stages.dataset.render import THUMB_W, cli
+
+    base, _ = merged
+    out = tmp_path / "sheet.png"
+    assert cli([str(base / "merged"), "--out", str(out), "--episodes", "0,5", "--frames", "4"]) == 0
+    sheet = np.asarray(Image.open(out).convert("RGB"))
+    streams = 5  # 3 rgb + 2 depth rows per episode
+    thumb_h = round(48 * THUMB_W / 64)
+    assert sheet.shape[0] == 2 * (streams * (thumb_h + 2) + 18) and sheet.shape[1] > 4 * THUMB_W
+    # the first thumbnail of episode 0's wrist row is that frame, decoded and scaled
+    first = sheet[18 : 18 + thumb_h, 150 : 150 + THUMB_W].astype(np.float64)
+    want = np.asarray(Image.fromarray(synthetic_frame(SPEC, 0, 0, 0).rgb["wrist"]).resize((THUMB_W, thumb_h)))
+    assert np.abs(first - want).mean() < 12.0
+    assert cli([str(base / "merged"), "--out", str(out), "--episodes", "9"]) == 2
