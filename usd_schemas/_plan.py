@@ -194,14 +194,15 @@ def _mesh_plan(asset_id: str, link: str, path: str, part: MeshPart, material: st
 
 
 def _indexed(values: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(unique rows, per-vertex indices) if some rows repeat, else (values, None). Deterministic:
-    unique rows in lexicographic order."""
+    """(unique rows, per-vertex indices) if some rows repeat bit for bit, else (values, None).
+    Deterministic: unique rows in the order of their bytes."""
     if values is None or len(values) < 2:
         return values, None
-    uniq, inv = np.unique(values, axis=0, return_inverse=True)
-    if len(uniq) == len(values):
+    rows = np.ascontiguousarray(values).view(np.dtype((np.void, values.dtype.itemsize * values.shape[1]))).ravel()
+    _, first, inv = np.unique(rows, return_index=True, return_inverse=True)
+    if len(first) == len(values):
         return values, None
-    return np.ascontiguousarray(uniq), np.ascontiguousarray(inv.reshape(-1).astype(np.int32))
+    return np.ascontiguousarray(values[first]), np.ascontiguousarray(inv.reshape(-1).astype(np.int32))
 
 
 # ---------------------------------------------------------------------------------------------
