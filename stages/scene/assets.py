@@ -1,0 +1,184 @@
+"""What the scene stage needs to know of an asset package, read from its USD (the colliders the
+simulator uses, not the visuals): convex collider pieces in the asset's root frame, which of them
+move with a joint, the swept 2-D regions of its doors and drawers, and its support surfaces.
+
+All lengths are meters; the asset frame is Z-up with +X its front (asset_catalog conventions).
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from stages.scene.collide import ConvexPiece, convex_piece
+from stages.scene.geom import convex_hull_2d, polygon_area
+
+log = logging.getLogger(__name__)
+
+MIN_SURFACE_AREA = 0.02   # [m^2] smallest support surface
+ROBOT_BLOCK_HEIGHT = 0.03  # [m] pieces lower than this (rugs) do not block the robot
+SWEEP_SAMPLES = 7         # joint positions sampled over [lower, upper] for the swept region
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    """A horizontal support surface: height z [m] above the asset origin; polygon (K, 2) convex
+    CCW outline in the asset frame [m]."""
+
+    z: float
+    polygon: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class AssetGeometry:
+    """Collision-level description of one asset package.
+
+    pieces: convex collider pieces (asset frame, zero joint configuration); moving: per piece, True
+    if it belongs to a link moved by a joint; lo, hi (3,): bounds of all pieces [m];
+    swings: 2-D convex regions (K, 2) swept by moving links over their joint ranges;
+    surfaces: support surfaces of the fixed part; dynamic: has rigid bodies not fixed to the world;
+    n_bodies: rigid bodies in the package.
+    """
+
+    usd_path: Path
+    pieces: tuple[ConvexPiece, ...]
+    moving: tuple[bool, ...]
+    lo: np.ndarray
+    hi: np.ndarray
+    swings: tuple[np.ndarray, ...]
+    surfaces: tuple[Surface, ...]
+    dynamic: bool
+    n_bodies: int
+
+    @functools.cached_property
+    def footprint(self) -> np.ndarray:
+        """(K, 2) convex outline of every piece projected on the floor, asset frame [m]."""
+        return convex_hull_2d(np.vstack([p.vertices[:, :2] for p in self.pieces]))
+
+    @functools.cached_property
+    def ground_footprint(self) -> np.ndarray | None:
+        """Outline of the pieces whose top is above ROBOT_BLOCK_HEIGHT (what blocks a robot; a rug
+        does not), or None."""
+        pts = [p.vertices[:, :2] for p in self.pieces if p.hi[2] > self.lo[2] + ROBOT_BLOCK_HEIGHT]
+        return convex_hull_2d(np.vstack(pts)) if pts else None
+
+
+@functools.lru_cache(maxsize=512)
+def load_asset_geometry(usd_path: Path) -> AssetGeometry:
+    """Read an asset package's colliders, joints and surfaces (cached per process)."""
+    from pxr import Usd, UsdGeom, UsdPhysics
+
+    import usd_schemas  # noqa: F401  (schema plugin registered before the stage is opened)
+
+    stage = Usd.Stage.Open(str(usd_path))
+    if stage is None:
+        raise ValueError(f"{usd_path}: cannot open the asset package")
+    root = stage.GetDefaultPrim()
+    cache = UsdGeom.XformCache()
+    root_inv = np.linalg.inv(np.asarray(cache.GetLocalToWorldTransform(root), dtype=np.float64))
+    bodies, joints, colliders = [], [], []
+    for prim in Usd.PrimRange(root):
+        if prim.HasAPI(UsdPhysics.RigidBodyAPI):
+            bodies.append(prim.GetPath())
+        if prim.IsA(UsdPhysics.Joint):
+            joints.append(prim)
+        if prim.HasAPI(UsdPhysics.CollisionAPI) and prim.IsA(UsdGeom.Mesh):
+            pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=np.float64)
+            m = np.asarray(cache.GetLocalToWorldTransform(prim), dtype=np.float64) @ root_inv
+            colliders.append((prim.GetPath(), pts @ m[:3, :3] + m[3, :3]))
+    if not colliders:
+        raise ValueError(f"{usd_path}: asset has no collider meshes")
+    fixed_to_world, moving_bodies, sweeps = False, {}, []
+    for j in joints:
+        b0 = j.GetRelationship("physics:body0").GetTargets()
+        b1 = j.GetRelationship("physics:body1").GetTargets()
+        if j.IsA(UsdPhysics.FixedJoint) and (not b0 or b0[0] not in bodies):
+            fixed_to_world = True
+        elif j.IsA(UsdPhysics.RevoluteJoint) or j.IsA(UsdPhysics.PrismaticJoint):
+            if b1:
+                moving_bodies[b1[0]] = _joint_motion(j, b0[0] if b0 else None, cache, root_inv)
+    pieces, moving = [], []
+    for path, pts in colliders:
+        body = next((b for b in bodies if path.HasPrefix(b)), None)
+        pieces.append(convex_piece(pts))
+        moving.append(body in moving_bodies)
+        if body in moving_bodies:
+            sweeps.append((body, pts))
+    swings = []
+    for body, motion in moving_bodies.items():
+        pts = [pts for b, pts in sweeps if b == body]
+        if pts:
+            allp = np.vstack(pts)
+            swept = np.vstack([motion(allp, s) for s in np.linspace(0.0, 1.0, SWEEP_SAMPLES)])
+            swings.append(convex_hull_2d(swept[:, :2]))
+    lo = np.min([p.lo for p in pieces], axis=0)
+    hi = np.max([p.hi for p in pieces], axis=0)
+    fixed_pieces = [p for p, mv in zip(pieces, moving) if not mv]
+    return AssetGeometry(usd_path=Path(usd_path), pieces=tuple(pieces), moving=tuple(moving), lo=lo, hi=hi,
+                         swings=tuple(swings), surfaces=tuple(_surfaces(fixed_pieces, pieces, hi[0])),
+                         dynamic=bool(bodies) and not fixed_to_world, n_bodies=len(bodies))
+
+
+def _joint_motion(joint, body0, cache, root_inv):
+    """A function (points (K, 3) in the asset frame, s in [0, 1]) -> points moved to the joint
+    position lower + s (upper - lower)."""
+    from pxr import Gf, UsdPhysics
+    from scipy.spatial.transform import Rotation
+
+    prim = joint
+    pos0 = np.asarray(prim.GetAttribute("physics:localPos0").Get() or Gf.Vec3f(0, 0, 0), dtype=np.float64)
+    rot0 = prim.GetAttribute("physics:localRot0").Get() or Gf.Quatf(1, 0, 0, 0)
+    q = np.array([*rot0.GetImaginary(), rot0.GetReal()], dtype=np.float64)
+    r0 = Rotation.from_quat(q).as_matrix()
+    if body0 is not None:
+        m = np.asarray(cache.GetLocalToWorldTransform(prim.GetStage().GetPrimAtPath(body0)), dtype=np.float64) @ root_inv
+        b_rot, b_t = m[:3, :3].T, m[3, :3]
+    else:
+        b_rot, b_t = np.eye(3), np.zeros(3)
+    origin = b_rot @ pos0 + b_t
+    axis_local = {"X": (1, 0, 0), "Y": (0, 1, 0), "Z": (0, 0, 1)}[str(prim.GetAttribute("physics:axis").Get() or "X")]
+    axis = b_rot @ r0 @ np.asarray(axis_local, dtype=np.float64)
+    lower = float(prim.GetAttribute("physics:lowerLimit").Get() or 0.0)
+    upper = float(prim.GetAttribute("physics:upperLimit").Get() or 0.0)
+    revolute = prim.IsA(UsdPhysics.RevoluteJoint)
+
+    def move(pts: np.ndarray, s: float) -> np.ndarray:
+        v = lower + s * (upper - lower)
+        if revolute:
+            rot = Rotation.from_rotvec(axis * np.radians(v)).as_matrix()
+            return (pts - origin) @ rot.T + origin
+        return pts + axis * v
+
+    return move
+
+
+def _surfaces(fixed: list[ConvexPiece], every: list[ConvexPiece], front_x: float) -> list[Surface]:
+    """Open horizontal tops of fixed pieces (area >= MIN_SURFACE_AREA): nothing right above the
+    center, and nothing (a shelf, a door) between the center and the asset's front (+X)."""
+    out = []
+    for p in fixed:
+        top = p.hi[2]
+        ring = p.vertices[p.vertices[:, 2] > top - 1e-4][:, :2]
+        if len(ring) < 3:
+            continue
+        poly = convex_hull_2d(ring)
+        if len(poly) < 3 or polygon_area(poly) < MIN_SURFACE_AREA:
+            continue
+        c = poly.mean(axis=0)
+        probes = [np.array([c[0], c[1], top + 0.02])]
+        probes += [np.array([x, c[1], top + 0.03]) for x in np.arange(c[0], front_x + 0.01, 0.004)]
+        if any(_inside(q, x) for q in every if q is not p for x in probes):
+            continue
+        out.append(Surface(z=float(top), polygon=poly))
+    return out
+
+
+def _inside(p: ConvexPiece, x: np.ndarray) -> bool:
+    """Whether point x (3,) lies inside the convex piece (half-space test on its face normals)."""
+    if np.any(x < p.lo) or np.any(x > p.hi):
+        return False
+    return bool(np.all(p.normals @ x < (p.vertices @ p.normals.T).max(axis=0)))
