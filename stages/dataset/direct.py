@@ -55,13 +55,15 @@ class _VideoStream:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self._container = av.open(str(path), "w")
-        stream = self._container.add_stream(encoder.vcodec, fps, options=encoder.get_codec_options(threads, True))
+        options = encoder.get_codec_options(threads, as_strings=True)
+        stream = self._container.add_stream(encoder.vcodec, fps, options=options)
         stream.pix_fmt, stream.width, stream.height = encoder.pix_fmt, width, height
         stream.time_base = Fraction(1, fps)
         self._stream = stream
         self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name=f"encode-{path.parent.parent.name}", daemon=True)
+        name = f"encode-{path.parent.parent.name}"
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
@@ -148,7 +150,9 @@ class DirectBackend:
         )  # fmt: skip
         self._schema = get_hf_features_from_features(self.meta.features).arrow_schema
         v = s.video
-        self._encoder = RGBEncoderConfig(vcodec=v.codec, pix_fmt=v.pix_fmt, g=v.gop, crf=v.crf, preset=v.preset)
+        self._encoder = RGBEncoderConfig(
+            vcodec=v.codec, pix_fmt=v.pix_fmt, g=v.gop, crf=v.crf, preset=v.preset
+        )
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="depth-png")
 
     def finalize(self) -> None:
@@ -181,7 +185,8 @@ class DirectBackend:
         for cam in self.spec.cameras:
             if cam.rgb:
                 key = self.spec.rgb_keys()[cam.name]
-                path = self.root / self.meta.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
+                rel = self.meta.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
+                path = self.root / rel
                 self._videos[key] = _VideoStream(path, self.spec.fps, self._encoder, self._encoder_threads,
                                                  cam.height, cam.width, self._queue_frames)  # fmt: skip
 
@@ -217,7 +222,9 @@ class DirectBackend:
             ep_meta.update({f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
                             f"videos/{key}/from_timestamp": 0.0,
                             f"videos/{key}/to_timestamp": get_video_duration_in_s(stream.path)})  # fmt: skip
-        depth = {key: [{"bytes": f.result(), "path": None} for f in futs] for key, futs in self._depth_png.items()}
+        depth = {
+            key: [{"bytes": f.result(), "path": None} for f in futs] for key, futs in self._depth_png.items()
+        }
         ep_meta.update(self._write_data(columns, depth, start, n))
         stats = self._episode_stats(columns)
         self.meta.save_episode(ep_index, n, [task], stats, ep_meta)
@@ -242,7 +249,8 @@ class DirectBackend:
                 arrays.append(pa.array(depth[name], type=typ))
             elif pa.types.is_fixed_size_list(typ):
                 values = columns[name]
-                arrays.append(pa.FixedSizeListArray.from_arrays(pa.array(values.reshape(-1)), values.shape[1]))
+                flat = pa.array(values.reshape(-1))
+                arrays.append(pa.FixedSizeListArray.from_arrays(flat, values.shape[1]))
             else:
                 arrays.append(pa.array(columns[name], type=typ))
         table = pa.Table.from_arrays(arrays, schema=self._schema)

@@ -61,7 +61,8 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
     ds = load_dataset(Path(root))
     n_eps = ds.meta.total_episodes
     if episodes is None:
-        episodes = sorted(set(np.linspace(0, n_eps - 1, min(max_episodes, n_eps)).round().astype(int).tolist()))
+        spread = np.linspace(0, n_eps - 1, min(max_episodes, n_eps)).round().astype(int)
+        episodes = sorted(set(spread.tolist()))
     bad = [e for e in episodes if not 0 <= e < n_eps]
     if bad:
         raise ValueError(f"{root}: episodes {bad} out of range (dataset has {n_eps})")
@@ -73,8 +74,9 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
         start, stop = int(meta["dataset_from_index"]), int(meta["dataset_to_index"])
         picks = np.linspace(start, stop - 1, min(frames, stop - start)).round().astype(int)
         items = [ds[int(i)] for i in picks]
-        headers.append((len(rows), f"episode {ep}: {items[0]['task']}  ({stop - start} frames; "
-                                   f"frames {', '.join(str(int(it['frame_index'])) for it in items)})"))  # fmt: skip
+        shown = ", ".join(str(int(it["frame_index"])) for it in items)
+        text = f"episode {ep}: {items[0]['task']}  ({stop - start} frames; frames {shown})"
+        headers.append((len(rows), text))
         for key in cams:
             if key in ds.meta.depth_keys:
                 thumbs = [_thumb(colorize_depth(it[key][0].numpy())) for it in items]
@@ -108,14 +110,14 @@ def cli(argv: list[str]) -> int:
     """``agentworld render-dataset``: parse ``argv``, write the sheet, print its path; exit status."""
     p = argparse.ArgumentParser(prog="agentworld render-dataset", description=__doc__.splitlines()[0])
     p.add_argument("dataset", type=Path, help="a LeRobot dataset folder (a shard or a merged dataset)")
-    p.add_argument("--out", type=Path, default=None, help="PNG path (default: <dataset>.contact_sheet.png beside it)")
+    p.add_argument("--out", type=Path, default=None, help="PNG path (default: <dataset>.contact_sheet.png)")
     p.add_argument("--episodes", default=None, help="comma-separated episode indices (default: spread)")
     p.add_argument("--frames", type=int, default=6, help="frames per episode (default 6)")
     a = p.parse_args(argv)
     episodes = [int(x) for x in a.episodes.split(",")] if a.episodes else None
     try:
-        out = render_contact_sheet(a.dataset, a.out or a.dataset.with_name(a.dataset.name + ".contact_sheet.png"), episodes=episodes,
-                                   frames=a.frames)  # fmt: skip
+        out_png = a.out or a.dataset.with_name(a.dataset.name + ".contact_sheet.png")
+        out = render_contact_sheet(a.dataset, out_png, episodes=episodes, frames=a.frames)
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}")
         return 2

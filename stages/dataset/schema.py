@@ -252,7 +252,8 @@ class Frame:
 
 
 def depth_m_to_mm(depth_m: np.ndarray) -> np.ndarray:
-    """float depth [m] (H, W) -> uint16 [mm], rounded; non-finite or <= 0 -> 0 (no return), clipped at 65.535 m."""
+    """float depth [m] (H, W) -> uint16 [mm], rounded; non-finite or <= 0 -> 0 (no return);
+    clipped at 65.535 m."""
     d = np.asarray(depth_m, dtype=np.float64)
     mm = np.where(np.isfinite(d) & (d > 0), np.rint(d * 1000.0), 0.0)
     return np.clip(mm, 0, DEPTH_MAX_MM).astype(np.uint16)
@@ -283,7 +284,8 @@ def _image_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
             img = frame.rgb.get(cam.name)
             if img is None:
                 out.append(f"rgb[{cam.name!r}] missing")
-            elif not isinstance(img, np.ndarray) or img.dtype != np.uint8 or img.shape != (cam.height, cam.width, 3):
+            elif not (isinstance(img, np.ndarray) and img.dtype == np.uint8
+                      and img.shape == (cam.height, cam.width, 3)):  # fmt: skip
                 out.append(f"rgb[{cam.name!r}]: expected uint8 ({cam.height}, {cam.width}, 3), got "
                            f"{getattr(img, 'dtype', type(img))} {getattr(img, 'shape', '')}")  # fmt: skip
         if cam.depth:

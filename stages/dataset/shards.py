@@ -110,9 +110,10 @@ def list_shards(shards_dir: Path) -> list[ShardInfo]:
         if path.name.startswith(".") or not path.is_dir():
             continue
         if not (path / SIDECAR_PATH).is_file():
-            raise FileNotFoundError(f"{path}: not a complete shard (no {SIDECAR_PATH}); remove it or rewrite it")
+            raise FileNotFoundError(f"{path}: not a complete shard (no {SIDECAR_PATH}); remove or rewrite it")
         meta = read_sidecar(path)
-        out.append(ShardInfo(path, path.name, meta["episodes_written"], meta["frames_written"], meta["failures"]))
+        counts = meta["episodes_written"], meta["frames_written"], meta["failures"]
+        out.append(ShardInfo(path, path.name, *counts))
     return out
 
 

@@ -57,7 +57,9 @@ def synthetic_frame(spec: DatasetSpec, shard: int, episode: int, i: int) -> Fram
         gripper=float(i % 2),
         mode=1 if i >= 3 else 0,
         rgb={c.name: synthetic_rgb(c, shard, episode, i, k) for k, c in enumerate(spec.cameras) if c.rgb},
-        depth_mm={c.name: synthetic_depth_mm(c, shard, episode, i, k) for k, c in enumerate(spec.cameras) if c.depth},
+        depth_mm={
+            c.name: synthetic_depth_mm(c, shard, episode, i, k) for k, c in enumerate(spec.cameras) if c.depth
+        },
     )
 
 
@@ -114,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=2)
     p.add_argument("--frames", type=int, default=12)
     p.add_argument("--fail-every", type=int, default=0)
-    p.add_argument("--spec-json", default=None, help="DatasetSpec.to_json() as a string (default spec if absent)")
+    p.add_argument("--spec-json", default=None, help="DatasetSpec.to_json() as a string")
     p.add_argument("--pause-after", type=int, default=None)
     p.add_argument("--backend", choices=("direct", "lerobot"), default="direct")
     a = p.parse_args(argv)

@@ -229,11 +229,12 @@ class EpisodeWriter:
         if self.root.exists():
             raise FileExistsError(f"{self.root}: dataset folder already exists")
         if self.backend == "lerobot":
-            impl = _LerobotBackend(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
+            backend_cls: type = _LerobotBackend
         else:
             from .direct import DirectBackend
 
-            impl = DirectBackend(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
+            backend_cls = DirectBackend
+        impl = backend_cls(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
         impl.open()
         self._impl = impl
         self._state = _State.OPEN
@@ -248,7 +249,8 @@ class EpisodeWriter:
         self._impl.finalize()
         if self._columns:
             add_episode_columns(self.root, self._columns)
-        write_sidecar(self.root, self.spec, self.stats, extra={"repo_id": self.repo_id, "backend": self.backend})
+        extra = {"repo_id": self.repo_id, "backend": self.backend}
+        write_sidecar(self.root, self.spec, self.stats, extra=extra)
         self.stats.finalize_s = time.perf_counter() - t0
         self._state = _State.CLOSED
         logger.info("%s: %d episodes, %d frames written, %d failed", self.root,
@@ -316,7 +318,9 @@ class EpisodeWriter:
 
     def _require(self, state: _State, op: str) -> None:
         if self._state is not state:
-            raise RuntimeError(f"{self.root}: {op}() needs writer state {state.value}, it is {self._state.value}")
+            raise RuntimeError(
+                f"{self.root}: {op}() needs writer state {state.value}, it is {self._state.value}"
+            )
 
 
 def add_episode_columns(root: Path, columns: list[dict[str, Any]]) -> None:
@@ -335,7 +339,9 @@ def add_episode_columns(root: Path, columns: list[dict[str, Any]]) -> None:
         os.replace(tmp, path)
 
 
-def write_sidecar(root: Path, spec: DatasetSpec, stats: WriterStats, extra: dict[str, Any] | None = None) -> None:
+def write_sidecar(
+    root: Path, spec: DatasetSpec, stats: WriterStats, extra: dict[str, Any] | None = None
+) -> None:
     """Write ``meta/agentworld.json`` (atomically: temp file, fsync, rename)."""
     data = {"format": "agentworld-lerobot-v3.0", "spec": spec.to_json(), **stats.to_json(), **(extra or {})}
     write_json_atomic(root / SIDECAR_PATH, data)

@@ -91,3 +91,15 @@ def test_episode_info_problems():
     assert EpisodeInfo("open the fridge", "open_close", "scene-1", 3).problems() == []
     probs = EpisodeInfo(" ", "", "scene-1", -1).problems()
     assert len(probs) == 3
+
+
+def test_importing_the_package_loads_no_heavy_module():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    heavy = "('torch', 'lerobot', 'av', 'pyarrow', 'datasets', 'cv2')"
+    code = f"import sys, stages.dataset; print(sorted(m for m in {heavy} if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[2],
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    assert out.stdout.strip() == "[]"

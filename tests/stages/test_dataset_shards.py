@@ -56,12 +56,11 @@ def merged(tmp_path_factory) -> tuple[Path, object]:
     """3 shards written by 3 concurrent processes (worker-1 with lerobot's own writer, the others with
     the direct backend: the merge and every check below also prove the two write the same format)."""
     base = tmp_path_factory.mktemp("ds")
-    procs = [
-        subprocess.Popen(_writer_cmd(base / "shards", f"worker-{k}", k, SPEC, episodes=EPISODES, frames=FRAMES,
-                                     fail_every=FAIL_EVERY, backend="lerobot" if k == 1 else "direct"),
-                         cwd=REPO, env=_env(), stderr=subprocess.PIPE, text=True)  # fmt: skip
-        for k in range(N_SHARDS)
-    ]
+    procs = []
+    for k in range(N_SHARDS):
+        cmd = _writer_cmd(base / "shards", f"worker-{k}", k, SPEC, episodes=EPISODES, frames=FRAMES,
+                          fail_every=FAIL_EVERY, backend="lerobot" if k == 1 else "direct")  # fmt: skip
+        procs.append(subprocess.Popen(cmd, cwd=REPO, env=_env(), stderr=subprocess.PIPE, text=True))
     for p in procs:
         _, err = p.communicate(timeout=240)
         assert p.returncode == 0, err[-3000:]
@@ -84,7 +83,8 @@ def test_shards_are_complete_and_count_failures(merged):
     base, result = merged
     shards = list_shards(base / "shards")
     assert [s.shard_id for s in shards] == ["worker-0", "worker-1", "worker-2"]
-    assert all(s.episodes == 2 and s.frames == 2 * FRAMES and s.failures == {"grasp slipped": 1} for s in shards)
+    assert all(s.episodes == 2 and s.frames == 2 * FRAMES for s in shards)
+    assert all(s.failures == {"grasp slipped": 1} for s in shards)
     assert not list((base / "shards").glob(".tmp-*"))
     assert result.episodes == 6 and result.frames == 6 * FRAMES
     assert result.failures == {"grasp slipped": 3}
@@ -179,7 +179,8 @@ def test_killed_writer_leaves_no_shard_and_next_start_cleans_it(tmp_path):
 
 @pytest.mark.parametrize("backend", ["direct", "lerobot"])
 def test_rollover_to_several_files_loads_every_frame(tmp_path, backend):
-    spec = DatasetSpec(cameras=(CameraSpec("wrist", 48, 64),), data_files_size_mb=0.01, video_files_size_mb=0.001)
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 48, 64),), data_files_size_mb=0.01,
+                       video_files_size_mb=0.001)  # fmt: skip
     for k in range(2):
         write_synthetic_shard(tmp_path / "shards", f"s{k}", spec, shard_index=k, episodes=3, frames=8,
                               backend=backend)  # fmt: skip
@@ -195,7 +196,8 @@ def test_rollover_to_several_files_loads_every_frame(tmp_path, backend):
         ep, i = int(item["episode_index"]), int(item["frame_index"])
         want = synthetic_frame(spec, ep // 3, ep % 3, i)
         np.testing.assert_array_equal(item["observation.state"].numpy(), want.state())
-        np.testing.assert_array_equal(item["observation.images.wrist_depth"][0].numpy(), want.depth_mm["wrist"])
+        depth = item["observation.images.wrist_depth"][0].numpy()
+        np.testing.assert_array_equal(depth, want.depth_mm["wrist"])
         got = item["observation.images.wrist"].permute(1, 2, 0).numpy() * 255.0
         assert _psnr(got, want.rgb["wrist"]) > 28.0
 
