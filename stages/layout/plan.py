@@ -246,6 +246,7 @@ class _Draft:
     run: int = 27
     passage: int = 120
     stair_y0: int = 0
+    stair_side: int = 1  # +1: first staircase against the strip's left wall, -1: its right wall
 
 
 def _uniform_int(rng: np.random.Generator, lo: int, hi: int, step: int = 1) -> int:
@@ -455,6 +456,7 @@ def _sample_footprint(d: _Draft, floor_types: list[list[RoomType]], areas: list[
     d.W = left + hw + right
     d.strip = Rect(left, 0, left + hw, d.D)
     if spec.floors > 1:
+        d.stair_side = 1 if left == 0 else -1 if right == 0 else (1 if rng.random() < 0.5 else -1)
         l1 = _stair_run_length(d, n_risers)[0]
         top_space = STAIR_TOP_CLEAR if d.stair_shape == "straight" else 100 + d.stair_width
         d.stair_y0 = _uniform_int(rng, d.t_ext + STAIR_BOTTOM_CLEAR, d.D - d.t_ext - top_space - l1, STEP)
@@ -825,14 +827,15 @@ def _windows(d: _Draft, f: int, rooms: list[Room], walls: list[Wall], placed: li
 
 
 def _stair(d: _Draft, k: int, rise: float, n_risers: int) -> Stair:
-    """Staircase k (floor k -> k+1) in the hallway strip, against the strip's left wall for even k
-    and its right wall for odd k (switchback for 3 floors)."""
+    """Staircase k (floor k -> k+1) in the hallway strip, against one side wall of the strip (the
+    exterior one when the strip is at the footprint's edge) for even k and against the other for odd
+    k (switchback for 3 floors)."""
     strip = d.strip
     assert strip is not None
     sw, run = d.stair_width, d.run
     left_face = strip.x0 + (d.t_ext if strip.x0 == 0 else d.t_int // 2)
     right_face = strip.x1 - (d.t_ext if strip.x1 == d.W else d.t_int // 2)
-    sgn = 1 if k % 2 == 0 else -1
+    sgn = d.stair_side if k % 2 == 0 else -d.stair_side
     face = left_face if sgn > 0 else right_face
     up = 1 if k % 2 == 0 else -1  # direction of ascent along y
     l1, l2, land = _stair_run_length(d, n_risers)
