@@ -43,7 +43,9 @@ class SolverSettings(BaseModel):
 
 class RestReport(BaseModel):
     """Outcome of ``rest_check``. Heights [m] are of the lowest collider point above the plane
-    (z = 0); speeds: linear [m/s] at the center of mass, angular [rad/s]; maxima over bodies."""
+    (z = 0); speeds: linear [m/s] at the center of mass, angular [rad/s]; maxima over bodies;
+    released_base: the asset's fixed base (joint to the world, or static colliders) was released
+    so that it could drop like a free object."""
 
     model_config = ConfigDict(frozen=True)
 
@@ -60,6 +62,7 @@ class RestReport(BaseModel):
     final_angular_speed: float
     body_count: int
     shape_count: int
+    released_base: bool
     solver: SolverSettings
 
 
@@ -153,16 +156,48 @@ def _lowest_point(body_q: np.ndarray, shapes: list[tuple[int, np.ndarray]]) -> f
     return float(min(zs)) if zs else math.nan
 
 
-def _load(usd_path: Path, *, floating: bool | None, z_offset: float = 0.0):
+def _load(source, *, floating: bool | None, z_offset: float = 0.0):
+    """A ModelBuilder with the asset (a path or an open Usd.Stage), raised by ``z_offset`` [m]."""
     import newton
     import warp as wp
 
     import usd_schemas  # noqa: F401  (registers the schema plugins before USD's schema registry is built)
 
     builder = newton.ModelBuilder()
-    builder.add_usd(str(usd_path), xform=wp.transform((0.0, 0.0, z_offset), wp.quat_identity()),
-                    floating=floating, load_visual_shapes=False)
+    builder.add_usd(source if not isinstance(source, Path) else str(source),
+                    xform=wp.transform((0.0, 0.0, z_offset), wp.quat_identity()), floating=floating,
+                    load_visual_shapes=False)
     return builder
+
+
+def _released_stage(usd_path: Path):
+    """The asset as a free object: opened with a session layer that disables joints to the world
+    (a fixed base) and, for a static asset (colliders but no rigid body), makes each top-level
+    Xform holding colliders a rigid body (mass from the bound physics material's density).
+    Returns (stage, released: bool)."""
+    from pxr import Usd, UsdPhysics
+
+    import usd_schemas  # noqa: F401
+
+    stage = Usd.Stage.Open(str(usd_path))
+    released = False
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        prims = list(stage.Traverse())
+        bodies = {p.GetPath() for p in prims if p.HasAPI(UsdPhysics.RigidBodyAPI)}
+        for p in prims:
+            if p.IsA(UsdPhysics.Joint):
+                j = UsdPhysics.Joint(p)
+                ends = [*j.GetBody0Rel().GetTargets()[:1], *j.GetBody1Rel().GetTargets()[:1]]
+                if len(ends) < 2 or not all(e in bodies for e in ends):
+                    j.CreateJointEnabledAttr(False)
+                    released = True
+        if not bodies:
+            root = stage.GetDefaultPrim()
+            for child in root.GetChildren() if root else ():
+                if any(d.HasAPI(UsdPhysics.CollisionAPI) for d in Usd.PrimRange(child)):
+                    UsdPhysics.RigidBodyAPI.Apply(child)
+                    released = True
+    return stage, released
 
 
 # ---------------------------------------------------------------------------------------------
@@ -187,17 +222,19 @@ class RestTolerances:
 def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, drop_height: float = 0.02,
                tolerances: RestTolerances = RestTolerances()) -> RestReport:
     """Drop the asset from ``drop_height`` [m] (lowest collider point above the plane, asset in its
-    authored orientation) onto a ground plane and simulate ``seconds`` [s] on ``device``."""
+    authored orientation) onto a ground plane and simulate ``seconds`` [s] on ``device``. A fixed
+    base is released for the drop (only in memory), so that fixed assets are checked too."""
     import newton
     import warp as wp
 
     usd_path = Path(usd_path)
-    probe = _load(usd_path, floating=None)
+    stage, released = _released_stage(usd_path)
+    probe = _load(stage, floating=None)
     shapes0 = _collider_points_in_bodies(probe)
     if not shapes0:
         return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, _settings(device), probe)
     start_low = _lowest_point(np.asarray([_body_q0(probe, b) for b in range(probe.body_count)]), shapes0)
-    builder = _load(usd_path, floating=None, z_offset=drop_height - start_low)
+    builder = _load(stage, floating=None, z_offset=drop_height - start_low)
     builder.add_ground_plane()
     shapes = _collider_points_in_bodies(builder)
     settings = _settings(device)
@@ -236,7 +273,7 @@ def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, dro
     report = RestReport(usd_path=usd_path, passed=not reasons, reasons=tuple(reasons), drop_height=drop_height,
                         seconds=seconds, final_height=final, min_height=low, settled_min_height=settled, max_rise=rise, final_linear_speed=lin,
                         final_angular_speed=ang, body_count=model.body_count, shape_count=model.shape_count,
-                        solver=settings)
+                        released_base=released, solver=settings)
     log.debug("rest check %s: %s", usd_path, report)
     return report
 
@@ -250,7 +287,7 @@ def _rest_fail(usd_path, reason, drop_height, seconds, settings, builder) -> Res
     return RestReport(usd_path=usd_path, passed=False, reasons=(reason,), drop_height=drop_height, seconds=seconds,
                       final_height=nan, min_height=nan, settled_min_height=nan, max_rise=nan, final_linear_speed=nan,
                       final_angular_speed=nan, body_count=builder.body_count, shape_count=builder.shape_count,
-                      solver=settings)
+                      released_base=False, solver=settings)
 
 
 # ---------------------------------------------------------------------------------------------

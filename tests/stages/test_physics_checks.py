@@ -59,6 +59,16 @@ def test_rest_check_detects_an_asset_that_does_not_rest(tmp_path):
     assert not r2.passed and r2.reasons == ("no collider shapes",)
 
 
+def test_fixed_assets_are_released_for_the_drop(packages, tmp_path):
+    r = rest_check(packages["cabinet_fixed"], seconds=1.5)
+    assert r.passed and r.released_base and r.body_count == 3, r.reasons
+    shelf = replace(M.box_model("shelf_01"), fixed_base=True)  # static: colliders, no rigid body
+    pkg = usd_schemas.write_asset_package(shelf, tmp_path, pipeline_version="0.1.0")
+    r2 = rest_check(pkg.root_path, seconds=1.0)
+    assert r2.passed and r2.released_base and r2.body_count == 1, r2.reasons
+    assert not rest_check(packages["box_01"], seconds=0.5).released_base
+
+
 @pytest.mark.parametrize("name,joints", [("cabinet_01", 2), ("cabinet_fixed", 2), ("flap_01", 1), ("lid_01", 1)])
 def test_articulated_joints_reach_their_limits(packages, name, joints):
     r = joint_limit_check(packages[name], device="cpu")
