@@ -1,6 +1,7 @@
 """Dataset writing speed: frames/s of the shard writer at 320x240 with 3 RGB cameras + depth.
 
-Run: ``.venv/bin/python -m pytest -q -m benchmark tests/benchmarks/bench_dataset.py -s``.
+Run: ``.venv/bin/python -m pytest -q -m benchmark tests/benchmarks/bench_dataset.py -s``
+(``BENCH_DATASET_WORKERS=1,4,8,16`` sets the writer counts of the parallel-writers test).
 Prints the figures and writes ``bench_results/dataset.json`` (medians over REPEATS runs of EPISODES
 episodes of FRAMES frames, one writer process; frames are precomputed, so only writing is timed).
 
@@ -64,7 +65,9 @@ SPECS = {
     "full_one_depth": _spec(True, ("head",)),
     "full_av1_default": _spec(True, True, VideoCodecSpec(codec="libsvtav1", preset=12, crf=30, gop=2)),
 }
-CONFIGS = {f"{name}/{backend}": (spec, backend) for backend in ("direct", "lerobot") for name, spec in SPECS.items()}
+CONFIGS = {
+    f"{name}/{backend}": (spec, backend) for backend in ("direct", "lerobot") for name, spec in SPECS.items()
+}
 
 
 def _folder_mb(path: Path, sub: str) -> float:
@@ -127,7 +130,8 @@ def test_bench_dataset_writing(tmp_path):
         runs = [_write_once(spec, backend, frames_by_spec[key], folder) for _ in range(REPEATS)]
         results[name] = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     full_frames = [synthetic_frame(full, 0, 0, i) for i in range(FRAMES)]
-    results["encode_only"] = {"fps": statistics.median(_encode_only(full_frames, full.video) for _ in range(REPEATS))}
+    encode = [_encode_only(full_frames, full.video) for _ in range(REPEATS)]
+    results["encode_only"] = {"fps": statistics.median(encode)}
 
     ms = {k: 1000.0 / v["fps"] for k, v in results.items()}
     split = {
@@ -143,12 +147,15 @@ def test_bench_dataset_writing(tmp_path):
         "resolution": [H, W], "cameras": len(CAMS), "episodes": EPISODES, "frames_per_episode": FRAMES,
         "repeats": REPEATS, "cpu_count": os.cpu_count(), "configs": results, "split_ms_per_frame": split,
     }  # fmt: skip
-    print(f"\ndataset writing, {H}x{W}, {len(CAMS)} cameras, {EPISODES}x{FRAMES} frames, median of {REPEATS}:")
+    print(f"\ndataset writing, {H}x{W}, {len(CAMS)} cameras, {EPISODES}x{FRAMES} frames, "
+          f"median of {REPEATS}:")
     for name, r in results.items():
         extra = ""
         if "wall_s" in r:
-            extra = (f"  add {r['add_frame_s']:.2f}s save {r['save_episode_s']:.2f}s close {r['close_s']:.2f}s"
-                     f"  data {r['data_kb_per_frame']:.0f} KB/frame video {r['video_kb_per_frame']:.1f} KB/frame")
+            extra = (f"  add {r['add_frame_s']:.2f}s save {r['save_episode_s']:.2f}s"
+                     f" close {r['close_s']:.2f}s"
+                     f"  data {r['data_kb_per_frame']:.0f} KB/frame"
+                     f" video {r['video_kb_per_frame']:.1f} KB/frame")
         print(f"  {name:26s} {r['fps']:7.1f} frames/s{extra}")
     for b, sp in split.items():
         print(f"  split per frame [ms], {b}: " + ", ".join(f"{k} {v:.1f}" for k, v in sp.items()))
@@ -156,3 +163,56 @@ def test_bench_dataset_writing(tmp_path):
     dest.parent.mkdir(exist_ok=True)
     dest.write_text(json.dumps(out, indent=2))
     assert results["encode_only"]["fps"] > results["full/direct"]["fps"] > 0
+
+
+def _parallel_worker(shards_dir: str, index: int, episodes: int, barrier, results) -> None:
+    """One writer process: import and precompute, wait for all, write a ``full`` shard, report times."""
+    from stages.dataset.writer import import_lerobot
+
+    import_lerobot()
+    spec = SPECS["full"]
+    frames = [synthetic_frame(spec, index, 0, i) for i in range(FRAMES)]
+    barrier.wait()
+    t0 = time.time()
+    with open_shard(Path(shards_dir), f"w{index:02d}", spec) as shard:
+        for e in range(episodes):
+            shard.begin_episode(synthetic_episode_info(index, e))
+            for f in frames:
+                shard.add_frame(f)
+            shard.end_episode(success=True)
+    results.put((t0, time.time(), episodes * len(frames)))
+
+
+@pytest.mark.benchmark
+def test_bench_parallel_shard_writers(tmp_path):
+    """Aggregate frames/s of N concurrent shard writers (``full`` spec, direct backend).
+
+    N from ``BENCH_DATASET_WORKERS`` (comma-separated, default ``1,2``); each writes EPISODES episodes
+    of FRAMES frames; wall time from the common start (a barrier after imports) to the last finish."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    counts = [int(x) for x in os.environ.get("BENCH_DATASET_WORKERS", "1,2").split(",")]
+    out = {"cpu_count": os.cpu_count(), "frames_per_worker": EPISODES * FRAMES, "workers": {}}
+    print(f"\nparallel shard writers ({H}x{W}, 3 RGB + 3 depth, direct backend), {os.cpu_count()} CPUs:")
+    for n in counts:
+        barrier, results = ctx.Barrier(n), ctx.Queue()
+        shards = tmp_path / f"n{n}"
+        procs = [ctx.Process(target=_parallel_worker, args=(str(shards), k, EPISODES, barrier, results))
+                 for k in range(n)]  # fmt: skip
+        for p in procs:
+            p.start()
+        rows = [results.get(timeout=600) for _ in procs]
+        for p in procs:
+            p.join()
+            assert p.exitcode == 0
+        wall = max(r[1] for r in rows) - min(r[0] for r in rows)
+        total = sum(r[2] for r in rows)
+        out["workers"][n] = {"frames_per_s": total / wall, "per_worker_frames_per_s": total / wall / n,
+                             "wall_s": wall}  # fmt: skip
+        print(f"  {n:3d} writers: {total / wall:8.1f} frames/s ({total / wall / n:6.1f} per writer)")
+        shutil.rmtree(shards)
+    dest = REPO / "bench_results" / "dataset_parallel.json"
+    dest.parent.mkdir(exist_ok=True)
+    dest.write_text(json.dumps(out, indent=2))
+    assert all(v["frames_per_s"] > 0 for v in out["workers"].values())
