@@ -215,7 +215,7 @@ def _quat_from_matrix(r: np.ndarray) -> tuple[float, float, float, float]:
     x, y, z, w = Rotation.from_matrix(r).as_quat()
     if w < 0:
         x, y, z, w = -x, -y, -z, -w
-    return (float(w), float(x), float(y), float(z))
+    return (float(w) + 0.0, float(x) + 0.0, float(y) + 0.0, float(z) + 0.0)  # + 0.0: no negative zeros
 
 
 def axis_to_x_rotation(axis: tuple[float, float, float]) -> np.ndarray:
@@ -240,7 +240,7 @@ def axis_to_x_rotation(axis: tuple[float, float, float]) -> np.ndarray:
 
 
 def _pose_tuple(m: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    return tuple(float(t) for t in m[:3, 3]), _quat_from_matrix(m[:3, :3])
+    return tuple(float(t) + 0.0 for t in m[:3, 3]), _quat_from_matrix(m[:3, :3])
 
 
 # ---------------------------------------------------------------------------------------------
