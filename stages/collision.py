@@ -242,7 +242,7 @@ def _solidity(piece: _Piece, cfg: CollisionConfig) -> float:
 def _voxel_solidity(mesh, hull_vol: float, resolution: int) -> float:
     """Solidity of an open mesh: (surface + enclosed voxels) / hull voxels on the same grid."""
     from scipy import ndimage
-    from scipy.spatial import ConvexHull
+    from scipy.spatial import ConvexHull, Delaunay
 
     pitch = float(mesh.extents.max()) / resolution
     lo = mesh.bounds[0] - pitch
@@ -254,8 +254,9 @@ def _voxel_solidity(mesh, hull_vol: float, resolution: int) -> float:
     occ[idx[:, 0], idx[:, 1], idx[:, 2]] = True
     solid = ndimage.binary_fill_holes(occ)
     centres = np.stack(np.nonzero(np.ones(shape, dtype=bool)), axis=1) * pitch + lo + pitch / 2
-    eq = ConvexHull(mesh.vertices[np.unique(mesh.faces)]).equations  # (F, 4): n . x + d <= 0 inside
-    in_hull = (centres @ eq[:, :3].T + eq[:, 3] <= 1e-9).all(axis=1)
+    used = mesh.vertices[np.unique(mesh.faces)]
+    hull_pts = used[ConvexHull(used).vertices]
+    in_hull = Delaunay(hull_pts).find_simplex(centres) >= 0  # point location: cheap for any hull size
     hull_cells = int(np.count_nonzero(in_hull | occ.ravel()))
     return float(min(1.0, np.count_nonzero(solid) / max(hull_cells, 1)))
 

@@ -246,8 +246,11 @@ def _finish_parts(raw: list[_RawPart], transform: np.ndarray, src_materials: dic
         if normals is None:
             normals = _computed_normals(v, f)
         mkey = _material_key(rp, src_materials, materials, key_of, annotation, cache)
-        parts.append(MeshPart(name=_unique_name(_safe_name(rp.name), used_names), vertices=v, faces=f,
-                              normals=normals, uvs=rp.uvs, material=mkey))
+        used, f = np.unique(f, return_inverse=True)  # drop vertices no face uses (USD validators flag them)
+        f = f.reshape(-1, 3).astype(np.int64)
+        parts.append(MeshPart(name=_unique_name(_safe_name(rp.name), used_names), vertices=v[used], faces=f,
+                              normals=normals[used], uvs=rp.uvs[used] if rp.uvs is not None else None,
+                              material=mkey))
     if not parts:
         raise ItemError(f"{path}: degenerate mesh: all {n_faces_total} triangles have zero area")
     return parts, materials
