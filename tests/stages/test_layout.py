@@ -271,3 +271,14 @@ def test_sphere_rolls_down_the_stairs_in_newton(two_floor: Path) -> None:
     d = np.array(stair.direction)
     assert (end[:2] - np.array(stair.bottom)) @ d < 0.2
     assert run.loader in ("add_usd", "pxr")
+
+
+def test_importing_the_stage_loads_no_heavy_modules() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys, stages.layout, stages.layout.job, stages.layout.render, stages.layout.simcheck; "
+            "print(sorted(m for m in ('pxr', 'warp', 'newton', 'torch', 'manifold3d') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[2])
+    assert out.stdout.strip() == "[]"
