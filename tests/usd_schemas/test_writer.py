@@ -395,6 +395,10 @@ def test_newton_loads_packages(written):
         model = written[name][0]
         total = sum(lk.mass.mass for lk in model.links)
         assert sum(b.body_mass) == pytest.approx(total, rel=1e-5), name
+    visual = newton.ModelBuilder()
+    visual.add_usd(str(written["crate_01"][1].root_path))  # indexed normals and UVs, textured material
+    assert visual.shape_count == 2
+    assert any(lbl.endswith("/visuals/crate") for lbl in visual.shape_label)
 
 
 def test_newton_kinematics_follow_the_model_axis(written):
