@@ -77,7 +77,8 @@ class _Strict(BaseModel):
 class LayoutSpec(_Strict):
     """What house to build.
 
-    rooms: room type -> count for the whole house (hallways are added by ``hallway``);
+    rooms: room type -> count for the whole house; a hallway count > 0 asks for a hallway on a single
+      floor (at most one hallway per floor; multi-floor houses always get one, it holds the stairs);
     floor_rooms: optional explicit room counts per floor (overrides the automatic distribution:
       living room and kitchen on the ground floor, bedrooms and bathrooms above);
     floors: number of floors (1-3); floors are joined by one staircase each;
@@ -127,8 +128,8 @@ class LayoutSpec(_Strict):
         bad = [f"{k}={n}" for k, n in v.items() if n < 0 or n > 8]
         if bad:
             raise ValueError(f"room counts must be in 0..8, got {', '.join(bad)}")
-        if sum(v.values()) == 0:
-            raise ValueError("the house needs at least one room")
+        if sum(n for t, n in v.items() if t != RoomType.HALLWAY) == 0:
+            raise ValueError("the house needs at least one room besides hallways")
         return v
 
     @field_validator("exterior_wall", "interior_wall")
@@ -202,7 +203,7 @@ def needs_hallway(spec: LayoutSpec, n_rooms_on_floor: int) -> bool:
     """Whether a floor gets a hallway strip (multi-floor houses always: it holds the stairs)."""
     if spec.floors > 1:
         return True
-    if spec.hallway == "always":
+    if spec.hallway == "always" or (spec.hallway == "auto" and spec.rooms.get(RoomType.HALLWAY, 0) > 0):
         return True
     if spec.hallway == "never":
         return False

@@ -38,6 +38,7 @@ def two_floor(tmp_path_factory) -> Path:
     ({"rooms": {"bedroom": 1}, "floors": 4}, "less than or equal to 3"),
     ({"rooms": {"garage": 1}}, "rooms"),
     ({"rooms": {"bedroom": 0}}, "at least one room"),
+    ({"rooms": {"hallway": 1}}, "besides hallways"),
 ])
 def test_spec_rejects_bad_input(kwargs, needle) -> None:
     with pytest.raises(ValidationError, match=needle):
