@@ -10,9 +10,10 @@ Layout of one frame (``fps`` frames per second, 30 by default):
   frame, gripper command (1: 0 open .. 1 closed), mode (1: 0 locomotion / 1 manipulation)];
 - ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec);
 - ``observation.images.<camera>_depth`` depth uint16 ``(H, W, 1)`` [mm], stored WITHOUT LOSS as a lerobot
-  depth image (``dtype: image``, ``info.is_depth_map: true``, ``info.depth_unit: mm``): raw 16-bit TIFF
-  bytes embedded in the data parquet. ``LeRobotDataset`` returns it as float32 ``(1, H, W)`` millimetres,
-  exact for every uint16 value. (lerobot's depth *video* path quantizes to 12 bits, so it is not used.)
+  depth image (``dtype: image``, ``info.is_depth_map: true``, ``info.depth_unit: mm``): 16-bit PNG bytes
+  (direct backend) or raw 16-bit TIFF bytes (lerobot backend) embedded in the data parquet.
+  ``LeRobotDataset`` returns it as float32 ``(1, H, W)`` millimetres, exact for every uint16 value.
+  (lerobot's depth *video* path quantizes to 12 bits, 4096 levels over 0.01-10 m, so it is not used.)
 - the task text (``task``) and, per episode, :class:`EpisodeInfo` as extra ``meta/episodes`` columns
   prefixed ``agentworld/`` (lerobot carries unknown columns through loading and aggregation).
 
