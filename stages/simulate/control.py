@@ -270,12 +270,13 @@ def top_down(yaw: float = 0.0) -> np.ndarray:
 
 
 def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration: float, *, world: int = 0,
-            segments: int = 1, settle: float = 0.0, rng: np.random.Generator | None = None) -> IkResult:
+            segments: int = 1, settle: float = 0.0, rng: np.random.Generator | None = None,
+            tol: float = 0.005, rot_tol: float = float(np.deg2rad(2.0))) -> IkResult:
     """Move the end-effector to ``target_world`` (4x4, world frame) in ``duration`` [s]: the
     straight Cartesian path is cut into ``segments`` poses (orientation slerped), each solved by
     CLIK from the previous solution, and the joint targets are interpolated linearly between them
     while the simulation steps; then ``settle`` [s] more. Returns the last IK result (raises
-    RuntimeError if a waypoint is unreachable)."""
+    RuntimeError if a waypoint cannot be reached within ``tol`` [m] and ``rot_tol`` [rad])."""
     from scipy.spatial.transform import Rotation, Slerp
 
     q_pin = ik.with_arm(ik.from_sim(sim, world), ctl.arm_targets(world))
@@ -289,7 +290,7 @@ def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration
         a = k / segments
         wp_pose = pose(start[:3, 3] + a * (goal[:3, 3] - start[:3, 3]), slerp([a]).as_matrix()[0])
         res = ik.solve(wp_pose, q_pin, max_iters=600, restarts=10 if rng is not None else 0, rng=rng)
-        if not res.success:
+        if res.position_error > tol or res.rotation_error > rot_tol:
             raise RuntimeError(f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)")
         q0, q1 = ctl.arm_targets(world), ik.arm_q(res.q)
         chunk = max(1, per_seg // 10)

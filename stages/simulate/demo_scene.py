@@ -40,7 +40,7 @@ class BoxSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class CabinetSpec:
-    """A cabinet against a wall, front facing -X... see ``cabinet_parts``.
+    """A cabinet with a drawer and a door, front facing -X (see ``cabinet_parts``).
 
     origin: centre of the carcass footprint on the floor [m]; size: carcass (depth x, width y,
     height z) [m]; drawer_travel [m]; door_range [rad]; the front faces ``-X`` (towards the room)."""
@@ -235,7 +235,8 @@ def cabinet_parts(c: CabinetSpec) -> dict[str, list[BoxSpec]]:
     """Carcass (static), drawer and door boxes at the closed configuration, in world frame.
 
     The carcass is open towards -X. The upper third holds a drawer (slides along -X); the lower
-    two thirds a door hinged on its -Y edge (opens by rotating about +Z... towards -X).
+    two thirds a fixed panel (-Y half) and a door (+Y half) hinged on its +Y edge, which opens
+    towards -X by a negative rotation about +Z.
     """
     d, wdt, h = c.size
     x0, y0 = c.origin
@@ -269,14 +270,18 @@ def cabinet_parts(c: CabinetSpec) -> dict[str, list[BoxSpec]]:
         BoxSpec(name="HandleR", center=(xf - t - 0.0125, y0 + 0.07, zd0 + dz / 2), size=(0.025, 0.02, 0.02), rgb=grey),
     ]
     zo0, zo1 = 0.055 + t, 0.52 - 0.01
+    zm = (zo0 + zo1) / 2
+    half = wdt / 2 - 0.005
+    # the -Y half of the lower compartment is a fixed panel; the +Y half a door hinged on its +Y edge
+    carcass.append(BoxSpec(name="FixedPanel", center=(xf - t / 2, y0 - wdt / 4, zm), size=(t, half, zo1 - zo0),
+                           rgb=front))
     door = [
-        BoxSpec(name="Panel", center=(xf - t / 2, y0, (zo0 + zo1) / 2), size=(t, wdt - 0.01, zo1 - zo0), rgb=front),
-        BoxSpec(name="HandleBar", center=(xf - t - 0.035, y0 + wdt / 2 - 0.08, (zo0 + zo1) / 2),
-                size=(0.02, 0.02, 0.16), rgb=grey),
-        BoxSpec(name="HandleB", center=(xf - t - 0.0125, y0 + wdt / 2 - 0.08, (zo0 + zo1) / 2 - 0.07),
-                size=(0.025, 0.02, 0.02), rgb=grey),
-        BoxSpec(name="HandleT", center=(xf - t - 0.0125, y0 + wdt / 2 - 0.08, (zo0 + zo1) / 2 + 0.07),
-                size=(0.025, 0.02, 0.02), rgb=grey),
+        # the panel stops short of the hinge line so that its back corner never swings into the side
+        BoxSpec(name="Panel", center=(xf - t / 2, y0 + 0.0025 + (wdt / 2 - t - 0.0045) / 2, zm),
+                size=(t, wdt / 2 - t - 0.0045, zo1 - zo0), rgb=front),
+        BoxSpec(name="HandleBar", center=(xf - t - 0.035, y0 + 0.06, zm), size=(0.02, 0.02, 0.16), rgb=grey),
+        BoxSpec(name="HandleB", center=(xf - t - 0.0125, y0 + 0.06, zm - 0.07), size=(0.025, 0.02, 0.02), rgb=grey),
+        BoxSpec(name="HandleT", center=(xf - t - 0.0125, y0 + 0.06, zm + 0.07), size=(0.025, 0.02, 0.02), rgb=grey),
     ]
     return {"carcass": carcass, "drawer": drawer, "door": door}
 
@@ -299,7 +304,7 @@ def _add_cabinet(w: _Writer, c: CabinetSpec) -> dict[str, tuple[float, float, fl
                attrs={"physics:mass": (Sdf.ValueTypeNames.Float, mass)})
         for b in parts[part]:
             _box(w, f"{body}/{b.name}", b.center, b.size, b.rgb)
-    hinge = (xf - 0.02, c.origin[1] - wdt / 2 + 0.005, 0.0)
+    hinge = (xf - 0.02, c.origin[1] + wdt / 2 - 0.02, 0.0)
     joint_common = {"physics:localRot0": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
                     "physics:localRot1": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0))}
     w.prim("/World/Cabinet/DrawerJoint", "PhysicsPrismaticJoint", attrs={
@@ -310,13 +315,13 @@ def _add_cabinet(w: _Writer, c: CabinetSpec) -> dict[str, tuple[float, float, fl
         "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
         "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
     }, rels={"physics:body1": ["/World/Cabinet/Drawer"]})
-    # the door swings towards -X (into the room) about its -Y edge: a positive rotation about +Z
-    # opens it, so the limit is [0, range] [deg].
+    # the door swings towards -X (into the room) about its +Y edge: a negative rotation about +Z
+    # opens it, so the limit is [-range, 0] [deg].
     w.prim("/World/Cabinet/DoorJoint", "PhysicsRevoluteJoint", attrs={
         **joint_common,
         "physics:axis": (Sdf.ValueTypeNames.Token, "Z"),
-        "physics:lowerLimit": (Sdf.ValueTypeNames.Float, 0.0),
-        "physics:upperLimit": (Sdf.ValueTypeNames.Float, float(np.rad2deg(c.door_range))),
+        "physics:lowerLimit": (Sdf.ValueTypeNames.Float, float(-np.rad2deg(c.door_range))),
+        "physics:upperLimit": (Sdf.ValueTypeNames.Float, 0.0),
         "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
         "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
     }, rels={"physics:body1": ["/World/Cabinet/Door"]})
