@@ -22,7 +22,8 @@ What differs (all inside the v3.0 format, which maps every episode to a chunk/fi
 each episode's video is its own mp4 file (``videos/<key>/chunk-XXX/file-YYY.mp4``, from_timestamp 0),
 so a failed episode is deleted without touching others and nothing is re-muxed; merging with
 lerobot's aggregation packs them into size-limited files. Depth frames are 16-bit PNG (lossless,
-zlib level 1) instead of raw TIFF bytes: same ``image`` feature, read by the same PIL decoder. The tests prove the result by loading it with ``LeRobotDataset`` and a torch DataLoader.
+zlib level 1) instead of raw TIFF bytes: same ``image`` feature, read by the same PIL decoder.
+The tests prove the result by loading it with ``LeRobotDataset`` and a torch DataLoader.
 """
 
 from __future__ import annotations
