@@ -242,8 +242,9 @@ def pillow(b: AssetBuilder) -> float:
     def squash(p: np.ndarray) -> np.ndarray:
         fx = 1 - 0.95 * np.abs(2 * p[:, 0] / sx) ** 2.5
         fy = 1 - 0.95 * np.abs(2 * p[:, 1] / sy) ** 2.5
-        q = p.copy()
-        q[:, 2] = p[:, 2] * np.clip(fx * fy, 0.05, 1.0) ** 0.8
+        f = np.clip(fx * fy, 0.05, 1.0)
+        q = p.copy()   # domed top, flattened bottom (it lies on a bed or sofa and does not rock)
+        q[:, 2] = np.where(p[:, 2] > 0, p[:, 2] * f ** 0.8, p[:, 2] * np.clip(3.0 * f, 0.1, 1.0))
         return q
 
     cube = g.box((sx, sy, sz)).refine(16).warp_batch(squash)
