@@ -30,7 +30,7 @@ loading), render (contact sheet), synthetic (deterministic frames for tests and 
 Importing this package loads neither torch nor lerobot; they load when a writer opens.
 """
 
-from .merge import MergeError, MergeResult, load_dataset, merge_shards, read_episode_columns
+from .merge import MergeError, MergeResult, load_dataset, merge_datasets, merge_shards, read_episode_columns
 from .schema import (
     CameraSpec,
     DatasetSpec,
@@ -41,7 +41,15 @@ from .schema import (
     depth_m_to_mm,
     validate_frame,
 )
-from .shards import ShardExistsError, ShardInfo, ShardWriter, clean_stale_temps, list_shards, open_shard
+from .shards import (
+    ShardExistsError,
+    ShardInfo,
+    ShardWriter,
+    clean_stale_temps,
+    list_shards,
+    open_shard,
+    shard_info,
+)
 from .writer import EpisodeOutcome, EpisodeWriter, WriterStats, read_sidecar
 
 __all__ = [
@@ -63,9 +71,11 @@ __all__ = [
     "depth_m_to_mm",
     "list_shards",
     "load_dataset",
+    "merge_datasets",
     "merge_shards",
     "open_shard",
     "read_episode_columns",
     "read_sidecar",
+    "shard_info",
     "validate_frame",
 ]

@@ -13,12 +13,13 @@ import os
 import secrets
 import shutil
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .schema import EPISODE_COLUMN_PREFIX, DatasetSpec
-from .shards import TEMP_PREFIX, ShardInfo, list_shards
+from .shards import TEMP_PREFIX, ShardInfo, list_shards, shard_info
 from .writer import import_lerobot, read_sidecar, write_json_atomic
 
 logger = logging.getLogger(__name__)
@@ -52,16 +53,41 @@ def merge_shards(
     File size limits default to the shards' spec. Shards with no episode contribute only their failure
     counts. Raises :class:`MergeError` if there is nothing to merge or the shards' specs differ.
     """
-    out_dir = Path(out_dir)
-    if out_dir.exists():
-        raise MergeError(f"{out_dir}: output dataset already exists")
     shards = list_shards(shards_dir)
     if not shards:
         raise MergeError(f"{shards_dir}: no complete shard to merge")
+    return _merge(shards, Path(out_dir), str(shards_dir), repo_id, data_files_size_mb, video_files_size_mb)
+
+
+def merge_datasets(
+    roots: Sequence[Path],
+    out_dir: Path,
+    *,
+    repo_id: str = "agentworld/merged",
+    data_files_size_mb: float | None = None,
+    video_files_size_mb: float | None = None,
+) -> MergeResult:
+    """Like :func:`merge_shards`, for complete datasets anywhere, merged in the given order (e.g. the
+    ``dataset`` folder of each runner work item). Their ids are their folder names where unique, else
+    ``shard-<k>``."""
+    paths = [Path(r) for r in roots]
+    if not paths:
+        raise MergeError(f"{out_dir}: no dataset to merge")
+    names = [p.name for p in paths]
+    unique = len(set(names)) == len(names)
+    shards = [shard_info(p, None if unique else f"shard-{k:04d}") for k, p in enumerate(paths)]
+    return _merge(shards, Path(out_dir), f"{len(paths)} datasets", repo_id, data_files_size_mb,
+                  video_files_size_mb)  # fmt: skip
+
+
+def _merge(shards: list[ShardInfo], out_dir: Path, where: str, repo_id: str, data_files_size_mb: float | None,
+           video_files_size_mb: float | None) -> MergeResult:  # fmt: skip
+    if out_dir.exists():
+        raise MergeError(f"{out_dir}: output dataset already exists")
     spec = _common_spec(shards)
     filled = [s for s in shards if s.episodes > 0]
     if not filled:
-        raise MergeError(f"{shards_dir}: the {len(shards)} shard(s) hold no successful episode")
+        raise MergeError(f"{where}: the {len(shards)} shard(s) hold no successful episode")
     tmp = out_dir.parent / f"{TEMP_PREFIX}{out_dir.name}-{os.getpid()}-{secrets.token_hex(4)}"
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -101,7 +127,7 @@ def _aggregate(shards: list[ShardInfo], tmp: Path, repo_id: str, spec: DatasetSp
     from lerobot.datasets.aggregate import aggregate_datasets
 
     aggregate_datasets(
-        repo_ids=[f"agentworld/{s.shard_id}" for s in shards],
+        repo_ids=[f"agentworld/shard-{k:04d}" for k in range(len(shards))],
         aggr_repo_id=repo_id,
         roots=[s.path for s in shards],
         aggr_root=tmp,

@@ -109,12 +109,18 @@ def list_shards(shards_dir: Path) -> list[ShardInfo]:
     for path in sorted(Path(shards_dir).iterdir()) if Path(shards_dir).is_dir() else []:
         if path.name.startswith(".") or not path.is_dir():
             continue
-        if not (path / SIDECAR_PATH).is_file():
-            raise FileNotFoundError(f"{path}: not a complete shard (no {SIDECAR_PATH}); remove or rewrite it")
-        meta = read_sidecar(path)
-        counts = meta["episodes_written"], meta["frames_written"], meta["failures"]
-        out.append(ShardInfo(path, path.name, *counts))
+        out.append(shard_info(path))
     return out
+
+
+def shard_info(path: Path, shard_id: str | None = None) -> ShardInfo:
+    """The :class:`ShardInfo` of a complete dataset folder written by this package (id: its name)."""
+    path = Path(path)
+    if not (path / SIDECAR_PATH).is_file():
+        raise FileNotFoundError(f"{path}: not a complete shard (no {SIDECAR_PATH}); remove or rewrite it")
+    meta = read_sidecar(path)
+    counts = meta["episodes_written"], meta["frames_written"], meta["failures"]
+    return ShardInfo(path, shard_id or path.name, *counts)
 
 
 def _fsync_dir(path: Path) -> None:

@@ -260,3 +260,26 @@ def test_render_contact_sheet_command(merged, tmp_path):
     want = np.asarray(Image.fromarray(synthetic_frame(SPEC, 0, 0, 0).rgb["wrist"]).resize((THUMB_W, thumb_h)))
     assert np.abs(first - want).mean() < 12.0
     assert cli([str(base / "merged"), "--out", str(out), "--episodes", "9"]) == 2
+
+
+def test_merge_datasets_of_runner_items(tmp_path):
+    """The runner-item pattern: each item writes <item>/dataset with EpisodeWriter (the runner renames the
+    item folder atomically); merge_datasets merges them in the given order."""
+    from stages.dataset import EpisodeWriter, merge_datasets
+
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 16, 24),))
+    roots = []
+    for k in (1, 0):
+        root = tmp_path / f"item-{k}" / "dataset"
+        with EpisodeWriter(root, spec) as w:
+            for e in range(k + 1):
+                w.begin_episode(synthetic_episode_info(k, e))
+                for i in range(3):
+                    w.add_frame(synthetic_frame(spec, k, e, i))
+                w.end_episode(success=True)
+        roots.append(root)
+    result = merge_datasets(roots, tmp_path / "merged")
+    assert result.shards == ("shard-0000", "shard-0001") and result.episodes == 3
+    assert [r["scene_id"] for r in read_episode_columns(result.root)] == ["scene-001", "scene-001", "scene-000"]
+    ds = load_dataset(result.root)
+    np.testing.assert_array_equal(ds[6]["observation.state"].numpy(), synthetic_frame(spec, 0, 0, 0).state())
