@@ -280,6 +280,7 @@ def test_merge_datasets_of_runner_items(tmp_path):
         roots.append(root)
     result = merge_datasets(roots, tmp_path / "merged")
     assert result.shards == ("shard-0000", "shard-0001") and result.episodes == 3
-    assert [r["scene_id"] for r in read_episode_columns(result.root)] == ["scene-001", "scene-001", "scene-000"]
+    scenes = [r["scene_id"] for r in read_episode_columns(result.root)]
+    assert scenes == ["scene-001", "scene-001", "scene-000"]
     ds = load_dataset(result.root)
     np.testing.assert_array_equal(ds[6]["observation.state"].numpy(), synthetic_frame(spec, 0, 0, 0).state())
