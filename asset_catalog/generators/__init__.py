@@ -26,7 +26,7 @@ from asset_catalog.generators._writer import annotations_text, write_asset
 from asset_catalog.materials import MaterialClass
 
 __all__ = ["GENERATORS", "GENERATORS_BY_CATEGORY", "GeneratedAsset", "GeneratorSpec", "HandleInfo", "JointInfo",
-           "annotations_text", "generate", "write_asset"]
+           "annotations_text", "door_for_opening", "generate", "write_asset"]
 
 LR, KI, BR, BA, HW = (RoomType.LIVING_ROOM, RoomType.KITCHEN, RoomType.BEDROOM, RoomType.BATHROOM,
                       RoomType.HALLWAY)
@@ -138,10 +138,12 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
 GENERATORS_BY_CATEGORY: dict[str, GeneratorSpec] = {s.category: s for s in GENERATORS}
 
 
-def generate(spec: GeneratorSpec, rng: np.random.Generator, asset_id: str, source: str | None = None) -> GeneratedAsset:
+def generate(spec: GeneratorSpec, rng: np.random.Generator, asset_id: str, source: str | None = None,
+             overrides: dict[str, float] | None = None) -> GeneratedAsset:
     """Draw one variant of ``spec`` from ``rng``. ``source`` is the annotation's source path (relative
-    to the catalog folder); default ``<category>/<asset_id>/<asset_id>.<obj|urdf>``."""
-    b = AssetBuilder(rng)
+    to the catalog folder); default ``<category>/<asset_id>/<asset_id>.<obj|urdf>``. ``overrides`` fixes
+    named parameters (see ``GeneratedAsset.params`` for the names, e.g. a sofa's "seat_height" [m])."""
+    b = AssetBuilder(rng, overrides)
     target = spec.fn(b)
     ext = "obj" if spec.rigid_format == "obj" and len(b.links) == 1 else "urdf"
     src = source or f"{spec.category}/{asset_id}/{asset_id}.{ext}"
@@ -149,3 +151,18 @@ def generate(spec: GeneratorSpec, rng: np.random.Generator, asset_id: str, sourc
                    placement=spec.placement, material=spec.material, interactable=spec.interactable,
                    co_occurrence=spec.co_occurrence, fixed_base=spec.fixed_base, target_mass=target,
                    rigid_format=spec.rigid_format)
+
+
+def door_for_opening(width: float, height: float, wall_thickness: float, rng: np.random.Generator,
+                     asset_id: str = "door") -> GeneratedAsset:
+    """A room door whose frame exactly fills a wall opening of ``width`` x ``height`` [m] in a wall of
+    ``wall_thickness`` [m]: leaf = width - 2 x (jamb 0.04 + gap 0.003), height - 0.053. The asset's origin
+    is the opening's centre at floor level; the leaf swings towards +X (90 degrees)."""
+    jamb_and_gap = 2 * (appliances.DOOR_JAMB + appliances.DOOR_GAP)
+    head = appliances.DOOR_FLOOR_GAP + appliances.DOOR_GAP + appliances.DOOR_JAMB
+    leaf_w, leaf_h = width - jamb_and_gap, height - head
+    if not (0.5 <= leaf_w <= 1.2 and 1.8 <= leaf_h <= 2.6 and 0.05 <= wall_thickness <= 0.5):
+        raise ValueError(f"opening {width:.3f} x {height:.3f} m in a {wall_thickness:.3f} m wall is outside "
+                         "0.59-1.29 m x 1.85-2.65 m, wall 0.05-0.5 m")
+    return generate(GENERATORS_BY_CATEGORY["door"], rng, asset_id,
+                    overrides={"leaf_width": leaf_w, "leaf_height": leaf_h, "wall_thickness": wall_thickness})

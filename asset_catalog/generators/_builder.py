@@ -95,8 +95,9 @@ class _JointDraft:
 class AssetBuilder:
     """Collects materials, links, solids, joints and handles of one asset (root link "base")."""
 
-    def __init__(self, rng: np.random.Generator):
+    def __init__(self, rng: np.random.Generator, overrides: dict[str, float] | None = None):
         self.rng = rng
+        self.overrides = dict(overrides or {})
         self.materials: dict[str, MaterialSpec] = {}
         self.links: dict[str, _LinkDraft] = {"base": _LinkDraft("base", np.zeros(3))}
         self.joints: list[_JointDraft] = []
@@ -105,8 +106,11 @@ class AssetBuilder:
 
     # --- declarations -------------------------------------------------------------------------
     def param(self, name: str, lo: float, hi: float) -> float:
-        """Sample a parameter uniformly in [lo, hi] and record it."""
+        """Sample a parameter uniformly in [lo, hi] and record it; an override by name replaces the sample
+        (the generator still draws, so the other parameters do not change)."""
         v = float(self.rng.uniform(lo, hi))
+        if name in self.overrides:
+            v = float(self.overrides[name])
         self.params[name] = round(v, 6)
         return v
 

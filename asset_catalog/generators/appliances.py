@@ -14,6 +14,9 @@ from asset_catalog.generators._builder import AssetBuilder
 from asset_catalog.generators._parts import APPLIANCE, GAP, METALS, WOODS, bar_handle, hinged_door, knob, panel, pick_color
 
 SHELL = 1000.0   # relative density of appliance shells (scaled to the target mass)
+DOOR_JAMB = 0.04        # room door frame: jamb width [m]
+DOOR_GAP = 0.003        # gap between leaf and frame [m]
+DOOR_FLOOR_GAP = 0.01   # gap under the leaf [m]
 
 
 def fridge(b: AssetBuilder) -> float:
@@ -152,7 +155,7 @@ def room_door(b: AssetBuilder) -> float | None:
     metal = b.material("handle", pick_color(b, METALS), roughness=0.25, metallic=1.0)
     lw, lh = b.param("leaf_width", 0.8, 0.9), b.param("leaf_height", 1.98, 2.05)
     lt, wall = b.param("leaf_thickness", 0.035, 0.045), b.param("wall_thickness", 0.1, 0.15)
-    jamb, floor_gap, gap = 0.04, 0.01, 0.003
+    jamb, floor_gap, gap = DOOR_JAMB, DOOR_FLOOR_GAP, DOOR_GAP
     ow = lw + 2 * (jamb + gap)
     oh = lh + floor_gap + gap + jamb
     panel(b, "base", (-wall / 2, -ow / 2, 0), (wall / 2, -ow / 2 + jamb, oh), frame, 700.0)

@@ -245,3 +245,26 @@ def test_build_is_deterministic_and_selection_independent(tmp_path: Path):
 def test_unknown_category_is_a_clear_error(tmp_path: Path):
     with pytest.raises(ValueError, match="unknown categories: sofaa"):
         build_default_catalog(tmp_path, categories=["sofaa"])
+
+
+def test_door_fills_a_given_wall_opening():
+    from asset_catalog.generators import door_for_opening
+
+    d = door_for_opening(0.92, 2.1, 0.12, np.random.default_rng(1), "door_x")
+    frame = d.model.link("base").collision_source
+    pts = np.vstack([c.vertices for c in frame])
+    assert np.allclose(pts.min(0), (-0.06, -0.46, 0.0), atol=5e-4) and np.allclose(pts.max(0), (0.06, 0.46, 2.1), atol=5e-4)
+    assert d.params["leaf_width"] == pytest.approx(0.92 - 0.086) and d.annotation.fixed_base
+    with pytest.raises(ValueError, match="outside"):
+        door_for_opening(0.4, 2.1, 0.12, np.random.default_rng(1))
+
+
+def test_overrides_fix_named_parameters_only():
+    from asset_catalog.generators import generate
+
+    spec = GENERATORS_BY_CATEGORY["sofa"]
+    a = generate(spec, np.random.default_rng(5), "s")
+    b = generate(spec, np.random.default_rng(5), "s", overrides={"seat_height": 0.5})
+    assert b.params["seat_height"] == 0.5
+    assert {k: v for k, v in a.params.items() if k != "seat_height"} == {k: v for k, v in b.params.items()
+                                                                         if k != "seat_height"}
