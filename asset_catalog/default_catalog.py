@@ -66,14 +66,16 @@ def build_default_catalog(out_dir: Path, *, variants_per_category: int = 5, seed
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    assets = generate_default_assets(variants_per_category=variants_per_category, seed=seed, categories=categories)
+    assets = generate_default_assets(variants_per_category=variants_per_category, seed=seed,
+                                     categories=categories)
     n_files = 0
     info: dict[str, dict] = {}
     for a in assets:
         asset_dir = out_dir / Path(a.annotation.source).parent
         n_files += len(write_asset(a, asset_dir))
         info[a.model.name] = _info(a)
-    (out_dir / ANNOTATION_FILENAME).write_text(annotations_text([a.annotation for a in assets]), encoding="utf-8",
+    (out_dir / ANNOTATION_FILENAME).write_text(annotations_text([a.annotation for a in assets]),
+                                               encoding="utf-8",
                                                newline="\n")
     (out_dir / GENERATED_INFO_FILENAME).write_text(json.dumps(info, indent=1, sort_keys=True) + "\n",
                                                    encoding="utf-8", newline="\n")

@@ -66,7 +66,8 @@ def render_views(views: Sequence[tuple[AssetModel, dict[str, float]]], *, tile: 
     from newton.sensors import SensorCamera
 
     builder = newton.ModelBuilder()
-    cfg = newton.ModelBuilder.ShapeConfig(has_shape_collision=False, has_particle_collision=False, density=0.0)
+    cfg = newton.ModelBuilder.ShapeConfig(has_shape_collision=False, has_particle_collision=False,
+                                          density=0.0)
     cams = []
     for model, q in views:
         tfs = link_transforms(model, q)
@@ -91,7 +92,8 @@ def render_views(views: Sequence[tuple[AssetModel, dict[str, float]]], *, tile: 
     cam = SensorCamera(sim, default_clear_data=clear)
     cam.create_default_light(enable_shadows=False, direction=wp.vec3f(-0.45, -0.25, -1.0))
     rays = SensorCamera.compute_camera_rays_pinhole(tile, tile, camera_fov=FOV, device=device)
-    tf = wp.array([wp.transformf(wp.vec3f(*e), wp.quatf(*qq)) for e, qq in cams], dtype=wp.transformf, device=device)
+    tf = wp.array([wp.transformf(wp.vec3f(*e), wp.quatf(*qq)) for e, qq in cams], dtype=wp.transformf,
+                  device=device)
     worlds = wp.array(np.arange(len(cams), dtype=np.int32), dtype=wp.int32, device=device)
     img = cam.allocate_image_color(len(cams), tile, tile)
     cam.update(sim.state(), tf, rays, color_image=img, world_indices=worlds)
@@ -119,7 +121,8 @@ def _pack(rgb) -> int:
     return int(r) | (int(g) << 8) | (int(b) << 16) | (255 << 24)
 
 
-def contact_sheets(models: Sequence[AssetModel], out_dir: Path, *, tile: int = 256, device: str = "cpu") -> list[Path]:
+def contact_sheets(models: Sequence[AssetModel], out_dir: Path, *, tile: int = 256,
+                   device: str = "cpu") -> list[Path]:
     """Write ``<out_dir>/<category>.png`` for every category among ``models``; returns the paths."""
     from PIL import Image, ImageDraw
 

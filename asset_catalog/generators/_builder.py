@@ -116,7 +116,7 @@ class AssetBuilder:
 
     def choice(self, name: str, options: list):
         i = int(self.rng.integers(len(options)))
-        self.params[name] = float(i)
+        self.params[name] = float(i)   # the index of the option chosen
         return options[i]
 
     def material(self, name: str, color, roughness: float = 0.5, metallic: float = 0.0) -> str:
@@ -151,7 +151,8 @@ class AssetBuilder:
         col = [shape] if collision == "self" else [] if collision == "none" else list(collision)
         self.links[link].solids.append(_Solid(shape, material, col, float(density)))
 
-    def handle(self, link: str, center, grip_width: float, clearance: float, bar_axis, kind: str = "bar") -> None:
+    def handle(self, link: str, center, grip_width: float, clearance: float, bar_axis,
+               kind: str = "bar") -> None:
         """Record a graspable feature (kind: bar, lever, knob, loop, rim)."""
         self.handles.append(HandleInfo(link, tuple(float(c) for c in center), float(grip_width),
                                        float(clearance), tuple(float(a) for a in bar_axis), kind))
@@ -218,7 +219,8 @@ def _visuals(lk: _LinkDraft, link_name: str) -> tuple[MeshPart, ...]:
     for mat in sorted(set(mats.tolist())):
         sel = mats == mat
         v, f, n, uv = split_corners(verts, faces[sel], normals[sel], uvs[sel])
-        parts.append(MeshPart(name=f"{link_name}__{mat}", vertices=v, faces=f, normals=n, uvs=uv, material=mat))
+        parts.append(MeshPart(name=f"{link_name}__{mat}", vertices=v, faces=f, normals=n, uvs=uv,
+                              material=mat))
     return tuple(parts)
 
 

@@ -17,7 +17,8 @@ FABRICS = [(0.45, 0.50, 0.60), (0.62, 0.58, 0.52), (0.30, 0.35, 0.32), (0.70, 0.
            (0.80, 0.78, 0.72), (0.50, 0.42, 0.55), (0.35, 0.45, 0.40)]
 METALS = [(0.75, 0.75, 0.77), (0.20, 0.20, 0.21), (0.80, 0.70, 0.45), (0.55, 0.56, 0.58)]
 APPLIANCE = [(0.93, 0.93, 0.92), (0.72, 0.73, 0.74), (0.12, 0.12, 0.13), (0.82, 0.80, 0.76)]
-PLASTICS = [(0.85, 0.20, 0.18), (0.15, 0.45, 0.80), (0.20, 0.65, 0.30), (0.95, 0.75, 0.15), (0.92, 0.92, 0.92),
+PLASTICS = [(0.85, 0.20, 0.18), (0.15, 0.45, 0.80), (0.20, 0.65, 0.30), (0.95, 0.75, 0.15), (0.92, 0.92,
+                                                                                             0.92),
             (0.10, 0.10, 0.10), (0.60, 0.30, 0.70)]
 
 GAP = 0.003          # clearance between moving parts and their frame [m]
@@ -51,7 +52,8 @@ def carcass(b: AssetBuilder, link: str, mat: str, density: float, *, w: float, d
         panel(b, link, (x0 + t, y0 + t, z1 - t), (x1, y1 - t, z1), mat, density)
 
 
-def bar_handle(b: AssetBuilder, link: str, mat: str, *, x_surface: float, center_yz, along: str, length: float,
+def bar_handle(b: AssetBuilder, link: str, mat: str, *, x_surface: float, center_yz, along: str,
+               length: float,
                diameter: float, clearance: float, density: float = 7800.0) -> None:
     """A bar pull on a surface facing +X at ``x_surface``: a round bar of ``diameter`` [m] and
     ``length`` [m] along ``along`` ("y" or "z"), held ``clearance`` [m] off the surface by two posts."""
@@ -64,7 +66,8 @@ def bar_handle(b: AssetBuilder, link: str, mat: str, *, x_surface: float, center
     for s in (-1, 1):
         off = s * (length / 2 - max(r, 0.012))
         py, pz = (y + off, z) if along == "y" else (y, z + off)
-        posts.append(g.cylinder(post_r, clearance + r, (x_surface + (clearance + r) / 2, py, pz), axis="x", n=12))
+        posts.append(g.cylinder(post_r, clearance + r, (x_surface + (clearance + r) / 2, py, pz), axis="x",
+                                n=12))
     b.add(link, bar, mat, density=density)
     for p in posts:
         b.add(link, p, mat, density=density)
@@ -105,7 +108,8 @@ def drawer(b: AssetBuilder, name: str, *, parent: str, body_mat: str, front_mat:
     panel(b, name, (bx0 + t, by0, bz0 + t), (xf, by0 + t, bz1), body_mat, density)
     panel(b, name, (bx0 + t, by1 - t, bz0 + t), (xf, by1, bz1), body_mat, density)
     length = float(np.clip((y1 - y0) * 0.4, 0.08, 0.3))
-    bar_handle(b, name, handle_mat, x_surface=x_front + GAP + front_t, center_yz=((y0 + y1) / 2, (z0 + z1) / 2),
+    bar_handle(b, name, handle_mat, x_surface=x_front + GAP + front_t, center_yz=((y0 + y1) / 2,
+                                                                                  (z0 + z1) / 2),
                along="y", length=length, diameter=0.012, clearance=0.03)
 
 
@@ -120,9 +124,11 @@ def hinged_door(b: AssetBuilder, name: str, *, parent: str, mat: str, handle_mat
     doors and the carcass stay clear."""
     hy = y0 + GAP if hinge == "left" else y1 - GAP
     axis = (0, 0, -1) if hinge == "left" else (0, 0, 1)
-    b.link(name, parent=parent, origin=(x_front + GAP + thickness, hy, (z0 + z1) / 2), joint="revolute", axis=axis,
+    b.link(name, parent=parent, origin=(x_front + GAP + thickness, hy, (z0 + z1) / 2), joint="revolute",
+           axis=axis,
            lower=0.0, upper=upper, effort=effort, velocity=1.5, damping=1.0, friction=0.3, role="door")
-    panel(b, name, (x_front + GAP, y0 + GAP, z0 + GAP), (x_front + GAP + thickness, y1 - GAP, z1 - GAP), mat, density)
+    panel(b, name, (x_front + GAP, y0 + GAP, z0 + GAP), (x_front + GAP + thickness, y1 - GAP, z1 - GAP), mat,
+          density)
     hl = handle_len if handle_len is not None else float(np.clip((z1 - z0) * 0.3, 0.1, 0.4))
     hz = handle_z if handle_z is not None else (z0 + z1) / 2
     hz = float(np.clip(hz, z0 + hl / 2 + 0.02, z1 - hl / 2 - 0.02))

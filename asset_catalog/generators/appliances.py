@@ -11,7 +11,8 @@ import numpy as np
 
 from asset_catalog.generators import _geom as g
 from asset_catalog.generators._builder import AssetBuilder
-from asset_catalog.generators._parts import APPLIANCE, GAP, METALS, WOODS, bar_handle, hinged_door, knob, panel, pick_color
+from asset_catalog.generators._parts import (
+    APPLIANCE, GAP, METALS, WOODS, bar_handle, hinged_door, knob, panel, pick_color)
 
 SHELL = 1000.0   # relative density of appliance shells (scaled to the target mass)
 DOOR_JAMB = 0.04        # room door frame: jamb width [m]
@@ -41,10 +42,12 @@ def fridge(b: AssetBuilder) -> float:
         panel(b, "base", (xb0 + t, -w / 2 + t, z), (xb1 - 0.03, w / 2 - t, z + 0.008), glass, SHELL)
     for x in (xb0 + 0.05, xb1 - 0.05):
         for y in (-w / 2 + 0.05, w / 2 - 0.05):
-            b.add("base", g.cylinder(0.02, feet + 0.002, (x, y, (feet + 0.002) / 2), n=12), handle, density=SHELL)
+            b.add("base", g.cylinder(0.02, feet + 0.002, (x, y, (feet + 0.002) / 2), n=12), handle,
+                  density=SHELL)
     hinge = b.choice("hinge", ["left", "right"])
     hd = b.param("handle_diameter", 0.018, 0.026)
-    kw = dict(parent="base", mat=body, handle_mat=handle, density=SHELL * 0.6, x_front=xb1, thickness=dt - GAP,
+    kw = dict(parent="base", mat=body, handle_mat=handle, density=SHELL * 0.6, x_front=xb1,
+              thickness=dt - GAP,
               effort=60.0, handle_diameter=hd, handle_clearance=b.param("handle_clearance", 0.03, 0.045))
     if style == "single":
         hinged_door(b, "door_0", y0=-w / 2, y1=w / 2, z0=feet, z1=h, hinge=hinge, handle_len=0.5,
@@ -82,11 +85,14 @@ def microwave(b: AssetBuilder) -> float:
     panel(b, "base", (x0, cy1, feet), (d / 2, w / 2, h), body, SHELL)
     for x in (x0 + 0.04, xb1 - 0.04):
         for y in (-w / 2 + 0.04, w / 2 - 0.04):
-            b.add("base", g.cylinder(0.012, feet + 0.001, (x, y, (feet + 0.001) / 2), n=12), btn, density=SHELL)
-    b.link("door", parent="base", origin=(d / 2, -w / 2 + GAP, (feet + h) / 2), joint="revolute", axis=(0, 0, -1),
+            b.add("base", g.cylinder(0.012, feet + 0.001, (x, y, (feet + 0.001) / 2), n=12), btn,
+                  density=SHELL)
+    b.link("door", parent="base", origin=(d / 2, -w / 2 + GAP, (feet + h) / 2), joint="revolute", axis=(0, 0,
+                                                                                                        -1),
            lower=0.0, upper=float(np.pi / 2), effort=10.0, velocity=2.0, damping=0.2, friction=0.05, role="door")
     panel(b, "door", (xb1 + GAP, -w / 2 + GAP, feet + GAP), (d / 2, cy1 - GAP, h - GAP), body, SHELL)
-    panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.05, feet + 0.04), (d / 2 + 0.001, cy1 - 0.06, h - 0.04), glass, SHELL)
+    panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.05, feet + 0.04), (d / 2 + 0.001, cy1 - 0.06, h - 0.04),
+          glass, SHELL)
     bar_handle(b, "door", handle, x_surface=d / 2, center_yz=(cy1 - 0.03, (feet + h) / 2), along="z",
                length=min(0.18, h - 0.08), diameter=0.014, clearance=0.025)
     py = (cy1 + w / 2) / 2
@@ -98,7 +104,8 @@ def microwave(b: AssetBuilder) -> float:
     b.link("button", parent="base", origin=(d / 2, py, bz), joint="prismatic", axis=(-1, 0, 0), lower=0.0,
            upper=travel, effort=10.0, velocity=0.1, damping=0.5, friction=0.05, role="button")
     # the cap (the collider) stands travel + 1 mm proud of the panel, so pressing it fully stays clear
-    stem = g.box_between((d / 2 - 0.002, py - 0.02, bz - 0.008), (d / 2 + travel + 0.0015, py + 0.02, bz + 0.008))
+    stem = g.box_between((d / 2 - 0.002, py - 0.02, bz - 0.008), (d / 2 + travel + 0.0015, py + 0.02,
+                                                                  bz + 0.008))
     b.add("button", stem, btn, density=SHELL, collision="none")
     b.add("button", g.box_between((d / 2 + travel + 0.001, py - 0.025, bz - 0.0125),
                                   (d / 2 + travel + 0.009, py + 0.025, bz + 0.0125)), btn, density=SHELL)
@@ -123,7 +130,8 @@ def oven(b: AssetBuilder) -> float:
     panel(b, "base", (x0, -w / 2 + t, 0), (x0 + t, w / 2 - t, zc1), inner, SHELL)
     panel(b, "base", (x0 + t, -w / 2 + t, 0), (xb1, w / 2 - t, plinth), body, SHELL)
     panel(b, "base", (x0 + t, -w / 2 + t, zc1 - t), (xb1, w / 2 - t, zc1), inner, SHELL)
-    panel(b, "base", (x0 + t, -w / 2 + 0.03, plinth + 0.15), (xb1 - 0.05, w / 2 - 0.03, plinth + 0.16), burner, SHELL)
+    panel(b, "base", (x0 + t, -w / 2 + 0.03, plinth + 0.15), (xb1 - 0.05, w / 2 - 0.03, plinth + 0.16),
+          burner, SHELL)
     panel(b, "base", (x0, -w / 2, zc1), (d / 2, w / 2, h - 0.02), body, SHELL)
     panel(b, "base", (x0, -w / 2, h - 0.02), (d / 2, w / 2, h), cook, SHELL)
     for sx in (-1, 1):
@@ -131,11 +139,13 @@ def oven(b: AssetBuilder) -> float:
             r = b.param(f"burner_{sx}_{sy}", 0.05, 0.09)
             b.add("base", g.cylinder(r, 0.012, (sx * d / 4 - 0.02, sy * w / 4, h + 0.005), n=32), burner,
                   density=SHELL)
-    b.link("door", parent="base", origin=(d / 2, 0.0, plinth + GAP), joint="revolute", axis=(0, 1, 0), lower=0.0,
+    b.link("door", parent="base", origin=(d / 2, 0.0, plinth + GAP), joint="revolute", axis=(0, 1, 0),
+           lower=0.0,
            upper=1.5, effort=40.0, velocity=1.5, damping=1.0, friction=0.3, role="door")
     zd1 = zc1 - GAP
     panel(b, "door", (xb1 + GAP, -w / 2 + GAP, plinth + GAP), (d / 2, w / 2 - GAP, zd1), body, SHELL)
-    panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.08, plinth + 0.12), (d / 2 + 0.001, w / 2 - 0.08, zd1 - 0.12), glass,
+    panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.08, plinth + 0.12), (d / 2 + 0.001, w / 2 - 0.08,
+                                                                     zd1 - 0.12), glass,
           SHELL)
     bar_handle(b, "door", handle, x_surface=d / 2, center_yz=(0.0, zd1 - 0.05), along="y", length=w * 0.7,
                diameter=b.param("handle_diameter", 0.016, 0.024), clearance=0.035)
@@ -179,10 +189,13 @@ def room_door(b: AssetBuilder) -> float | None:
     standoff = 0.055
     for side in (1, -1):
         xs = side * lt / 2
-        b.add("leaf", g.cylinder(0.026, 0.012, (xs + side * 0.006, yl, hz), axis="x", n=24), metal, density=7800.0)
-        b.add("leaf", g.cylinder(0.009, standoff + 0.001, (xs + side * (standoff / 2 + 0.006), yl, hz), axis="x", n=16),
+        b.add("leaf", g.cylinder(0.026, 0.012, (xs + side * 0.006, yl, hz), axis="x", n=24), metal,
+              density=7800.0)
+        b.add("leaf", g.cylinder(0.009, standoff + 0.001, (xs + side * (standoff / 2 + 0.006), yl, hz),
+                                 axis="x", n=16),
               metal, density=7800.0)
-        lever = g.cylinder(lr, lever_len, (xs + side * (standoff + 0.006 - lr), yl - sgn * (lever_len / 2 - 0.009), hz),
+        lever = g.cylinder(lr, lever_len, (xs + side * (standoff + 0.006 - lr),
+                                           yl - sgn * (lever_len / 2 - 0.009), hz),
                            axis="y", n=16)
         b.add("leaf", lever, metal, density=7800.0)
         b.handle("leaf", (xs + side * (standoff + 0.006 - lr), yl - sgn * lever_len / 2, hz), 2 * lr,
@@ -206,7 +219,8 @@ def alarm_clock(b: AssetBuilder) -> float:
     else:
         b.add("base", g.rounded_box((depth, 2 * r, 2 * r), 0.012, (0, 0, zc), n=8), body, density=700.0)
         top = zc + r
-    b.add("base", g.cylinder(r * 0.82, 0.004, (depth / 2 + 0.001, 0, zc), axis="x", n=40), face, density=700.0)
+    b.add("base", g.cylinder(r * 0.82, 0.004, (depth / 2 + 0.001, 0, zc), axis="x", n=40), face,
+          density=700.0)
     b.add("base", g.box((0.002, 0.004, r * 0.6), (depth / 2 + 0.004, 0, zc + r * 0.28)), hands, density=700.0)
     b.add("base", g.box((0.002, r * 0.45, 0.004), (depth / 2 + 0.0045, r * 0.2, zc)), hands, density=700.0)
     for s in (-1, 1):

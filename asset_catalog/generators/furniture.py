@@ -12,7 +12,7 @@ import numpy as np
 from asset_catalog.generators import _geom as g
 from asset_catalog.generators._builder import AssetBuilder
 from asset_catalog.generators._parts import (
-    FABRICS, METALS, WOODS, bar_handle, carcass, drawer, hinged_door, legs, panel, pick_color)
+    FABRICS, METALS, WOODS, carcass, drawer, hinged_door, legs, panel, pick_color)
 
 WOOD = 700.0
 FOAM = 60.0
@@ -85,7 +85,8 @@ def coffee_table(b: AssetBuilder) -> float:
     if b.choice("shelf", [False, True]):
         st = 0.018
         zs = b.param("shelf_height", 0.08, 0.15)
-        panel(b, "base", (-length * 0.33, -width * 0.22, zs), (length * 0.33, width * 0.22, zs + st), wood, WOOD)
+        panel(b, "base", (-length * 0.33, -width * 0.22, zs), (length * 0.33, width * 0.22, zs + st), wood,
+              WOOD)
     return None
 
 
@@ -112,7 +113,8 @@ def tv_stand(b: AssetBuilder) -> float:
     panel(b, "base", (-0.12, -0.15, h), (0.08, 0.15, h + 0.015), tv_m, STEEL / 4)
     panel(b, "base", (-0.05, -0.03, h + 0.01), (-0.02, 0.03, z_tv + th * 0.3), tv_m, STEEL / 4)
     panel(b, "base", (-0.02 - tt, -tw / 2, z_tv), (-0.02, tw / 2, z_tv + th), tv_m, 500.0)
-    panel(b, "base", (-0.021, -tw / 2 + 0.01, z_tv + 0.01), (-0.017, tw / 2 - 0.01, z_tv + th - 0.01), screen, 500.0)
+    panel(b, "base", (-0.021, -tw / 2 + 0.01, z_tv + 0.01), (-0.017, tw / 2 - 0.01, z_tv + th - 0.01),
+          screen, 500.0)
     return float(b.param("mass", 25.0, 40.0))
 
 
@@ -135,7 +137,7 @@ def bed(b: AssetBuilder) -> float:
     mattress = b.material("mattress", (0.93, 0.93, 0.9), roughness=0.9)
     sheet = b.material("blanket", pick_color(b, FABRICS), roughness=0.95)
     pillow_m = b.material("pillow", (0.96, 0.96, 0.94), roughness=0.95)
-    w = b.choice("width", [0.9, 1.2, 1.4, 1.6, 1.8]) + b.param("width_jitter", 0.0, 0.06)
+    w = b.choice("width_class", [0.9, 1.2, 1.4, 1.6, 1.8]) + b.param("width_jitter", 0.0, 0.06)
     length = b.param("length", 1.98, 2.12)
     fh = b.param("frame_height", 0.22, 0.35)
     mt = b.param("mattress_thickness", 0.18, 0.28)
@@ -145,10 +147,12 @@ def bed(b: AssetBuilder) -> float:
     panel(b, "base", (x0, -w / 2, 0.0), (x0 + 0.06, w / 2, hb), frame, WOOD)
     panel(b, "base", (x1 - t, -w / 2, 0.0), (x1, w / 2, fh + 0.05), frame, WOOD)
     for s in (-1, 1):
-        panel(b, "base", (x0 + 0.06, s * w / 2 - (t if s > 0 else 0), 0.08), (x1 - t, s * w / 2 + (0 if s > 0 else t), fh),
-              frame, WOOD)
+        y_out = s * w / 2
+        y_in = y_out - s * t
+        panel(b, "base", (x0 + 0.06, min(y_in, y_out), 0.08), (x1 - t, max(y_in, y_out), fh), frame, WOOD)
     panel(b, "base", (x0 + 0.06, -w / 2 + t, fh - 0.06), (x1 - t, w / 2 - t, fh - 0.04), frame, WOOD)
-    m = g.rounded_box((length - 0.06 - t, w - 2 * t + 0.02, mt), 0.05, ((x0 + 0.06 + x1 - t) / 2, 0, fh - 0.04 + mt / 2))
+    m = g.rounded_box((length - 0.06 - t, w - 2 * t + 0.02, mt), 0.05, ((x0 + 0.06 + x1 - t) / 2, 0,
+                                                                        fh - 0.04 + mt / 2))
     b.add("base", m, mattress, density=FOAM)
     blanket_x0 = x0 + 0.06 + (length - 0.1) * b.param("blanket_start", 0.3, 0.45)
     bl = g.rounded_box((x1 - t + 0.02 - blanket_x0, w - 2 * t + 0.06, 0.03), 0.012,
@@ -221,7 +225,8 @@ def rug(b: AssetBuilder) -> float:
             (length * 0.8, width * 0.8, 1)), border, density=300.0)
     else:
         panel(b, "base", (-length / 2, -width / 2, 0), (length / 2, width / 2, t), c, 300.0)
-        panel(b, "base", (-length / 2 + 0.1, -width / 2 + 0.1, 0.001), (length / 2 - 0.1, width / 2 - 0.1, t * 1.1),
+        panel(b, "base", (-length / 2 + 0.1, -width / 2 + 0.1, 0.001), (length / 2 - 0.1, width / 2 - 0.1,
+                                                                        t * 1.1),
               border, 300.0)
     return float(length * width * b.param("areal_density", 1.2, 3.0))
 
@@ -236,13 +241,15 @@ def floor_lamp(b: AssetBuilder) -> float | None:
     rs_top = rs_bot * b.param("shade_taper", 0.55, 0.9)
     hs = b.param("shade_height", 0.2, 0.32)
     b.add("base", g.cylinder(rb, 0.025, (0, 0, 0.0125), n=40, radius_top=rb * 0.92), metal, density=STEEL)
-    b.add("base", g.cylinder(0.012, hp - hs * 0.5, (0, 0, (hp - hs * 0.5) / 2 + 0.02), n=16), metal, density=STEEL)
+    b.add("base", g.cylinder(0.012, hp - hs * 0.5, (0, 0, (hp - hs * 0.5) / 2 + 0.02), n=16), metal,
+          density=STEEL)
     z0 = hp - hs
     wall = 0.004
     prof = [(rs_bot, z0), (rs_top, hp), (rs_top - wall, hp), (rs_bot - wall, z0)]
     sh = g.lathe(prof, n=40)
     b.add("base", sh, shade, density=400.0, collision=[g.hull([sh])])
-    b.add("base", g.cylinder(0.02, 0.06, (0, 0, z0 + hs * 0.45), n=16), shade, density=800.0, collision="none")
+    b.add("base", g.cylinder(0.02, 0.06, (0, 0, z0 + hs * 0.45), n=16), shade, density=800.0,
+          collision="none")
     return b.param("mass", 4.0, 9.0)
 
 
@@ -260,7 +267,8 @@ def _front_panels(b: AssetBuilder, w: float, d: float, z0: float, z1: float, nco
             kind = kinds[idx]
             name = f"{kind.split('_')[0]}_{idx}"
             if kind == "drawer":
-                drawer(b, name, parent="base", body_mat=body, front_mat=front, handle_mat=handle, density=WOOD,
+                drawer(b, name, parent="base", body_mat=body, front_mat=front, handle_mat=handle,
+                       density=WOOD,
                        x_front=d / 2, depth=d - t - 0.04, y0=y0, y1=y0 + col_w, z0=zz0, z1=zz0 + row_h,
                        inner_y0=y0 + (0.008 if c > 0 else 0.0), inner_y1=y0 + col_w - (0.008 if c < ncols - 1 else 0.0),
                        inner_z0=zz0 + (0.008 if r > 0 else 0.0))
@@ -270,7 +278,8 @@ def _front_panels(b: AssetBuilder, w: float, d: float, z0: float, z1: float, nco
             idx += 1
 
 
-def _dividers(b: AssetBuilder, mat: str, w: float, d: float, z0: float, z1: float, ncols: int, rows: int) -> None:
+def _dividers(b: AssetBuilder, mat: str, w: float, d: float, z0: float, z1: float, ncols: int,
+              rows: int) -> None:
     t = 0.018
     col_w = (w - 2 * t) / ncols
     for c in range(1, ncols):
@@ -289,7 +298,8 @@ def _storage(b: AssetBuilder, *, w: float, d: float, h: float, plinth: float, nc
     t = 0.018
     carcass(b, "base", body, WOOD, w=w, d=d, z0=plinth, z1=h, t=t)
     if plinth > 0:
-        panel(b, "base", (-d / 2 + 0.03, -w / 2 + 0.01, 0.0), (d / 2 - 0.03, w / 2 - 0.01, plinth + 0.001), body, WOOD)
+        panel(b, "base", (-d / 2 + 0.03, -w / 2 + 0.01, 0.0), (d / 2 - 0.03, w / 2 - 0.01, plinth + 0.001),
+              body, WOOD)
     z0, z1 = plinth + t, h - t
     horizontal_dividers = all(k == "drawer" for k in kinds)
     _dividers(b, body, w, d, z0, z1, ncols, rows if horizontal_dividers else 1)
@@ -325,7 +335,8 @@ def _hanging(b: AssetBuilder, w: float, d: float, h: float, plinth: float, doors
     handle = b.material("handle", pick_color(b, METALS), roughness=0.3, metallic=1.0)
     t = 0.018
     carcass(b, "base", body, WOOD, w=w, d=d, z0=plinth, z1=h, t=t)
-    panel(b, "base", (-d / 2 + 0.03, -w / 2 + 0.01, 0.0), (d / 2 - 0.03, w / 2 - 0.01, plinth + 0.001), body, WOOD)
+    panel(b, "base", (-d / 2 + 0.03, -w / 2 + 0.01, 0.0), (d / 2 - 0.03, w / 2 - 0.01, plinth + 0.001), body,
+          WOOD)
     zs = h - t - 0.3
     panel(b, "base", (-d / 2 + t, -w / 2 + t, zs), (d / 2 - 0.01, w / 2 - t, zs + t), body, WOOD)
     b.add("base", g.cylinder(0.012, w - 2 * t + 0.004, (0, 0, zs - 0.06), axis="y", n=16),
@@ -370,7 +381,8 @@ def kitchen_counter(b: AssetBuilder) -> float:
     t = 0.018
     hc = h - top_t
     carcass(b, "base", body, WOOD, w=w, d=d, z0=plinth, z1=hc, t=t, top=False)
-    panel(b, "base", (-d / 2 + 0.05, -w / 2 + 0.01, 0.0), (d / 2 - 0.05, w / 2 - 0.01, plinth + 0.001), body, WOOD)
+    panel(b, "base", (-d / 2 + 0.05, -w / 2 + 0.01, 0.0), (d / 2 - 0.05, w / 2 - 0.01, plinth + 0.001), body,
+          WOOD)
     # countertop with a hole for the sink basin
     sink_unit = int(b.choice("sink_unit", list(range(units - 1))))
     sy = -w / 2 + (sink_unit + 0.5) * uw
@@ -393,7 +405,8 @@ def kitchen_counter(b: AssetBuilder) -> float:
     # faucet: a post and a spout arching over the basin
     fx = hole[0] - 0.05
     b.add("base", g.cylinder(0.018, 0.25, (fx, sy, ct1 + 0.125), n=16), steel, density=STEEL)
-    spout = g.tube_path(np.array([[fx, sy, ct1 + 0.24], [fx + 0.08, sy, ct1 + 0.27], [fx + 0.17, sy, ct1 + 0.2]]),
+    spout = g.tube_path(np.array([[fx, sy, ct1 + 0.24], [fx + 0.08, sy, ct1 + 0.27], [fx + 0.17, sy,
+                                                                                      ct1 + 0.2]]),
                         0.011, n=12)
     for s in spout:
         b.add("base", s, steel, density=STEEL)
@@ -409,13 +422,15 @@ def kitchen_counter(b: AssetBuilder) -> float:
             for r in range(rows):
                 zz0 = z0 + r * (z1 - z0) / rows
                 if r > 0:
-                    panel(b, "base", (-d / 2 + t, y0 + 0.008, zz0 - 0.008), (d / 2, y1, zz0 + 0.008), body, WOOD)
+                    panel(b, "base", (-d / 2 + t, y0 + 0.008, zz0 - 0.008), (d / 2, y1, zz0 + 0.008), body,
+                          WOOD)
                 drawer(b, f"drawer_{u}_{r}", parent="base", body_mat=body, front_mat=front, handle_mat=handle,
                        density=WOOD, x_front=d / 2, depth=d - t - 0.04, y0=y0, y1=y1, z0=zz0,
                        z1=zz0 + (z1 - z0) / rows, inner_y0=y0 + 0.008, inner_y1=y1,
                        inner_z0=zz0 + (0.008 if r > 0 else t))
         else:
-            hinged_door(b, f"door_{u}", parent="base", mat=front, handle_mat=handle, density=WOOD, x_front=d / 2,
+            hinged_door(b, f"door_{u}", parent="base", mat=front, handle_mat=handle, density=WOOD,
+                        x_front=d / 2,
                         y0=y0, y1=y1, z0=z0, z1=z1, hinge="left",
                         handle_len=0.16, handle_z=z1 - 0.1)
     return b.param("mass", 45.0, 60.0) * w

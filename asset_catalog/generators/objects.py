@@ -112,7 +112,8 @@ def pitcher(b: AssetBuilder) -> None:
     tip = [(0.0, -(r + b.param("spout", 0.02, 0.035)), h + 0.008)]
     spout = g.hull_points(np.array(rim_pts + tip))
     b.add("base", spout, m, density=CERAMIC)
-    _loop_handle(b, m, CERAMIC, r_body=r, z_lo=h * 0.3, z_hi=h * 0.85, reach=b.param("handle_reach", 0.028, 0.04),
+    _loop_handle(b, m, CERAMIC, r_body=r, z_lo=h * 0.3, z_hi=h * 0.85, reach=b.param("handle_reach", 0.028,
+                                                                                     0.04),
                  rod=0.007)
     return None
 
@@ -184,10 +185,12 @@ def banana(b: AssetBuilder) -> None:
     a = np.linspace(-span / 2, span / 2, k)
     pts = np.column_stack([rc * np.cos(a) - rc, rc * np.sin(a), np.full(k, rmax)])
     radii = rmax * (0.35 + 0.65 * np.sin(np.linspace(0.08, np.pi - 0.08, k)) ** 0.6)
-    segs = [g.hull([g.sphere(radii[i], pts[i], n=14), g.sphere(radii[i + 1], pts[i + 1], n=14)]) for i in range(k - 1)]
+    segs = [g.hull([g.sphere(radii[i], pts[i], n=14), g.sphere(radii[i + 1], pts[i + 1],
+                                                               n=14)]) for i in range(k - 1)]
     b.add("base", g.union(segs), skin, density=950.0, collision=segs)
     end = pts[-1] + np.array([0.0, 0.012, 0.0])
-    b.add("base", g.hull([g.sphere(radii[-1] * 0.5, pts[-1], n=10), g.sphere(0.004, end, n=8)]), tip, density=950.0)
+    b.add("base", g.hull([g.sphere(radii[-1] * 0.5, pts[-1], n=10), g.sphere(0.004, end, n=8)]), tip,
+          density=950.0)
     return None
 
 
@@ -200,13 +203,15 @@ def book(b: AssetBuilder) -> None:
     b.add("base", g.box((length, w, board), (0, 0, board / 2)), cover, density=700.0)
     b.add("base", g.box((length, w, board), (0, 0, t - board / 2)), cover, density=700.0)
     b.add("base", g.box((length, board * 1.5, t), (0, -w / 2 + board * 0.75, t / 2)), cover, density=700.0)
-    b.add("base", g.box((length - 0.006, w - 0.004, t - 2 * board + 0.001), (0, -0.002 + 0.0005, t / 2)), pages,
+    b.add("base", g.box((length - 0.006, w - 0.004, t - 2 * board + 0.001), (0, -0.002 + 0.0005, t / 2)),
+          pages,
           density=600.0)
     return None
 
 
 def box(b: AssetBuilder) -> float:
-    card = b.material("cardboard", pick_color(b, [(0.7, 0.55, 0.35), (0.78, 0.65, 0.45), (0.9, 0.9, 0.88)], 0.03),
+    card = b.material("cardboard", pick_color(b, [(0.7, 0.55, 0.35), (0.78, 0.65, 0.45), (0.9, 0.9, 0.88)],
+                                              0.03),
                       roughness=0.9)
     tape = b.material("tape", (0.8, 0.7, 0.5), roughness=0.4)
     sx, sy, sz = b.param("length", 0.15, 0.5), b.param("width", 0.12, 0.4), b.param("height", 0.08, 0.35)
@@ -217,7 +222,8 @@ def box(b: AssetBuilder) -> float:
 
 
 def crumpled_paper(b: AssetBuilder) -> float:
-    paper = b.material("paper", pick_color(b, [(0.95, 0.95, 0.92), (0.92, 0.9, 0.8), (0.85, 0.88, 0.95)], 0.02),
+    paper = b.material("paper", pick_color(b, [(0.95, 0.95, 0.92), (0.92, 0.9, 0.8), (0.85, 0.88, 0.95)],
+                                           0.02),
                        roughness=0.95)
     r = b.param("radius", 0.025, 0.045)
     dirs = b.rng.normal(size=(40, 3))
@@ -259,7 +265,8 @@ def sponge(b: AssetBuilder) -> float:
     scrub = b.material("scrub", pick_color(b, [(0.15, 0.5, 0.2), (0.2, 0.3, 0.6)], 0.04), roughness=1.0)
     sx, sy = b.param("length", 0.09, 0.13), b.param("width", 0.06, 0.08)
     tf, ts = b.param("foam_thickness", 0.02, 0.035), b.param("scrub_thickness", 0.004, 0.008)
-    b.add("base", g.rounded_box((sx, sy, ts + 0.002), 0.0015, (0, 0, ts / 2 + 0.001), n=6), scrub, density=200.0)
+    b.add("base", g.rounded_box((sx, sy, ts + 0.002), 0.0015, (0, 0, ts / 2 + 0.001), n=6), scrub,
+          density=200.0)
     b.add("base", g.rounded_box((sx, sy, tf), 0.006, (0, 0, ts + tf / 2), n=8), foam, density=30.0)
     return b.param("mass", 0.008, 0.025)
 

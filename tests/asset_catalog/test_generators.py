@@ -95,7 +95,8 @@ def test_handles_are_graspable(assets, category):
             _, dist, _ = trimesh.proximity.closest_point(tm, np.array([h.center]))
             assert dist[0] <= h.grip_width, f"{a.model.name}: handle centre {h.center} is {dist[0]} m off the mesh"
     spec = GENERATORS_BY_CATEGORY[category]
-    if category in {"fridge", "microwave", "oven", "door", "nightstand", "dresser", "cabinet", "wardrobe", "closet",
+    if category in {"fridge", "microwave", "oven", "door", "nightstand", "dresser", "cabinet", "wardrobe",
+                    "closet",
                     "kitchen_counter", "mug", "pitcher"}:
         assert all(a.handles for a in assets[category]), f"{spec.category} without handles"
 
@@ -162,7 +163,8 @@ def _overlap(p: list, q: list) -> float:
     return worst
 
 
-@pytest.mark.parametrize("category", [s.category for s in GENERATORS if s.fixed_base] + ["microwave", "alarm_clock"])
+@pytest.mark.parametrize("category", [s.category for s in GENERATORS if s.fixed_base] + ["microwave",
+                                                                                         "alarm_clock"])
 def test_moving_parts_clear_their_frame(assets, category):
     """At the closed and at the open limit of each joint, its link's colliders overlap no other link's
     colliders (so the joints can really reach both limits)."""
@@ -253,7 +255,8 @@ def test_door_fills_a_given_wall_opening():
     d = door_for_opening(0.92, 2.1, 0.12, np.random.default_rng(1), "door_x")
     frame = d.model.link("base").collision_source
     pts = np.vstack([c.vertices for c in frame])
-    assert np.allclose(pts.min(0), (-0.06, -0.46, 0.0), atol=5e-4) and np.allclose(pts.max(0), (0.06, 0.46, 2.1), atol=5e-4)
+    assert np.allclose(pts.min(0), (-0.06, -0.46, 0.0), atol=5e-4)
+    assert np.allclose(pts.max(0), (0.06, 0.46, 2.1), atol=5e-4)
     assert d.params["leaf_width"] == pytest.approx(0.92 - 0.086) and d.annotation.fixed_base
     with pytest.raises(ValueError, match="outside"):
         door_for_opening(0.4, 2.1, 0.12, np.random.default_rng(1))

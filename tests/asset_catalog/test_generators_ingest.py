@@ -17,7 +17,8 @@ SMALL = ("apple", "mug", "cabinet", "microwave", "door", "hanger")
 def _run(out: Path, categories: tuple[str, ...], variants: int, workers: int = 1):
     from pipeline import build_job, load_results, run_job
 
-    data = {"job": {"name": "default_catalog", "seed": 0, "out": str(out), "executor": "inline" if workers == 1
+    data = {"job": {"name": "default_catalog", "seed": 0, "out": str(out),
+                    "executor": "inline" if workers == 1
                     else "local", "workers": workers},
             "step": [{"name": "catalog", "kind": "default_catalog",
                       "config": {"variants": variants, "categories": list(categories)}},

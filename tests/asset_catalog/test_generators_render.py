@@ -10,7 +10,8 @@ from stages.render_assets import BACKGROUND, link_transforms, main, upper_limits
 
 
 def test_contact_sheet_shows_the_assets(tmp_path: Path):
-    assert main(["--out", str(tmp_path), "--categories", "apple,microwave", "--variants", "2", "--tile", "64"]) == 0
+    assert main(["--out", str(tmp_path), "--categories", "apple,microwave", "--variants", "2", "--tile",
+                 "64"]) == 0
     from PIL import Image
 
     apple = np.asarray(Image.open(tmp_path / "apple.png").convert("RGB")).astype(int)
@@ -22,7 +23,8 @@ def test_contact_sheet_shows_the_assets(tmp_path: Path):
     micro = Image.open(tmp_path / "microwave.png")
     assert micro.size == (2 * 64, 2 * (64 + 18))           # closed row + joints-at-upper-limits row
     m = np.asarray(micro.convert("RGB")).astype(int)
-    assert np.abs(m[:64, :64] - m[82:146, :64]).sum(-1).mean() > 5, "the opened microwave should look different"
+    assert np.abs(m[:64, :64] - m[82:146,
+                                  :64]).sum(-1).mean() > 5, "the opened microwave should look different"
 
 
 def test_link_transforms_follow_the_joints():

@@ -31,7 +31,8 @@ def test_bench_default_catalog(tmp_path: Path):
         gen_times.append(time.perf_counter() - t0)
     catalog = tmp_path / "catalog0"
     out = tmp_path / "out"
-    data = {"job": {"name": "bench_default_catalog", "seed": 0, "out": str(out), "executor": "local", "workers": 2},
+    data = {"job": {"name": "bench_default_catalog", "seed": 0, "out": str(out), "executor": "local",
+                    "workers": 2},
             "step": [{"name": "assets", "kind": "ingest", "config": {"catalog": str(catalog)}}]}
     t0 = time.perf_counter()
     summary = run_job(build_job(data, source="<bench>", base_dir=tmp_path), progress=False)
