@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+import usd_schemas  # noqa: F401  registers the project schema before any test touches the registry
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED_ASSETS = Path(os.environ.get("AGENTWORLD_SHARED_ASSETS", REPO.parent / "shared" / "assets"))
 
