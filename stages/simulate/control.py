@@ -74,6 +74,13 @@ class RobotControl:
         self._targets = sim.control.joint_target_q.numpy().copy()
         sim.pre_step.append(self._pre_step)
 
+    def reset(self) -> None:
+        """After ``sim.reset()``: zero base commands and take the drive targets from the sim."""
+        self._cmd_np[:] = 0.0
+        self._cmd.assign(self._cmd_np)
+        self._targets = self.sim.control.joint_target_q.numpy().copy()
+        self._dirty = False
+
     # -- commands -------------------------------------------------------------------------
     def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
         """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""

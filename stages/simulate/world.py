@@ -324,15 +324,28 @@ class Sim:
             self.time += s.dt
             self.steps += 1
 
-    def reset(self) -> None:
-        """Back to the model's initial state (joint positions, velocities, drive targets), time 0.
-        Callbacks stay registered; controllers should re-send their commands."""
+    def reset(self, base: tuple[float, float, float] | None = None) -> None:
+        """Back to the model's initial state (joint positions, velocities, drive targets), time 0;
+        with ``base`` (x, y, yaw) [m, rad] in the world, the robot's base joints are set so that
+        the base starts there instead of at the spawn pose (in every world). Callbacks stay
+        registered; controllers should re-send their commands."""
         import newton
+        import warp as wp
 
         m = self.model
-        self.state_0.joint_q.assign(m.joint_q)
+        q = m.joint_q.numpy().copy()
+        if base is not None:
+            x0, y0, yaw0 = self.spawn
+            c, s = np.cos(yaw0), np.sin(yaw0)
+            dx, dy = base[0] - x0, base[1] - y0
+            local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
+            for w in range(self.world_count):
+                for name, v in zip(self.desc.base_joints, local):
+                    q[self.world_coord(name, w)] = v
+        q_wp = wp.array(q, dtype=wp.float32, device=m.device)
+        self.state_0.joint_q.assign(q_wp)
         self.state_0.joint_qd.assign(m.joint_qd)
-        newton.eval_fk(m, m.joint_q, m.joint_qd, self.state_0)
+        newton.eval_fk(m, q_wp, m.joint_qd, self.state_0)
         self.state_1.assign(self.state_0)
         self.control.joint_target_q.assign(m.joint_target_q)
         self.control.joint_target_qd.assign(m.joint_target_qd)

@@ -15,21 +15,40 @@ from stages.simulate.state import read_state  # noqa: E402
 from stages.simulate.world import SimConfig, build_sim  # noqa: E402
 
 PANDA = "robots/franka_panda__example_robot_data"
+
+
+@pytest.fixture(scope="module")
+def room(shared_assets, tmp_path_factory):
+    # the real mug mesh scaled to 0.8: 66 mm across, inside the Franka hand's 80 mm stroke
+    return write_demo_room(tmp_path_factory.mktemp("room") / "room.usda", shared_assets=shared_assets,
+                           mug_scale=0.8)
+
+
+@pytest.fixture(scope="module")
+def sim(room, shared_assets, tmp_path_factory):
+    """One simulation for the module; each test puts the base where it needs it with reset()."""
+    desc = write_robot_urdf(tmp_path_factory.mktemp("robot"), panda_root=shared_assets / PANDA)
+    s = build_sim(SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0))
+    s.ctl, s.ik = RobotControl(s), Clik(desc)
+    return s
+
+
+def _reset(sim, base=None):
+    sim.reset(base=base)
+    sim.ctl.reset()
+    return sim.ctl, sim.ik
 DRAWER = "/World/Cabinet/DrawerJoint"
 DOOR = "/World/Cabinet/DoorJoint"
 
 
-def test_grasps_the_drawer_handle_and_opens_the_drawer_by_driving_back(shared_assets, tmp_path):
+def test_grasps_the_drawer_handle_and_opens_the_drawer_by_driving_back(sim, room):
     """Grasp the drawer's bar handle (gripper pointing at the cabinet, pitched 20 deg down,
     fingers closing vertically), then back the base away at 0.12 m/s with the arm held: the
     drawer must open by at least 80% of its 0.30 m travel and stay open after the release."""
     from scipy.spatial.transform import Rotation
 
-    room = write_demo_room(tmp_path / "room.usda", shared_assets=shared_assets)
-    desc = write_robot_urdf(tmp_path, panda_root=shared_assets / PANDA)
     h = np.asarray(room.drawer_handle)
-    sim = build_sim(SimConfig(scenes=(room.usd,), spawn=(h[0] - 0.75, h[1], 0.0)), desc, np.random.default_rng(0))
-    ctl, ik = RobotControl(sim), Clik(desc)
+    ctl, ik = _reset(sim, base=(h[0] - 0.75, h[1], 0.0))
     rot = Rotation.from_euler("y", 20, degrees=True).as_matrix() @ np.stack(
         [[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
     move_ee(sim, ctl, ik, pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.2, rng=np.random.default_rng(1))
@@ -52,14 +71,11 @@ def test_grasps_the_drawer_handle_and_opens_the_drawer_by_driving_back(shared_as
     assert abs(read_state(sim).scene_joints[DOOR]) < 0.05
 
 
-def test_grasps_the_mug_lifts_it_and_holds_it_for_2_s(shared_assets, tmp_path):
+def test_grasps_the_mug_lifts_it_and_holds_it_for_2_s(sim, room):
     """Top-down grasp across the mug's body (the real mesh scaled to 0.8: 66 mm across, inside the
     Franka hand's 80 mm stroke), lift by 15 cm, hold 2 s: the mug rises with the hand and neither
     slips nor drops while held."""
-    room = write_demo_room(tmp_path / "room.usda", shared_assets=shared_assets, mug_scale=0.8)
-    desc = write_robot_urdf(tmp_path, panda_root=shared_assets / PANDA)
-    sim = build_sim(SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0))
-    ctl, ik = RobotControl(sim), Clik(desc)
+    ctl, ik = _reset(sim)  # the free spawn pose nearest the mug, facing it
     mug0 = np.asarray(read_state(sim).objects["/World/Mug"].position)
     grasp = mug0 + [0.0, 0.0, 0.084 - 0.025]  # pads 25 mm below the rim
     rot = top_down(0.0)  # fingers close along world y, the handle (+x) stays clear
@@ -83,20 +99,16 @@ def test_grasps_the_mug_lifts_it_and_holds_it_for_2_s(shared_assets, tmp_path):
     assert np.ptp(np.array(offsets), axis=0).max() < 0.005, "the mug slipped in the hand"
 
 
-def test_grasps_the_door_handle_and_swings_the_door_open(shared_assets, tmp_path):
+def test_grasps_the_door_handle_and_swings_the_door_open(sim, room):
     """Grasp the door's vertical bar (gripper pitched 35 deg down, fingers closing horizontally),
     then carry the handle along the door's arc in 6 deg steps, the gripper turning with the door
     (CLIK per step): the door opens by at least 80% of its 90 deg range and stays open after the
     release."""
     from scipy.spatial.transform import Rotation
 
-    room = write_demo_room(tmp_path / "room.usda", shared_assets=shared_assets)
-    desc = write_robot_urdf(tmp_path, panda_root=shared_assets / PANDA)
     h, hinge = np.asarray(room.door_handle), np.asarray(room.door_hinge)
     # a base pose from which the whole arc is reachable without the door hitting the chassis
-    spawn = (hinge[0] - 0.655, hinge[1] - 0.58, 0.3)
-    sim = build_sim(SimConfig(scenes=(room.usd,), spawn=spawn), desc, np.random.default_rng(0))
-    ctl, ik = RobotControl(sim), Clik(desc)
+    ctl, ik = _reset(sim, base=(hinge[0] - 0.655, hinge[1] - 0.58, 0.3))
     rng = np.random.default_rng(1)
     grip = Rotation.from_euler("y", 35, degrees=True).as_matrix() @ np.stack(
         [[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
