@@ -21,6 +21,7 @@ writing comes from writing each part alone:
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import shutil
@@ -37,7 +38,9 @@ REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
-os.environ.setdefault("HF_DATASETS_CACHE", tempfile.mkdtemp(prefix="hf-datasets-cache-"))
+if "HF_DATASETS_CACHE" not in os.environ:  # LeRobotDataset caches arrow copies of the parquet files there
+    os.environ["HF_DATASETS_CACHE"] = tempfile.mkdtemp(prefix="hf-datasets-cache-")
+    atexit.register(shutil.rmtree, os.environ["HF_DATASETS_CACHE"], True)
 
 from stages.dataset.schema import CameraSpec, DatasetSpec, VideoCodecSpec  # noqa: E402
 from stages.dataset.shards import open_shard  # noqa: E402

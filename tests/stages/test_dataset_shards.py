@@ -6,8 +6,10 @@ process wrote and compares it with what LeRobotDataset / a torch DataLoader retu
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -18,7 +20,9 @@ import numpy as np
 import pytest
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
-os.environ.setdefault("HF_DATASETS_CACHE", tempfile.mkdtemp(prefix="hf-datasets-cache-"))
+if "HF_DATASETS_CACHE" not in os.environ:  # LeRobotDataset caches arrow copies of the parquet files there
+    os.environ["HF_DATASETS_CACHE"] = tempfile.mkdtemp(prefix="hf-datasets-cache-")
+    atexit.register(shutil.rmtree, os.environ["HF_DATASETS_CACHE"], True)
 
 from stages.dataset.merge import MergeError, load_dataset, merge_shards, read_episode_columns  # noqa: E402
 from stages.dataset.schema import CameraSpec, DatasetSpec, FrameError  # noqa: E402
