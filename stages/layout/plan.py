@@ -37,6 +37,8 @@ RUN = (26, 30)            # [cm] tread depth
 STAIR_WIDTH = (90, 110)   # [cm]
 RAIL_T = 4                # [cm] railing panel thickness
 RAIL_HEIGHT = 0.95        # [m]
+COLUMN_PROBABILITY = 0.9  # rooms of a region beside the hallway stacked so each touches it
+STACK_DEPTH = 260         # [cm] depth per stacked room the footprint allows for
 
 
 class PlanRejected(Exception):
@@ -439,7 +441,8 @@ def _sample_footprint(d: _Draft, floor_types: list[list[RoomType]], areas: list[
         hw = snap(hw + 2, STEP)
         d_min = snap(d_min + 2, STEP)
     side_n = max(len(t) for t in floor_types)
-    lo = max(d_min, math.sqrt(a_max) * 0.8)
+    stacked = [len(t) - (RoomType.BATHROOM in t and len(t) >= 3) for t in floor_types]
+    lo = max(d_min, math.sqrt(a_max) * 0.8, STACK_DEPTH * min(max(stacked), 3))
     hi = max(d_min + 50, math.sqrt(a_max + hw * 500) * (1.25 if side_n > 2 else 1.05))
     d.D = _uniform_int(rng, int(lo), int(hi), STEP)
     side = snap(a_max / d.D, STEP)
@@ -506,7 +509,7 @@ def _floor_rooms(d: _Draft, f: int, types: list[RoomType], areas: list[float],
         out: dict[int, Rect] = {}
         pairs: list[tuple[int, int]] = []
         n_stacked = len(idx) - (1 if any(types[i] == RoomType.BATHROOM for i in idx) and len(idx) >= 3 else 0)
-        if d.strip is not None and n_stacked <= 3 and rng.random() < 0.7:
+        if d.strip is not None and n_stacked <= 3 and rng.random() < COLUMN_PROBABILITY:
             shapes = _columns_with_ensuite(d, reg, idx, types, areas, pairs)
         else:
             _treemap(reg, [(i, areas[i]) for i in idx], rng, out, pairs)
