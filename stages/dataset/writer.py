@@ -142,9 +142,9 @@ class _LerobotBackend:
         row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": task}
         for cam, key in self.spec.rgb_keys().items():
             row[key] = frame.rgb[cam]
-        for cam, key in self.spec.depth_keys().items():
+        for cam, key in self.spec.depth_keys().items():  # copied: lerobot's image writer threads keep it
             d = frame.depth_mm[cam]
-            row[key] = d if d.ndim == 3 else d[..., None]
+            row[key] = (d if d.ndim == 3 else d[..., None]).copy()
         self._ds.add_frame(row)
 
     def save(self, task: str) -> None:
