@@ -38,3 +38,15 @@ def test_link_transforms_follow_the_joints():
     assert np.allclose(closed["leaf"][:3, 3], opened["leaf"][:3, 3])       # the hinge does not move
     r = opened["leaf"][:3, :3]
     assert np.isclose(abs(r[0, 1]), 1.0, atol=1e-6) and leaf.upper == np.pi / 2  # turned 90 degrees about Z
+
+
+def test_contact_sheets_of_a_catalog_folder(tmp_path: Path):
+    """--catalog renders what the project's loaders read from the files (here the written default catalog)."""
+    from PIL import Image
+
+    from asset_catalog.default_catalog import build_default_catalog
+
+    build_default_catalog(tmp_path / "cat", variants_per_category=1, categories=["door", "bowl"])
+    assert main(["--out", str(tmp_path / "png"), "--catalog", str(tmp_path / "cat"), "--tile", "48"]) == 0
+    assert Image.open(tmp_path / "png" / "door.png").size == (48, 2 * (48 + 18))
+    assert Image.open(tmp_path / "png" / "bowl.png").size == (48, 48 + 18)
