@@ -198,7 +198,8 @@ def _surface_area(parts: tuple[MeshPart, ...]) -> float:
     total = 0.0
     for p in parts:
         v, f = p.vertices, p.faces
-        total += 0.5 * float(np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        total += 0.5 * float(np.linalg.norm(cross, axis=1).sum())
     return total
 
 

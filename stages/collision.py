@@ -200,7 +200,8 @@ def _thicken_if_flat(pts: np.ndarray, thickness: float) -> np.ndarray:
         return pts
     normal = vt[-1] if len(pts) >= 3 else np.array([0.0, 0.0, 1.0])
     if len(pts) < 3:  # a segment or point: make a small box around it
-        pts = np.concatenate([pts + d * thickness / 2 for d in np.eye(3)] + [pts - d * thickness / 2 for d in np.eye(3)])
+        offsets = np.concatenate([np.eye(3), -np.eye(3)]) * thickness / 2
+        pts = np.concatenate([pts + d for d in offsets])
     return np.concatenate([pts + normal * thickness / 2, pts - normal * thickness / 2])
 
 
@@ -288,7 +289,8 @@ def _coacd(verts: np.ndarray, faces: np.ndarray, cfg: CollisionConfig, max_hulls
 
     coacd.set_log_level("error")
     seed = int(rng.integers(0, 2**31 - 1))
-    mesh = coacd.Mesh(np.ascontiguousarray(verts, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32))
+    mesh = coacd.Mesh(np.ascontiguousarray(verts, dtype=np.float64),
+                      np.ascontiguousarray(faces, dtype=np.int32))
     parts = coacd.run_coacd(
         mesh, threshold=cfg.coacd_threshold, max_convex_hull=max_hulls, preprocess_mode="auto",
         preprocess_resolution=cfg.coacd_preprocess_resolution, resolution=cfg.coacd_resolution,

@@ -49,8 +49,8 @@ from stages.loaders import MESH_SUFFIXES, LoadLimits
 
 log = logging.getLogger(__name__)
 
-CODE_DEPS = ("stages.loaders", "stages.collision", "stages.annotate", "usd_schemas", "asset_catalog.asset_model",
-             "asset_catalog.materials", "asset_catalog.annotations")
+CODE_DEPS = ("stages.loaders", "stages.collision", "stages.annotate", "usd_schemas",
+             "asset_catalog.asset_model", "asset_catalog.materials", "asset_catalog.annotations")
 
 INGEST_FN = "stages.ingest:ingest_asset"
 _COLLIDER_RECORD = {"none": "none", "hull": "convexHull", "hulls": "convexDecomposition",
@@ -156,7 +156,8 @@ def ingest_asset(params: IngestParams, ctx: ItemContext) -> IngestResult:
     src = Path(params.source)
     timings: dict[str, float] = {}
     with _step("load", timings, src):
-        model = load_source(src, params.annotation, limits=params.limits, catalog_root=Path(params.catalog_dir))
+        model = load_source(src, params.annotation, limits=params.limits,
+                            catalog_root=Path(params.catalog_dir))
         _check_model_extent(model, params.limits, src)
     with _step("collision", timings, src):
         model = compute_colliders(model, params.collision, ctx.rng("collision"))
@@ -175,7 +176,8 @@ def ingest_asset(params: IngestParams, ctx: ItemContext) -> IngestResult:
     return IngestResult(
         asset_id=params.annotation.id, usd_path=rel, source=params.annotation.source,
         source_sha256=model.source_sha256, bbox_min=stats.bbox_min, bbox_max=stats.bbox_max,
-        dimensions=stats.dimensions, volume=stats.volume, mass=stats.mass, static_friction=stats.static_friction,
+        dimensions=stats.dimensions, volume=stats.volume, mass=stats.mass,
+        static_friction=stats.static_friction,
         dynamic_friction=stats.dynamic_friction, restitution=stats.restitution,
         collider=_COLLIDER_RECORD[method], collider_method=method,
         n_colliders=sum(len(lk.colliders) for lk in model.links), n_joints=len(model.joints),
@@ -221,8 +223,8 @@ def catalog_dir_of(config: IngestConfig, pctx: PlanContext) -> Path:
         return Path(config.catalog)
     prev = pctx.previous.get(config.catalog_step or "")
     if not prev:
-        raise CatalogError(f"ingest: catalog_step {config.catalog_step!r} has no result (is it an earlier step "
-                           f"that succeeded?)")
+        raise CatalogError(f"ingest: catalog_step {config.catalog_step!r} has no result "
+                           f"(is it an earlier step that succeeded?)")
     first = next(iter(prev.values()))
     cat = getattr(first, "catalog_dir", None)
     if cat is None:
@@ -323,8 +325,8 @@ def _candidates(ref: str, path: Path, dirs: list[Path], root: Path) -> list[Path
     if ref.startswith("package://"):
         rest = ref[len("package://"):].split("/", 1)
         tail = rest[1] if len(rest) == 2 else rest[0]
-        out = [(p / tail).resolve() for p in path.resolve().parents if p.is_relative_to(root)]
-        return out + [(p / rest[0] / tail).resolve() for p in path.resolve().parents if p.is_relative_to(root)]
+        parents = [p for p in path.resolve().parents if p.is_relative_to(root)]
+        return [(p / tail).resolve() for p in parents] + [(p / rest[0] / tail).resolve() for p in parents]
     if ref.startswith("file://"):
         ref = ref[len("file://"):]
     return [(d / ref).resolve() for d in [path.parent, *dirs]]

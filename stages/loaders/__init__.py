@@ -59,7 +59,8 @@ def check_source_file(path: Path, limits: LoadLimits) -> None:
         raise ItemError(f"{path}: not a regular file")
     size_mb = st.st_size / (1024 * 1024)
     if size_mb > limits.max_file_mb:
-        raise ItemError(f"{path}: file is {size_mb:.1f} MiB, over the {limits.max_file_mb:g} MiB limit (max_file_mb)")
+        raise ItemError(f"{path}: file is {size_mb:.1f} MiB, over the {limits.max_file_mb:g} MiB limit "
+                        f"(max_file_mb)")
     if st.st_size == 0:
         raise ItemError(f"{path}: empty file (0 bytes)")
 

@@ -51,7 +51,8 @@ log = logging.getLogger(__name__)
 DEFAULT_TEXTURE_CACHE = Path(tempfile.gettempdir()) / "agentworld_derived_textures"
 """Where derived textures (glTF ORM channels, embedded GLB images) are written, content-addressed."""
 
-_Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+_Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0],
+                          [0.0, 0.0, 0.0, 1.0]])
 _GLTF_SUFFIXES = (".gltf", ".glb")
 _NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
 
