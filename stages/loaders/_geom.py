@@ -276,6 +276,21 @@ def box_uvs(mesh: RawMesh, repeat=(1.0, 1.0)) -> RawMesh:
                    normals, uv.reshape(-1, 2), mesh.material)
 
 
+def convex_hull(mesh: RawMesh) -> RawMesh:
+    """The convex hull of a mesh's vertices, outward-wound, flat-shaded (mesh returned as is when its
+    points span no volume)."""
+    import trimesh
+
+    try:
+        hull = trimesh.convex.convex_hull(np.asarray(mesh.vertices, float))
+    except Exception as e:  # qhull raises its own error types for flat or degenerate input
+        log.debug("no hull: %s", e)
+        return mesh
+    if not hull.is_volume:
+        return mesh
+    return RawMesh(np.asarray(hull.vertices, float), np.asarray(hull.faces, np.int64))
+
+
 def check_finite_mesh(mesh: RawMesh, *, file: Path, what: str) -> None:
     """ItemError if the mesh is empty, has NaN/inf vertices or face indices out of range."""
     if len(mesh.faces) == 0 or len(mesh.vertices) == 0:

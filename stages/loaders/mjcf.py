@@ -20,7 +20,8 @@ Bodies and joints:
 - sites, tendons, equality constraints (e.g. the coupled knobs of the oven), actuators and sensors are
   ignored with a log line.
 
-Geoms -> MeshParts in their link's frame. MuJoCo stores mesh vertices re-centred in the geom frame, so
+Geoms -> MeshParts in their link's frame (a colliding mesh geom's collision part is its convex hull,
+which is what MuJoCo collides; its visual part is the full mesh). MuJoCo stores mesh vertices re-centred in the geom frame, so
 the geom's compiled pose is applied. Primitives (box, sphere, capsule, cylinder, ellipsoid) are
 tessellated; planes, height fields and SDFs are skipped with a log line. A geom collides when its
 ``contype`` or ``conaffinity`` is non-zero; it becomes a collision source. It is a visual when it does
@@ -367,8 +368,9 @@ class _Extractor:
             raw = raw.transformed(local)
             g.check_finite_mesh(raw, file=self.path, what=f"geom {gname or gid!r}")
             label = g.NameTable().add(gname, f"geom{gid}")
-            if collides[gid]:
-                acc.collisions.append(raw.part(f"{acc.name}_collision_{label}", None))
+            if collides[gid]:   # MuJoCo collides a mesh geom as its convex hull: so does the asset
+                col = g.convex_hull(raw) if m.geom_type[gid] == mujoco.mjtGeom.mjGEOM_MESH else raw
+                acc.collisions.append(col.part(f"{acc.name}_collision_{label}", None))
             if visual:
                 key, textured = self._material(gid)
                 vis = g.box_uvs(raw, self._texrepeat(gid)) if textured and raw.uvs is None else raw

@@ -608,6 +608,12 @@ def test_mjcf_robots_free_base_actuator_limits(shared_assets):
                      AssetAnnotation(id="g", source=src, category="robot", material="metal"),
                      catalog_dir=shared_assets)
     assert grip.fixed_base is True and len(grip.joints) == 8 and len(grip.links) == 9
+    # MuJoCo collides mesh geoms as their convex hulls; the collision parts are those hulls
+    import trimesh
+
+    cols = [p for lk in grip.links for p in lk.collision_source or ()]
+    assert cols and all(trimesh.Trimesh(p.vertices, p.faces).is_convex for p in cols)
+    assert not all(trimesh.Trimesh(p.vertices, p.faces).is_convex for lk in grip.links for p in lk.visuals)
 
 
 @pytest.mark.parametrize("asset_id,values", [
