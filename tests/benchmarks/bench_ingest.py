@@ -35,7 +35,8 @@ def _job(shared: Path, out: Path, only: tuple[str, ...]):
     config: dict = {"catalog": str(shared), "annotations": str(ANNOTATIONS)}
     if only:
         config["only"] = list(only)
-    data = {"job": {"name": "bench_ingest", "seed": 0, "out": str(out), "executor": "local", "workers": WORKERS},
+    data = {"job": {"name": "bench_ingest", "seed": 0, "out": str(out), "executor": "local",
+                    "workers": WORKERS},
             "step": [{"name": "assets", "kind": "ingest", "config": config}]}
     return build_job(data, source="<bench_ingest>", base_dir=out.parent)
 
@@ -70,7 +71,8 @@ def test_ingest_throughput(shared_assets, tmp_path):
     hull = [r for r in results if r.collider_method in ("hull", "hulls")]
     coacd = [r for r in results if r.collider_method == "coacd"]
     figures = {
-        "assets": len(results), "workers": WORKERS, "cpu_count": os.cpu_count(), "machine": platform.machine(),
+        "assets": len(results), "workers": WORKERS, "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
         "load_average_1min": round(os.getloadavg()[0], 2),
         "hull_only": _rates(hull), "coacd": _rates(coacd),
         "job_wall_s": round(wall, 2),

@@ -34,7 +34,8 @@ def box_arrays(size=(0.1, 0.1, 0.1)):
     return np.asarray(b.vertices), np.asarray(b.faces)
 
 
-def write_textured_box(folder: Path, name: str = "box", *, texture: bool = True, size=(0.1, 0.1, 0.1)) -> Path:
+def write_textured_box(folder: Path, name: str = "box", *, texture: bool = True,
+                       size=(0.1, 0.1, 0.1)) -> Path:
     """box.obj + box.mtl (+ box.png): a textured box with per-vertex UVs."""
     from PIL import Image
 
@@ -72,7 +73,8 @@ def bowl_mesh(radius: float = 0.07, wall: float = 0.008, sections: int = 24):
     return mesh
 
 
-def shelf_mesh(width: float = 0.6, depth: float = 0.3, height: float = 0.8, board: float = 0.02, shelves: int = 3):
+def shelf_mesh(width: float = 0.6, depth: float = 0.3, height: float = 0.8, board: float = 0.02,
+               shelves: int = 3):
     """An open bookshelf as one mesh of separate boards (sides, back, top/bottom and shelves)."""
     import trimesh
 

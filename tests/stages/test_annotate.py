@@ -16,8 +16,8 @@ def _cube_model(size=0.1, material="wood", mass=None, z0=0.0) -> AssetModel:
     v, f = box_arrays((size, size, size))
     v = v + (0, 0, size / 2 + z0)
     ann = AssetAnnotation(id="cube", source="cube.obj", category="block", material=material, mass=mass)
-    m = AssetModel(name="cube", annotation=ann, links=(Link(name="body", visuals=(MeshPart(name="m", vertices=v,
-                                                                                             faces=f),)),))
+    link = Link(name="body", visuals=(MeshPart(name="m", vertices=v, faces=f),))
+    m = AssetModel(name="cube", annotation=ann, links=(link,))
     return compute_colliders(m, CollisionConfig(), np.random.default_rng(0))
 
 
@@ -29,7 +29,8 @@ def test_wooden_cube_of_10_cm_weighs_about_0_7_kg():
     i = 0.7 * (0.1**2 + 0.1**2) / 12  # solid cube about its centre
     assert mp.diagonal_inertia == pytest.approx((i, i, i), rel=1e-6)
     assert st.mass == pytest.approx(0.7) and st.volume == pytest.approx(1e-3)
-    assert st.dimensions == pytest.approx((0.1, 0.1, 0.1)) and st.bbox_min == pytest.approx((-0.05, -0.05, 0.0))
+    assert st.dimensions == pytest.approx((0.1, 0.1, 0.1))
+    assert st.bbox_min == pytest.approx((-0.05, -0.05, 0.0))
     pm = m.physics_material
     assert 0.3 <= pm.dynamic_friction <= 0.5 and pm.density == 700.0  # wood 0.4 +/- 0.1
     assert st.dynamic_friction == pm.dynamic_friction and 0.0 <= st.restitution <= 1.0
@@ -57,8 +58,8 @@ def test_open_crate_is_hollow_not_solid():
     centres = v[f].mean(axis=1)
     f = f[centres[:, 2] < 0.999]  # drop the top face
     ann = AssetAnnotation(id="crate", source="crate.obj", category="crate", material="wood")
-    m = AssetModel(name="crate", annotation=ann, links=(Link(name="body", visuals=(MeshPart(name="m", vertices=v,
-                                                                                             faces=f),)),))
+    link = Link(name="body", visuals=(MeshPart(name="m", vertices=v, faces=f),))
+    m = AssetModel(name="crate", annotation=ann, links=(link,))
     m = compute_colliders(m, CollisionConfig(), np.random.default_rng(0))
     out, st = annotate_with_stats(m, np.random.default_rng(0))
     expected = 700.0 * 0.5 * 5.0 * SHELL_THICKNESS_M["wood"]  # 5 m^2 of walls, half-area convention
@@ -72,8 +73,8 @@ def test_articulated_mass_split_by_volume_and_source_mass_kept():
     ann = AssetAnnotation(id="cab", source="cab.urdf", category="cabinet", mass=9.0)
     base = Link(name="base", visuals=(MeshPart(name="a", vertices=v1, faces=f1),))
     door = Link(name="door", pose=Pose((0.3, 0, 0)), visuals=(MeshPart(name="b", vertices=v2, faces=f2),))
-    given = Link(name="knob", mass=MassProperties(mass=1.0, center_of_mass=(0, 0, 0), diagonal_inertia=(1e-4,) * 3),
-                 mass_from_source=True)
+    knob_mass = MassProperties(mass=1.0, center_of_mass=(0, 0, 0), diagonal_inertia=(1e-4,) * 3)
+    given = Link(name="knob", mass=knob_mass, mass_from_source=True)
     m = AssetModel(name="cab", annotation=ann, links=(base, door, given))
     m = compute_colliders(m, CollisionConfig(), np.random.default_rng(0))
     out = annotate_physics(m, np.random.default_rng(0))

@@ -13,11 +13,13 @@ from stages.collision import CollisionConfig, collider_kind, compute_colliders
 from ingest_testutil import SHARED_RIGID_ANNOTATIONS, bowl_mesh, box_arrays, shelf_mesh
 
 # A CoACD budget that keeps the CI tests to seconds; the defaults are exercised by the slow tests.
-FAST = CollisionConfig(coacd_resolution=150, coacd_mcts_iterations=6, coacd_mcts_nodes=3, max_hulls_per_piece=8)
+FAST = CollisionConfig(coacd_resolution=150, coacd_mcts_iterations=6, coacd_mcts_nodes=3,
+                       max_hulls_per_piece=8)
 
 
 def _model(vertices, faces, collider: str = "auto", material: str = "ceramic") -> AssetModel:
-    ann = AssetAnnotation(id="thing", source="thing.obj", category="thing", collider=collider, material=material)
+    ann = AssetAnnotation(id="thing", source="thing.obj", category="thing", collider=collider,
+                          material=material)
     part = MeshPart(name="m", vertices=np.asarray(vertices, float), faces=np.asarray(faces, np.int64))
     return AssetModel(name="thing", annotation=ann, links=(Link(name="body", visuals=(part,)),))
 
@@ -71,10 +73,11 @@ def test_bowl_keeps_its_cavity_open_and_is_deterministic():
 
 def test_collider_override_hull_and_none():
     bowl = bowl_mesh()
-    hull = compute_colliders(_model(bowl.vertices, bowl.faces, collider="hull"), FAST, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    hull = compute_colliders(_model(bowl.vertices, bowl.faces, collider="hull"), FAST, rng)
     assert len(hull.links[0].colliders) == 1 and hull.links[0].collider_approx == ColliderApprox.HULL
     assert _inside_any(hull.links[0].colliders, np.array([[0.0, 0.0, 0.05]])).all()  # cavity filled
-    none = compute_colliders(_model(bowl.vertices, bowl.faces, collider="none"), FAST, np.random.default_rng(0))
+    none = compute_colliders(_model(bowl.vertices, bowl.faces, collider="none"), FAST, rng)
     assert none.links[0].colliders == () and collider_kind(none) == "none"
 
 
@@ -110,7 +113,7 @@ def test_collision_source_is_used_when_present():
 @pytest.mark.parametrize("asset_id,cavity", [
     ("os_bowl", [[0.0, 0.0, 0.05], [0.02, 0.02, 0.06]]),
     ("os_mug", [[0.0, 0.0, 0.06], [0.0, 0.0, 0.09]]),
-    ("ms_shelves", [[0.0, 0.0, 0.2], [0.0, 0.0, 0.55]]),
+    ("ms_shelves", [[0.0, 0.0, 0.14], [0.0, 0.0, 0.40], [0.0, 0.0, 0.67]]),  # boards at 0, 0.27, 0.53, 0.8 m
 ])
 def test_real_concave_assets_keep_cavities_open(shared_assets: Path, asset_id, cavity):
     from asset_catalog.annotations import load_annotations

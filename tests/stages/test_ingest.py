@@ -73,7 +73,8 @@ def test_gltf_y_up_rotated_and_orm_channels_split(shared_assets):
     (mat,) = m.materials.values()
     assert mat.base_color_texture.name == "tea_set_01_diff_1k.jpg"
     assert mat.normal_texture.name == "tea_set_01_nor_gl_1k.jpg"
-    arm = shared_assets / "objects_rigid/tea_set__polyhaven_via_robotlocomotion/assets/textures/tea_set_01_arm_1k.jpg"
+    arm = (shared_assets / "objects_rigid/tea_set__polyhaven_via_robotlocomotion/assets/textures"
+           / "tea_set_01_arm_1k.jpg")
     with Image.open(mat.roughness_texture) as r, Image.open(arm) as src:
         assert r.mode == "L" and r.size == src.size
         g = np.asarray(src.convert("RGB"))[..., 1]
@@ -100,7 +101,8 @@ def test_ply_and_glb_with_embedded_texture(tmp_path):
     uv = np.random.default_rng(0).uniform(size=(len(box.vertices), 2))
     img = Image.new("RGB", (4, 4), (10, 200, 30))
     tex = trimesh.Trimesh(box.vertices, box.faces, visual=trimesh.visual.TextureVisuals(
-        uv=uv, material=trimesh.visual.material.PBRMaterial(name="paint", baseColorTexture=img)), process=False)
+        uv=uv, material=trimesh.visual.material.PBRMaterial(name="paint", baseColorTexture=img)),
+        process=False)
     tex.export(tmp_path / "box.glb")
     g = AssetAnnotation(id="boxg", source="box.glb", category="box")
     m = load_mesh_asset(tmp_path / "box.glb", g, texture_cache=tmp_path / "cache")
@@ -134,10 +136,12 @@ def _write_bad(kind: str, folder: Path) -> tuple[str, str]:
         (folder / "nofaces.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
         return "nofaces.obj", "no triangles"
     if kind == "flat":
-        write_obj(folder / "flat.obj", [[0, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0, 0.2, 0]], [[0, 1, 2], [0, 2, 3]])
+        quad = [[0, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0, 0.2, 0]]
+        write_obj(folder / "flat.obj", quad, [[0, 1, 2], [0, 2, 3]])
         return "flat.obj", "zero volume"
     if kind == "degenerate":
-        write_obj(folder / "degenerate.obj", [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0]], [[0, 1, 2], [1, 2, 3]])
+        line = [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0]]
+        write_obj(folder / "degenerate.obj", line, [[0, 1, 2], [1, 2, 3]])
         return "degenerate.obj", "zero area"
     if kind == "missing_texture":
         write_textured_box(folder / "mt", "missing", texture=False)
@@ -214,11 +218,14 @@ def _bad_catalog(root: Path) -> tuple[Path, dict[str, str], list[str]]:
     assert big.stat().st_size > 600_000
     entries.append(("bad_oversized", "big.stl"))
     expected["bad_oversized"] = "limit"
-    lines = [f'[[asset]]\nid = "{i}"\nsource = "{s}"\ncategory = "thing"\nmaterial = "plastic"\n' for i, s in entries]
+    lines = [f'[[asset]]\nid = "{i}"\nsource = "{s}"\ncategory = "thing"\nmaterial = "plastic"\n'
+             for i, s in entries]
     lines.append('[[asset]]\nid = "bad_escape"\nsource = "../outside.obj"\ncategory = "thing"\n')
-    lines.append(f'[[asset]]\nid = "bad_absolute"\nsource = "{cat / "good" / "box.obj"}"\ncategory = "thing"\n')
+    absolute = cat / "good" / "box.obj"
+    lines.append(f'[[asset]]\nid = "bad_absolute"\nsource = "{absolute}"\ncategory = "thing"\n')
     lines.append('[[asset]]\nid = "bad_missing"\nsource = "nowhere/ghost.obj"\ncategory = "thing"\n')
-    expected.update(bad_escape="escapes the catalog folder", bad_absolute="is absolute", bad_missing="not found")
+    expected.update(bad_escape="escapes the catalog folder", bad_absolute="is absolute",
+                    bad_missing="not found")
     (cat / "annotations.toml").write_text("\n".join(lines), encoding="utf-8")
     return cat, expected, ["good_ball", "good_box", "good_plain"]
 
@@ -242,8 +249,8 @@ def test_plan_items_reference_files_and_planned_failures(tmp_path):
     assert [p.item_id for p in only] == ["good_ball"]
 
 
-def _run_ingest(cat: Path, out: Path, *, annotations: Path | None = None, only=(), max_file_mb: float | None = None,
-                executor: str = "inline", workers: int = 1):
+def _run_ingest(cat: Path, out: Path, *, annotations: Path | None = None, only=(),
+                max_file_mb: float | None = None, executor: str = "inline", workers: int = 1):
     from pipeline import build_job, run_job
 
     config: dict = {"catalog": str(cat)}
@@ -328,7 +335,8 @@ def test_ingest_every_shared_rigid_asset(shared_assets, tmp_path):
 
     n = len(load_annotations(shared_assets, SHARED_RIGID_ANNOTATIONS).assets)
     out = tmp_path / "out"
-    summary = _run_ingest(shared_assets, out, annotations=SHARED_RIGID_ANNOTATIONS, executor="local", workers=2)
+    summary = _run_ingest(shared_assets, out, annotations=SHARED_RIGID_ANNOTATIONS, executor="local",
+                          workers=2)
     (step,) = summary.steps
     assert step.failed == 0 and step.done == n, step.failures
     recs = query_index(index_path(out))
