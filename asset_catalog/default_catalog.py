@@ -104,6 +104,9 @@ def _info(a: GeneratedAsset) -> dict:
         "handles": [{"link": h.link, "kind": h.kind, "center": [round(c, 5) for c in h.center],
                      "grip_width": round(h.grip_width, 5), "clearance": round(h.clearance, 5),
                      "bar_axis": [round(c, 5) for c in h.bar_axis]} for h in a.handles],
+        "surfaces": [{"link": s.link, "z": round(s.z, 5), "lo": [round(v, 5) for v in s.lo],
+                      "hi": [round(v, 5) for v in s.hi], "inside": s.inside, "clear_height": round(s.clear_height, 5)}
+                     for s in a.surfaces],
         "params": a.params,
     }
 

@@ -37,6 +37,21 @@ class HandleInfo:
 
 
 @dataclass(frozen=True)
+class SurfaceInfo:
+    """A horizontal support surface (table top, shelf, seat, fridge shelf): height ``z`` [m] and the
+    rectangle ``lo`` (x, y) .. ``hi`` (x, y) [m] in the root frame at the zero configuration; ``inside``
+    when it lies in an enclosure (cabinet shelf, fridge, microwave), where the clear height above is
+    ``clear_height`` [m]."""
+
+    link: str
+    z: float
+    lo: tuple[float, float]
+    hi: tuple[float, float]
+    inside: bool = False
+    clear_height: float = 0.0
+
+
+@dataclass(frozen=True)
 class JointInfo:
     """What a joint is for: role in {door, drawer, button, knob, lid}."""
 
@@ -55,6 +70,7 @@ class GeneratedAsset:
     joints: tuple[JointInfo, ...]
     params: dict[str, float]
     link_solids: dict[str, Manifold] = field(repr=False)
+    surfaces: tuple[SurfaceInfo, ...] = ()
 
     @property
     def annotation(self) -> AssetAnnotation:
@@ -102,6 +118,7 @@ class AssetBuilder:
         self.links: dict[str, _LinkDraft] = {"base": _LinkDraft("base", np.zeros(3))}
         self.joints: list[_JointDraft] = []
         self.handles: list[HandleInfo] = []
+        self.surfaces: list[SurfaceInfo] = []
         self.params: dict[str, float] = {}
 
     # --- declarations -------------------------------------------------------------------------
@@ -157,6 +174,12 @@ class AssetBuilder:
         self.handles.append(HandleInfo(link, tuple(float(c) for c in center), float(grip_width),
                                        float(clearance), tuple(float(a) for a in bar_axis), kind))
 
+    def surface(self, z: float, lo, hi, *, link: str = "base", inside: bool = False,
+                clear_height: float = 0.0) -> None:
+        """Record a horizontal support surface at height z [m] over the rectangle lo..hi (x, y) [m]."""
+        self.surfaces.append(SurfaceInfo(link, float(z), (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])),
+                                         inside, float(clear_height)))
+
     # --- finishing ----------------------------------------------------------------------------
     def build(self, *, asset_id: str, category: str, source: str, room_types: tuple[RoomType, ...],
               placement: PlacementKind, material: MaterialClass, interactable: bool,
@@ -190,7 +213,7 @@ class AssetBuilder:
             fixed_base=fixed_base if joints else None)
         model = AssetModel(name=asset_id, annotation=ann, links=tuple(links), joints=joints,
                            materials=dict(self.materials), fixed_base=fixed_base)
-        return GeneratedAsset(model=model, source_kind=kind, handles=tuple(self.handles),
+        return GeneratedAsset(model=model, source_kind=kind, handles=tuple(self.handles), surfaces=tuple(self.surfaces),
                               joints=tuple(JointInfo(j.name, j.role) for j in self.joints),
                               params=dict(self.params), link_solids=solids_by_link)
 

@@ -37,9 +37,13 @@ def fridge(b: AssetBuilder) -> float:
     panel(b, "base", (xb0, -w / 2 + t, feet), (xb0 + t, w / 2 - t, h), body, SHELL)
     panel(b, "base", (xb0 + t, -w / 2 + t, feet), (xb1, w / 2 - t, feet + 0.08), liner, SHELL)
     panel(b, "base", (xb0 + t, -w / 2 + t, h - t), (xb1, w / 2 - t, h), body, SHELL)
+    b.surface(feet + 0.08, (xb0 + t, -w / 2 + t), (xb1, w / 2 - t), inside=True,
+              clear_height=(h - 0.2) / 4 - 0.008)
     for i in range(1, 4):
         z = feet + 0.08 + i * (h - 0.2) / 4
         panel(b, "base", (xb0 + t, -w / 2 + t, z), (xb1 - 0.03, w / 2 - t, z + 0.008), glass, SHELL)
+        b.surface(z + 0.008, (xb0 + t, -w / 2 + t), (xb1 - 0.03, w / 2 - t), inside=True,
+                  clear_height=(h - 0.2) / 4 - 0.008 if i < 3 else h - t - z - 0.008)
     for x in (xb0 + 0.05, xb1 - 0.05):
         for y in (-w / 2 + 0.05, w / 2 - 0.05):
             b.add("base", g.cylinder(0.02, feet + 0.002, (x, y, (feet + 0.002) / 2), n=12), handle,
@@ -81,6 +85,7 @@ def microwave(b: AssetBuilder) -> float:
     panel(b, "base", (x0, -w / 2, feet), (xb1, -w / 2 + t, h), body, SHELL)
     panel(b, "base", (x0, -w / 2 + t, feet), (x0 + t, cy1, h), body, SHELL)
     panel(b, "base", (x0, -w / 2 + t, feet), (xb1, cy1, feet + t), inner, SHELL)
+    b.surface(feet + t, (x0 + t, -w / 2 + t), (xb1, cy1), inside=True, clear_height=h - feet - 2 * t)
     panel(b, "base", (x0, -w / 2 + t, h - t), (xb1, cy1, h), body, SHELL)
     panel(b, "base", (x0, cy1, feet), (d / 2, w / 2, h), body, SHELL)
     for x in (x0 + 0.04, xb1 - 0.04):
@@ -134,6 +139,7 @@ def oven(b: AssetBuilder) -> float:
           burner, SHELL)
     panel(b, "base", (x0, -w / 2, zc1), (d / 2, w / 2, h - 0.02), body, SHELL)
     panel(b, "base", (x0, -w / 2, h - 0.02), (d / 2, w / 2, h), cook, SHELL)
+    b.surface(h, (x0, -w / 2), (d / 2, w / 2))
     for sx in (-1, 1):
         for sy in (-1, 1):
             r = b.param(f"burner_{sx}_{sy}", 0.05, 0.09)

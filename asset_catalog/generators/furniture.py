@@ -49,6 +49,7 @@ def _upholstered(b: AssetBuilder, seats: int, width: tuple[float, float]) -> flo
         cush = g.rounded_box((d - back_t - 0.02, cw - 0.01, cush_t + 0.01), 0.035,
                              (x0 + back_t + (d - back_t - 0.02) / 2, cy, base_top + cush_t / 2), n=10)
         b.add("base", cush, fab, density=FOAM)
+    b.surface(base_top + cush_t + 0.005, (x0 + back_t + 0.03, -inner / 2 + 0.03), (x1 - 0.05, inner / 2 - 0.03))
     inset = 0.06
     legs(b, "base", leg_m, WOOD, xs=(x0 + inset, x1 - inset), ys=(-w / 2 + inset, w / 2 - inset),
          z0=0.0, z1=leg_h + 0.01, r=0.022, square=bool(b.rng.integers(2)))
@@ -82,11 +83,15 @@ def coffee_table(b: AssetBuilder) -> float:
         r = 0.025
         legs(b, "base", frame, WOOD, xs=(-length / 2 + 0.05, length / 2 - 0.05),
              ys=(-width / 2 + 0.05, width / 2 - 0.05), z0=0.0, z1=h - top_t + 0.002, r=r, square=True)
+    k = 0.35 if round_top else 0.5
+    b.surface(h, (-length * k, -width * k), (length * k, width * k))
     if b.choice("shelf", [False, True]):
         st = 0.018
         zs = b.param("shelf_height", 0.08, 0.15)
         panel(b, "base", (-length * 0.33, -width * 0.22, zs), (length * 0.33, width * 0.22, zs + st), wood,
               WOOD)
+        b.surface(zs + st, (-length * 0.33, -width * 0.22), (length * 0.33, width * 0.22), inside=True,
+                  clear_height=h - top_t - zs - st)
     return None
 
 
@@ -104,6 +109,8 @@ def tv_stand(b: AssetBuilder) -> float:
           wood, WOOD)
     legs(b, "base", wood, WOOD, xs=(-d / 2 + 0.04, d / 2 - 0.04), ys=(-w / 2 + 0.04, w / 2 - 0.04), z0=0.0,
          z1=0.052, r=0.02, square=True)
+    for s in (-1, 1):
+        b.surface(h, (-d / 2, min(s * 0.17, s * w / 2)), (d / 2, max(s * 0.17, s * w / 2)))
     diag_in = b.param("tv_diagonal_inch", 40.0, min(65.0, w / 0.0254 / 0.9))
     tw = diag_in * 0.0254 * 16 / np.hypot(16, 9)
     th = tw * 9 / 16
@@ -126,9 +133,13 @@ def bookshelf(b: AssetBuilder) -> float | None:
     t = b.param("thickness", 0.016, 0.025)
     carcass(b, "base", wood, WOOD, w=w, d=d, z0=0.0, z1=h, t=t)
     n = max(2, int(round(h / 0.35)))
+    b.surface(t, (-d / 2 + t, -w / 2 + t), (d / 2, w / 2 - t), inside=True, clear_height=h / n - t)
     for i in range(1, n):
         z = i * h / n
         panel(b, "base", (-d / 2 + t, -w / 2 + t, z), (d / 2 - 0.005, w / 2 - t, z + t), wood, WOOD)
+        b.surface(z + t, (-d / 2 + t, -w / 2 + t), (d / 2 - 0.005, w / 2 - t), inside=True,
+                  clear_height=h / n - t)
+    b.surface(h, (-d / 2, -w / 2), (d / 2, w / 2))
     return None
 
 
@@ -158,6 +169,7 @@ def bed(b: AssetBuilder) -> float:
     bl = g.rounded_box((x1 - t + 0.02 - blanket_x0, w - 2 * t + 0.06, 0.03), 0.012,
                        ((blanket_x0 + x1 - t + 0.02) / 2, 0, fh - 0.04 + mt + 0.005), n=8)
     b.add("base", bl, sheet, density=FOAM)
+    b.surface(fh - 0.04 + mt + 0.02, (blanket_x0 + 0.05, -w / 2 + t + 0.05), (x1 - t - 0.05, w / 2 - t - 0.05))
     n_p = 1 if w < 1.3 else 2
     pw = (w - 2 * t) / n_p - 0.06
     for i in range(n_p):
@@ -177,10 +189,12 @@ def dining_table(b: AssetBuilder) -> float | None:
         b.add("base", g.cylinder(dia / 2, top_t, (0, 0, h - top_t / 2), n=56), wood, density=WOOD)
         b.add("base", g.cylinder(0.06, h - top_t, (0, 0, (h - top_t) / 2 + 0.001), n=24), leg_m, density=WOOD)
         b.add("base", g.cylinder(dia * 0.28, 0.04, (0, 0, 0.02), n=40), leg_m, density=WOOD)
+        b.surface(h, (-dia * 0.35, -dia * 0.35), (dia * 0.35, dia * 0.35))
     else:
         length = b.param("length", 1.2, 2.0)
         width = b.param("width", 0.75, 1.0)
         panel(b, "base", (-length / 2, -width / 2, h - top_t), (length / 2, width / 2, h), wood, WOOD)
+        b.surface(h, (-length / 2, -width / 2), (length / 2, width / 2))
         ix, iy = length / 2 - 0.08, width / 2 - 0.08
         panel(b, "base", (-ix, -iy, h - top_t - 0.08), (ix, -iy + 0.02, h - top_t + 0.001), leg_m, WOOD)
         panel(b, "base", (-ix, iy - 0.02, h - top_t - 0.08), (ix, iy, h - top_t + 0.001), leg_m, WOOD)
@@ -199,6 +213,7 @@ def chair(b: AssetBuilder) -> float | None:
     st = 0.03
     r = b.param("leg_radius", 0.015, 0.022)
     panel(b, "base", (-sd / 2, -sw / 2, sh - st), (sd / 2, sw / 2, sh), seat_m, WOOD)
+    b.surface(sh, (-sd / 2 + 0.04, -sw / 2), (sd / 2, sw / 2))
     ix, iy = sd / 2 - r - 0.01, sw / 2 - r - 0.01
     legs(b, "base", wood, WOOD, xs=(ix,), ys=(-iy, iy), z0=0.0, z1=sh - st + 0.001, r=r, square=True)
     for y in (-iy, iy):
@@ -300,6 +315,7 @@ def _storage(b: AssetBuilder, *, w: float, d: float, h: float, plinth: float, nc
     if plinth > 0:
         panel(b, "base", (-d / 2 + 0.03, -w / 2 + 0.01, 0.0), (d / 2 - 0.03, w / 2 - 0.01, plinth + 0.001),
               body, WOOD)
+    b.surface(h, (-d / 2, -w / 2), (d / 2, w / 2))
     z0, z1 = plinth + t, h - t
     horizontal_dividers = all(k == "drawer" for k in kinds)
     _dividers(b, body, w, d, z0, z1, ncols, rows if horizontal_dividers else 1)
@@ -339,6 +355,8 @@ def _hanging(b: AssetBuilder, w: float, d: float, h: float, plinth: float, doors
           WOOD)
     zs = h - t - 0.3
     panel(b, "base", (-d / 2 + t, -w / 2 + t, zs), (d / 2 - 0.01, w / 2 - t, zs + t), body, WOOD)
+    b.surface(zs + t, (-d / 2 + t, -w / 2 + t), (d / 2 - 0.01, w / 2 - t), inside=True,
+              clear_height=h - 2 * t - zs)
     b.add("base", g.cylinder(0.012, w - 2 * t + 0.004, (0, 0, zs - 0.06), axis="y", n=16),
           handle, density=STEEL)
     dw = (w - 2 * t) / doors
@@ -395,6 +413,8 @@ def kitchen_counter(b: AssetBuilder) -> float:
                    ((-d / 2, hole[1], ct0), (hole[0], hole[3], ct1)),
                    ((hole[2], hole[1], ct0), (d / 2 + 0.02, hole[3], ct1))):
         panel(b, "base", lo, hi, top_m, 2400.0)
+    b.surface(ct1, (-d / 2, -w / 2), (d / 2 + 0.02, hole[1] - 0.05))
+    b.surface(ct1, (-d / 2, hole[3] + 0.01), (d / 2 + 0.02, w / 2))
     wt = 0.006
     zb = ct1 - bh
     panel(b, "base", (hole[0], hole[1], zb), (hole[2], hole[3], zb + wt), steel, STEEL)

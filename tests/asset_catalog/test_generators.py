@@ -271,3 +271,34 @@ def test_overrides_fix_named_parameters_only():
     assert b.params["seat_height"] == 0.5
     assert {k: v for k, v in a.params.items() if k != "seat_height"} == {k: v for k, v in b.params.items()
                                                                          if k != "seat_height"}
+
+
+def _solid_at(solid, point) -> bool:
+    """Whether the solid fills a 1 mm cube around ``point`` (exact, via a manifold intersection)."""
+    from manifold3d import Manifold
+
+    cube = Manifold.cube((0.001, 0.001, 0.001), True).translate(tuple(float(c) for c in point))
+    return (solid ^ cube).volume() > 0.5e-9
+
+
+SURFACE_CATEGORIES = ["sofa", "armchair", "coffee_table", "tv_stand", "bookshelf", "bed", "nightstand", "wardrobe",
+                      "dresser", "dining_table", "chair", "kitchen_counter", "fridge", "microwave", "oven", "cabinet",
+                      "closet"]
+
+
+@pytest.mark.parametrize("category", SURFACE_CATEGORIES)
+def test_support_surfaces_lie_on_the_geometry(assets, category):
+    """Each recorded support surface has solid right below its centre and is inside the footprint."""
+    for a in assets[category]:
+        assert a.surfaces, f"{a.model.name} has no support surface"
+        pts = _world_points(a)
+        for s in a.surfaces:
+            assert np.all(np.array(s.lo) < np.array(s.hi))
+            assert np.all(np.array(s.lo) >= pts.min(0)[:2] - 1e-6) and np.all(np.array(s.hi) <= pts.max(0)[:2] + 1e-6)
+            solid = a.link_solids[s.link]
+            fx, fy = np.meshgrid(np.linspace(0.1, 0.9, 3), np.linspace(0.1, 0.9, 3))
+            xy = np.array(s.lo) + np.column_stack([fx.ravel(), fy.ravel()]) * (np.array(s.hi) - np.array(s.lo))
+            below = np.array([_solid_at(solid, (x, y, s.z - 0.004)) for x, y in xy])
+            above = np.array([_solid_at(solid, (x, y, s.z + 0.004)) for x, y in xy])
+            assert below.sum() >= 6, f"{a.model.name}: nothing solid under the surface at z={s.z:.3f}"
+            assert above.sum() <= 1, f"{a.model.name}: surface z={s.z:.3f} is buried"
