@@ -9,8 +9,8 @@ Per link, from ``collision_source`` if the source has one, else from the visuals
    piece, else estimated on a voxel grid (surface voxels plus the enclosed voxels that a flood fill
    from outside does not reach, ``voxel_resolution`` along the largest side). A near-convex piece
    (solidity >= ``convexity_threshold``) gets one hull; a concave one (a bowl, a mug, a shelf) is
-   decomposed with CoACD into at most ``max_hulls_per_piece`` hulls, each its own MeshPart, so a
-   cavity stays open;
+   decomposed with CoACD into at most ``max_hulls_per_piece`` hulls (the link's ``max_hulls``
+   shared among its pieces by hull volume), each its own MeshPart, so a cavity stays open;
 3. when a link has more than ``max_pieces`` significant pieces, CoACD runs once over the whole link
    (at most ``max_hulls`` hulls), keeping the collider count bounded.
 
@@ -120,15 +120,24 @@ def _link_colliders(link: Link, kind: ColliderKind, cfg: CollisionConfig, rng: n
         return _with(link, parts, ["coacd"] * len(parts))
     hulls: list[np.ndarray] = []
     how: list[str] = []
-    for piece in pieces:
+    budgets = _hull_budgets(pieces, cfg)
+    for piece, budget in zip(pieces, budgets, strict=True):
         if kind == ColliderKind.AUTO and _solidity(piece, cfg) >= cfg.convexity_threshold:
             hulls.append(_hull(piece.vertices, cfg))
             how.append("hull")
         else:
-            parts = _coacd(piece.vertices, piece.faces, cfg, cfg.max_hulls_per_piece, rng)
+            parts = _coacd(piece.vertices, piece.faces, cfg, budget, rng)
             hulls.extend(parts)
             how.extend(["coacd"] * len(parts))
     return _with(link, hulls, how)
+
+
+def _hull_budgets(pieces: list[_Piece], cfg: CollisionConfig) -> list[int]:
+    """CoACD hull budget of each piece: the link's ``max_hulls`` shared by hull volume, at least 2 and at
+    most ``max_hulls_per_piece`` (a tea set's saucer gets fewer hulls than its teapot)."""
+    vols = np.array([_hull_volume(p.vertices) for p in pieces])
+    share = vols / vols.sum() if vols.sum() > 0 else np.full(len(pieces), 1.0 / len(pieces))
+    return [int(np.clip(np.ceil(cfg.max_hulls * s), 2, cfg.max_hulls_per_piece)) for s in share]
 
 
 def _with(link: Link, hull_points: list[np.ndarray], how: list[str]) -> Link:
