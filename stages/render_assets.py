@@ -2,7 +2,7 @@
 (ray traced, runs on the CPU), so a person can look at the assets.
 
 Row 1 shows each variant at its zero joint configuration; articulated categories get a second row with
-every joint at its upper limit (doors open, drawers out, buttons pressed), which shows the joints.
+every joint at its upper limit (labelled "open": doors open, drawers out, buttons pressed).
 
     agentworld render-assets --out DIR [--variants 5] [--seed 0] [--categories a,b] [--tile 256]
     agentworld render-assets --out DIR --catalog CATALOG_DIR      # render any catalog folder's sources
@@ -150,7 +150,7 @@ def contact_sheets(models: Sequence[AssetModel], out_dir: Path, *, tile: int = 2
                 if (m.name, r) not in index:
                     continue
                 sheet.paste(Image.fromarray(imgs[index[(m.name, r)]]), (c * tile, r * (tile + label_h)))
-                label = m.name + ("  (joints at upper limits)" if r == 1 else "")
+                label = m.name + (" open" if r == 1 else "")
                 draw.text((c * tile + 4, r * (tile + label_h) + tile + 3), label, fill=(30, 30, 30))
         path = out_dir / f"{cat}.png"
         sheet.save(path)
