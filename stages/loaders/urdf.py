@@ -17,7 +17,8 @@ collision elements, links without one get ``collision_source = ()`` (they do not
 without any keeps ``None`` (colliders are then computed from the visuals).
 
 Frames: a link's frame is its parent joint's frame at zero; link poses are composed into the root
-link's frame. A fixed joint from a link named ``world`` fixes the base (that link is dropped).
+link's frame. A fixed joint from a link named ``world`` fixes the base, a floating one leaves it movable
+(either way that link is dropped); the annotation's ``fixed_base`` overrides both.
 """
 
 from __future__ import annotations
@@ -86,7 +87,11 @@ def load_urdf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
             order = order[1:]
             del parent_joint[world_joints[0].child]
             joints = [j for j in joints if j is not world_joints[0]]
-            fixed_base = True if fixed_base is None else fixed_base
+            fixed_base = (not world_joints[0].floating) if fixed_base is None else fixed_base
+    floating = [j.name for j in joints if j.floating]
+    if floating:
+        raise ItemError(f"{path}: floating joint {floating[0]!r} is only supported from the 'world' link "
+                        "to the root (a movable base)")
     if fixed_base is None:
         fixed_base = WORLD in link_els
     names = g.NameTable()
@@ -138,6 +143,7 @@ class _SrcJoint:
     velocity: float | None
     damping: float
     friction: float
+    floating: bool = False     # a 'floating' joint, kept only as world -> root (a movable base)
 
     def to_joint(self, name: str, parent: str, child: str) -> Joint:
         return Joint(name=name, type=self.type, parent=parent, child=child,
@@ -164,6 +170,8 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
     name = el.get("name")
     what = f"joint {name!r}"
     kind = el.get("type", "")
+    floating = kind == "floating"
+    kind = "fixed" if floating else kind
     if kind not in _JOINT_TYPES:
         raise ItemError(f"{path}: {what} has unsupported type {kind!r} "
                         "(revolute, continuous, prismatic, fixed)")
@@ -198,7 +206,7 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
                      effort=effort if effort and effort > 0 else None,
                      velocity=velocity if velocity and velocity > 0 else None,
                      damping=max(_opt_float(dyn, "damping", path, what) or 0.0, 0.0),
-                     friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0))
+                     friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0), floating=floating)
 
 
 def _tree(links: dict[str, ET.Element], joints: list[_SrcJoint], path: Path

@@ -300,7 +300,7 @@ def test_urdf_limits_axis_duplicates_roots(tmp_path):
             tmp_path, "zero axis")
     _expect(load_urdf, _urdf(tmp_path, ab + _BOX_LINK.format(n="a")), tmp_path, "duplicate link name 'a'")
     _expect(load_urdf, _urdf(tmp_path, ab), tmp_path, "exactly one root", "found 2")
-    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", kind="floating")), tmp_path,
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", kind="planar")), tmp_path,
             "unsupported type")
 
 
@@ -336,6 +336,13 @@ def test_urdf_world_link_fixes_base(tmp_path):
     model = load_urdf(p, _ann(p.name), catalog_dir=tmp_path)
     assert model.fixed_base and [lk.name for lk in model.links] == ["a", "b"] and len(model.joints) == 1
     assert load_urdf(p, _ann(p.name, fixed_base=False), catalog_dir=tmp_path).fixed_base is False
+    free = _urdf(tmp_path, '<link name="world"/>' + _BOX_LINK.format(n="a")
+                 + _joint("w", "world", "a", kind="floating"), name="free.urdf")
+    model = load_urdf(free, _ann(free.name), catalog_dir=tmp_path)
+    assert model.fixed_base is False and [lk.name for lk in model.links] == ["a"] and not model.joints
+    elsewhere = _urdf(tmp_path, _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+                      + _joint("f", "a", "b", kind="floating"), name="f2.urdf")
+    _expect(load_urdf, elsewhere, tmp_path, "floating joint 'f'")
 
 
 def _mjcf(tmp: Path, body: str, name: str = "m.xml", extra: str = "") -> Path:
