@@ -759,3 +759,17 @@ def test_ingest_job_every_articulated_entry(shared_assets, tmp_path):
     (step,) = summary.steps
     assert step.failed == 0 and step.done == len(EXPECTED), step.failures
     _check_ingested(tmp_path / "out", EXPECTED)
+
+
+def test_loading_is_deterministic(shared_assets, tmp_path):
+    """Two loads of the same sources write byte-identical packages."""
+    import usd_schemas
+
+    for asset_id in ("vk_oven", "ycb_apple_urdf"):
+        ann = _annotations()[asset_id]
+        blobs = []
+        for k in range(2):
+            pkg = usd_schemas.write_asset_package(load(ann, shared_assets), tmp_path / f"{asset_id}{k}",
+                                                  pipeline_version="test")
+            blobs.append([(tmp_path / f"{asset_id}{k}" / f).read_bytes() for f in pkg.files])
+        assert blobs[0] == blobs[1], asset_id
