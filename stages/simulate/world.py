@@ -30,6 +30,7 @@ from stages.simulate.robot import DriveGains, RobotDescription, RobotIndices, ad
 log = logging.getLogger(__name__)
 
 ROBOT_LABEL = "robot"
+MAX_EXPLICIT_STEP = 1.0 / 960.0  # [s] longest substep for Featherstone / semi-implicit / XPBD
 
 
 class SolverKind(StrEnum):
@@ -42,9 +43,11 @@ class SolverKind(StrEnum):
 @dataclass(frozen=True, kw_only=True)
 class SolverSettings:
     """dt: physics step [s] (the time one :meth:`Sim.step` advances); substeps: solver steps per
-    physics step (1 for MuJoCo; >= dt * 240 * 4 for the others); use_mujoco_cpu: None = auto
+    physics step (1 for MuJoCo; the others need dt / substeps <= 1/960 s); use_mujoco_cpu: None = auto
     (True on CPU with one world); iterations / ls_iterations: MuJoCo solver iterations;
-    cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world capacities (None: auto).
+    cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and
+    contacts for MuJoCo-Warp (None: Newton's estimate, which overflows in a furnished room: a mug
+    of 14 convex pieces on a table and 20 boxes on the floor exceed its 64 rows / 128 contacts).
     """
 
     kind: SolverKind = SolverKind.MUJOCO
@@ -56,8 +59,16 @@ class SolverSettings:
     cone: str = "elliptic"
     impratio: float = 10.0
     integrator: str = "implicitfast"
-    njmax: int | None = None
-    nconmax: int | None = None
+    njmax: int | None = 1024
+    nconmax: int | None = 256
+
+    def __post_init__(self) -> None:
+        if self.dt <= 0 or self.substeps < 1:
+            raise ItemError(f"solver {self.kind}: dt must be > 0 and substeps >= 1 (got {self.dt}, {self.substeps})")
+        if self.kind != SolverKind.MUJOCO and self.dt / self.substeps > MAX_EXPLICIT_STEP + 1e-12:
+            need = int(np.ceil(self.dt / MAX_EXPLICIT_STEP - 1e-9))
+            raise ItemError(f"solver {self.kind}: step {self.dt / self.substeps:.5f} s is too long; use substeps "
+                            f">= {need} at dt {self.dt} s (at most {MAX_EXPLICIT_STEP:.5f} s per substep)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -298,6 +309,7 @@ class Sim:
     dofs_per_world: int
     coords_per_world: int
     spawn: tuple[float, float, float]
+    solver_settings: SolverSettings = field(default_factory=SolverSettings)
     time: float = 0.0
     steps: int = 0
     pre_step: list = field(default_factory=list)
@@ -404,8 +416,6 @@ def _make_solver(model, s: SolverSettings, device: str, world_count: int):
                     cone=s.cone, impratio=s.impratio, iterations=s.iterations, ls_iterations=s.ls_iterations,
                     njmax=s.njmax, nconmax=s.nconmax, disable_sensors=True)
         return SolverMuJoCo(model, **opts), None, cpu, separate, opts
-    if s.substeps < 4:
-        raise ItemError(f"solver {s.kind}: needs substeps (>= 4 at dt {s.dt} s); got {s.substeps}")
     pipeline = newton.CollisionPipeline(model)
     if s.kind == SolverKind.FEATHERSTONE:
         solver = newton.solvers.SolverFeatherstone(model)
@@ -462,4 +472,4 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
                pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
                shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count,
                shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
-               coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn))
+               coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn), solver_settings=cfg.solver)

@@ -142,7 +142,7 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
                 rt.append(time.perf_counter() - t)
             ours_render = statistics.median(rt)
             n_free = sum(1 for p in sim.scene.body_path.values() if "Cabinet" not in p)
-            model, bare_step, bstate = _bare(device, n, desc, n_free, sim.settings and _solver_settings(sim))
+            model, bare_step, bstate = _bare(device, n, desc, n_free, sim.solver_settings)
             bare_dt = _time_steps(bare_step, device, steps, repeats)
             sensor = SensorCamera(model, load_textures=False)
             sensor.create_default_light()
@@ -165,13 +165,6 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(results, indent=2, default=str))
     return results
-
-
-def _solver_settings(sim):
-    from stages.simulate.world import SolverKind, SolverSettings
-
-    s = sim.settings
-    return SolverSettings(kind=SolverKind(s.solver), dt=s.dt, substeps=s.substeps, use_mujoco_cpu=s.use_mujoco_cpu)
 
 
 @pytest.mark.benchmark

@@ -95,3 +95,14 @@ def test_missing_panda_description_names_what_was_tried(tmp_path):
 
     with pytest.raises(ItemError, match="Panda description not found"):
         write_robot_urdf(tmp_path, panda_root=tmp_path / "nowhere")
+
+
+def test_solver_settings_refuse_long_explicit_steps():
+    from pipeline.types import ItemError
+    from stages.simulate.world import SolverKind, SolverSettings
+
+    with pytest.raises(ItemError, match="substeps >= 8"):
+        SolverSettings(kind=SolverKind.FEATHERSTONE, dt=1 / 120, substeps=1)
+    ok = SolverSettings(kind=SolverKind.XPBD, dt=1 / 120, substeps=8)
+    assert ok.dt / ok.substeps <= 1 / 960
+    assert SolverSettings().kind == SolverKind.MUJOCO and SolverSettings().substeps == 1
