@@ -11,7 +11,7 @@ Mass of a link (unless the source gave it, ``mass_from_source``):
   several hundred kg. The mass volume is then capped by a shell estimate,
   ``min(hull volume, surface area / 2 x wall thickness)`` (every wall is modelled with its two
   faces, hence the half), with a per-material wall thickness ``SHELL_THICKNESS_M`` (wood 20 mm,
-  fabric/upholstery 50 mm, plastic 4 mm, metal 3 mm, glass 5 mm, ceramic 8 mm, paper 3 mm, rubber
+  fabric/upholstery 20 mm, plastic 4 mm, metal 3 mm, glass 5 mm, ceramic 8 mm, paper 3 mm, rubber
   10 mm; stone and food are taken solid);
 - mass = ``annotation.mass`` if given (split over links by mass volume), else material density x
   mass volume;
@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 SHELL_THICKNESS_M: dict[MaterialClass, float] = {
     MaterialClass.WOOD: 0.02, MaterialClass.METAL: 0.003, MaterialClass.CERAMIC: 0.008,
-    MaterialClass.GLASS: 0.005, MaterialClass.PLASTIC: 0.004, MaterialClass.FABRIC: 0.05,
+    MaterialClass.GLASS: 0.005, MaterialClass.PLASTIC: 0.004, MaterialClass.FABRIC: 0.02,
     MaterialClass.RUBBER: 0.01, MaterialClass.STONE: float("inf"), MaterialClass.PAPER: 0.003,
     MaterialClass.FOOD: float("inf"),
 }

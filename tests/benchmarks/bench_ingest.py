@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 ANNOTATIONS = REPO / "tests" / "data" / "shared_rigid" / "annotations.toml"
 HULL_SUBSET = ("ycb_apple", "ycb_orange", "ycb_rubiks_cube", "rs_can", "rs_cereal", "rs_milk", "os_phone",
                "os_flashlight")
-COACD_SUBSET = ("os_mug", "os_cup", "ms_shelves")
+COACD_SUBSET = ("os_mug", "os_teapot", "os_rubberduck", "ms_shelves")
 WORKERS = 2
 
 
