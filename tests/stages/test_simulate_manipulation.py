@@ -132,3 +132,27 @@ def test_grasps_the_door_handle_and_swings_the_door_open(sim, room):
     door = read_state(sim).scene_joints[DOOR]
     assert -door >= 0.8 * room.cabinet.door_range, f"door opened {np.rad2deg(-door):.1f} deg"
     assert abs(read_state(sim).scene_joints[DRAWER]) < 0.02
+
+
+@pytest.mark.slow
+def test_robotiq_2f85_grasps_the_full_size_mug(shared_assets, tmp_path):
+    """The alternative gripper (2F-85 as a parallel approximation, 85 mm stroke) takes the real,
+    unscaled 82 mm mug across its body, lifts it 15 cm and holds it 2 s. Slow (own simulation)."""
+    room = write_demo_room(tmp_path / "room.usda", shared_assets=shared_assets)
+    desc = write_robot_urdf(tmp_path, gripper="robotiq_2f85", panda_root=shared_assets / PANDA,
+                            robotiq_root=shared_assets / "robots/robotiq_2f85__menagerie")
+    sim = build_sim(SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0))
+    ctl, ik = RobotControl(sim), Clik(desc)
+    mug0 = np.asarray(read_state(sim).objects["/World/Mug"].position)
+    grasp = mug0 + [0.0, 0.0, 0.105 - 0.03]
+    move_ee(sim, ctl, ik, pose(grasp + [0, 0, 0.12], top_down(0.0)), 1.5, segments=3, settle=0.2)
+    move_ee(sim, ctl, ik, pose(grasp, top_down(0.0)), 1.0, segments=2, settle=0.3)
+    ctl.set_gripper(1.0)
+    sim.step(400)
+    assert 0.075 < read_state(sim).robot.gripper_opening < 0.085
+    move_ee(sim, ctl, ik, pose(grasp + [0, 0, 0.15], top_down(0.0)), 1.5, segments=3)
+    zs = []
+    for _ in range(10):
+        sim.step(int(0.2 / sim.settings.dt))
+        zs.append(read_state(sim).objects["/World/Mug"].position[2])
+    assert min(zs) > mug0[2] + 0.12
