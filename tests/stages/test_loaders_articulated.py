@@ -403,24 +403,10 @@ _DEFAULT_LIMIT_ASSET = "libero_white_cabinet"
 
 
 def with_hull_colliders(model: AssetModel) -> AssetModel:
-    """Colliders = the convex hull of each of the source's collision parts (the sources here give
-    convex primitives or convex pieces)."""
-    import dataclasses
+    """Colliders from the collision stage (for these sources: one convex hull per collision part)."""
+    from stages.collision import CollisionConfig, compute_colliders
 
-    import trimesh
-
-    from asset_catalog.asset_model import ColliderApprox, MeshPart
-
-    links = []
-    for lk in model.links:
-        cols = []
-        for p in lk.collision_source or ():
-            h = trimesh.convex.convex_hull(p.vertices)
-            cols.append(MeshPart(name=p.name, vertices=np.asarray(h.vertices, float),
-                                 faces=np.asarray(h.faces, np.int64)))
-        links.append(dataclasses.replace(lk, colliders=tuple(cols),
-                                         collider_approx=ColliderApprox.HULL if cols else None))
-    return dataclasses.replace(model, links=tuple(links))
+    return compute_colliders(model, CollisionConfig(), np.random.default_rng(0))
 
 
 def _limit_check(shared_assets: Path, tmp_path: Path, asset_id: str):
