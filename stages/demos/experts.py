@@ -232,7 +232,8 @@ def _slide_base(d: Driver, distance: float, speed: float = 0.12) -> None:
     d.step(0.3)
 
 
-def _release_and_back(d: Driver, rot_back: np.ndarray | None = None) -> None:
+def _release_and_back(d: Driver) -> None:
+    """Open the hand, back it off 8 cm along its approach axis, tuck the arm."""
     d.grip(0.0, 0.6)
     from stages.simulate.control import pose
 
@@ -243,10 +244,11 @@ def _release_and_back(d: Driver, rot_back: np.ndarray | None = None) -> None:
     c, s = math.cos(yaw), math.sin(yaw)
     to_world = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
     w = to_world @ cur
+    back = w[:3, 3] - 0.08 * w[:3, 2]
     try:
-        d.move(pose(w[:3, 3] - 0.08 * w[:3, 2], w[:3, :3]), 0.6, segments=1)
-    except ExpertFailure:
-        log.debug("no straight back-off from the handle; tucking the arm directly")
+        d.move(pose(back, w[:3, :3]), 0.6, segments=1)
+    except ExpertFailure as e:
+        log.info("no straight back-off from the handle (%s); tucking the arm directly", e)
     d.home(1.0)
 
 
@@ -293,6 +295,11 @@ def _swing_door(inst: TaskInstance, d: Driver, theta0: float, theta1: float, bac
     step = math.copysign(math.radians(6.0), theta1 - theta0)
     for th in np.arange(theta0 + step, theta1 + 0.5 * step, step):
         d.move(handle_pose(float(th)), 0.4, segments=1)
+    if theta1 != 0.0:
+        # the arm ends wrapped around the open door's free edge at its joint limits: no straight
+        # retreat is reachable and tucking would sweep the door shut, so the episode ends released
+        d.grip(0.0, 0.6)
+        return
     _release_and_back(d)
 
 
