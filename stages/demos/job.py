@@ -1,0 +1,223 @@
+"""The ``demos`` job kind: scripted demonstrations of the basic tasks, one dataset shard per item.
+
+Job file::
+
+    [[step]]
+    name = "demos"
+    kind = "demos"
+    [step.config]
+    shared_assets = "../shared/assets"      # the Panda description and the mug mesh
+    tasks = ["pick_place_bowl", "open_drawer"]   # default: every basic task
+    worlds = 1                  # worlds (scene variants) per task; one item = one shard
+    episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
+    width = 128
+    height = 96
+
+Items are ``<task>_w<k>``: each authors its world (table position, bowl, block, materials from the
+world's seed, shared by every task with the same ``k``), builds the simulation, runs
+``episodes_per_shard`` episodes of the scripted expert (seeds from the item's seed) and writes one
+complete shard to ``<out>/<step>/<item>/dataset`` through :mod:`stages.dataset`. ``finalize`` merges
+the shards into ``<out>/datasets/<step>`` (LeRobot v3.0, loadable with ``LeRobotDataset``) and writes
+``<out>/reports/<step>.json``: per task attempts, successes, success rate and failure reasons,
+plus recorded frames and the wall time per stage.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, WorkItem, derive_seed
+from stages.demos.tasks import TASKS
+
+log = logging.getLogger(__name__)
+
+FN = "stages.demos.job:record_shard"
+PANDA_REL = "robots/franka_panda__example_robot_data"
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class DemosConfig(_Strict):
+    """shared_assets: the third-party assets folder (Panda URDF + meshes, mug mesh); tasks: task
+    names (default all); worlds: worlds per task; episodes_per_shard: episodes per item; width,
+    height: camera image size [px]; fps; device: "cpu" or "cuda"."""
+
+    shared_assets: Path
+    tasks: tuple[str, ...] = tuple(TASKS)
+    worlds: int = Field(default=1, ge=1, le=10000)
+    episodes_per_shard: int = Field(default=2, ge=1, le=1000)
+    width: int = Field(default=128, ge=16, le=1920)
+    height: int = Field(default=96, ge=16, le=1080)
+    fps: int = Field(default=30, ge=1, le=120)
+    device: str = "cpu"
+
+    @field_validator("tasks")
+    @classmethod
+    def _known(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        bad = [t for t in v if t not in TASKS]
+        if bad:
+            raise ValueError(f"unknown task(s) {bad}; known: {sorted(TASKS)}")
+        return v
+
+
+class ShardParams(_Strict):
+    """One shard: task, world index and seed, episodes, image settings, the assets folder."""
+
+    task: str
+    world: int
+    world_seed: int
+    episodes: int
+    width: int
+    height: int
+    fps: int
+    device: str
+    shared_assets: str
+
+
+class EpisodeRecord(_Strict):
+    seed: int
+    success: bool
+    reason: str
+    frames: int
+    sim_seconds: float
+
+
+class ShardResult(_Strict):
+    """dataset: the shard's folder (final location; None when no episode succeeded); counts;
+    failures by reason; timings [s] per stage; build_seconds: world authoring + simulation build."""
+
+    task: str
+    world: int
+    scene_id: str
+    dataset: str | None
+    attempts: int
+    episodes: int
+    frames: int
+    failures: dict[str, int]
+    records: tuple[EpisodeRecord, ...]
+    timings: dict[str, float]
+    build_seconds: float
+
+
+def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem]:
+    """One item per (task, world)."""
+    panda = config.shared_assets / PANDA_REL
+    items = []
+    for t in config.tasks:
+        for w in range(config.worlds):
+            params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
+                                 episodes=config.episodes_per_shard, width=config.width, height=config.height,
+                                 fps=config.fps, device=config.device, shared_assets=str(config.shared_assets))
+            items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params,
+                                  input_files=(panda / "robots/panda_description/urdf/panda.urdf",)))
+    return items
+
+
+def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
+    """Stage function: author the world, run the episodes, write the shard."""
+    import time
+
+    import numpy as np
+
+    from stages.dataset import EpisodeInfo, open_shard
+    from stages.demos.record import Timings
+    from stages.demos.sampling import sample_instance, write_task_room
+    from stages.demos.session import DemoSettings, DemoWorld
+
+    assets = Path(params.shared_assets)
+    if not (assets / PANDA_REL).is_dir():
+        raise ItemError(f"{assets}: no Panda description at {PANDA_REL}")
+    t0 = time.perf_counter()
+    scene_id = f"demo_room_{params.world:03d}"
+    room = write_task_room(ctx.out_dir / "world", shared_assets=assets, scene_id=scene_id,
+                           rng=np.random.default_rng(params.world_seed))
+    settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device)
+    world = DemoWorld(room, panda_root=assets / PANDA_REL, work_dir=ctx.out_dir / "world", settings=settings,
+                      seed=params.world_seed)
+    build = time.perf_counter() - t0
+    total, records, failures = Timings(), [], Counter()
+    with open_shard(ctx.out_dir, "dataset", settings.dataset_spec()) as shard:
+        for k in range(params.episodes):
+            seed = derive_seed(ctx.seed, "episode", str(k)) % (2**62)
+            inst = sample_instance(params.task, room, seed)
+            shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,
+                                            seed=seed, asset_ids=inst.asset_ids))
+            res = world.run_episode(inst, sink=shard.add_frame)
+            t1 = time.perf_counter()
+            shard.end_episode(success=res.success, reason=res.reason)
+            res.timings.writing += time.perf_counter() - t1
+            total.add(res.timings)
+            if not res.success:
+                failures[res.reason] += 1
+            records.append(EpisodeRecord(seed=seed, success=res.success, reason=res.reason, frames=res.frames,
+                                         sim_seconds=round(res.sim_seconds, 3)))
+        t1 = time.perf_counter()
+    total.writing += time.perf_counter() - t1
+    written = sum(r.success for r in records)
+    return ShardResult(task=params.task, world=params.world, scene_id=scene_id,
+                       dataset=str(ctx.final_dir / "dataset"), attempts=len(records), episodes=written,
+                       frames=sum(r.frames for r in records if r.success), failures=dict(failures),
+                       records=tuple(records), timings=total.to_json(), build_seconds=round(build, 3))
+
+
+def success_report(results: list[ShardResult]) -> dict[str, Any]:
+    """Per task: attempts, successes, rate, failures by reason; totals and timings."""
+    tasks: dict[str, dict[str, Any]] = {}
+    stage_s: Counter[str] = Counter()
+    for r in results:
+        t = tasks.setdefault(r.task, {"attempts": 0, "successes": 0, "failures": Counter(), "frames": 0})
+        t["attempts"] += r.attempts
+        t["successes"] += r.episodes
+        t["failures"].update(r.failures)
+        t["frames"] += r.frames
+        stage_s.update({k: v for k, v in r.timings.items() if k != "frames"})
+        stage_s["build"] += r.build_seconds
+    for t in tasks.values():
+        t["success_rate"] = round(t["successes"] / max(1, t["attempts"]), 4)
+        t["failures"] = dict(sorted(t["failures"].items()))
+    frames = sum(r.timings.get("frames", 0) for r in results)
+    busy = sum(v for k, v in stage_s.items() if k != "build")
+    return {"tasks": dict(sorted(tasks.items())),
+            "attempts": sum(t["attempts"] for t in tasks.values()),
+            "successes": sum(t["successes"] for t in tasks.values()),
+            "frames_recorded": frames,
+            "seconds": {k: round(v, 3) for k, v in sorted(stage_s.items())},
+            "frames_per_second": round(frames / busy, 3) if busy else None}
+
+
+def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any]) -> None:
+    """Merge the shards into ``<work>/datasets/<step>`` and write ``<work>/reports/<step>.json``."""
+    from stages.dataset import merge_datasets
+    from stages.dataset.writer import write_json_atomic
+
+    res = [r if isinstance(r, ShardResult) else ShardResult.model_validate(r) for r in results.values()]
+    step = ctx.step or "demos"
+    report = success_report(res)
+    failed_items = ctx.failed.get(step, {})
+    report["failed_items"] = dict(failed_items)
+    roots = [Path(r.dataset) for r in res if r.episodes > 0 and r.dataset]
+    out = ctx.work_dir / "datasets" / step
+    report["dataset"] = None
+    if roots:
+        if out.exists():
+            shutil.rmtree(out)  # the previous run's merge; the shards are the source of truth
+        merged = merge_datasets(roots, out, repo_id=f"agentworld/{step}")
+        report["dataset"] = {"root": str(merged.root), "episodes": merged.episodes, "frames": merged.frames}
+    path = ctx.work_dir / "reports" / f"{step}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(path, report)
+    log.info("demos: %d/%d episodes succeeded; report %s\n%s", report["successes"], report["attempts"], path,
+             json.dumps({k: v["success_rate"] for k, v in report["tasks"].items()}))
+
+
+DEMOS_JOB = JobKind(name="demos", config=DemosConfig, plan=plan_demos, finalize=finalize_demos,
+                    description="scripted demonstrations of the basic tasks: LeRobot shards, merged, success report")
