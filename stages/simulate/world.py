@@ -193,13 +193,14 @@ def load_scene(builder, usd: Path) -> LoadedScene:
 # Free spawn pose
 # --------------------------------------------------------------------------------------------
 
-def _shape_aabbs(builder, z_range=(0.03, 1.6)) -> np.ndarray:
+def shape_footprints(builder, z_range=(0.03, 1.6)) -> tuple[np.ndarray, np.ndarray]:
     """World AABBs (K, 4) [xmin, ymin, xmax, ymax] of the builder's shapes that overlap the
-    robot's height band ``z_range`` [m] (floors and ceilings are outside it)."""
+    robot's height band ``z_range`` [m] (floors and ceilings are outside it), and their shape
+    indices (K,)."""
     import newton
     from scipy.spatial.transform import Rotation
 
-    out = []
+    out, idx = [], []
     for s in range(builder.shape_count):
         gt = int(builder.shape_type[s])
         if gt == int(newton.GeoType.PLANE):
@@ -233,7 +234,8 @@ def _shape_aabbs(builder, z_range=(0.03, 1.6)) -> np.ndarray:
         if hi[2] < z_range[0] or lo[2] > z_range[1]:
             continue
         out.append([lo[0], lo[1], hi[0], hi[1]])
-    return np.asarray(out, float).reshape(-1, 4)
+        idx.append(s)
+    return np.asarray(out, float).reshape(-1, 4), np.asarray(idx, int)
 
 
 def find_free_spawn(builder, rng: np.random.Generator, *, radius: float = 0.45, near=None,
@@ -246,7 +248,7 @@ def find_free_spawn(builder, rng: np.random.Generator, *, radius: float = 0.45, 
     """
     from scipy import ndimage
 
-    boxes = _shape_aabbs(builder)
+    boxes, _ = shape_footprints(builder)
     if len(boxes) == 0:
         raise ItemError("scene: no obstacles or walls to bound a spawn region")
     lo, hi = boxes[:, :2].min(0), boxes[:, 2:].max(0)

@@ -45,39 +45,61 @@ def sim(room, desc):
     return s
 
 
-def test_drives_across_the_room_and_is_stopped_by_the_wall(sim, room):
-    """Commanded 0.8 m/s east for 7 s (5.6 m, more than the 4.7 m to the wall): the base crosses
-    the room, stops at the east wall, and no robot body ever gets past the wall's inner face."""
-    sim.reset()
-    sim.ctl.set_base_velocity(0.8, 0.0, 0.0)
-    wall_x = room.size[0]
+def _collider_bodies(sim) -> np.ndarray:
+    """Robot bodies with collision geometry (camera and TCP frames are massless markers)."""
     import newton
 
-    # bodies with collision geometry (camera and TCP frames are massless markers without any)
     flags = sim.model.shape_flags.numpy()
     shape_body = sim.model.shape_body.numpy()
-    colliding = {int(shape_body[s]) for s in range(sim.robot.shape_start, sim.robot.shape_end)
-                 if flags[s] & int(newton.ShapeFlags.COLLIDE_SHAPES)}
-    robot_bodies = np.array(sorted(colliding))
-    assert len(robot_bodies) >= 12
+    return np.array(sorted({int(shape_body[s]) for s in range(sim.robot.shape_start, sim.robot.shape_end)
+                            if flags[s] & int(newton.ShapeFlags.COLLIDE_SHAPES)}))
+
+
+def test_drives_across_a_generated_room_and_is_stopped_by_the_wall(desc, tmp_path):
+    """A room from the layout stage (walls, floor, ceiling, windows as USD colliders): the robot
+    spawns at the free pose nearest the west wall, is commanded 0.8 m/s east for 8 s, crosses the
+    room and stops at the east wall: the chassis stays inside the wall's inner face and no robot
+    body ever gets past the wall (the arm may reach into a window recess up to its pane)."""
+    import newton
+
+    from stages.layout.build import generate_layout
+    from stages.layout.spec import LayoutSpec
+    from stages.simulate.world import load_scene, shape_footprints
+
+    layout = generate_layout(LayoutSpec(rooms={"living_room": 1}), 3, tmp_path / "layout")
+    probe = newton.ModelBuilder()
+    scene = load_scene(probe, layout.usd)
+    boxes, idx = shape_footprints(probe)
+    walls = boxes[[k for k, i in enumerate(idx) if scene.shape_label[i] == "wall"]]
+    lo, hi = walls[:, :2].min(0), walls[:, 2:].max(0)
+    x0, y0, _ = find_free_spawn(probe, np.random.default_rng(0), radius=0.5, near=(lo[0], (lo[1] + hi[1]) / 2))
+    sim = build_sim(SimConfig(scenes=(layout.usd,), spawn=(x0, y0, 0.0)), desc, np.random.default_rng(0))
+    ctl = RobotControl(sim)
+    # the inner face of the first wall east of the robot, across the robot's width
+    band = (walls[:, 1] < y0 + 0.5) & (walls[:, 3] > y0 - 0.5) & (walls[:, 0] > x0)
+    wall_x = float(walls[band, 0].min())
+    wall_out = float(walls[band & (walls[:, 0] < wall_x + 0.3), 2].min())  # its outer face
+    assert wall_x - x0 > 2.5, "the generated room is too small to drive across"
+    bodies = _collider_bodies(sim)
+    assert len(bodies) >= 12
+    ctl.set_base_velocity(0.8, 0.0, 0.0)
     max_x = -np.inf
-    for _ in range(70):
+    for _ in range(80):
         sim.step(50)
-        bq = sim.state_0.body_q.numpy()
-        max_x = max(max_x, float(bq[robot_bodies, 0].max()))
+        max_x = max(max_x, float(sim.state_0.body_q.numpy()[bodies, 0].max()))
     st = read_state(sim, contacts=True)
     half = sim.desc.base.chassis[0] / 2
-    assert st.robot.base.x > 1.0 + 3.0, "the base did not cross the room"
+    assert st.robot.base.x > x0 + 2.0, "the base did not cross the room"
     assert st.robot.base.x + half < wall_x + 0.01, "the chassis went through the wall"
-    assert max_x < wall_x + 0.01, f"a robot body reached x={max_x} past the wall at {wall_x}"
-    assert abs(st.robot.base.y - 1.0) < 0.05 and abs(st.robot.base.theta) < 0.05
+    assert st.robot.base.x + half > wall_x - 0.4, "the base stopped short of the wall"
+    assert max_x < wall_out, f"a robot body reached x={max_x} past the wall ({wall_x}..{wall_out})"
+    assert abs(st.robot.base.y - y0) < 0.05 and abs(st.robot.base.theta) < 0.05
     assert abs(st.robot.qd[0]) < 0.05, "the base is still moving into the wall"
-    assert any("wall" in (c.label_a, c.label_b) and "robot" in (c.label_a, c.label_b) for c in st.contacts)
+    assert any({"wall", "robot"} == {c.label_a, c.label_b} for c in st.contacts)
     # and it drives back when told to
-    sim.ctl.set_base_velocity(-0.5, 0.0, 0.0)
+    ctl.set_base_velocity(-0.5, 0.0, 0.0)
     sim.step(250)
     assert read_state(sim).robot.base.x < st.robot.base.x - 0.15
-    sim.ctl.set_base_velocity(0.0, 0.0, 0.0)
 
 
 def test_base_velocity_is_in_the_base_frame(sim):
@@ -101,9 +123,9 @@ def test_free_spawn_is_clear_of_every_obstacle(room, desc):
     b = newton.ModelBuilder()
     b.add_usd(str(room.usd))
     rng = np.random.default_rng(11)
-    from stages.simulate.world import _shape_aabbs
+    from stages.simulate.world import shape_footprints
 
-    boxes = _shape_aabbs(b)
+    boxes, _ = shape_footprints(b)
     for _ in range(5):
         x, y, _yaw = find_free_spawn(b, rng, radius=0.45)
         assert 0.45 <= x <= room.size[0] - 0.45 and 0.45 <= y <= room.size[1] - 0.45
