@@ -11,4 +11,5 @@ COMMANDS: dict[str, str] = {
     "render-layout": "stages.layout.render:cli",
     "catalog-build-default": "asset_catalog.default_catalog:main",
     "render-assets": "stages.render_assets:main",
+    "render-scenes": "stages.scene.render:cli",
 }

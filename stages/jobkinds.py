@@ -7,5 +7,6 @@ JOB_KINDS: dict[str, str] = {
     "ingest": "stages.ingest:INGEST_JOB",
     "default_catalog": "stages.catalog:DEFAULT_CATALOG_JOB",
     "layout": "stages.layout.job:LAYOUT_JOB",
+    "scene": "stages.scene.job:SCENE_JOB",
     "demos": "stages.demos.job:DEMOS_JOB",
 }

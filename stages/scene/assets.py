@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.scene.collide import ConvexPiece, convex_piece
-from stages.scene.geom import convex_hull_2d, polygon_area
+from stages.scene.geom import convex_hull_2d, points_in_convex, polygon_area
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +58,24 @@ class AssetGeometry:
     def footprint(self) -> np.ndarray:
         """(K, 2) convex outline of every piece projected on the floor, asset frame [m]."""
         return convex_hull_2d(np.vstack([p.vertices[:, :2] for p in self.pieces]))
+
+    @functools.cached_property
+    def rests_flat(self) -> bool:
+        """Whether the asset stands on a flat base: the outline of its collider points within 2 mm of
+        its bottom covers >= 30 % of its footprint and holds the center of its colliders (xy) well
+        inside. Round things (fruit, balls) fail: their hulls roll when dropped onto a support."""
+        pts = np.vstack([p.vertices for p in self.pieces])
+        base = pts[pts[:, 2] < self.lo[2] + 0.002][:, :2]
+        if len(base) < 3:
+            return False
+        poly = convex_hull_2d(base)
+        if len(poly) < 3:
+            return False
+        area = polygon_area(poly)
+        if area < 0.3 * polygon_area(self.footprint):
+            return False
+        c = np.mean([p.vertices.mean(axis=0) for p in self.pieces], axis=0)[:2]
+        return bool(points_in_convex(c[None], poly, margin=0.1 * np.sqrt(area))[0])
 
     @functools.cached_property
     def ground_footprint(self) -> np.ndarray | None:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,8 @@ from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
 log = logging.getLogger(__name__)
 
 REST_GAP = 0.001          # [m] assets are placed this far above their support
+PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
+                           # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
 
 
@@ -112,8 +114,11 @@ class Library:
     def usd(self, r: CatalogRecord) -> Path:
         return (self.root / str(r.usd_path)).resolve()
 
-    def pick(self, category: str, room_type: str, rng: np.random.Generator) -> CatalogRecord | None:
-        recs = self.records.get(category, ())
+    def pick(self, category: str, room_type: str, rng: np.random.Generator,
+             keep=None) -> CatalogRecord | None:
+        """A random record of the category (preferring those annotated for the room type); ``keep``:
+        optional predicate on records."""
+        recs = [r for r in self.records.get(category, ()) if keep is None or keep(r)]
         fit = [r for r in recs if room_type in r.room_types] or list(recs)
         return fit[int(rng.integers(len(fit)))] if fit else None
 
@@ -340,6 +345,7 @@ class Populator:
         self.grids: dict[int, PathGrid] = {}
         self.counter: Counter[str] = Counter()
         self.reports: list[RoomReport] = []
+        self.room_ctx: dict[str, RoomContext] = {}
 
     # -- public ---------------------------------------------------------------------------------
 
@@ -353,7 +359,10 @@ class Populator:
         grid = self.grids.get(room.floor)
         if grid is None:
             grid = self.grids[room.floor] = PathGrid(self.plan, room.floor, self.rules.setting(rt, "path_width"))
-        self._door_labels_ok(grid, ctx, None)
+        labels = grid.components()
+        live = tuple(p for p in ctx.door_points if grid.cell_label(labels, p))
+        ctx = replace(ctx, door_points=live)  # doors the robot can use in the empty room
+        self.room_ctx[room.id] = ctx
         for rule in rr.furniture:
             self._entry(rule, ctx, grid, rep, furniture=True)
         for rule in rr.objects:
@@ -378,9 +387,13 @@ class Populator:
                 rep.skipped.append(f"{rule.category}: requires {', '.join(missing)}")
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
+        keep = None if furniture else (lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
         for k in range(n):
-            rec = self.library.pick(rule.category, str(ctx.room.type), self.rng)
-            if rec is None:
+            rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
+            if rec is None and not furniture:
+                if self.library.records.get(rule.category):
+                    rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll)")
+                    return
                 if k < rule.count[0]:
                     raise PlacementFailure(f"{ctx.room.id}: no catalog asset of category {rule.category!r}")
                 return
@@ -543,11 +556,11 @@ class Populator:
 
     def _collides(self, inst: _Inst) -> str | None:
         others = self.layout + self.instance_pieces()
-        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False)
+        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP)
         if hits:
             other = hits[0].owner_b
             what = other.rsplit("/", 2)[-2] if other.startswith("/") else other.rsplit("_", 1)[0]
-            return f"colliders penetrate {what} ({hits[0].depth * 1000:.0f} mm)"
+            return f"colliders touch {what}" if hits[0].depth < 0.001 else f"colliders penetrate {what}"
         return None
 
     # -- path -----------------------------------------------------------------------------------
@@ -560,7 +573,7 @@ class Populator:
         return len(got) <= 1, (next(iter(got)) if got else 0)
 
     def _path_conflict(self, inst: _Inst, ctx: RoomContext, grid: PathGrid) -> str | None:
-        if inst.block is None:
+        if inst.block is None or not ctx.door_points:
             return None
         extra = grid.raster(inst.block)
         labels = grid.components(extra)
@@ -588,6 +601,9 @@ class Populator:
     def _place_object(self, rule: ObjectRule, rec: CatalogRecord, ctx: RoomContext, grid: PathGrid,
                       rep: RoomReport) -> bool:
         geo = load_asset_geometry(self.library.usd(rec))
+        if not geo.rests_flat:
+            rep.reject(f"{rule.category}: no flat base (would roll off its support)")
+            return False
         on = set(rule.on or rec.co_occurrence)
         supports = [(i, s) for i in self.insts if i.p.room == ctx.room.id and i.on_floor
                     and i.p.record.category in on for s in i.geo.surfaces
@@ -621,7 +637,7 @@ class Populator:
             inst = self._instance(rec, geo, ctx, xy, z, yaw, sup.p.inst, 0.0)
             inst.on_floor = False
             why = self._collides(inst)
-            if why is None and rec.interactable:
+            if why is None and rec.interactable and ctx.door_points:
                 if labels is None:
                     ok, lab = self._door_labels_ok(grid, ctx, None)
                     labels = (grid.components(), lab)
@@ -666,7 +682,7 @@ def verify(pop: Populator) -> CheckReport:
     path: list[str] = []
     for rep in pop.reports:
         room = pop.plan.room(rep.room)
-        ctx = room_context(pop.plan, room, pop.rules.setting(room.type, "door_clearance"))
+        ctx = pop.room_ctx[room.id]
         grid = pop.grids[room.floor]
         labels = grid.components()
         live = {grid.cell_label(labels, p) for p in ctx.door_points} - {0}
