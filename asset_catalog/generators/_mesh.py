@@ -57,7 +57,13 @@ def corner_normals(verts: np.ndarray, faces: np.ndarray, crease_deg: float = 35.
     np.add.at(acc, i[ok], fn[fj[ok]] * area[fj[ok], None])
     acc = acc / np.maximum(np.linalg.norm(acc, axis=1), 1e-20)[:, None]
     bad = ~np.isfinite(acc).all(axis=1) | (np.linalg.norm(acc, axis=1) < 0.5)
-    acc[bad] = fn[sf[bad]]
+    if bad.any():   # corners of zero-area triangles: the vertex's area-weighted normal, else +Z
+        vn = np.zeros((len(verts), 3))
+        np.add.at(vn, faces.reshape(-1), np.repeat(fn * area[:, None], 3, axis=0))
+        fix = vn[sv[bad]]
+        norm = np.linalg.norm(fix, axis=1)
+        fix = np.where(norm[:, None] > 1e-20, fix / np.maximum(norm, 1e-20)[:, None], np.array([0.0, 0.0, 1.0]))
+        acc[bad] = fix
     out = np.empty((len(sv), 3))
     out[order] = acc
     del grp

@@ -66,8 +66,9 @@ def bar_handle(b: AssetBuilder, link: str, mat: str, *, x_surface: float, center
     for s in (-1, 1):
         off = s * (length / 2 - max(r, 0.012))
         py, pz = (y + off, z) if along == "y" else (y, z + off)
-        posts.append(g.cylinder(post_r, clearance + r, (x_surface + (clearance + r) / 2, py, pz), axis="x",
-                                n=12))
+        # posts reach 2 mm into the surface so the handle and its door are one solid
+        posts.append(g.cylinder(post_r, clearance + r + 0.002, (x_surface + (clearance + r) / 2 - 0.001, py, pz),
+                                axis="x", n=12))
     b.add(link, bar, mat, density=density)
     for p in posts:
         b.add(link, p, mat, density=density)
@@ -143,7 +144,7 @@ def knob(b: AssetBuilder, name: str, *, parent: str, mat: str, x_surface: float,
     b.link(name, parent=parent, origin=(x_surface, y, z), joint="revolute", axis=(1, 0, 0), lower=0.0,
            upper=upper, effort=2.0, velocity=3.0, damping=0.01, friction=0.02, role="knob")
     body = g.cylinder(radius, depth, (x_surface + 0.001 + depth / 2, y, z), axis="x", n=24)
-    ridge = g.box((depth * 0.6, radius * 0.35, radius * 1.7), (x_surface + 0.001 + depth + depth * 0.3, y, z))
+    ridge = g.box((depth * 0.6, radius * 0.35, radius * 1.7), (x_surface + depth + depth * 0.3 - 0.001, y, z))
     b.add(name, body, mat, density=1100.0)
     b.add(name, ridge, mat, density=1100.0)
     b.handle(name, (x_surface + depth + 0.001, y, z), radius * 0.35, depth, (0.0, 0.0, 1.0), kind="knob")

@@ -35,13 +35,15 @@ def fridge(b: AssetBuilder) -> float:
     panel(b, "base", (xb0, -w / 2, feet), (xb1, -w / 2 + t, h), body, SHELL)
     panel(b, "base", (xb0, w / 2 - t, feet), (xb1, w / 2, h), body, SHELL)
     panel(b, "base", (xb0, -w / 2 + t, feet), (xb0 + t, w / 2 - t, h), body, SHELL)
-    panel(b, "base", (xb0 + t, -w / 2 + t, feet), (xb1, w / 2 - t, feet + 0.08), liner, SHELL)
+    panel(b, "base", (xb0 + t - 0.002, -w / 2 + t - 0.002, feet), (xb1, w / 2 - t + 0.002, feet + 0.08), liner,
+          SHELL)
     panel(b, "base", (xb0 + t, -w / 2 + t, h - t), (xb1, w / 2 - t, h), body, SHELL)
     b.surface(feet + 0.08, (xb0 + t, -w / 2 + t), (xb1, w / 2 - t), inside=True,
               clear_height=(h - 0.2) / 4 - 0.008)
     for i in range(1, 4):
         z = feet + 0.08 + i * (h - 0.2) / 4
-        panel(b, "base", (xb0 + t, -w / 2 + t, z), (xb1 - 0.03, w / 2 - t, z + 0.008), glass, SHELL)
+        panel(b, "base", (xb0 + t - 0.002, -w / 2 + t - 0.002, z), (xb1 - 0.03, w / 2 - t + 0.002, z + 0.008), glass,
+              SHELL)
         b.surface(z + 0.008, (xb0 + t, -w / 2 + t), (xb1 - 0.03, w / 2 - t), inside=True,
                   clear_height=(h - 0.2) / 4 - 0.008 if i < 3 else h - t - z - 0.008)
     for x in (xb0 + 0.05, xb1 - 0.05):
@@ -178,8 +180,8 @@ def room_door(b: AssetBuilder) -> float | None:
     panel(b, "base", (-wall / 2, ow / 2 - jamb, 0), (wall / 2, ow / 2, oh), frame, 700.0)
     panel(b, "base", (-wall / 2, -ow / 2 + jamb, oh - jamb), (wall / 2, ow / 2 - jamb, oh), frame, 700.0)
     # stop strips behind the leaf (the leaf opens towards +X, away from them)
-    for y0, y1 in ((-ow / 2 + jamb, -ow / 2 + jamb + 0.012), (ow / 2 - jamb - 0.012, ow / 2 - jamb)):
-        panel(b, "base", (-wall / 2, y0, 0), (-lt / 2 - gap, y1, oh - jamb), frame, 700.0)
+    for y0, y1 in ((-ow / 2 + jamb - 0.002, -ow / 2 + jamb + 0.012), (ow / 2 - jamb - 0.012, ow / 2 - jamb + 0.002)):
+        panel(b, "base", (-wall / 2, y0, 0), (-lt / 2 - gap, y1, oh - jamb + 0.002), frame, 700.0)
     hinge = b.choice("hinge", ["left", "right"])
     hy = -ow / 2 + jamb + gap if hinge == "left" else ow / 2 - jamb - gap
     sgn = 1.0 if hinge == "left" else -1.0
@@ -195,7 +197,7 @@ def room_door(b: AssetBuilder) -> float | None:
     standoff = 0.055
     for side in (1, -1):
         xs = side * lt / 2
-        b.add("leaf", g.cylinder(0.026, 0.012, (xs + side * 0.006, yl, hz), axis="x", n=24), metal,
+        b.add("leaf", g.cylinder(0.026, 0.014, (xs + side * 0.005, yl, hz), axis="x", n=24), metal,
               density=7800.0)
         b.add("leaf", g.cylinder(0.009, standoff + 0.001, (xs + side * (standoff / 2 + 0.006), yl, hz),
                                  axis="x", n=16),

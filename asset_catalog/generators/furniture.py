@@ -88,10 +88,9 @@ def coffee_table(b: AssetBuilder) -> float:
     if b.choice("shelf", [False, True]):
         st = 0.018
         zs = b.param("shelf_height", 0.08, 0.15)
-        panel(b, "base", (-length * 0.33, -width * 0.22, zs), (length * 0.33, width * 0.22, zs + st), wood,
-              WOOD)
-        b.surface(zs + st, (-length * 0.33, -width * 0.22), (length * 0.33, width * 0.22), inside=True,
-                  clear_height=h - top_t - zs - st)
+        sx, sy = (length * 0.3, width * 0.25) if round_top else (length / 2 - 0.05, width / 2 - 0.05)
+        panel(b, "base", (-sx, -sy, zs), (sx, sy, zs + st), wood, WOOD)
+        b.surface(zs + st, (-sx, -sy), (sx, sy), inside=True, clear_height=h - top_t - zs - st)
     return None
 
 
@@ -265,6 +264,11 @@ def floor_lamp(b: AssetBuilder) -> float | None:
     b.add("base", sh, shade, density=400.0, collision=[g.hull([sh])])
     b.add("base", g.cylinder(0.02, 0.06, (0, 0, z0 + hs * 0.45), n=16), shade, density=800.0,
           collision="none")
+    zk = z0 + hs * 0.3                                     # three spokes hold the shade on the pole
+    rk = rs_bot + (rs_top - rs_bot) * 0.3 - wall / 2
+    for k in range(3):
+        spoke = g.box((rk, 0.004, 0.004), (rk / 2, 0, zk)).rotate((0, 0, 120.0 * k))
+        b.add("base", spoke, metal, density=STEEL, collision="none")
     return b.param("mass", 4.0, 9.0)
 
 
@@ -408,10 +412,11 @@ def kitchen_counter(b: AssetBuilder) -> float:
     bx = 0.0
     ct0, ct1 = hc, h
     hole = (bx - bd / 2, sy - bw / 2, bx + bd / 2, sy + bw / 2)
-    for lo, hi in (((-d / 2, -w / 2, ct0), (d / 2 + 0.02, hole[1], ct1)),
-                   ((-d / 2, hole[3], ct0), (d / 2 + 0.02, w / 2, ct1)),
-                   ((-d / 2, hole[1], ct0), (hole[0], hole[3], ct1)),
-                   ((hole[2], hole[1], ct0), (d / 2 + 0.02, hole[3], ct1))):
+    cut = (hole[0] + 0.002, hole[1] + 0.002, hole[2] - 0.002, hole[3] - 0.002)   # top overlaps the basin rim
+    for lo, hi in (((-d / 2, -w / 2, ct0), (d / 2 + 0.02, cut[1], ct1)),
+                   ((-d / 2, cut[3], ct0), (d / 2 + 0.02, w / 2, ct1)),
+                   ((-d / 2, cut[1], ct0), (cut[0], cut[3], ct1)),
+                   ((cut[2], cut[1], ct0), (d / 2 + 0.02, cut[3], ct1))):
         panel(b, "base", lo, hi, top_m, 2400.0)
     b.surface(ct1, (-d / 2, -w / 2), (d / 2 + 0.02, hole[1] - 0.05))
     b.surface(ct1, (-d / 2, hole[3] + 0.01), (d / 2 + 0.02, w / 2))
@@ -424,7 +429,7 @@ def kitchen_counter(b: AssetBuilder) -> float:
     panel(b, "base", (hole[0], hole[3] - wt, zb), (hole[2], hole[3], ct1), steel, STEEL)
     # faucet: a post and a spout arching over the basin
     fx = hole[0] - 0.05
-    b.add("base", g.cylinder(0.018, 0.25, (fx, sy, ct1 + 0.125), n=16), steel, density=STEEL)
+    b.add("base", g.cylinder(0.018, 0.252, (fx, sy, ct1 + 0.124), n=16), steel, density=STEEL)
     spout = g.tube_path(np.array([[fx, sy, ct1 + 0.24], [fx + 0.08, sy, ct1 + 0.27], [fx + 0.17, sy,
                                                                                       ct1 + 0.2]]),
                         0.011, n=12)

@@ -153,14 +153,15 @@ def apple(b: AssetBuilder) -> None:
     stem = b.material("stem", (0.35, 0.22, 0.1), roughness=0.8)
     r = b.param("radius", 0.035, 0.046)
     hz = r * b.param("height_ratio", 0.85, 1.0)
-    t = np.linspace(0.12, np.pi - 0.1, 18)
+    t = np.linspace(0.5, np.pi - 0.1, 18)     # from a flat base ring (it sits on it, it does not roll)
     rr = r * np.sin(t) * (1 + b.param("top_heavy", 0.04, 0.12) * -np.cos(t))
     zz = hz * (1 - np.cos(t))
     prof = [(0.0, 0.006), *zip(rr, zz, strict=True), (0.0, 2 * hz - 0.008)]
     body = g.lathe(prof, n=32)
-    b.add("base", body.translate((0, 0, -body.bounding_box()[2])), red, density=850.0)
-    b.add("base", g.cylinder(0.002, 0.02, (0.0, 0.0, 2 * hz - 0.004 + 0.008), n=8).rotate((0, 12, 0)), stem,
-          density=850.0)
+    dz = -body.bounding_box()[2]
+    b.add("base", body.translate((0, 0, dz)), red, density=850.0)
+    stalk = g.cylinder(0.002, 0.02, (0.0, 0.0, 0.0), n=8).rotate((0, 12, 0))
+    b.add("base", stalk.translate((0.0, 0.0, 2 * hz - 0.008 + dz + 0.008)), stem, density=850.0)
     return None
 
 

@@ -48,6 +48,7 @@ def test_geometry_is_closed_finite_and_sized(assets, category):
     spec = GENERATORS_BY_CATEGORY[category]
     for a in assets[category]:
         for name, solid in a.link_solids.items():
+            assert len(solid.decompose()) == 1, f"{a.model.name}/{name} has a floating part"
             v, f, _ = manifold_arrays(solid)
             tm = trimesh.Trimesh(v, f, process=False)
             assert tm.is_watertight and tm.is_winding_consistent, f"{a.model.name}/{name} is not closed"
