@@ -31,6 +31,7 @@ import base64
 import hashlib
 import json
 import logging
+import os
 import re
 import struct
 import tempfile
@@ -393,7 +394,7 @@ def _cache_bytes(data: bytes, suffix: str, cache: Path) -> Path:
     cache.mkdir(parents=True, exist_ok=True)
     out = cache / f"{hashlib.sha256(data).hexdigest()[:32]}{suffix}"
     if not out.exists():
-        tmp = out.with_name(out.name + f".{id(data)}.tmp")
+        tmp = out.with_name(out.name + f".{os.getpid()}.{id(data)}.tmp")
         tmp.write_bytes(data)
         tmp.replace(out)
     return out
@@ -670,7 +671,7 @@ def _channel(image: Path, channel: int, factor: float, cache: Path, path: Path) 
     buf = BytesIO()
     band.save(buf, format="PNG")
     cache.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + f".{id(buf)}.tmp")
+    tmp = out.with_name(out.name + f".{os.getpid()}.{id(buf)}.tmp")
     tmp.write_bytes(buf.getvalue())
     tmp.replace(out)
     return out
