@@ -356,3 +356,20 @@ def _has_newton_usd() -> bool:
     except ImportError:
         return False
     return True
+
+
+def test_plan_reads_the_catalog_of_an_earlier_step(tmp_path):
+    from stages.catalog import DefaultCatalogResult
+    from stages.ingest import IngestConfig, plan_ingest
+
+    cat = tmp_path / "cat"
+    write_textured_box(cat, "box")
+    (cat / "annotations.toml").write_text('[[asset]]\nid = "box"\nsource = "box.obj"\ncategory = "box"\n')
+    prev = DefaultCatalogResult(catalog_dir=str(cat), asset_ids=("box",), categories=("box",), n_files=3,
+                                seconds=0.0)
+    pctx = PlanContext(job_file=tmp_path / "j.toml", job_dir=tmp_path, work_dir=tmp_path / "out", seed=0,
+                       previous={"catalog": {"default": prev}})
+    (item,) = plan_ingest(IngestConfig(catalog_step="catalog"), pctx)
+    assert item.item_id == "box" and item.params.catalog_dir == cat.resolve()
+    with pytest.raises(ValueError, match="exactly one"):
+        IngestConfig(catalog=cat, catalog_step="catalog")
