@@ -103,9 +103,11 @@ def astar(blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) ->
 
 
 def _line_free(blocked: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
-    n = int(max(abs(b[0] - a[0]), abs(b[1] - a[1]))) * 2 + 1
-    ys = np.rint(np.linspace(a[0], b[0], n)).astype(int)
-    xs = np.rint(np.linspace(a[1], b[1], n)).astype(int)
+    """Whether the straight segment between the centres of cells ``a`` and ``b`` crosses only free
+    cells (sampled every quarter cell)."""
+    n = int(math.ceil(4 * math.hypot(b[0] - a[0], b[1] - a[1]))) + 2
+    ys = np.floor(np.linspace(a[0] + 0.5, b[0] + 0.5, n)).astype(int)
+    xs = np.floor(np.linspace(a[1] + 0.5, b[1] + 0.5, n)).astype(int)
     return not blocked[ys, xs].any()
 
 
@@ -136,13 +138,15 @@ def wrap(a: float) -> float:
 @dataclass
 class PathFollower:
     """Holonomic pure pursuit. path (N, 2) [m]; goal_yaw [rad]; v_max [m/s]; w_max [rad/s];
-    lookahead [m]; pos_tol [m] / yaw_tol [rad]: when :meth:`command` reports done."""
+    lookahead [m]; corner: how close [m] to a path vertex the carrot moves on to the next segment
+    (the most a corner is cut); pos_tol [m] / yaw_tol [rad]: when :meth:`command` reports done."""
 
     path: np.ndarray
     goal_yaw: float
     v_max: float = 0.6
     w_max: float = 1.0
     lookahead: float = 0.35
+    corner: float = 0.05
     pos_tol: float = 0.01
     yaw_tol: float = 0.01
     k_pos: float = 2.0
@@ -179,14 +183,12 @@ class PathFollower:
                 best, best_d, best_seg, best_t = q, dd, i, t
         if best is None:
             return self.path[-1]
-        remaining = self.lookahead
-        seg, t = best_seg, best_t
-        while seg < len(self.path) - 1:
-            a, b = self.path[seg], self.path[seg + 1]
-            length = float(np.linalg.norm(b - a))
-            left = (1 - t) * length
-            if left >= remaining:
-                return a + (t + remaining / max(length, 1e-12)) * (b - a)
-            remaining -= left
-            seg, t = seg + 1, 0.0
-        return self.path[-1]
+        # the carrot stays on the current segment until the base is within ``corner`` of its end,
+        # so corners are cut by at most that much (a holonomic base turns on the spot)
+        a, b = self.path[best_seg], self.path[best_seg + 1]
+        length = float(np.linalg.norm(b - a))
+        left = (1 - best_t) * length
+        if left > self.corner or best_seg == len(self.path) - 2:
+            return a + min(1.0, best_t + self.lookahead / max(length, 1e-12)) * (b - a)
+        c = self.path[best_seg + 2]
+        return b + min(1.0, self.lookahead / max(float(np.linalg.norm(c - b)), 1e-12)) * (c - b)

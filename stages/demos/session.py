@@ -135,8 +135,9 @@ class DemoWorld:
         self.cmd.base_velocity = np.zeros(3)
         self.cmd.gripper, self.cmd.mode = 0.0, 0
 
-    def run_episode(self, inst: TaskInstance, sink=None) -> EpisodeResult:
-        """Reset, run the task's expert while recording into ``sink``, evaluate the predicate."""
+    def run_episode(self, inst: TaskInstance, sink=None, *, max_seconds: float | None = None) -> EpisodeResult:
+        """Reset, run the task's expert while recording into ``sink``, evaluate the predicate.
+        ``max_seconds``: time limit [s] (default: the task's)."""
         from stages.simulate.state import read_state
 
         spec = task(inst.task)
@@ -146,7 +147,7 @@ class DemoWorld:
         self.ik.seconds = 0.0
         drv = Driver(self.sim, self.ctl, self.ik, self.cmd, rec, np.random.default_rng(inst.seed))
         t0 = time.perf_counter()
-        rec.start(spec.max_seconds)
+        rec.start(spec.max_seconds if max_seconds is None else max_seconds)
         reason = detail = ""
         try:
             EXPERTS[inst.task](inst, drv)
