@@ -28,6 +28,7 @@ from stages.demos.sampling import BLOCK_SIZE, TABLE_SIZE, TaskInstance
 log = logging.getLogger(__name__)
 
 ROBOT_RADIUS = 0.40  # planning footprint radius of the base with the arm tucked [m]
+APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retreat waypoints [m]
 MUG_GRASP_HEIGHT = 0.059  # fingertip centre above the mug's base (25 mm below the rim of the 0.8-scaled mug) [m]
 
 
@@ -85,15 +86,18 @@ class Driver:
         self.ctl.set_gripper(float(g))
         self.step(seconds)
 
-    def move(self, target_world: np.ndarray, duration: float, *, segments: int = 2, settle: float = 0.0) -> None:
-        """End-effector to ``target_world`` (4x4) along a straight line in ``duration`` [s]."""
+    def move(self, target_world: np.ndarray, duration: float, *, segments: int = 2, settle: float = 0.0,
+             tol: float = 0.005) -> None:
+        """End-effector to ``target_world`` (4x4) along a straight line in ``duration`` [s]; every
+        waypoint must be reached by CLIK within ``tol`` [m] (free-space approach moves use a looser
+        tolerance than contact moves)."""
         from stages.simulate.control import move_ee
 
         self.cmd.mode = 1
         self.base((0.0, 0.0, 0.0))
         try:
             move_ee(self.sim, self.ctl, self.ik, target_world, duration, segments=segments, settle=settle,
-                    rng=self.rng)
+                    rng=self.rng, tol=tol)
         except RuntimeError as e:
             if "unreachable" in str(e):
                 raise ExpertFailure("ik_unreachable", str(e)) from None
@@ -171,15 +175,15 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     top = inst.room.table_height
     rot = top_down(0.0)  # fingers close along world y; the handle (+x) stays clear
     grasp = np.array([mug[0], mug[1], top + 0.001 + MUG_GRASP_HEIGHT])
-    d.move(_pose(grasp + [0, 0, 0.12], rot), 1.5, segments=3, settle=0.1)
+    d.move(_pose(grasp + [0, 0, 0.12], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(grasp, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2)
     place = np.array([bowl[0], bowl[1], top + 0.006 + MUG_GRASP_HEIGHT + 0.02])
-    d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3)
+    d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
     d.grip(0.0, 0.6)
-    d.move(_pose(place + [0, 0, 0.12], rot), 0.8, segments=2)
+    d.move(_pose(place + [0, 0, 0.12], rot), 0.8, segments=2, tol=APPROACH_TOL)
     d.home(1.0)
 
 
@@ -195,11 +199,11 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     d.grip(1.0, 0.4)
     z = inst.room.table_height + 0.022
     start = np.array([*(b - dirn * (BLOCK_SIZE / 2 + 0.035)), z])
-    d.move(_pose(start + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1)
+    d.move(_pose(start + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(start, rot), 0.8, segments=2, settle=0.1)
     end = start + np.array([*(dirn * 0.16), 0.0])
     d.move(_pose(end, rot), 1.6, segments=4, settle=0.2)
-    d.move(_pose(end + [0, 0, 0.12], rot), 0.8, segments=2)
+    d.move(_pose(end + [0, 0, 0.12], rot), 0.8, segments=2, tol=APPROACH_TOL)
     d.grip(0.0, 0.3)
     d.home(1.0)
 
@@ -217,7 +221,7 @@ def _grasp_drawer(inst: TaskInstance, d: Driver, opening: float) -> np.ndarray:
     h = np.asarray(inst.room.drawer_handle) - [opening, 0.0, 0.0]
     d.drive_to((float(h[0] - 0.75), float(h[1]), 0.0), _grid(inst))
     rot = _drawer_rot()
-    d.move(_pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.1)
+    d.move(_pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(h, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.6)
     return h
@@ -246,7 +250,7 @@ def _release_and_back(d: Driver) -> None:
     w = to_world @ cur
     back = w[:3, 3] - 0.08 * w[:3, 2]
     try:
-        d.move(pose(back, w[:3, :3]), 0.6, segments=1)
+        d.move(pose(back, w[:3, :3]), 0.6, segments=1, tol=APPROACH_TOL)
     except ExpertFailure as e:
         log.info("no straight back-off from the handle (%s); tucking the arm directly", e)
     d.home(1.0)
@@ -289,7 +293,7 @@ def _door_frames(inst: TaskInstance):
 def _swing_door(inst: TaskInstance, d: Driver, theta0: float, theta1: float, back: float = 0.12) -> None:
     hinge, handle_pose = _door_frames(inst)
     d.drive_to((float(hinge[0] - 0.655), float(hinge[1] - 0.58), 0.3), _grid(inst, door_open=theta0 != 0.0))
-    d.move(handle_pose(theta0, back), 1.5, segments=3, settle=0.1)
+    d.move(handle_pose(theta0, back), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(handle_pose(theta0), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.6)
     step = math.copysign(math.radians(6.0), theta1 - theta0)

@@ -33,7 +33,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, WorkItem, derive_seed
+from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
 from stages.demos.tasks import TASKS
 
 log = logging.getLogger(__name__)
@@ -108,17 +108,23 @@ class ShardResult(_Strict):
     build_seconds: float
 
 
-def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem]:
-    """One item per (task, world)."""
-    panda = config.shared_assets / PANDA_REL
-    items = []
+def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | PlannedFailure]:
+    """One item per (task, world); the Panda URDF is an input file of every item."""
+    from stages.simulate.robot import PANDA_URDF_REL, find_panda_description
+
+    try:
+        urdf = find_panda_description(config.shared_assets / PANDA_REL) / PANDA_URDF_REL
+    except ItemError as e:
+        return [PlannedFailure(f"{t}_w{w:03d}", f"{ctx.job_file}: {e}") for t in config.tasks
+                for w in range(config.worlds)]
+    items: list[WorkItem | PlannedFailure] = []
     for t in config.tasks:
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, shared_assets=str(config.shared_assets))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params,
-                                  input_files=(panda / "robots/panda_description/urdf/panda.urdf",)))
+                                  input_files=(urdf,)))
     return items
 
 

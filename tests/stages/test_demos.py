@@ -267,3 +267,14 @@ height = 48
     assert ds.num_episodes == report["successes"] and len(ds) == report["dataset"]["frames"]
     kinds = {r["task_kind"] for r in read_episode_columns(Path(report["dataset"]["root"]))}
     assert kinds == {t for t, v in report["tasks"].items() if v["successes"]}
+
+
+def test_importing_the_job_kind_loads_no_heavy_module():
+    import subprocess
+    import sys
+
+    code = ("import sys, pipeline, stages.demos.job, stages.demos.planner, stages.demos.tasks; "
+            "print(sorted(m for m in ('pxr', 'warp', 'torch', 'newton', 'lerobot') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[2])
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr
