@@ -330,24 +330,30 @@ def _add_cabinet(w: _Writer, c: CabinetSpec) -> dict[str, tuple[float, float, fl
     return {"drawer_handle": drawer_handle, "door_handle": door_handle, "door_hinge": hinge}
 
 
-def _add_lights(w: _Writer, size) -> None:
+def _add_lights(w: _Writer, size, height: float = 2.3) -> None:
+    """Photometric lights as the scene stage authors them: a ceiling SphereLight giving ``300`` lux
+    on the floor below it, a weak sun (400 lux) and a sky dome (200 lux)."""
     from pxr import Gf, Sdf
-
     from scipy.spatial.transform import Rotation
 
-    # distant light pointing down and slightly sideways (a UsdLux light shines along its -Z)
-    q = Rotation.from_euler("xy", [25.0, -20.0], degrees=True).as_quat()  # x, y, z, w
+    radius, lux = 0.08, 300.0
+    q = Rotation.from_euler("xy", [25.0, -20.0], degrees=True).as_quat()  # x, y, z, w; shines along -Z
     w.prim("/World/Lights", "Xform")
     w.prim("/World/Lights/Sun", "DistantLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 0.8),
+        "inputs:intensity": (Sdf.ValueTypeNames.Float, 400.0),
         "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
         "xformOp:orient": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2]))),
     })
     w.prim("/World/Lights/Ceiling", "SphereLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 3.0),
-        "inputs:radius": (Sdf.ValueTypeNames.Float, 0.1),
-        "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 1.0, 1.0)),
-        **_xform_attrs((size[0] / 2, size[1] / 2, 2.3)),
+        "inputs:intensity": (Sdf.ValueTypeNames.Float, lux * height ** 2 / (np.pi * radius ** 2)),
+        "inputs:radius": (Sdf.ValueTypeNames.Float, radius),
+        "inputs:enableColorTemperature": (Sdf.ValueTypeNames.Bool, True),
+        "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, 4000.0),
+        **_xform_attrs((size[0] / 2, size[1] / 2, height)),
+    })
+    w.prim("/World/Lights/Sky", "DomeLight", attrs={
+        "inputs:intensity": (Sdf.ValueTypeNames.Float, 200.0 / np.pi),
+        "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
     })
 
 

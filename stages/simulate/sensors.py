@@ -10,26 +10,35 @@ semantic label through ``Sim.shape_label`` (UsdSemantics labels read when the sc
 "robot" for the robot).
 
 Lights. SensorCamera renders directional lights, spot lights and point lights (an internal type
-without a spot cone) with Lambert shading, quadratic falloff ``1 / (1 + 0.02 d^2)`` for local
-lights, optional shadows, and hemispheric ambient light. Newton 1.8 does not import UsdLux lights
-itself, so :func:`read_usd_lights` reads them and :func:`apply_lights` maps them:
+without a spot cone) with Lambert shading, a falloff ``1 / (1 + 0.02 d^2)`` for local lights,
+optional shadows, and hemispheric ambient light; its output saturates at 1. Newton 1.8 does not
+import UsdLux lights itself, so :func:`read_usd_lights` reads them and :func:`apply_lights` maps
+them photometrically, with the scene stage's conventions (``stages.scene.lighting``):
 
 ==================  =========================================================================
 UsdLux              renderer
 ==================  =========================================================================
-DistantLight        directional light along the light's -Z, shadows on
-SphereLight         point light at its position (spot light if it has ShapingAPI cone < 90 deg)
-RectLight/DiskLight spot light at its position pointing along its -Z (fixed ~30 deg cone:
-                    the renderer's cone is not adjustable)
-CylinderLight       point light
-DomeLight           ambient sky colour (textures ignored)
+DistantLight        directional light along the light's -Z, shadows on;
+                    illuminance E = intensity * 2^exposure [lux]
+SphereLight         point light at its position (spot light if ShapingAPI cone < 90 deg);
+                    luminous intensity I = intensity * 2^exposure * pi r^2 [cd]
+RectLight/DiskLight spot light at its position along its -Z (the renderer's cone is fixed,
+                    about 30 deg); I = intensity * 2^exposure * area [cd]
+CylinderLight       point light, I as for a sphere of the cylinder's radius
+DomeLight           ambient sky colour, E = pi * intensity * 2^exposure [lux] (textures ignored)
 ==================  =========================================================================
 
-Radiance: ``colour * intensity * 2^exposure`` (colour temperature ignored), times the emitter
-area [m^2] for local lights (UsdLux intensity is per unit area), then times ``LIGHT_SCALE``.
-The renderer's lights are private arrays of its render context in Newton 1.8 (only one default
-light is public); this module writes them and falls back to the default light when a scene has
-none. When Newton imports USD lights itself this mapping should be dropped.
+Exposure: renderer value 1 is the illuminance ``exposure_lux``; by default (auto) the indoor
+illuminance, i.e. the sum of the local lights' E at ``REFERENCE_DISTANCE`` (I / d^2) and the dome's
+E, or the distant lights' E when there is nothing else; sunlight through a window then saturates
+as it does in a camera exposed for the room, except that the renderer's shadows let 30% of a
+directional light through (Newton's ``shadow_min_visibility``), so a distant light is capped at
+``DISTANT_CAP`` to keep shadowed interiors from washing out. A local light's renderer colour is scaled by
+``(1 + 0.02 d^2)`` at the reference distance so that its falloff matches 1/d^2 there. Colour
+temperature (when enabled) tints the colour (Planckian locus approximation). The renderer's
+lights are private arrays of its render context in Newton 1.8 (only one default light is public);
+this module writes them and falls back to the default light when a scene has none. When Newton
+imports USD lights itself this mapping should be dropped.
 """
 
 from __future__ import annotations
@@ -42,16 +51,29 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-LIGHT_SCALE = 1.0
+REFERENCE_DISTANCE = 2.0  # [m] where local lights' falloff is matched to 1/d^2
+DISTANT_CAP = 0.8  # renderer value cap of a distant light (its shadows still pass 30% of it)
 SPOT, DIRECTIONAL, POINT = 0, 1, 2
+
+
+def kelvin_to_rgb(kelvin: float) -> np.ndarray:
+    """Linear-ish RGB tint (max component 1) of a black body at ``kelvin`` [K] (1000-40000),
+    Tanner Helland's fit of the Planckian locus."""
+    t = float(np.clip(kelvin, 1000.0, 40000.0)) / 100.0
+    r = 255.0 if t <= 66 else 329.698727446 * (t - 60) ** -0.1332047592
+    g = 99.4708025861 * np.log(t) - 161.1195681661 if t <= 66 else 288.1221695283 * (t - 60) ** -0.0755148492
+    b = 255.0 if t >= 66 else (0.0 if t <= 19 else 138.5177312231 * np.log(t - 10) - 305.0447927307)
+    rgb = np.clip(np.array([r, g, b]) / 255.0, 0.0, 1.0) ** 2.2  # sRGB-ish -> linear
+    return rgb / rgb.max()
 
 
 @dataclass(frozen=True, kw_only=True)
 class UsdLight:
     """A UsdLux light in world coordinates: kind (the USD type name), position [m] (3,),
-    direction (3,) (the light's -Z axis, where it shines), color linear RGB, intensity, exposure,
-    area [m^2] of the emitter (1 for distant and dome lights), cone_angle [deg] (ShapingAPI, or
-    None), path."""
+    direction (3,) (the light's -Z axis, where it shines), color linear RGB (tinted by the colour
+    temperature when enabled), intensity, exposure, area [m^2] of the emitter's projected area
+    (pi r^2 for spheres, w h for rects; 1 for distant and dome lights), cone_angle [deg]
+    (ShapingAPI, or None), path."""
 
     kind: str
     path: str
@@ -64,8 +86,19 @@ class UsdLight:
     cone_angle: float | None = None
 
     @property
-    def radiance(self) -> np.ndarray:
-        return np.asarray(self.color) * self.intensity * 2.0 ** self.exposure * self.area * LIGHT_SCALE
+    def is_local(self) -> bool:
+        return self.kind not in ("DistantLight", "DomeLight")
+
+    @property
+    def illuminance(self) -> float:
+        """E [lux]: on a surface facing a distant light; from a dome on a horizontal surface; from
+        a local light at REFERENCE_DISTANCE (I / d^2 with I = L * area [cd])."""
+        scale = self.intensity * 2.0 ** self.exposure
+        if self.kind == "DistantLight":
+            return scale
+        if self.kind == "DomeLight":
+            return float(np.pi * scale)
+        return scale * self.area / REFERENCE_DISTANCE ** 2
 
 
 def read_usd_lights(stage) -> tuple[UsdLight, ...]:
@@ -86,7 +119,7 @@ def read_usd_lights(stage) -> tuple[UsdLight, ...]:
         area = 1.0
         if kind == "SphereLight":
             r = UsdLux.SphereLight(prim).GetRadiusAttr().Get() or 0.5
-            area = 4 * np.pi * r * r
+            area = np.pi * r * r
         elif kind == "RectLight":
             lt = UsdLux.RectLight(prim)
             area = (lt.GetWidthAttr().Get() or 1.0) * (lt.GetHeightAttr().Get() or 1.0)
@@ -95,14 +128,16 @@ def read_usd_lights(stage) -> tuple[UsdLight, ...]:
             area = np.pi * r * r
         elif kind == "CylinderLight":
             lt = UsdLux.CylinderLight(prim)
-            area = 2 * np.pi * (lt.GetRadiusAttr().Get() or 0.5) * (lt.GetLengthAttr().Get() or 1.0)
+            area = np.pi * (lt.GetRadiusAttr().Get() or 0.5) ** 2
         cone = None
         if prim.HasAPI(UsdLux.ShapingAPI):
             cone = UsdLux.ShapingAPI(prim).GetShapingConeAngleAttr().Get()
-        color = api.GetColorAttr().Get()
+        color = np.asarray(api.GetColorAttr().Get() or (1.0, 1.0, 1.0), float)
+        if api.GetEnableColorTemperatureAttr().Get():
+            color = color * kelvin_to_rgb(api.GetColorTemperatureAttr().Get() or 6500.0)
         lights.append(UsdLight(
             kind=kind, path=str(prim.GetPath()), position=tuple(map(float, pos)), direction=tuple(map(float, d)),
-            color=tuple(map(float, color if color is not None else (1, 1, 1))),
+            color=tuple(map(float, color)),
             intensity=float(api.GetIntensityAttr().Get() or 1.0), exposure=float(api.GetExposureAttr().Get() or 0.0),
             area=float(area), cone_angle=None if cone is None else float(cone)))
     return tuple(lights)
@@ -121,12 +156,27 @@ class RendererLight:
     source: str
 
 
-def map_lights(lights: Sequence[UsdLight]) -> tuple[list[RendererLight], np.ndarray | None]:
+def auto_exposure_lux(lights: Sequence[UsdLight]) -> float:
+    """The illuminance [lux] shown as renderer value 1 (see the module doc)."""
+    indoor = sum(lt.illuminance for lt in lights if lt.kind != "DistantLight")
+    if indoor > 0:
+        return indoor
+    return sum(lt.illuminance for lt in lights) or 1.0
+
+
+def map_lights(lights: Sequence[UsdLight], exposure_lux: float | None = None
+               ) -> tuple[list[RendererLight], np.ndarray | None]:
     """The renderer lights and the ambient sky colour (from dome lights, or None)."""
+    e_ref = exposure_lux or auto_exposure_lux(lights)
     out: list[RendererLight] = []
     sky = None
     for lt in lights:
-        c = tuple(float(x) for x in lt.radiance)
+        value = lt.illuminance / e_ref
+        if lt.kind == "DistantLight":
+            value = min(value, DISTANT_CAP)
+        if lt.is_local:
+            value *= 1.0 + 0.02 * REFERENCE_DISTANCE ** 2
+        c = tuple(float(x) for x in np.asarray(lt.color) * value)
         if lt.kind == "DomeLight":
             sky = np.asarray(c) if sky is None else sky + c
             continue
@@ -142,11 +192,11 @@ def map_lights(lights: Sequence[UsdLight]) -> tuple[list[RendererLight], np.ndar
     return out, sky
 
 
-def apply_lights(camera, lights: Sequence[UsdLight]) -> list[RendererLight]:
+def apply_lights(camera, lights: Sequence[UsdLight], exposure_lux: float | None = None) -> list[RendererLight]:
     """Install the scene lights in a SensorCamera (see the module doc); returns what was used."""
     import warp as wp
 
-    mapped, sky = map_lights(lights)
+    mapped, sky = map_lights(lights, exposure_lux)
     if not mapped:
         camera.create_default_light(enable_shadows=True)
         log.info("scene has no UsdLux lights: using the renderer's default directional light")
@@ -251,13 +301,19 @@ class CameraFrame:
 class CameraRig:
     """Renders a set of cameras in every world of a :class:`~stages.simulate.world.Sim`.
 
-    The third-person cameras are fixed in each world's frame (worlds share coordinates)."""
+    The third-person cameras are fixed in each world's frame (worlds share coordinates);
+    exposure_lux: illuminance shown as white (None: automatic, see the module doc); shadows:
+    shadow rays for distant lights (without them sunlight reaches through roofs and walls);
+    textures: load and render the shapes' textures (a missing texture file raises)."""
 
     sim: object
     cameras: list[CameraSpec]
     rgb: bool = True
     depth: bool = True
     segmentation: bool = True
+    exposure_lux: float | None = None
+    shadows: bool = True
+    textures: bool = True
     lights_used: list[RendererLight] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -265,8 +321,12 @@ class CameraRig:
         from newton.sensors import SensorCamera
 
         model = self.sim.model
-        self._sensor = SensorCamera(model, load_textures=False)
-        self.lights_used = apply_lights(self._sensor, self.sim.scene.lights)
+        # both faces: generated meshes with inward winding (ceilings seen from below) must still
+        # occlude the camera and the sun
+        config = SensorCamera.RenderConfig(enable_shadows=self.shadows, enable_backface_culling=False,
+                                           enable_textures=self.textures)
+        self._sensor = SensorCamera(model, load_textures=self.textures, default_render_config=config)
+        self.lights_used = apply_lights(self._sensor, self.sim.scene.lights, self.exposure_lux)
         dev = model.device
         self._rays = {}
         self._images = {}
