@@ -4,7 +4,10 @@ For each world count: world-steps/s of the furnished demo room + mobile Panda bu
 ``stages.simulate`` (scene USD via add_usd, robot URDF, drives, base-velocity pre-step kernel),
 and of a bare Newton scene built directly with the ModelBuilder (ground, four walls, the same
 number of free boxes, the same robot URDF, no pre-step) stepped with the same solver settings;
-plus RGB-D frames/s of one 128x128 camera per world for both. ratio = bare / ours (our overhead).
+plus RGB-D frames/s of one 128x128 camera per world for both (same render settings: shadows on,
+no backface culling; ours with the scene's mapped UsdLux lights, bare with one directional light).
+ratio = bare / ours (our overhead). MuJoCo-Warp capacities are ours (njmax 1024, nconmax 256 per
+world) for both, so overflow does not drop contacts in either.
 Timings are medians of repeats. Writes ``bench_results/simulate.json``.
 
 Run on the GPU machine::
@@ -144,7 +147,9 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
             n_free = sum(1 for p in sim.scene.body_path.values() if "Cabinet" not in p)
             model, bare_step, bstate = _bare(device, n, desc, n_free, sim.solver_settings)
             bare_dt = _time_steps(bare_step, device, steps, repeats)
-            sensor = SensorCamera(model, load_textures=False)
+            # the same render settings as CameraRig (shadows, both faces), one directional light
+            cfg = SensorCamera.RenderConfig(enable_shadows=True, enable_backface_culling=False)
+            sensor = SensorCamera(model, load_textures=False, default_render_config=cfg)
             sensor.create_default_light()
             rays = SensorCamera.compute_camera_rays_pinhole(width, width, camera_fov=1.2, device=device)
             tf = wp.array([wp.transform((1.0, 1.0, 1.4), wp.quat_identity())] * n, dtype=wp.transformf, device=device)

@@ -260,3 +260,48 @@ def test_two_worlds_are_independent(room, desc):
     assert head.rgb.shape[0] == 2 and not np.array_equal(head.depth[0], head.depth[1])
     np.testing.assert_allclose(head.extrinsics[0, 0, 3] - head.extrinsics[1, 0, 3], s0.robot.base.x - s1.robot.base.x,
                                atol=1e-4)
+
+
+def test_usd_lights_map_photometrically(tmp_path):
+    """UsdLux lights authored in lux/nits (the scene stage's convention) map to renderer lights:
+    auto exposure on the indoor illuminance, a sun capped, local falloff matched at 2 m."""
+    from pxr import Usd, UsdGeom, UsdLux
+
+    from stages.simulate.sensors import (
+        DIRECTIONAL,
+        DISTANT_CAP,
+        POINT,
+        REFERENCE_DISTANCE,
+        auto_exposure_lux,
+        map_lights,
+        read_usd_lights,
+    )
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Xform.Define(stage, "/W")
+    sphere = UsdLux.SphereLight.Define(stage, "/W/Lamp")
+    sphere.CreateRadiusAttr(0.1)
+    # 400 lux at 2 m: I = E d^2 = 1600 cd = L pi r^2
+    sphere.CreateIntensityAttr(1600.0 / (np.pi * 0.01))
+    UsdGeom.Xformable(sphere).AddTranslateOp().Set((1.0, 2.0, 2.5))
+    sun = UsdLux.DistantLight.Define(stage, "/W/Sun")
+    sun.CreateIntensityAttr(4000.0)
+    sun.CreateExposureAttr(1.0)  # 8000 lux
+    dome = UsdLux.DomeLight.Define(stage, "/W/Sky")
+    dome.CreateIntensityAttr(100.0 / np.pi)  # 100 lux
+    lights = read_usd_lights(stage)
+    by_kind = {lt.kind: lt for lt in lights}
+    assert by_kind["SphereLight"].illuminance == pytest.approx(400.0, rel=1e-4)
+    assert by_kind["DistantLight"].illuminance == pytest.approx(8000.0)
+    assert by_kind["DomeLight"].illuminance == pytest.approx(100.0, rel=1e-4)
+    assert auto_exposure_lux(lights) == pytest.approx(500.0, rel=1e-4)
+    mapped, sky = map_lights(lights)
+    kinds = {m.source: m for m in mapped}
+    assert kinds["/W/Sun"].type == DIRECTIONAL and kinds["/W/Sun"].cast_shadow
+    assert max(kinds["/W/Sun"].color) == pytest.approx(DISTANT_CAP)
+    np.testing.assert_allclose(kinds["/W/Sun"].direction, (0, 0, -1), atol=1e-6)
+    lamp = kinds["/W/Lamp"]
+    assert lamp.type == POINT and lamp.position == pytest.approx((1.0, 2.0, 2.5))
+    # renderer falloff 1 / (1 + 0.02 d^2) at 2 m gives 400/500 of white
+    assert lamp.color[0] / (1 + 0.02 * REFERENCE_DISTANCE ** 2) == pytest.approx(0.8, rel=1e-4)
+    np.testing.assert_allclose(sky, [0.2, 0.2, 0.2], rtol=1e-4)
