@@ -32,11 +32,15 @@ class _Entry(_Strict):
     probability: float = Field(default=1.0, ge=0.0, le=1.0)
     requires: tuple[str, ...] = ()
 
-    @model_validator(mode="after")
-    def _count_ok(self):
+    def problems(self) -> list[str]:
         lo, hi = self.count
-        if lo < 0 or hi < lo:
-            raise ValueError(f"count {list(self.count)} must be [min, max] with 0 <= min <= max")
+        return [f"count {list(self.count)} must be [min, max] with 0 <= min <= max"] if lo < 0 or hi < lo else []
+
+    @model_validator(mode="after")
+    def _check(self):
+        errs = self.problems()
+        if errs:
+            raise ValueError("; ".join(errs))
         return self
 
 
@@ -50,13 +54,13 @@ class FurnitureRule(_Entry):
     yaw_jitter: float = Field(default=0.0, ge=0.0, le=180.0)
     tall_ok_at_window: bool = False
 
-    @model_validator(mode="after")
-    def _target_ok(self):
+    def problems(self) -> list[str]:
+        errs = super().problems()
         if self.mode in ("facing", "front", "beside", "around") and not self.target:
-            raise ValueError(f"mode {self.mode!r} needs a target category")
+            errs.append(f"mode {self.mode!r} needs a target category")
         if self.distance[0] < 0 or self.distance[1] < self.distance[0]:
-            raise ValueError(f"distance {list(self.distance)} must be [min, max] with 0 <= min <= max")
-        return self
+            errs.append(f"distance {list(self.distance)} must be [min, max] with 0 <= min <= max")
+        return errs
 
 
 class ObjectRule(_Entry):

@@ -390,8 +390,8 @@ class Populator:
         keep = None if furniture else (lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
-            if rec is None and not furniture:
-                if self.library.records.get(rule.category):
+            if rec is None:
+                if not furniture and self.library.records.get(rule.category):
                     rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll)")
                     return
                 if k < rule.count[0]:

@@ -1,0 +1,133 @@
+"""Scene stage units: rule files, exact convex penetration, 2-D geometry, lighting and materials."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stages.scene.collide import box_piece, convex_piece, find_penetrations, penetration_depth
+from stages.scene.geom import convex_hull_2d, convex_inside, convex_overlap, polygon_area, rot3, shrink_convex
+from stages.scene.lighting import KELVIN_RANGE, LightingConfig, plan_lights
+from stages.scene.materials import FLOOR_KINDS, WALL_KINDS, planar_st, sample_looks, write_textures
+from stages.scene.rules import DEFAULT_RULES, RulesError, load_rules
+
+
+def test_default_rules_cover_the_dataset_rooms():
+    rules = load_rules()
+    req = {rt: {e.category for e in rules.for_room(rt).furniture if e.count[0] > 0}
+           for rt in ("living_room", "kitchen", "bedroom")}
+    assert {"sofa", "tv_stand", "coffee_table"} <= req["living_room"]
+    assert {"kitchen_counter", "fridge"} <= req["kitchen"]
+    assert {"bed", "nightstand"} <= req["bedroom"]
+    assert {"pillow"} <= {o.category for o in rules.for_room("bedroom").objects}
+    assert rules.setting("kitchen", "path_width") == pytest.approx(0.6)
+    # the generators know every category the rules name
+    from asset_catalog.generators import GENERATORS_BY_CATEGORY
+
+    assert rules.categories() <= set(GENERATORS_BY_CATEGORY)
+
+
+def test_bad_rule_file_names_file_and_every_problem(tmp_path: Path):
+    p = tmp_path / "rules.toml"
+    p.write_text('[room.kitchen]\n[[room.kitchen.furniture]]\ncategory = "fridge"\nmode = "beside"\n'
+                 'count = [2, 1]\n[[room.attic.furniture]]\ncategory = "x"\n', encoding="utf-8")
+    with pytest.raises(RulesError) as e:
+        load_rules(p)
+    msg = str(e.value)
+    assert str(p) in msg and "target" in msg and "count" in msg and "attic" in msg
+    with pytest.raises(RulesError, match="not found"):
+        load_rules(tmp_path / "missing.toml")
+    assert DEFAULT_RULES.is_file()
+
+
+def test_penetration_depth_of_boxes_is_exact():
+    a = box_piece([0, 0, 0], [1, 1, 1])
+    assert penetration_depth(a, box_piece([0.9985, 0.2, 0.2], [2, 2, 2])) == pytest.approx(0.0015)
+    assert penetration_depth(a, box_piece([1.0, 0, 0], [2, 1, 1])) == pytest.approx(0.0)   # touching
+    assert penetration_depth(a, box_piece([1.2, 0, 0], [2, 1, 1])) == pytest.approx(-0.2)  # apart
+    # a box rotated 45 deg about z, its corner pushed 5 mm into a's +x face
+    h = 0.5 / math.sqrt(2)
+    b = box_piece([-h, -h, 0.2], [h, h, 0.8])
+    r = rot3(math.pi / 4)
+    b = b.transformed(r, np.array([1.0 + 0.5 - 0.005, 0.5, 0.0]))
+    assert penetration_depth(a, b) == pytest.approx(0.005, abs=1e-9)
+
+
+def test_edge_edge_separation_is_found():
+    # two tetrahedra whose face normals all overlap but an edge x edge axis separates them
+    t1 = convex_piece(np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 1], [0.5, 1, 0.5]], dtype=float) * 1.0)
+    t2 = convex_piece(np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 1], [0.5, 1, 0.5]], dtype=float) @ rot3(math.pi).T
+                      + np.array([0.5, 1.02, 0.0]))
+    d = penetration_depth(t1, t2)
+    from stages.scene.collide import face_overlap
+
+    assert d <= face_overlap(t1, t2) + 1e-12
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(-0.05, 0.05), st.floats(0, 2 * math.pi))
+def test_translation_along_x_gives_the_overlap(gap, yaw):
+    """A unit cube and a cube shifted by (1 + gap) along x overlap by -gap, whatever both are rotated by."""
+    a = box_piece([0, 0, 0], [1, 1, 1])
+    b = box_piece([1 + gap, 0, 0], [2 + gap, 1, 1])
+    r = rot3(yaw)
+    assert penetration_depth(a.transformed(r, np.zeros(3)), b.transformed(r, np.zeros(3))) == pytest.approx(-gap, abs=1e-9)
+
+
+def test_find_penetrations_reports_owner_pairs_over_tolerance():
+    a = box_piece([0, 0, 0], [1, 1, 1], owner="table")
+    b = box_piece([0.2, 0.2, 0.998], [0.4, 0.4, 1.2], owner="mug")    # 2 mm into the top
+    c = box_piece([0.6, 0.6, 0.9995], [0.8, 0.8, 1.2], owner="plate")  # 0.5 mm: tolerated
+    hits = find_penetrations([b, c], [a])
+    assert [(h.owner_a, h.owner_b) for h in hits] == [("mug", "table")]
+    assert hits[0].depth == pytest.approx(0.002)
+
+
+def test_2d_helpers():
+    sq = convex_hull_2d(np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]]))
+    assert polygon_area(sq) == pytest.approx(1.0)
+    assert convex_overlap(sq, sq + [0.99, 0]) and not convex_overlap(sq, sq + [1.01, 0])
+    assert not convex_overlap(sq, sq + [1.01, 0], gap=0.0) and convex_overlap(sq, sq + [1.01, 0], gap=0.02)
+    ell = np.array([[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]], dtype=float)
+    assert convex_inside(sq * 0.9 + 0.05, ell)
+    assert not convex_inside(sq * 1.2 + [0.5, 0.5], ell)          # covers the reflex corner
+    inner = shrink_convex(sq, 0.1)
+    assert polygon_area(inner) == pytest.approx(0.64)
+
+
+def test_lights_hit_their_target_lux():
+    poly = np.array([[0, 0], [4, 0], [4, 3], [0, 3]], dtype=float)
+    rng = np.random.default_rng(3)
+    lights = plan_lights([("r1", poly, 0.0, 2.6), ("r2", poly + 5, 2.8, 2.6)], LightingConfig(daylight=1.0), rng)
+    ceil = [lt for lt in lights if lt.type == "SphereLight"]
+    assert len(ceil) == 2 and {lt.type for lt in lights} == {"SphereLight", "DistantLight", "DomeLight"}
+    for lt in ceil:
+        h = lt.position[2] - (0.0 if lt.name.endswith("r1") else 2.8)
+        assert lt.floor_lux(h) == pytest.approx(lt.target_lux, rel=1e-9)
+    for lt in lights:
+        assert 50 <= lt.target_lux <= 20000 and KELVIN_RANGE[0] <= lt.color_temperature <= KELVIN_RANGE[1]
+        assert -5 <= lt.exposure <= 5
+
+
+def test_textures_and_looks(tmp_path: Path):
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    tex = write_textures([*FLOOR_KINDS, *WALL_KINDS, "asset_metal", "asset_fabric"], tmp_path / "textures", rng,
+                         px=64, rel_to=tmp_path)
+    assert tex["asset_metal"].metallic and tex["wood"].metallic is None
+    n = np.asarray(Image.open(tmp_path / tex["brick"].normal), dtype=float) / 255 * 2 - 1
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=0.03)        # unit normals
+    assert n[..., 2].min() > 0                                             # facing out of the surface
+    rough = np.asarray(Image.open(tmp_path / tex["tile"].roughness))
+    assert rough.ndim == 2 and rough.std() > 5                              # grout vs glaze
+    looks = sample_looks(["a", "b"], ["wood", "metal"], 3, rng)
+    assert len({lk.floors["a"].name for lk in looks}) == 3
+    assert {m.kind for lk in looks for m in lk.floors.values()} <= set(FLOOR_KINDS)
+    st_ = planar_st(np.array([[0, 0, 0], [2, 0, 0], [0, 3, 0]], float), np.array([0, 1, 2]))
+    assert st_.tolist() == [[0, 0], [2, 0], [0, 3]]
