@@ -208,11 +208,11 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     d.home(1.0)
 
 
-def _drawer_rot() -> np.ndarray:
+def _drawer_rot(pitch: float = 20.0) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
-    # gripper pointing at the cabinet (+X), pitched 20 deg down, fingers closing vertically
-    return Rotation.from_euler("y", 20, degrees=True).as_matrix() @ np.stack(
+    # gripper pointing at the cabinet (+X), pitched ``pitch`` deg down, fingers closing vertically
+    return Rotation.from_euler("y", pitch, degrees=True).as_matrix() @ np.stack(
         [[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
 
 
@@ -319,6 +319,22 @@ def close_door(inst: TaskInstance, d: Driver) -> None:
     _swing_door(inst, d, float(inst.joints[DOOR_JOINT]), 0.0, back=0.06)
 
 
+def press_button(inst: TaskInstance, d: Driver) -> None:
+    """Drive in front of the control panel, close the hand, point it at the button (tool axis +X,
+    fingers vertical), push the fingertips 12 mm past the button's rest face, pull back, tuck."""
+    b = np.asarray(inst.room.button)
+    d.drive_to((float(b[0] - 0.72), float(b[1]), 0.0), _grid(inst))
+    rot = _drawer_rot(pitch=10.0)
+    d.grip(1.0, 0.4)
+    d.move(_pose(b + [-0.10, 0, 0], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(b + [-0.01, 0, 0], rot), 0.6, segments=1)
+    d.move(_pose(b + [inst.room.button_travel + 0.002, 0, 0], rot), 0.8, segments=2, settle=0.3)
+    d.move(_pose(b + [-0.10, 0, 0], rot), 0.8, segments=2, tol=APPROACH_TOL)
+    d.grip(0.0, 0.3)
+    d.home(1.0)
+
+
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "push_object": push_object, "open_drawer": open_drawer,
-           "close_drawer": close_drawer, "open_door": open_door, "close_door": close_door}
+           "close_drawer": close_drawer, "open_door": open_door, "close_door": close_door,
+           "press_button": press_button}
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.demos.tasks import DOOR_JOINT, DRAWER_JOINT, task
+from stages.demos.tasks import BUTTON_JOINT, DOOR_JOINT, DRAWER_JOINT, task
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +31,8 @@ MUG_OFFSET = (-0.15, -0.25)
 BLOCK_OFFSET = (0.24, -0.34)
 BLOCK_SIZE = 0.05
 BOWL_INNER = 0.085
+BUTTON_TRAVEL = 0.010   # [m] from the rest position to the panel face
+BUTTON_SIZE = (0.012, 0.04, 0.04)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -54,6 +56,8 @@ class TaskRoom:
     door_hinge: tuple[float, float, float]
     drawer_travel: float
     door_range: float
+    button: tuple[float, float, float]
+    button_travel: float
     cabinet_box: tuple[float, float, float, float]
     materials: dict
 
@@ -96,8 +100,43 @@ def _rgb(rng, lo=0.15, hi=0.9) -> tuple[float, float, float]:
     return tuple(float(v) for v in rng.uniform(lo, hi, 3))
 
 
-def _overlay(path: Path, base: str, room, bowl_xy, block_xy, colors: dict) -> None:
-    """Write the overlay layer: sublayer ``base``, add bowl and block, override display colours."""
+def _button_parts(front_x: float, y: float, top_z: float) -> tuple[tuple, tuple, tuple]:
+    """The control panel on the cabinet top (static box: centre, size) and its push button
+    (box centre at rest); the panel's front face is at ``front_x``, the button in front of it."""
+    panel = ((front_x + 0.06, y, top_z + 0.07), (0.12, 0.22, 0.14))
+    button = (front_x - BUTTON_TRAVEL - BUTTON_SIZE[0] / 2, y, top_z + 0.07)
+    return panel, button, BUTTON_SIZE
+
+
+def _add_button(w, front_x: float, y: float, top_z: float, colors: dict) -> None:
+    """Panel + button body on a prismatic joint along +X (0 at rest .. BUTTON_TRAVEL pressed), no
+    spring: a pressed button stays in."""
+    from pxr import Gf, Sdf
+
+    from stages.simulate.demo_scene import _box, _labels
+
+    (pc, ps), bc, bs = _button_parts(front_x, y, top_z)
+    w.prim("/World/ControlPanel", "Xform", apis=_labels("control_panel")[0], attrs=_labels("control_panel")[1])
+    _box(w, "/World/ControlPanel/Box", pc, ps, colors["panel"])
+    la, lv = _labels("button")
+    w.prim("/World/Button", "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
+           attrs={**lv, "physics:mass": (Sdf.ValueTypeNames.Float, 0.05)})
+    _box(w, "/World/Button/Cap", bc, bs, colors["button"])
+    zero = Gf.Vec3f(0, 0, 0)
+    w.prim("/World/ButtonJoint", "PhysicsPrismaticJoint", attrs={
+        "physics:localRot0": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
+        "physics:localRot1": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
+        "physics:axis": (Sdf.ValueTypeNames.Token, "X"),
+        "physics:lowerLimit": (Sdf.ValueTypeNames.Float, 0.0),
+        "physics:upperLimit": (Sdf.ValueTypeNames.Float, BUTTON_TRAVEL),
+        "physics:localPos0": (Sdf.ValueTypeNames.Point3f, zero),
+        "physics:localPos1": (Sdf.ValueTypeNames.Point3f, zero),
+    }, rels={"physics:body1": ["/World/Button"]})
+
+
+def _overlay(path: Path, base: str, room, bowl_xy, block_xy, colors: dict, button_at: tuple) -> None:
+    """Write the overlay layer: sublayer ``base``, add bowl, block, control panel with a button,
+    override display colours."""
     from pxr import Gf, Sdf
 
     from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
@@ -118,6 +157,7 @@ def _overlay(path: Path, base: str, room, bowl_xy, block_xy, colors: dict) -> No
            attrs={**_xform_attrs((*block_xy, top_z + BLOCK_SIZE / 2 + 0.001)), **lv,
                   "physics:mass": (Sdf.ValueTypeNames.Float, 0.15)})
     _box(w, "/World/Block/Geom", (0, 0, 0), (BLOCK_SIZE,) * 3, colors["block"])
+    _add_button(w, *button_at, colors)
     overs = {"/World/Floor": "floor", "/World/Table/Top": "table", "/World/Cabinet/Drawer/Front": "cabinet_front",
              "/World/Cabinet/Door/Panel": "cabinet_front"}
     overs.update({f"/World/{b}": "wall" for b in ("WallSouth", "WallNorth", "WallWest", "WallEast")})
@@ -148,20 +188,25 @@ def write_task_room(out_dir: Path, *, shared_assets: Path, scene_id: str, rng: n
                            mug_xy=(table_xy[0] + MUG_OFFSET[0], table_xy[1] + MUG_OFFSET[1]), cabinet=cab,
                            mug_scale=0.8)
     colors = {"floor": _rgb(rng, 0.3, 0.7), "wall": _rgb(rng, 0.6, 0.95), "table": _rgb(rng, 0.2, 0.7),
-              "cabinet_front": _rgb(rng), "bowl": _rgb(rng), "block": _rgb(rng)}
+              "cabinet_front": _rgb(rng), "bowl": _rgb(rng), "block": _rgb(rng), "panel": _rgb(rng, 0.1, 0.5),
+              "button": _rgb(rng, 0.5, 1.0)}
     bowl_xy = (table_xy[0] + BOWL_OFFSET[0], table_xy[1] + BOWL_OFFSET[1])
     block_xy = (table_xy[0] + BLOCK_OFFSET[0], table_xy[1] + BLOCK_OFFSET[1])
     usd = out_dir / "scene.usda"
-    _overlay(usd, "room.usda", room, bowl_xy, block_xy, colors)
     parts = cabinet_parts(cab)
     xmin = min(b.center[0] - b.size[0] / 2 for p in parts.values() for b in p)
+    front = min(b.center[0] - b.size[0] / 2 for b in parts["drawer"] if b.name == "Front")
+    button_at = (front, cab.origin[1] - cab.size[1] / 2 + 0.15 + float(rng.uniform(0.0, 0.1)), cab.size[2])
+    _overlay(usd, "room.usda", room, bowl_xy, block_xy, colors, button_at)
+    _, bc, bs = _button_parts(*button_at)
     d, wdt, _ = cab.size
     box = (xmin - 0.01, cab.origin[1] - wdt / 2, cab.origin[0] + d / 2, cab.origin[1] + wdt / 2)
     return TaskRoom(usd=usd, scene_id=scene_id, size=room.size, wall_thickness=room.wall_thickness, table_xy=table_xy,
                     table_height=TABLE_HEIGHT, bowl_xy=bowl_xy, bowl_inner_radius=BOWL_INNER,
                     drawer_handle=tuple(room.drawer_handle), door_handle=tuple(room.door_handle),
                     door_hinge=tuple(room.door_hinge), drawer_travel=cab.drawer_travel, door_range=cab.door_range,
-                    cabinet_box=box, materials=colors)
+                    button=(bc[0] - bs[0] / 2, bc[1], bc[2]), button_travel=BUTTON_TRAVEL, cabinet_box=box,
+                    materials=colors)
 
 
 def _free_start(room: TaskRoom, rng: np.random.Generator, door_open: bool) -> tuple[float, float, float]:
@@ -187,16 +232,17 @@ def sample_instance(task_name: str, room: TaskRoom, seed: int) -> TaskInstance:
     mug = (tx + MUG_OFFSET[0] + float(rng.uniform(-0.03, 0.03)), ty + MUG_OFFSET[1] + float(rng.uniform(-0.03, 0.03)))
     block = (tx + BLOCK_OFFSET[0] + float(rng.uniform(-0.02, 0.02)),
              ty + BLOCK_OFFSET[1] + float(rng.uniform(-0.02, 0.02)))
-    joints = {DRAWER_JOINT: 0.0, DOOR_JOINT: 0.0}
+    joints = {DRAWER_JOINT: 0.0, DOOR_JOINT: 0.0, BUTTON_JOINT: 0.0}
     if task_name == "close_drawer":
         joints[DRAWER_JOINT] = -float(rng.uniform(0.6, 0.9)) * room.drawer_travel
     if task_name == "close_door":
         joints[DOOR_JOINT] = -float(rng.uniform(0.75, 0.9)) * room.door_range
     names = {"object": "mug" if spec.family == "pick_place" else "block", "container": "bowl",
-             "furniture": "cabinet"}
+             "furniture": "cabinet", "panel": "control panel"}
     instruction = spec.templates[int(rng.integers(len(spec.templates)))].format(**names)
     start = _free_start(room, rng, door_open=task_name == "close_door")
-    ids = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("block", "table")}.get(task_name, ("cabinet",))
+    ids = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("block", "table"),
+           "press_button": ("control_panel",)}.get(task_name, ("cabinet",))
     return TaskInstance(task=task_name, seed=int(seed), room=room, instruction=instruction, names=names,
                         start_base=start, mug_xy=mug, block_xy=block, push_direction=(0.0, 1.0), joints=joints,
                         asset_ids=tuple(f"{room.scene_id}/{a}" for a in ids))

@@ -18,6 +18,7 @@ DRAWER_JOINT = "/World/Cabinet/DrawerJoint"
 DOOR_JOINT = "/World/Cabinet/DoorJoint"
 MUG = "/World/Mug"
 BLOCK = "/World/Block"
+BUTTON_JOINT = "/World/ButtonJoint"
 
 
 class Family(StrEnum):
@@ -102,6 +103,12 @@ def push_object_success(inst, state) -> tuple[bool, str]:
     return (True, "") if moved >= 0.10 else (False, "object_not_pushed")
 
 
+def press_button_success(inst, state) -> tuple[bool, str]:
+    """The button is pressed in by at least 60% of its travel (it has no spring: it stays in)."""
+    pressed = float(state.scene_joints[BUTTON_JOINT])
+    return (True, "") if pressed >= 0.6 * inst.room.button_travel else (False, "button_not_pressed")
+
+
 TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="pick_place_bowl", family=Family.PICK_PLACE, max_seconds=25.0, success=pick_place_bowl_success,
              templates=("put the {object} in the {container}", "place the {object} into the {container}",
@@ -116,6 +123,8 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              templates=("close the door of the {furniture}", "swing the {furniture} door shut")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=20.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
+    TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=20.0, success=press_button_success,
+             templates=("press the button on the {panel}", "push the {panel} button")),
 )}
 
 
