@@ -17,7 +17,7 @@ neither warp nor newton)::
     sim.step(100)                                # 100 x settings.dt
     st = read_state(sim, contacts=True)          # joints, EE pose, base (x, y, theta), objects
     rig = CameraRig(sim, robot_cameras(desc) + [CameraSpec(name="third", pose=look_at(eye, target))])
-    frames = rig.render()                        # rgb, depth, shape index -> frames[n].labels(sim.shape_label)
+    frames = rig.render()                        # rgb, depth, shape index; labels via frames[n].labels(...)
     ik = Clik(desc); move_ee(sim, ctl, ik, pose(p, top_down()), duration=1.0)
 
 Modules: ``robot`` (the embodiment URDF and its loading into Newton and Pinocchio), ``world``

@@ -29,8 +29,15 @@ def _base_kernel():
 
     @wp.kernel
     def base_velocity_to_joint_targets(
-        cmd: wp.array[wp.vec3f], joint_q: wp.array[wp.float32], target_qd: wp.array[wp.float32],
-        yaw_coord: int, dof_x: int, dof_y: int, dof_yaw: int, coords_per_world: int, dofs_per_world: int,
+        cmd: wp.array[wp.vec3f],
+        joint_q: wp.array[wp.float32],
+        target_qd: wp.array[wp.float32],
+        yaw_coord: int,
+        dof_x: int,
+        dof_y: int,
+        dof_yaw: int,
+        coords_per_world: int,
+        dofs_per_world: int,
     ):
         w = wp.tid()
         c = cmd[w]
@@ -122,15 +129,28 @@ class RobotControl:
             sim.control.joint_target_q.assign(self._targets.astype(np.float32))
             self._dirty = False
         r = sim.robot
-        wp.launch(_KERNEL, dim=sim.world_count, device=sim.model.device,
-                  inputs=[self._cmd, sim.state_0.joint_q, sim.control.joint_target_qd, r.coord["base_yaw"],
-                          r.dof["base_x"], r.dof["base_y"], r.dof["base_yaw"], sim.coords_per_world,
-                          sim.dofs_per_world])
+        wp.launch(
+            _KERNEL,
+            dim=sim.world_count,
+            device=sim.model.device,
+            inputs=[
+                self._cmd,
+                sim.state_0.joint_q,
+                sim.control.joint_target_qd,
+                r.coord["base_yaw"],
+                r.dof["base_x"],
+                r.dof["base_y"],
+                r.dof["base_yaw"],
+                sim.coords_per_world,
+                sim.dofs_per_world,
+            ],
+        )
 
 
 # --------------------------------------------------------------------------------------------
 # CLIK
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class IkResult:
@@ -151,8 +171,9 @@ class Clik:
     ``move_base``: also use the base x, y, yaw joints.
     """
 
-    def __init__(self, desc: RobotDescription, *, damping: float = 1e-3, max_step: float = 0.2,
-                 move_base: bool = False) -> None:
+    def __init__(
+        self, desc: RobotDescription, *, damping: float = 1e-3, max_step: float = 0.2, move_base: bool = False
+    ) -> None:
         import pinocchio as pin
 
         from stages.simulate.robot import build_pinocchio_model
@@ -172,7 +193,7 @@ class Clik:
 
     def neutral(self) -> np.ndarray:
         q = self._pin.neutral(self.model)
-        for n, v in zip(self.desc.arm_joints, self.desc.arm_home):
+        for n, v in zip(self.desc.arm_joints, self.desc.arm_home, strict=True):
             q[self.q_idx[n]] = v
         for n in self.desc.gripper.finger_joints:
             q[self.q_idx[n]] = self.desc.gripper.open_q
@@ -190,12 +211,21 @@ class Clik:
 
     def with_arm(self, q: np.ndarray, arm: np.ndarray) -> np.ndarray:
         q = q.copy()
-        for n, v in zip(self.desc.arm_joints, arm):
+        for n, v in zip(self.desc.arm_joints, arm, strict=True):
             q[self.q_idx[n]] = v
         return q
 
-    def solve(self, target: np.ndarray, q0: np.ndarray, *, max_iters: int = 300, pos_tol: float = 1e-4,
-              rot_tol: float = 1e-3, restarts: int = 0, rng: np.random.Generator | None = None) -> IkResult:
+    def solve(
+        self,
+        target: np.ndarray,
+        q0: np.ndarray,
+        *,
+        max_iters: int = 300,
+        pos_tol: float = 1e-4,
+        rot_tol: float = 1e-3,
+        restarts: int = 0,
+        rng: np.random.Generator | None = None,
+    ) -> IkResult:
         """Damped least squares: dq = J^T (J J^T + lambda I)^-1 e, with e the SE(3) log error in the
         local frame; iterates are clipped to the joint limits. ``target`` 4x4 in the root frame.
 
@@ -209,7 +239,10 @@ class Clik:
             idx = self.v_idx[: len(self.desc.arm_joints)]
             q[idx] = rng.uniform(self.lower[idx], self.upper[idx])
             res = self._solve(target, q, max_iters, pos_tol, rot_tol)
-            if res.position_error + 0.1 * res.rotation_error < best.position_error + 0.1 * best.rotation_error:
+            if (
+                res.position_error + 0.1 * res.rotation_error
+                < best.position_error + 0.1 * best.rotation_error
+            ):
                 best = res
             if best.success:
                 break
@@ -220,7 +253,8 @@ class Clik:
         goal = pin.SE3(np.asarray(target, float))
         q = np.clip(np.asarray(q0, float).copy(), self.lower, self.upper)
         err = np.zeros(6)
-        for it in range(1, max_iters + 1):
+        it = 0
+        for it in range(1, max_iters + 1):  # noqa: B007 (the count is reported)
             pin.framesForwardKinematics(self.model, self.data, q)
             cur = self.data.oMf[self.frame]
             err = pin.log6(cur.actInv(goal)).vector
@@ -240,8 +274,13 @@ class Clik:
         m = self.data.oMf[self.frame]
         pe = float(np.linalg.norm(m.translation - goal.translation))
         re = float(np.linalg.norm(pin.log3(m.rotation.T @ goal.rotation)))
-        return IkResult(q=q, success=pe < max(pos_tol, 1e-3) and re < max(rot_tol, 1e-2), position_error=pe,
-                        rotation_error=re, iterations=it)
+        return IkResult(
+            q=q,
+            success=pe < max(pos_tol, 1e-3) and re < max(rot_tol, 1e-2),
+            position_error=pe,
+            rotation_error=re,
+            iterations=it,
+        )
 
     @staticmethod
     def world_to_root(spawn_xy_yaw, pose_world: np.ndarray) -> np.ndarray:
@@ -276,9 +315,20 @@ def top_down(yaw: float = 0.0) -> np.ndarray:
     return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
 
 
-def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration: float, *, world: int = 0,
-            segments: int = 1, settle: float = 0.0, rng: np.random.Generator | None = None,
-            tol: float = 0.005, rot_tol: float = float(np.deg2rad(2.0))) -> IkResult:
+def move_ee(
+    sim,
+    ctl: RobotControl,
+    ik: Clik,
+    target_world: np.ndarray,
+    duration: float,
+    *,
+    world: int = 0,
+    segments: int = 1,
+    settle: float = 0.0,
+    rng: np.random.Generator | None = None,
+    tol: float = 0.005,
+    rot_tol: float = float(np.deg2rad(2.0)),
+) -> IkResult:
     """Move the end-effector to ``target_world`` (4x4, world frame) in ``duration`` [s]: the
     straight Cartesian path is cut into ``segments`` poses (orientation slerped), each solved by
     CLIK from the previous solution, and the joint targets are interpolated linearly between them
@@ -298,7 +348,9 @@ def move_ee(sim, ctl: RobotControl, ik: Clik, target_world: np.ndarray, duration
         wp_pose = pose(start[:3, 3] + a * (goal[:3, 3] - start[:3, 3]), slerp([a]).as_matrix()[0])
         res = ik.solve(wp_pose, q_pin, max_iters=600, restarts=10 if rng is not None else 0, rng=rng)
         if res.position_error > tol or res.rotation_error > rot_tol:
-            raise RuntimeError(f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)")
+            raise RuntimeError(
+                f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)"
+            )
         q0, q1 = ctl.arm_targets(world), ik.arm_q(res.q)
         chunk = max(1, per_seg // 10)
         for i in range(0, per_seg, chunk):

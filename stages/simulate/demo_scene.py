@@ -78,6 +78,7 @@ class DemoRoom:
 # Sdf authoring helpers
 # --------------------------------------------------------------------------------------------
 
+
 def _quat_z(yaw: float):
     from pxr import Gf
 
@@ -117,7 +118,9 @@ class _Writer:
                     if name.startswith("xformOp:"):
                         order.append(name)
                 if order:
-                    a = Sdf.AttributeSpec(spec, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
+                    a = Sdf.AttributeSpec(
+                        spec, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform
+                    )
                     a.default = order
                 for name, targets in rels.items():
                     r = Sdf.RelationshipSpec(spec, name)
@@ -151,9 +154,11 @@ def _box(w: _Writer, path: str, center, size, rgb, *, collide=True, label=None, 
     from pxr import Gf, Sdf
 
     apis = ["PhysicsCollisionAPI"] if collide else []
-    attrs = {"size": (Sdf.ValueTypeNames.Double, 1.0),
-             "primvars:displayColor": (Sdf.ValueTypeNames.Color3fArray, [Gf.Vec3f(*rgb)]),
-             **_xform_attrs(center, yaw, size)}
+    attrs = {
+        "size": (Sdf.ValueTypeNames.Double, 1.0),
+        "primvars:displayColor": (Sdf.ValueTypeNames.Color3fArray, [Gf.Vec3f(*rgb)]),
+        **_xform_attrs(center, yaw, size),
+    }
     if label:
         la, lv = _labels(label)
         apis += la
@@ -161,15 +166,29 @@ def _box(w: _Writer, path: str, center, size, rgb, *, collide=True, label=None, 
     w.prim(path, "Cube", apis=apis, attrs=attrs)
 
 
-def _mesh(w: _Writer, path: str, vertices: np.ndarray, faces: np.ndarray, rgb, *, collide: bool,
-          visible: bool = True) -> None:
+def _mesh(
+    w: _Writer,
+    path: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    rgb,
+    *,
+    collide: bool,
+    visible: bool = True,
+) -> None:
     from pxr import Gf, Sdf, Vt
 
     apis = ["PhysicsCollisionAPI", "PhysicsMeshCollisionAPI"] if collide else []
     attrs = {
         "points": (Sdf.ValueTypeNames.Point3fArray, Vt.Vec3fArray.FromNumpy(vertices.astype(np.float32))),
-        "faceVertexCounts": (Sdf.ValueTypeNames.IntArray, Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32))),
-        "faceVertexIndices": (Sdf.ValueTypeNames.IntArray, Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel())),
+        "faceVertexCounts": (
+            Sdf.ValueTypeNames.IntArray,
+            Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)),
+        ),
+        "faceVertexIndices": (
+            Sdf.ValueTypeNames.IntArray,
+            Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel()),
+        ),
         "primvars:displayColor": (Sdf.ValueTypeNames.Color3fArray, [Gf.Vec3f(*rgb)]),
         "subdivisionScheme": (Sdf.ValueTypeNames.Token, "none"),
     }
@@ -184,6 +203,7 @@ def _mesh(w: _Writer, path: str, vertices: np.ndarray, faces: np.ndarray, rgb, *
 # --------------------------------------------------------------------------------------------
 # The room
 # --------------------------------------------------------------------------------------------
+
 
 def _walls(size: tuple[float, float], t: float, h: float) -> list[BoxSpec]:
     sx, sy = size
@@ -203,8 +223,14 @@ def _table_parts(center_xy, top_size=(0.6, 0.9), height=0.55) -> list[BoxSpec]:
     parts = [BoxSpec(name="Top", center=(x, y, height - tz / 2), size=(*top_size, tz), rgb=wood)]
     lx, ly = top_size[0] / 2 - 0.05, top_size[1] / 2 - 0.05
     for i, (dx, dy) in enumerate(((lx, ly), (lx, -ly), (-lx, ly), (-lx, -ly))):
-        parts.append(BoxSpec(name=f"Leg{i}", center=(x + dx, y + dy, (height - tz) / 2),
-                             size=(0.05, 0.05, height - tz), rgb=wood))
+        parts.append(
+            BoxSpec(
+                name=f"Leg{i}",
+                center=(x + dx, y + dy, (height - tz) / 2),
+                size=(0.05, 0.05, height - tz),
+                rgb=wood,
+            )
+        )
     return parts
 
 
@@ -217,18 +243,26 @@ def _add_mug(w: _Writer, mug_dir: Path, pos, scale: float = 1.0) -> None:
     # the mug's origin is its centre; put the origin at the base so the position is "on the table"
     lift = -float(visual.bounds[0, 2])
     la, lv = _labels("mug")
-    attrs = {**_xform_attrs(pos), **lv,
-             "physics:mass": (Sdf.ValueTypeNames.Float, 0.30 * scale ** 3)}
+    attrs = {**_xform_attrs(pos), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, 0.30 * scale**3)}
     w.prim("/World/Mug", "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la], attrs=attrs)
-    _mesh(w, "/World/Mug/Visual", visual.vertices + [0, 0, lift], visual.faces, (0.1, 0.2, 0.75), collide=False)
+    _mesh(
+        w, "/World/Mug/Visual", visual.vertices + [0, 0, lift], visual.faces, (0.1, 0.2, 0.75), collide=False
+    )
     pieces = sorted(mug_dir.glob("contact*.stl"), key=lambda p: int(p.stem[7:]))
     if not pieces:
         raise ItemError(f"{mug_dir}: no contact*.stl collision pieces")
     for i, p in enumerate(pieces):
         m = trimesh.load(p, force="mesh")
         m.apply_scale(scale)
-        _mesh(w, f"/World/Mug/Collision{i}", m.vertices + [0, 0, lift], m.faces, (0.1, 0.2, 0.75), collide=True,
-              visible=False)
+        _mesh(
+            w,
+            f"/World/Mug/Collision{i}",
+            m.vertices + [0, 0, lift],
+            m.faces,
+            (0.1, 0.2, 0.75),
+            collide=True,
+            visible=False,
+        )
 
 
 def cabinet_parts(c: CabinetSpec) -> dict[str, list[BoxSpec]]:
@@ -252,7 +286,7 @@ def cabinet_parts(c: CabinetSpec) -> dict[str, list[BoxSpec]]:
         BoxSpec(name="Shelf", center=(x0, y0, 0.52), size=(d, wdt, t), rgb=white),
         BoxSpec(name="Plinth", center=(x0, y0, 0.025), size=(d, wdt, 0.05), rgb=white),
     ]
-    zd0, zd1 = 0.53 + 0.005, h - t - 0.005   # drawer opening
+    zd0, zd1 = 0.53 + 0.005, h - t - 0.005  # drawer opening
     dz = zd1 - zd0
     iw = wdt - 2 * t - 0.01
     dd = d - t - 0.03
@@ -261,27 +295,58 @@ def cabinet_parts(c: CabinetSpec) -> dict[str, list[BoxSpec]]:
     drawer = [
         BoxSpec(name="Front", center=(xf - t / 2, y0, zd0 + dz / 2), size=(t, wdt - 0.01, dz), rgb=front),
         BoxSpec(name="Floor", center=(xf + dd / 2, y0, zd0 + 0.01), size=(dd, iw, t), rgb=white),
-        BoxSpec(name="SideL", center=(xf + dd / 2, y0 - iw / 2 + 0.005, zd0 + dz / 2), size=(dd, 0.01, dz - 0.02),
-                rgb=white),
-        BoxSpec(name="SideR", center=(xf + dd / 2, y0 + iw / 2 - 0.005, zd0 + dz / 2), size=(dd, 0.01, dz - 0.02),
-                rgb=white),
-        BoxSpec(name="HandleBar", center=(xf - t - 0.035, y0, zd0 + dz / 2), size=(0.02, 0.16, 0.02), rgb=grey),
-        BoxSpec(name="HandleL", center=(xf - t - 0.0125, y0 - 0.07, zd0 + dz / 2), size=(0.025, 0.02, 0.02), rgb=grey),
-        BoxSpec(name="HandleR", center=(xf - t - 0.0125, y0 + 0.07, zd0 + dz / 2), size=(0.025, 0.02, 0.02), rgb=grey),
+        BoxSpec(
+            name="SideL",
+            center=(xf + dd / 2, y0 - iw / 2 + 0.005, zd0 + dz / 2),
+            size=(dd, 0.01, dz - 0.02),
+            rgb=white,
+        ),
+        BoxSpec(
+            name="SideR",
+            center=(xf + dd / 2, y0 + iw / 2 - 0.005, zd0 + dz / 2),
+            size=(dd, 0.01, dz - 0.02),
+            rgb=white,
+        ),
+        BoxSpec(
+            name="HandleBar", center=(xf - t - 0.035, y0, zd0 + dz / 2), size=(0.02, 0.16, 0.02), rgb=grey
+        ),
+        BoxSpec(
+            name="HandleL",
+            center=(xf - t - 0.0125, y0 - 0.07, zd0 + dz / 2),
+            size=(0.025, 0.02, 0.02),
+            rgb=grey,
+        ),
+        BoxSpec(
+            name="HandleR",
+            center=(xf - t - 0.0125, y0 + 0.07, zd0 + dz / 2),
+            size=(0.025, 0.02, 0.02),
+            rgb=grey,
+        ),
     ]
     zo0, zo1 = 0.055 + t, 0.52 - 0.01
     zm = (zo0 + zo1) / 2
     half = wdt / 2 - 0.005
     # the -Y half of the lower compartment is a fixed panel; the +Y half a door hinged on its +Y edge
-    carcass.append(BoxSpec(name="FixedPanel", center=(xf - t / 2, y0 - wdt / 4, zm), size=(t, half, zo1 - zo0),
-                           rgb=front))
+    carcass.append(
+        BoxSpec(
+            name="FixedPanel", center=(xf - t / 2, y0 - wdt / 4, zm), size=(t, half, zo1 - zo0), rgb=front
+        )
+    )
     door = [
         # the panel stops short of the hinge line so that its back corner never swings into the side
-        BoxSpec(name="Panel", center=(xf - t / 2, y0 + 0.0025 + (wdt / 2 - t - 0.0045) / 2, zm),
-                size=(t, wdt / 2 - t - 0.0045, zo1 - zo0), rgb=front),
+        BoxSpec(
+            name="Panel",
+            center=(xf - t / 2, y0 + 0.0025 + (wdt / 2 - t - 0.0045) / 2, zm),
+            size=(t, wdt / 2 - t - 0.0045, zo1 - zo0),
+            rgb=front,
+        ),
         BoxSpec(name="HandleBar", center=(xf - t - 0.035, y0 + 0.06, zm), size=(0.02, 0.02, 0.16), rgb=grey),
-        BoxSpec(name="HandleB", center=(xf - t - 0.0125, y0 + 0.06, zm - 0.07), size=(0.025, 0.02, 0.02), rgb=grey),
-        BoxSpec(name="HandleT", center=(xf - t - 0.0125, y0 + 0.06, zm + 0.07), size=(0.025, 0.02, 0.02), rgb=grey),
+        BoxSpec(
+            name="HandleB", center=(xf - t - 0.0125, y0 + 0.06, zm - 0.07), size=(0.025, 0.02, 0.02), rgb=grey
+        ),
+        BoxSpec(
+            name="HandleT", center=(xf - t - 0.0125, y0 + 0.06, zm + 0.07), size=(0.025, 0.02, 0.02), rgb=grey
+        ),
     ]
     return {"carcass": carcass, "drawer": drawer, "door": door}
 
@@ -300,31 +365,47 @@ def _add_cabinet(w: _Writer, c: CabinetSpec) -> dict[str, tuple[float, float, fl
     # moving parts: bodies whose origin is the world origin, so part boxes keep world coordinates
     for part, mass in (("drawer", 2.0), ("door", 3.0)):
         body = f"/World/Cabinet/{part.capitalize()}"
-        w.prim(body, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI"],
-               attrs={"physics:mass": (Sdf.ValueTypeNames.Float, mass)})
+        w.prim(
+            body,
+            "Xform",
+            apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI"],
+            attrs={"physics:mass": (Sdf.ValueTypeNames.Float, mass)},
+        )
         for b in parts[part]:
             _box(w, f"{body}/{b.name}", b.center, b.size, b.rgb)
     hinge = (xf - 0.02, c.origin[1] + wdt / 2 - 0.02, 0.0)
-    joint_common = {"physics:localRot0": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
-                    "physics:localRot1": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0))}
-    w.prim("/World/Cabinet/DrawerJoint", "PhysicsPrismaticJoint", attrs={
-        **joint_common,
-        "physics:axis": (Sdf.ValueTypeNames.Token, "X"),
-        "physics:lowerLimit": (Sdf.ValueTypeNames.Float, float(-c.drawer_travel)),
-        "physics:upperLimit": (Sdf.ValueTypeNames.Float, 0.0),
-        "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
-        "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
-    }, rels={"physics:body1": ["/World/Cabinet/Drawer"]})
+    joint_common = {
+        "physics:localRot0": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
+        "physics:localRot1": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(1, 0, 0, 0)),
+    }
+    w.prim(
+        "/World/Cabinet/DrawerJoint",
+        "PhysicsPrismaticJoint",
+        attrs={
+            **joint_common,
+            "physics:axis": (Sdf.ValueTypeNames.Token, "X"),
+            "physics:lowerLimit": (Sdf.ValueTypeNames.Float, float(-c.drawer_travel)),
+            "physics:upperLimit": (Sdf.ValueTypeNames.Float, 0.0),
+            "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
+            "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(0, 0, 0)),
+        },
+        rels={"physics:body1": ["/World/Cabinet/Drawer"]},
+    )
     # the door swings towards -X (into the room) about its +Y edge: a negative rotation about +Z
     # opens it, so the limit is [-range, 0] [deg].
-    w.prim("/World/Cabinet/DoorJoint", "PhysicsRevoluteJoint", attrs={
-        **joint_common,
-        "physics:axis": (Sdf.ValueTypeNames.Token, "Z"),
-        "physics:lowerLimit": (Sdf.ValueTypeNames.Float, float(-np.rad2deg(c.door_range))),
-        "physics:upperLimit": (Sdf.ValueTypeNames.Float, 0.0),
-        "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
-        "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
-    }, rels={"physics:body1": ["/World/Cabinet/Door"]})
+    w.prim(
+        "/World/Cabinet/DoorJoint",
+        "PhysicsRevoluteJoint",
+        attrs={
+            **joint_common,
+            "physics:axis": (Sdf.ValueTypeNames.Token, "Z"),
+            "physics:lowerLimit": (Sdf.ValueTypeNames.Float, float(-np.rad2deg(c.door_range))),
+            "physics:upperLimit": (Sdf.ValueTypeNames.Float, 0.0),
+            "physics:localPos0": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
+            "physics:localPos1": (Sdf.ValueTypeNames.Point3f, Gf.Vec3f(*hinge)),
+        },
+        rels={"physics:body1": ["/World/Cabinet/Door"]},
+    )
     drawer_handle = next(b.center for b in parts["drawer"] if b.name == "HandleBar")
     door_handle = next(b.center for b in parts["door"] if b.name == "HandleBar")
     return {"drawer_handle": drawer_handle, "door_handle": door_handle, "door_hinge": hinge}
@@ -339,44 +420,78 @@ def _add_lights(w: _Writer, size, height: float = 2.3) -> None:
     radius, lux = 0.08, 300.0
     q = Rotation.from_euler("xy", [25.0, -20.0], degrees=True).as_quat()  # x, y, z, w; shines along -Z
     w.prim("/World/Lights", "Xform")
-    w.prim("/World/Lights/Sun", "DistantLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 400.0),
-        "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
-        "xformOp:orient": (Sdf.ValueTypeNames.Quatf, Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2]))),
-    })
-    w.prim("/World/Lights/Ceiling", "SphereLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, lux * height ** 2 / (np.pi * radius ** 2)),
-        "inputs:radius": (Sdf.ValueTypeNames.Float, radius),
-        "inputs:enableColorTemperature": (Sdf.ValueTypeNames.Bool, True),
-        "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, 4000.0),
-        **_xform_attrs((size[0] / 2, size[1] / 2, height)),
-    })
-    w.prim("/World/Lights/Sky", "DomeLight", attrs={
-        "inputs:intensity": (Sdf.ValueTypeNames.Float, 200.0 / np.pi),
-        "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
-    })
+    w.prim(
+        "/World/Lights/Sun",
+        "DistantLight",
+        attrs={
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, 400.0),
+            "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
+            "xformOp:orient": (
+                Sdf.ValueTypeNames.Quatf,
+                Gf.Quatf(float(q[3]), float(q[0]), float(q[1]), float(q[2])),
+            ),
+        },
+    )
+    w.prim(
+        "/World/Lights/Ceiling",
+        "SphereLight",
+        attrs={
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, lux * height**2 / (np.pi * radius**2)),
+            "inputs:radius": (Sdf.ValueTypeNames.Float, radius),
+            "inputs:enableColorTemperature": (Sdf.ValueTypeNames.Bool, True),
+            "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, 4000.0),
+            **_xform_attrs((size[0] / 2, size[1] / 2, height)),
+        },
+    )
+    w.prim(
+        "/World/Lights/Sky",
+        "DomeLight",
+        attrs={
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, 200.0 / np.pi),
+            "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
+        },
+    )
 
 
-def write_demo_room(path: Path, *, shared_assets: Path | None = None, size=(6.0, 5.0),
-                    table_xy=(3.0, 3.6), mug_xy: tuple[float, float] | None = None,
-                    cabinet: CabinetSpec | None = CabinetSpec(), clutter: int = 0, mug_scale: float = 1.0,
-                    rng: np.random.Generator | None = None) -> DemoRoom:
+def write_demo_room(
+    path: Path,
+    *,
+    shared_assets: Path | None = None,
+    size=(6.0, 5.0),
+    table_xy=(3.0, 3.6),
+    mug_xy: tuple[float, float] | None = None,
+    cabinet: CabinetSpec | None = CabinetSpec(),
+    clutter: int = 0,
+    mug_scale: float = 1.0,
+    rng: np.random.Generator | None = None,
+) -> DemoRoom:
     """Author the room at ``path`` (.usda). The mug needs ``shared_assets`` (the third-party
     assets folder); without it there is no mug. ``mug_scale`` scales the mug mesh (the real one
-    is 82 mm across, wider than the Franka hand's 80 mm stroke). ``clutter`` adds that many loose boxes (rigid,
-    0.1-0.2 m) on the floor at positions from ``rng``.
+    is 82 mm across, wider than the Franka hand's 80 mm stroke). ``clutter`` adds that many loose
+    boxes (rigid, 0.1-0.2 m) on the floor at positions from ``rng``.
     """
     from pxr import Gf, Sdf
 
     w = _Writer()
     t, h = 0.1, 2.5
     w.prim("/World", "Xform", meta={"kind": "assembly"})
-    w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
-        "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
-        "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81)})
+    w.prim(
+        "/World/PhysicsScene",
+        "PhysicsScene",
+        attrs={
+            "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
+            "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81),
+        },
+    )
     labels = {"Floor": "floor"}
-    _box(w, "/World/Floor", (size[0] / 2, size[1] / 2, -0.05), (size[0] + 2 * t, size[1] + 2 * t, 0.1),
-         (0.6, 0.6, 0.58), label="floor")
+    _box(
+        w,
+        "/World/Floor",
+        (size[0] / 2, size[1] / 2, -0.05),
+        (size[0] + 2 * t, size[1] + 2 * t, 0.1),
+        (0.6, 0.6, 0.58),
+        label="floor",
+    )
     for b in _walls(size, t, h):
         _box(w, f"/World/{b.name}", b.center, b.size, b.rgb, label="wall")
         labels[b.name] = "wall"
@@ -403,12 +518,25 @@ def write_demo_room(path: Path, *, shared_assets: Path | None = None, size=(6.0,
             s = rng.uniform(0.1, 0.2, 3)
             p = (rng.uniform(0.5, size[0] - 0.5), rng.uniform(0.4, 1.6), s[2] / 2 + 0.002)
             la, lv = _labels("box")
-            w.prim(f"/World/Box{i}", "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
-                   attrs={**_xform_attrs(p), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, 0.5)})
+            w.prim(
+                f"/World/Box{i}",
+                "Xform",
+                apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
+                attrs={**_xform_attrs(p), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, 0.5)},
+            )
             _box(w, f"/World/Box{i}/Geom", (0, 0, 0), s, tuple(rng.uniform(0.2, 0.9, 3)))
             labels[f"Box{i}"] = "box"
     _add_lights(w, size)
     w.write(Path(path), "World")
     log.info("wrote demo room %s", path)
-    return DemoRoom(usd=Path(path), size=tuple(size), wall_thickness=t, wall_height=h, table=top,
-                    mug_position=mug_pos, cabinet=cabinet, labels=labels, **handles)
+    return DemoRoom(
+        usd=Path(path),
+        size=tuple(size),
+        wall_thickness=t,
+        wall_height=h,
+        table=top,
+        mug_position=mug_pos,
+        cabinet=cabinet,
+        labels=labels,
+        **handles,
+    )

@@ -29,7 +29,7 @@ class UsdRecorder:
         self._last = -1.0
         self.frames = 0
 
-    def __enter__(self) -> "UsdRecorder":
+    def __enter__(self) -> UsdRecorder:
         from newton.viewer import ViewerUSD
 
         self.path.parent.mkdir(parents=True, exist_ok=True)

@@ -143,6 +143,7 @@ class RobotDescription:
 # Finding the Panda description
 # --------------------------------------------------------------------------------------------
 
+
 def find_panda_description(explicit: Path | None = None) -> Path:
     """The package root that holds ``robots/panda_description`` (the folder that
     ``package://example-robot-data/`` resolves to).
@@ -181,6 +182,7 @@ def find_robotiq_description(explicit: Path) -> Path:
 # URDF writing
 # --------------------------------------------------------------------------------------------
 
+
 def _fmt(v) -> str:
     return " ".join(f"{float(x):.9g}" for x in v)
 
@@ -210,7 +212,11 @@ def _sub(parent: ET.Element, tag: str, **attrs) -> ET.Element:
 def _inertial(link: ET.Element, mass: float, size: tuple[float, float, float], xyz=(0, 0, 0)) -> None:
     """Box inertia for ``mass`` [kg] and box ``size`` [m]."""
     a, b, c = size
-    ixx, iyy, izz = (mass / 12.0 * (b * b + c * c), mass / 12.0 * (a * a + c * c), mass / 12.0 * (a * a + b * b))
+    ixx, iyy, izz = (
+        mass / 12.0 * (b * b + c * c),
+        mass / 12.0 * (a * a + c * c),
+        mass / 12.0 * (a * a + b * b),
+    )
     ine = _sub(link, "inertial")
     _sub(ine, "origin", xyz=_fmt(xyz), rpy="0 0 0")
     _sub(ine, "mass", value=f"{mass:.9g}")
@@ -228,8 +234,17 @@ def _box_geom(link: ET.Element, size, xyz=(0, 0, 0), rpy=(0, 0, 0), rgba=None, v
             _sub(_sub(el, "material", name=f"{link.get('name')}_{len(link)}"), "color", rgba=_fmt(rgba))
 
 
-def _mesh_geom(link: ET.Element, path: Path, *, scale=1.0, xyz=(0, 0, 0), rpy=(0, 0, 0), rgba=None,
-               visual=True, collision=True):
+def _mesh_geom(
+    link: ET.Element,
+    path: Path,
+    *,
+    scale=1.0,
+    xyz=(0, 0, 0),
+    rpy=(0, 0, 0),
+    rgba=None,
+    visual=True,
+    collision=True,
+):
     for tag, on in (("visual", visual), ("collision", collision)):
         if not on:
             continue
@@ -240,8 +255,21 @@ def _mesh_geom(link: ET.Element, path: Path, *, scale=1.0, xyz=(0, 0, 0), rpy=(0
             _sub(_sub(el, "material", name=f"{link.get('name')}_{len(link)}"), "color", rgba=_fmt(rgba))
 
 
-def _joint(robot: ET.Element, name: str, jtype: str, parent: str, child: str, *, xyz=(0, 0, 0), rpy=(0, 0, 0),
-           axis=None, lower=None, upper=None, effort=None, velocity=None) -> None:
+def _joint(
+    robot: ET.Element,
+    name: str,
+    jtype: str,
+    parent: str,
+    child: str,
+    *,
+    xyz=(0, 0, 0),
+    rpy=(0, 0, 0),
+    axis=None,
+    lower=None,
+    upper=None,
+    effort=None,
+    velocity=None,
+) -> None:
     j = _sub(robot, "joint", name=name, type=jtype)
     _sub(j, "parent", link=parent)
     _sub(j, "child", link=child)
@@ -249,8 +277,14 @@ def _joint(robot: ET.Element, name: str, jtype: str, parent: str, child: str, *,
     if axis is not None:
         _sub(j, "axis", xyz=_fmt(axis))
     if lower is not None:
-        _sub(j, "limit", lower=f"{lower:.9g}", upper=f"{upper:.9g}", effort=f"{effort:.9g}",
-             velocity=f"{velocity:.9g}")
+        _sub(
+            j,
+            "limit",
+            lower=f"{lower:.9g}",
+            upper=f"{upper:.9g}",
+            effort=f"{effort:.9g}",
+            velocity=f"{velocity:.9g}",
+        )
 
 
 def _add_base(robot: ET.Element, base: BaseGeometry) -> None:
@@ -259,16 +293,46 @@ def _add_base(robot: ET.Element, base: BaseGeometry) -> None:
     for name in ("mobile_root", "base_x_link", "base_y_link"):
         link = _sub(robot, "link", name=name)
         _inertial(link, 1.0, tiny)
-    _joint(robot, "base_x", "prismatic", "mobile_root", "base_x_link", axis=(1, 0, 0), lower=-50, upper=50,
-           effort=base.max_force, velocity=2.0)
-    _joint(robot, "base_y", "prismatic", "base_x_link", "base_y_link", axis=(0, 1, 0), lower=-50, upper=50,
-           effort=base.max_force, velocity=2.0)
+    _joint(
+        robot,
+        "base_x",
+        "prismatic",
+        "mobile_root",
+        "base_x_link",
+        axis=(1, 0, 0),
+        lower=-50,
+        upper=50,
+        effort=base.max_force,
+        velocity=2.0,
+    )
+    _joint(
+        robot,
+        "base_y",
+        "prismatic",
+        "base_x_link",
+        "base_y_link",
+        axis=(0, 1, 0),
+        lower=-50,
+        upper=50,
+        effort=base.max_force,
+        velocity=2.0,
+    )
     chassis = _sub(robot, "link", name="base_link")
     zc = base.clearance + cz / 2
     _inertial(chassis, base.mass, base.chassis, xyz=(0, 0, zc))
     _box_geom(chassis, base.chassis, xyz=(0, 0, zc), rgba=(0.25, 0.27, 0.3, 1))
-    _joint(robot, "base_yaw", "revolute", "base_y_link", "base_link", axis=(0, 0, 1), lower=-100.0, upper=100.0,
-           effort=base.max_torque, velocity=3.0)
+    _joint(
+        robot,
+        "base_yaw",
+        "revolute",
+        "base_y_link",
+        "base_link",
+        axis=(0, 0, 1),
+        lower=-100.0,
+        upper=100.0,
+        effort=base.max_torque,
+        velocity=3.0,
+    )
     top = base.clearance + cz
     mast = _sub(robot, "link", name="mast")
     mast_len = base.mast_height - top
@@ -296,8 +360,16 @@ def _panda_elements(panda_root: Path, gripper: GripperKind) -> list[ET.Element]:
     except (ET.ParseError, OSError) as e:
         raise ItemError(f"{src}: cannot read the Panda URDF: {e}") from None
     collada = _has_collada()
-    hand_parts = {"panda_hand", "panda_hand_tcp", "panda_leftfinger", "panda_rightfinger", "panda_hand_joint",
-                  "panda_hand_tcp_joint", "panda_finger_joint1", "panda_finger_joint2"}
+    hand_parts = {
+        "panda_hand",
+        "panda_hand_tcp",
+        "panda_leftfinger",
+        "panda_rightfinger",
+        "panda_hand_joint",
+        "panda_hand_tcp_joint",
+        "panda_finger_joint1",
+        "panda_finger_joint2",
+    }
     out: list[ET.Element] = []
     for el in tree.getroot():
         if el.tag not in ("link", "joint"):
@@ -309,7 +381,7 @@ def _panda_elements(panda_root: Path, gripper: GripperKind) -> list[ET.Element]:
         for mesh in el.iter("mesh"):
             fn = mesh.get("filename", "")
             if fn.startswith(f"package://{PANDA_PACKAGE}/"):
-                fn = str(panda_root / fn[len(f"package://{PANDA_PACKAGE}/"):])
+                fn = str(panda_root / fn[len(f"package://{PANDA_PACKAGE}/") :])
             if fn.endswith(".dae") and not collada:
                 fn = fn.replace("/meshes/visual/", "/meshes/collision/")[:-4] + ".stl"
             if not Path(fn).is_file():
@@ -326,7 +398,7 @@ def _panda_elements(panda_root: Path, gripper: GripperKind) -> list[ET.Element]:
 
 
 ROBOTIQ_STROKE = 0.0425  # [m] per finger
-ROBOTIQ_PAD_Z = 0.1305   # fingertip pad centre below the mount face [m] (Menagerie pad position at rest)
+ROBOTIQ_PAD_Z = 0.1305  # fingertip pad centre below the mount face [m] (Menagerie pad position at rest)
 
 
 def _add_robotiq(robot: ET.Element, robotiq_root: Path) -> None:
@@ -335,8 +407,14 @@ def _add_robotiq(robot: ET.Element, robotiq_root: Path) -> None:
     base = _sub(robot, "link", name="robotiq_base")
     _inertial(base, 0.9, (0.08, 0.08, 0.1), xyz=(0, 0, 0.04))
     # Menagerie: base_mount at z 0.007 rotated +90 deg about z; base 0.0038 above it, rotated back.
-    _mesh_geom(base, assets / "base_mount.stl", scale=0.001, xyz=(0, 0, 0.007), rpy=(0, 0, np.pi / 2),
-               rgba=(0.15, 0.15, 0.15, 1))
+    _mesh_geom(
+        base,
+        assets / "base_mount.stl",
+        scale=0.001,
+        xyz=(0, 0, 0.007),
+        rpy=(0, 0, np.pi / 2),
+        rgba=(0.15, 0.15, 0.15, 1),
+    )
     _mesh_geom(base, assets / "base.stl", scale=0.001, xyz=(0, 0, 0.0108), rgba=(0.15, 0.15, 0.15, 1))
     _joint(robot, "robotiq_mount", "fixed", "panda_link8", "robotiq_base", rpy=(0, 0, -np.pi / 4))
     for side, sign in (("left", 1.0), ("right", -1.0)):
@@ -346,12 +424,24 @@ def _add_robotiq(robot: ET.Element, robotiq_root: Path) -> None:
         # y = 0 of the finger frame at q = 0, so q is the gap between pad and centre line.
         _box_geom(f, (0.022, 0.010, 0.045), xyz=(0, sign * 0.013, -0.035), rgba=(0.2, 0.2, 0.2, 1))
         _box_geom(f, (0.022, 0.008, 0.0375), xyz=(0, sign * 0.004, 0.0), rgba=(0.45, 0.45, 0.45, 1))
-        _joint(robot, f"robotiq_{side}_finger_joint", "prismatic", "robotiq_base", f"robotiq_{side}_finger",
-               xyz=(0, 0, ROBOTIQ_PAD_Z), axis=(0, sign, 0), lower=0.0, upper=ROBOTIQ_STROKE, effort=100.0,
-               velocity=0.15)
+        _joint(
+            robot,
+            f"robotiq_{side}_finger_joint",
+            "prismatic",
+            "robotiq_base",
+            f"robotiq_{side}_finger",
+            xyz=(0, 0, ROBOTIQ_PAD_Z),
+            axis=(0, sign, 0),
+            lower=0.0,
+            upper=ROBOTIQ_STROKE,
+            effort=100.0,
+            velocity=0.15,
+        )
     tcp = _sub(robot, "link", name="robotiq_tcp")
     _inertial(tcp, 0.01, (0.01, 0.01, 0.01))
-    _joint(robot, "robotiq_tcp_joint", "fixed", "robotiq_base", "robotiq_tcp", xyz=(0, 0, ROBOTIQ_PAD_Z + 0.005))
+    _joint(
+        robot, "robotiq_tcp_joint", "fixed", "robotiq_base", "robotiq_tcp", xyz=(0, 0, ROBOTIQ_PAD_Z + 0.005)
+    )
 
 
 def default_cameras(base: BaseGeometry, hand_link: str) -> dict[str, CameraMount]:
@@ -361,17 +451,32 @@ def default_cameras(base: BaseGeometry, hand_link: str) -> dict[str, CameraMount
     fwd = np.array([np.cos(pitch), 0.0, -np.sin(pitch)])
     r_head = look_rotation(fwd, np.array([0.0, 0.0, 1.0]))
     mast_len = base.mast_height - (base.clearance + base.chassis[2])
-    head = CameraMount(link="head_camera", parent="mast", xyz=(0.05, 0.0, mast_len - 0.02),
-                       rpy=_rpy_from_matrix(r_head), vertical_fov=np.deg2rad(70.0))
+    head = CameraMount(
+        link="head_camera",
+        parent="mast",
+        xyz=(0.05, 0.0, mast_len - 0.02),
+        rpy=_rpy_from_matrix(r_head),
+        vertical_fov=np.deg2rad(70.0),
+    )
     r_wrist = look_rotation(np.array([-0.2, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
-    wrist = CameraMount(link="wrist_camera", parent=hand_link, xyz=(0.075, 0.0, -0.01),
-                        rpy=_rpy_from_matrix(r_wrist), vertical_fov=np.deg2rad(75.0))
+    wrist = CameraMount(
+        link="wrist_camera",
+        parent=hand_link,
+        xyz=(0.075, 0.0, -0.01),
+        rpy=_rpy_from_matrix(r_wrist),
+        vertical_fov=np.deg2rad(75.0),
+    )
     return {"head": head, "wrist": wrist}
 
 
-def write_robot_urdf(out_dir: Path, *, gripper: GripperKind | str = GripperKind.PANDA_HAND,
-                     panda_root: Path | None = None, robotiq_root: Path | None = None,
-                     base: BaseGeometry | None = None) -> RobotDescription:
+def write_robot_urdf(
+    out_dir: Path,
+    *,
+    gripper: GripperKind | str = GripperKind.PANDA_HAND,
+    panda_root: Path | None = None,
+    robotiq_root: Path | None = None,
+    base: BaseGeometry | None = None,
+) -> RobotDescription:
     """Write ``<out_dir>/mobile_panda_<gripper>.urdf`` and return its description.
 
     panda_root: see :func:`find_panda_description`; robotiq_root: folder of the Menagerie 2F-85
@@ -387,15 +492,28 @@ def write_robot_urdf(out_dir: Path, *, gripper: GripperKind | str = GripperKind.
     cz = base.clearance + base.chassis[2]
     _joint(robot, "arm_mount", "fixed", "base_link", "panda_link0", xyz=(*base.arm_mount, cz))
     if gripper == GripperKind.PANDA_HAND:
-        spec = GripperSpec(kind=gripper, finger_joints=("panda_finger_joint1", "panda_finger_joint2"),
-                           open_q=0.04, closed_q=0.0, max_force=70.0, tcp="panda_hand_tcp", hand_link="panda_hand")
+        spec = GripperSpec(
+            kind=gripper,
+            finger_joints=("panda_finger_joint1", "panda_finger_joint2"),
+            open_q=0.04,
+            closed_q=0.0,
+            max_force=70.0,
+            tcp="panda_hand_tcp",
+            hand_link="panda_hand",
+        )
     else:
         if robotiq_root is None:
             raise ItemError("robotiq_2f85: robotiq_root (the Menagerie 2F-85 folder) is required")
         _add_robotiq(robot, find_robotiq_description(robotiq_root))
-        spec = GripperSpec(kind=gripper, finger_joints=("robotiq_left_finger_joint", "robotiq_right_finger_joint"),
-                           open_q=ROBOTIQ_STROKE, closed_q=0.0, max_force=100.0, tcp="robotiq_tcp",
-                           hand_link="robotiq_base")
+        spec = GripperSpec(
+            kind=gripper,
+            finger_joints=("robotiq_left_finger_joint", "robotiq_right_finger_joint"),
+            open_q=ROBOTIQ_STROKE,
+            closed_q=0.0,
+            max_force=100.0,
+            tcp="robotiq_tcp",
+            hand_link="robotiq_base",
+        )
     cameras = default_cameras(base, spec.hand_link)
     for cam in cameras.values():
         _camera_link(robot, cam)
@@ -413,6 +531,7 @@ def write_robot_urdf(out_dir: Path, *, gripper: GripperKind | str = GripperKind.
 # --------------------------------------------------------------------------------------------
 # Loading into Newton and Pinocchio
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, kw_only=True)
 class DriveGains:
@@ -450,23 +569,34 @@ def _short(label: str) -> str:
     return label.rsplit("/", 1)[-1]
 
 
-def add_robot(builder, desc: RobotDescription, *, spawn_xy_yaw: tuple[float, float, float] = (0.0, 0.0, 0.0),
-              gains: DriveGains | None = None, arm_q: tuple[float, ...] | None = None) -> RobotIndices:
+def add_robot(
+    builder,
+    desc: RobotDescription,
+    *,
+    spawn_xy_yaw: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    gains: DriveGains | None = None,
+    arm_q: tuple[float, ...] | None = None,
+) -> RobotIndices:
     """Add the robot to a Newton ``ModelBuilder`` with its root at the spawn pose (x, y [m],
     yaw [rad]) and set drives: base joints velocity-controlled, arm and fingers position-controlled.
 
     The base joints start at 0 (the spawn frame); the arm starts at ``arm_q`` (default home)
     with the gripper open. Returns the robot's indices in ``builder``.
     """
-    import newton
     import warp as wp
 
     gains = gains or DriveGains()
     x, y, yaw = spawn_xy_yaw
     body0, shape0, joint0 = builder.body_count, builder.shape_count, builder.joint_count
     xform = wp.transform(wp.vec3(x, y, 0.0), wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), float(yaw)))
-    builder.add_urdf(str(desc.urdf), xform=xform, floating=False, enable_self_collisions=False,
-                     joint_ordering="dfs", collapse_fixed_joints=False)
+    builder.add_urdf(
+        str(desc.urdf),
+        xform=xform,
+        floating=False,
+        enable_self_collisions=False,
+        joint_ordering="dfs",
+        collapse_fixed_joints=False,
+    )
     dof, coord, body = {}, {}, {}
     for j in range(joint0, builder.joint_count):
         name = _short(builder.joint_label[j])
@@ -548,7 +678,7 @@ def _set_gravity_compensation(builder, desc: RobotDescription, body: dict[str, i
     if attr.values is None:
         attr.values = {}
     arm_root = body.get("panda_link1")
-    for name, b in body.items():
+    for b in body.values():
         if arm_root is not None and b >= arm_root:
             attr.values[b] = 1.0
 

@@ -93,12 +93,12 @@ class UsdLight:
     def illuminance(self) -> float:
         """E [lux]: on a surface facing a distant light; from a dome on a horizontal surface; from
         a local light at REFERENCE_DISTANCE (I / d^2 with I = L * area [cd])."""
-        scale = self.intensity * 2.0 ** self.exposure
+        scale = self.intensity * 2.0**self.exposure
         if self.kind == "DistantLight":
             return scale
         if self.kind == "DomeLight":
             return float(np.pi * scale)
-        return scale * self.area / REFERENCE_DISTANCE ** 2
+        return scale * self.area / REFERENCE_DISTANCE**2
 
 
 def read_usd_lights(stage) -> tuple[UsdLight, ...]:
@@ -135,11 +135,19 @@ def read_usd_lights(stage) -> tuple[UsdLight, ...]:
         color = np.asarray(api.GetColorAttr().Get() or (1.0, 1.0, 1.0), float)
         if api.GetEnableColorTemperatureAttr().Get():
             color = color * kelvin_to_rgb(api.GetColorTemperatureAttr().Get() or 6500.0)
-        lights.append(UsdLight(
-            kind=kind, path=str(prim.GetPath()), position=tuple(map(float, pos)), direction=tuple(map(float, d)),
-            color=tuple(map(float, color)),
-            intensity=float(api.GetIntensityAttr().Get() or 1.0), exposure=float(api.GetExposureAttr().Get() or 0.0),
-            area=float(area), cone_angle=None if cone is None else float(cone)))
+        lights.append(
+            UsdLight(
+                kind=kind,
+                path=str(prim.GetPath()),
+                position=tuple(map(float, pos)),
+                direction=tuple(map(float, d)),
+                color=tuple(map(float, color)),
+                intensity=float(api.GetIntensityAttr().Get() or 1.0),
+                exposure=float(api.GetExposureAttr().Get() or 0.0),
+                area=float(area),
+                cone_angle=None if cone is None else float(cone),
+            )
+        )
     return tuple(lights)
 
 
@@ -164,8 +172,9 @@ def auto_exposure_lux(lights: Sequence[UsdLight]) -> float:
     return sum(lt.illuminance for lt in lights) or 1.0
 
 
-def map_lights(lights: Sequence[UsdLight], exposure_lux: float | None = None
-               ) -> tuple[list[RendererLight], np.ndarray | None]:
+def map_lights(
+    lights: Sequence[UsdLight], exposure_lux: float | None = None
+) -> tuple[list[RendererLight], np.ndarray | None]:
     """The renderer lights and the ambient sky colour (from dome lights, or None)."""
     e_ref = exposure_lux or auto_exposure_lux(lights)
     out: list[RendererLight] = []
@@ -175,7 +184,7 @@ def map_lights(lights: Sequence[UsdLight], exposure_lux: float | None = None
         if lt.kind == "DistantLight":
             value = min(value, DISTANT_CAP)
         if lt.is_local:
-            value *= 1.0 + 0.02 * REFERENCE_DISTANCE ** 2
+            value *= 1.0 + 0.02 * REFERENCE_DISTANCE**2
         c = tuple(float(x) for x in np.asarray(lt.color) * value)
         if lt.kind == "DomeLight":
             sky = np.asarray(c) if sky is None else sky + c
@@ -192,7 +201,9 @@ def map_lights(lights: Sequence[UsdLight], exposure_lux: float | None = None
     return out, sky
 
 
-def apply_lights(camera, lights: Sequence[UsdLight], exposure_lux: float | None = None) -> list[RendererLight]:
+def apply_lights(
+    camera, lights: Sequence[UsdLight], exposure_lux: float | None = None
+) -> list[RendererLight]:
     """Install the scene lights in a SensorCamera (see the module doc); returns what was used."""
     import warp as wp
 
@@ -207,7 +218,9 @@ def apply_lights(camera, lights: Sequence[UsdLight], exposure_lux: float | None 
         rc._lights_type = wp.array([m.type for m in mapped], dtype=wp.int32, device=dev)
         rc._lights_cast_shadow = wp.array([m.cast_shadow for m in mapped], dtype=wp.bool, device=dev)
         rc._lights_position = wp.array([wp.vec3f(*m.position) for m in mapped], dtype=wp.vec3f, device=dev)
-        rc._lights_orientation = wp.array([wp.vec3f(*m.direction) for m in mapped], dtype=wp.vec3f, device=dev)
+        rc._lights_orientation = wp.array(
+            [wp.vec3f(*m.direction) for m in mapped], dtype=wp.vec3f, device=dev
+        )
         rc._lights_color = wp.array([wp.vec3f(*m.color) for m in mapped], dtype=wp.vec3f, device=dev)
     if sky is not None:
         camera.set_ambient_light(tuple(sky), tuple(0.3 * sky))
@@ -217,6 +230,7 @@ def apply_lights(camera, lights: Sequence[UsdLight], exposure_lux: float | None 
 # --------------------------------------------------------------------------------------------
 # Cameras
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, kw_only=True)
 class CameraSpec:
@@ -232,10 +246,17 @@ class CameraSpec:
     pose: tuple[tuple[float, ...], ...] | None = None
 
     @property
-    def intrinsics(self) -> "Intrinsics":
+    def intrinsics(self) -> Intrinsics:
         fy = 0.5 * self.height / np.tan(0.5 * self.vertical_fov)
-        return Intrinsics(width=self.width, height=self.height, fx=fy, fy=fy, cx=self.width / 2.0,
-                          cy=self.height / 2.0, vertical_fov=self.vertical_fov)
+        return Intrinsics(
+            width=self.width,
+            height=self.height,
+            fx=fy,
+            fy=fy,
+            cx=self.width / 2.0,
+            cy=self.height / 2.0,
+            vertical_fov=self.vertical_fov,
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -267,8 +288,10 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[tuple[float, ...], ...]:
 
 def robot_cameras(desc) -> list[CameraSpec]:
     """The head and wrist cameras of a robot description."""
-    return [CameraSpec(name=n, width=c.width, height=c.height, vertical_fov=c.vertical_fov, link=c.link)
-            for n, c in desc.cameras.items()]
+    return [
+        CameraSpec(name=n, width=c.width, height=c.height, vertical_fov=c.vertical_fov, link=c.link)
+        for n, c in desc.cameras.items()
+    ]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -323,8 +346,9 @@ class CameraRig:
         model = self.sim.model
         # both faces: generated meshes with inward winding (ceilings seen from below) must still
         # occlude the camera and the sun
-        config = SensorCamera.RenderConfig(enable_shadows=self.shadows, enable_backface_culling=False,
-                                           enable_textures=self.textures)
+        config = SensorCamera.RenderConfig(
+            enable_shadows=self.shadows, enable_backface_culling=False, enable_textures=self.textures
+        )
         self._sensor = SensorCamera(model, load_textures=self.textures, default_render_config=config)
         self.lights_used = apply_lights(self._sensor, self.sim.scene.lights, self.exposure_lux)
         dev = model.device
@@ -332,12 +356,18 @@ class CameraRig:
         self._images = {}
         nw = self.sim.world_count
         for c in self.cameras:
-            self._rays[c.name] = SensorCamera.compute_camera_rays_pinhole(c.width, c.height,
-                                                                          camera_fov=c.vertical_fov, device=dev)
+            self._rays[c.name] = SensorCamera.compute_camera_rays_pinhole(
+                c.width, c.height, camera_fov=c.vertical_fov, device=dev
+            )
             self._images[c.name] = dict(
                 color=self._sensor.allocate_image_color(nw, c.width, c.height) if self.rgb else None,
-                depth=self._sensor.allocate_image_depth_forward(nw, c.width, c.height) if self.depth else None,
-                shape=self._sensor.allocate_image_shape_index(nw, c.width, c.height) if self.segmentation else None)
+                depth=self._sensor.allocate_image_depth_forward(nw, c.width, c.height)
+                if self.depth
+                else None,
+                shape=self._sensor.allocate_image_shape_index(nw, c.width, c.height)
+                if self.segmentation
+                else None,
+            )
         self._world_ids = wp.array(np.arange(nw, dtype=np.int32), dtype=wp.int32, device=dev)
 
     def camera_to_world(self, cam: CameraSpec) -> np.ndarray:
@@ -373,9 +403,15 @@ class CameraRig:
         for cam in self.cameras:
             tfs, m = self._transforms(cam)
             img = self._images[cam.name]
-            self._sensor.update(state, tfs, self._rays[cam.name], color_image=img["color"],
-                                forward_depth_image=img["depth"], shape_index_image=img["shape"],
-                                world_indices=self._world_ids)
+            self._sensor.update(
+                state,
+                tfs,
+                self._rays[cam.name],
+                color_image=img["color"],
+                forward_depth_image=img["depth"],
+                shape_index_image=img["shape"],
+                world_indices=self._world_ids,
+            )
             frames[cam.name] = self._frame(cam, img, m) if to_numpy else None
         return frames
 
@@ -392,12 +428,26 @@ class CameraRig:
             shape = np.where(raw >= self.sim.model.shape_count, -1, raw).astype(np.int32)
             if depth is not None:
                 shape[depth <= 0] = -1
-        return CameraFrame(name=cam.name, intrinsics=cam.intrinsics, rgb=rgb, depth=depth, shape=shape,
-                           extrinsics=m, worlds=np.arange(self.sim.world_count))
+        return CameraFrame(
+            name=cam.name,
+            intrinsics=cam.intrinsics,
+            rgb=rgb,
+            depth=depth,
+            shape=shape,
+            extrinsics=m,
+            worlds=np.arange(self.sim.world_count),
+        )
 
 
-LABEL_COLORS = {"floor": (90, 90, 90), "wall": (200, 190, 160), "table": (150, 90, 40), "mug": (40, 80, 230),
-                "cabinet": (230, 200, 60), "robot": (60, 200, 80), "box": (220, 60, 60)}
+LABEL_COLORS = {
+    "floor": (90, 90, 90),
+    "wall": (200, 190, 160),
+    "table": (150, 90, 40),
+    "mug": (40, 80, 230),
+    "cabinet": (230, 200, 60),
+    "robot": (60, 200, 80),
+    "box": (220, 60, 60),
+}
 
 
 def colorize_labels(labels: np.ndarray, palette: dict[str, tuple[int, int, int]] | None = None) -> np.ndarray:

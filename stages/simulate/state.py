@@ -82,14 +82,30 @@ def read_state(sim, world: int = 0, *, contacts: bool = False) -> StepState:
 
     theta = float(Rotation.from_quat(base_t[3:7]).as_euler("xyz")[2])
     fingers = [bq[sim.world_body(_finger_link(sim, n), world)][:3] for n in desc.gripper.finger_joints]
-    robot = RobotState(joint_names=names, q=q, qd=qd, ee_pose=ee,
-                       base=BasePose(x=float(base_t[0]), y=float(base_t[1]), theta=theta),
-                       gripper_opening=float(np.linalg.norm(fingers[0] - fingers[1])))
-    objects = {p: _pose_from_transform(bq[b + world * sim.bodies_per_world]) for b, p in sim.scene.body_path.items()}
+    robot = RobotState(
+        joint_names=names,
+        q=q,
+        qd=qd,
+        ee_pose=ee,
+        base=BasePose(x=float(base_t[0]), y=float(base_t[1]), theta=theta),
+        gripper_opening=float(np.linalg.norm(fingers[0] - fingers[1])),
+    )
+    objects = {
+        p: _pose_from_transform(bq[b + world * sim.bodies_per_world]) for b, p in sim.scene.body_path.items()
+    }
     qs = sim.model.joint_q_start.numpy()
-    scene_joints = {p: float(jq[qs[j] + world * sim.coords_per_world]) for j, p in sim.scene.joint_path.items()}
-    return StepState(time=sim.time, step=sim.steps, world=world, robot=robot, objects=objects,
-                     scene_joints=scene_joints, contacts=read_contacts(sim, world) if contacts else ())
+    scene_joints = {
+        p: float(jq[qs[j] + world * sim.coords_per_world]) for j, p in sim.scene.joint_path.items()
+    }
+    return StepState(
+        time=sim.time,
+        step=sim.steps,
+        world=world,
+        robot=robot,
+        objects=objects,
+        scene_joints=scene_joints,
+        contacts=read_contacts(sim, world) if contacts else (),
+    )
 
 
 def _finger_link(sim, joint_name: str) -> str:
@@ -120,9 +136,16 @@ def read_contacts(sim, world: int = 0) -> tuple[Contact, ...]:
     nrm = c.rigid_contact_normal.numpy()[:n]
     lo, hi = world * sim.shapes_per_world, (world + 1) * sim.shapes_per_world
     out = []
-    for a, b, v in zip(s0, s1, nrm):
+    for a, b, v in zip(s0, s1, nrm, strict=True):
         if not (lo <= a < hi or lo <= b < hi) or a < 0 or b < 0:
             continue
-        out.append(Contact(shape_a=int(a), shape_b=int(b), label_a=str(sim.shape_label[a]),
-                           label_b=str(sim.shape_label[b]), normal=tuple(float(x) for x in v)))
+        out.append(
+            Contact(
+                shape_a=int(a),
+                shape_b=int(b),
+                label_a=str(sim.shape_label[a]),
+                label_b=str(sim.shape_label[b]),
+                normal=tuple(float(x) for x in v),
+            )
+        )
     return tuple(out)

@@ -64,11 +64,15 @@ class SolverSettings:
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
-            raise ItemError(f"solver {self.kind}: dt must be > 0 and substeps >= 1 (got {self.dt}, {self.substeps})")
+            raise ItemError(
+                f"solver {self.kind}: dt must be > 0 and substeps >= 1 (got {self.dt}, {self.substeps})"
+            )
         if self.kind != SolverKind.MUJOCO and self.dt / self.substeps > MAX_EXPLICIT_STEP + 1e-12:
             need = int(np.ceil(self.dt / MAX_EXPLICIT_STEP - 1e-9))
-            raise ItemError(f"solver {self.kind}: step {self.dt / self.substeps:.5f} s is too long; use substeps "
-                            f">= {need} at dt {self.dt} s (at most {MAX_EXPLICIT_STEP:.5f} s per substep)")
+            raise ItemError(
+                f"solver {self.kind}: step {self.dt / self.substeps:.5f} s is too long; use substeps "
+                f">= {need} at dt {self.dt} s (at most {MAX_EXPLICIT_STEP:.5f} s per substep)"
+            )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -126,6 +130,7 @@ class SimSettings:
 # Scene loading
 # --------------------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class LoadedScene:
     """Per-world-template facts from loading scene USDs: shape labels and prim paths by shape
@@ -140,7 +145,6 @@ class LoadedScene:
 
 def _semantic_label(prim) -> str:
     """The first UsdSemantics class label on the prim or its nearest labelled ancestor ('' if none)."""
-    from pxr import Usd
 
     p = prim
     while p and p.IsValid() and p.GetPath() != p.GetPath().absoluteRootPath:
@@ -183,15 +187,19 @@ def load_scene(builder, usd: Path) -> LoadedScene:
         labels.append(cache[p])
     from stages.simulate.sensors import read_usd_lights
 
-    return LoadedScene(shape_label=tuple(labels), shape_path=tuple(paths),
-                       body_path={v: k for k, v in res.get("path_body_map", {}).items()},
-                       joint_path={v: k for k, v in res.get("path_joint_map", {}).items()},
-                       lights=read_usd_lights(stage))
+    return LoadedScene(
+        shape_label=tuple(labels),
+        shape_path=tuple(paths),
+        body_path={v: k for k, v in res.get("path_body_map", {}).items()},
+        joint_path={v: k for k, v in res.get("path_joint_map", {}).items()},
+        lights=read_usd_lights(stage),
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # Free spawn pose
 # --------------------------------------------------------------------------------------------
+
 
 def shape_footprints(builder, z_range=(0.03, 1.6)) -> tuple[np.ndarray, np.ndarray]:
     """World AABBs (K, 4) [xmin, ymin, xmax, ymax] of the builder's shapes that overlap the
@@ -238,8 +246,9 @@ def shape_footprints(builder, z_range=(0.03, 1.6)) -> tuple[np.ndarray, np.ndarr
     return np.asarray(out, float).reshape(-1, 4), np.asarray(idx, int)
 
 
-def find_free_spawn(builder, rng: np.random.Generator, *, radius: float = 0.45, near=None,
-                    cell: float = 0.05) -> tuple[float, float, float]:
+def find_free_spawn(
+    builder, rng: np.random.Generator, *, radius: float = 0.45, near=None, cell: float = 0.05
+) -> tuple[float, float, float]:
     """A robot root pose (x, y, yaw) whose footprint disc of ``radius`` [m] touches no shape,
     inside the largest connected free region of the scene (so the robot can drive from it).
 
@@ -284,6 +293,7 @@ def find_free_spawn(builder, rng: np.random.Generator, *, radius: float = 0.45, 
 # --------------------------------------------------------------------------------------------
 # The simulation
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass
 class Sim:
@@ -332,8 +342,13 @@ class Sim:
                 self.state_0.clear_forces()
                 if self.pipeline is not None:
                     self.pipeline.collide(self.state_0, self.contacts)
-                self.solver.step(self.state_0, self.state_1, self.control,
-                                 None if self.pipeline is None else self.contacts, h)
+                self.solver.step(
+                    self.state_0,
+                    self.state_1,
+                    self.control,
+                    None if self.pipeline is None else self.contacts,
+                    h,
+                )
                 self.state_0, self.state_1 = self.state_1, self.state_0
             self.time += s.dt
             self.steps += 1
@@ -354,7 +369,7 @@ class Sim:
             dx, dy = base[0] - x0, base[1] - y0
             local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
             for w in range(self.world_count):
-                for name, v in zip(self.desc.base_joints, local):
+                for name, v in zip(self.desc.base_joints, local, strict=True):
                     q[self.world_coord(name, w)] = v
         q_wp = wp.array(q, dtype=wp.float32, device=m.device)
         self.state_0.joint_q.assign(q_wp)
@@ -414,9 +429,19 @@ def _make_solver(model, s: SolverSettings, device: str, world_count: int):
 
         cpu = s.use_mujoco_cpu if s.use_mujoco_cpu is not None else (device == "cpu" and world_count == 1)
         separate = not cpu
-        opts = dict(use_mujoco_cpu=cpu, separate_worlds=separate, solver="newton", integrator=s.integrator,
-                    cone=s.cone, impratio=s.impratio, iterations=s.iterations, ls_iterations=s.ls_iterations,
-                    njmax=s.njmax, nconmax=s.nconmax, disable_sensors=True)
+        opts = dict(
+            use_mujoco_cpu=cpu,
+            separate_worlds=separate,
+            solver="newton",
+            integrator=s.integrator,
+            cone=s.cone,
+            impratio=s.impratio,
+            iterations=s.iterations,
+            ls_iterations=s.ls_iterations,
+            njmax=s.njmax,
+            nconmax=s.nconmax,
+            disable_sensors=True,
+        )
         return SolverMuJoCo(model, **opts), None, cpu, separate, opts
     pipeline = newton.CollisionPipeline(model)
     if s.kind == SolverKind.FEATHERSTONE:
@@ -438,7 +463,9 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
     if not cfg.scenes:
         raise ItemError("simulate: no scene USD given")
     if len(cfg.scenes) not in (1, cfg.world_count):
-        raise ItemError(f"simulate: {len(cfg.scenes)} scenes for {cfg.world_count} worlds (need 1 or one per world)")
+        raise ItemError(
+            f"simulate: {len(cfg.scenes)} scenes for {cfg.world_count} worlds (need 1 or one per world)"
+        )
     tpl, loaded, robot, spawn, labels = _build_template(cfg, cfg.scenes[0], desc, rng)
     main = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(main)
@@ -448,9 +475,16 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
     else:
         all_labels = []
         for w, scene in enumerate(cfg.scenes):
-            b, _, _, _, lab = (tpl, loaded, robot, spawn, labels) if w == 0 else _build_template(
-                SimConfig(**{**cfg.__dict__, "spawn": spawn}), scene, desc, rng)
-            if (b.body_count, b.shape_count, b.joint_count) != (tpl.body_count, tpl.shape_count, tpl.joint_count):
+            b, _, _, _, lab = (
+                (tpl, loaded, robot, spawn, labels)
+                if w == 0
+                else _build_template(SimConfig(**{**cfg.__dict__, "spawn": spawn}), scene, desc, rng)
+            )
+            if (b.body_count, b.shape_count, b.joint_count) != (
+                tpl.body_count,
+                tpl.shape_count,
+                tpl.joint_count,
+            ):
                 raise ItemError(f"{scene}: differs in structure from {cfg.scenes[0]}; worlds must match")
             main.add_world(b)
             all_labels += lab
@@ -463,15 +497,43 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
     state_0, state_1, control = model.state(), model.state(), model.control()
     newton.eval_fk(model, model.joint_q, model.joint_qd, state_0)
     settings = SimSettings(
-        solver=cfg.solver.kind.value, dt=cfg.solver.dt, substeps=cfg.solver.substeps, device=cfg.device,
-        world_count=cfg.world_count, use_mujoco_cpu=cpu, separate_worlds=separate,
-        options={**{k: v for k, v in opts.items() if v is not None}, "contact_ke": cfg.contact_ke,
-                 "contact_kd": cfg.contact_kd}, spawn=tuple(spawn),
-        bodies_per_world=tpl.body_count, shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
-        newton_version=newton.__version__, scenes=tuple(str(s) for s in cfg.scenes))
+        solver=cfg.solver.kind.value,
+        dt=cfg.solver.dt,
+        substeps=cfg.solver.substeps,
+        device=cfg.device,
+        world_count=cfg.world_count,
+        use_mujoco_cpu=cpu,
+        separate_worlds=separate,
+        options={
+            **{k: v for k, v in opts.items() if v is not None},
+            "contact_ke": cfg.contact_ke,
+            "contact_kd": cfg.contact_kd,
+        },
+        spawn=tuple(spawn),
+        bodies_per_world=tpl.body_count,
+        shapes_per_world=tpl.shape_count,
+        dofs_per_world=tpl.joint_dof_count,
+        newton_version=newton.__version__,
+        scenes=tuple(str(s) for s in cfg.scenes),
+    )
     log.info("simulation built: %s", settings)
-    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control, contacts=contacts,
-               pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
-               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count,
-               shapes_per_world=tpl.shape_count, dofs_per_world=tpl.joint_dof_count,
-               coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn), solver_settings=cfg.solver)
+    return Sim(
+        model=model,
+        solver=solver,
+        state_0=state_0,
+        state_1=state_1,
+        control=control,
+        contacts=contacts,
+        pipeline=pipeline,
+        robot=robot,
+        desc=desc,
+        settings=settings,
+        scene=loaded,
+        shape_label=np.asarray(all_labels),
+        bodies_per_world=tpl.body_count,
+        shapes_per_world=tpl.shape_count,
+        dofs_per_world=tpl.joint_dof_count,
+        coords_per_world=tpl.joint_coord_count,
+        spawn=tuple(spawn),
+        solver_settings=cfg.solver,
+    )

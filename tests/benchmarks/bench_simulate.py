@@ -61,10 +61,15 @@ def _ours(device: str, worlds: int, tmp: Path):
     from stages.simulate.robot import write_robot_urdf
     from stages.simulate.world import SimConfig, build_sim
 
-    room = write_demo_room(tmp / "room.usda", shared_assets=SHARED, clutter=CLUTTER, rng=np.random.default_rng(0))
+    room = write_demo_room(
+        tmp / "room.usda", shared_assets=SHARED, clutter=CLUTTER, rng=np.random.default_rng(0)
+    )
     desc = write_robot_urdf(tmp, panda_root=SHARED / "robots/franka_panda__example_robot_data")
-    sim = build_sim(SimConfig(scenes=(room.usd,), world_count=worlds, device=device, spawn=(1.0, 1.0, 0.0)), desc,
-                    np.random.default_rng(0))
+    sim = build_sim(
+        SimConfig(scenes=(room.usd,), world_count=worlds, device=device, spawn=(1.0, 1.0, 0.0)),
+        desc,
+        np.random.default_rng(0),
+    )
     ctl = RobotControl(sim)
     ctl.set_base_velocity(0.2, 0.0, 0.1)
     return sim, desc
@@ -76,14 +81,27 @@ def _bare(device: str, worlds: int, desc, n_free: int, solver_settings):
     import warp as wp
 
     b = newton.ModelBuilder()
-    for cx, cy, hx, hy in ((3, -0.05, 3.1, 0.05), (3, 5.05, 3.1, 0.05), (-0.05, 2.5, 0.05, 2.5), (6.05, 2.5, 0.05, 2.5)):
-        b.add_shape_box(body=-1, xform=wp.transform((cx, cy, 1.25), wp.quat_identity()), hx=hx, hy=hy, hz=1.25)
+    for cx, cy, hx, hy in (
+        (3, -0.05, 3.1, 0.05),
+        (3, 5.05, 3.1, 0.05),
+        (-0.05, 2.5, 0.05, 2.5),
+        (6.05, 2.5, 0.05, 2.5),
+    ):
+        b.add_shape_box(
+            body=-1, xform=wp.transform((cx, cy, 1.25), wp.quat_identity()), hx=hx, hy=hy, hz=1.25
+        )
     rng = np.random.default_rng(0)
-    for i in range(n_free):
-        body = b.add_body(xform=wp.transform((rng.uniform(0.5, 5.5), rng.uniform(1.8, 4.5), 0.1), wp.quat_identity()))
+    for _ in range(n_free):
+        body = b.add_body(
+            xform=wp.transform((rng.uniform(0.5, 5.5), rng.uniform(1.8, 4.5), 0.1), wp.quat_identity())
+        )
         b.add_shape_box(body=body, hx=0.06, hy=0.06, hz=0.06)
-    b.add_urdf(str(desc.urdf), xform=wp.transform((1.0, 1.0, 0.0), wp.quat_identity()), floating=False,
-               enable_self_collisions=False)
+    b.add_urdf(
+        str(desc.urdf),
+        xform=wp.transform((1.0, 1.0, 0.0), wp.quat_identity()),
+        floating=False,
+        enable_self_collisions=False,
+    )
     main = newton.ModelBuilder()
     main.replicate(b, worlds)
     main.add_ground_plane()
@@ -133,8 +151,11 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
             sim, desc = _ours(device, n, Path(td))
             build_s = time.perf_counter() - t0
             ours_dt = _time_steps(sim.step, device, steps, repeats)
-            rig = CameraRig(sim, [CameraSpec(name="head", width=width, height=width, link="head_camera",
-                                             vertical_fov=1.2)], segmentation=False)
+            rig = CameraRig(
+                sim,
+                [CameraSpec(name="head", width=width, height=width, link="head_camera", vertical_fov=1.2)],
+                segmentation=False,
+            )
             rig.render(to_numpy=False)
             _sync(device)
             rt = []
@@ -152,19 +173,33 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
             sensor = SensorCamera(model, load_textures=False, default_render_config=cfg)
             sensor.create_default_light()
             rays = SensorCamera.compute_camera_rays_pinhole(width, width, camera_fov=1.2, device=device)
-            tf = wp.array([wp.transform((1.0, 1.0, 1.4), wp.quat_identity())] * n, dtype=wp.transformf, device=device)
-            imgs = (sensor.allocate_image_color(n, width, width), sensor.allocate_image_depth_forward(n, width, width))
+            tf = wp.array(
+                [wp.transform((1.0, 1.0, 1.4), wp.quat_identity())] * n, dtype=wp.transformf, device=device
+            )
+            imgs = (
+                sensor.allocate_image_color(n, width, width),
+                sensor.allocate_image_depth_forward(n, width, width),
+            )
             bare_render = _render_rate(sensor, model, bstate["s0"], rays, tf, imgs, repeats)
-        row = {"worlds": n, "build_s": round(build_s, 2),
-               "ours_world_steps_per_s": n / ours_dt, "bare_world_steps_per_s": n / bare_dt,
-               "step_ratio_bare_over_ours": (n / bare_dt) / (n / ours_dt),
-               "ours_rgbd_frames_per_s": n / ours_render, "bare_rgbd_frames_per_s": n / bare_render,
-               "render_ratio_bare_over_ours": ours_render / bare_render,
-               "bodies_per_world": sim.bodies_per_world, "shapes_per_world": sim.shapes_per_world,
-               "settings": sim.settings.to_json()}
-        print(f"[simulate] {device} worlds={n}: ours {row['ours_world_steps_per_s']:.0f} world-steps/s, "
-              f"bare {row['bare_world_steps_per_s']:.0f} (ratio {row['step_ratio_bare_over_ours']:.2f}); "
-              f"RGB-D ours {row['ours_rgbd_frames_per_s']:.0f} frames/s, bare {row['bare_rgbd_frames_per_s']:.0f}")
+        row = {
+            "worlds": n,
+            "build_s": round(build_s, 2),
+            "ours_world_steps_per_s": n / ours_dt,
+            "bare_world_steps_per_s": n / bare_dt,
+            "step_ratio_bare_over_ours": (n / bare_dt) / (n / ours_dt),
+            "ours_rgbd_frames_per_s": n / ours_render,
+            "bare_rgbd_frames_per_s": n / bare_render,
+            "render_ratio_bare_over_ours": ours_render / bare_render,
+            "bodies_per_world": sim.bodies_per_world,
+            "shapes_per_world": sim.shapes_per_world,
+            "settings": sim.settings.to_json(),
+        }
+        print(
+            f"[simulate] {device} worlds={n}: ours {row['ours_world_steps_per_s']:.0f} world-steps/s, "
+            f"bare {row['bare_world_steps_per_s']:.0f} (ratio {row['step_ratio_bare_over_ours']:.2f}); "
+            f"RGB-D ours {row['ours_rgbd_frames_per_s']:.0f} frames/s, "
+            f"bare {row['bare_rgbd_frames_per_s']:.0f}"
+        )
         results["rows"].append(row)
     out = REPO / "bench_results" / "simulate.json"
     out.parent.mkdir(exist_ok=True)

@@ -20,15 +20,18 @@ PANDA = "robots/franka_panda__example_robot_data"
 @pytest.fixture(scope="module")
 def room(shared_assets, tmp_path_factory):
     # the real mug mesh scaled to 0.8: 66 mm across, inside the Franka hand's 80 mm stroke
-    return write_demo_room(tmp_path_factory.mktemp("room") / "room.usda", shared_assets=shared_assets,
-                           mug_scale=0.8)
+    return write_demo_room(
+        tmp_path_factory.mktemp("room") / "room.usda", shared_assets=shared_assets, mug_scale=0.8
+    )
 
 
 @pytest.fixture(scope="module")
 def sim(room, shared_assets, tmp_path_factory):
     """One simulation for the module; each test puts the base where it needs it with reset()."""
     desc = write_robot_urdf(tmp_path_factory.mktemp("robot"), panda_root=shared_assets / PANDA)
-    s = build_sim(SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0))
+    s = build_sim(
+        SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0)
+    )
     s.ctl, s.ik = RobotControl(s), Clik(desc)
     return s
 
@@ -37,6 +40,8 @@ def _reset(sim, base=None):
     sim.reset(base=base)
     sim.ctl.reset()
     return sim.ctl, sim.ik
+
+
 DRAWER = "/World/Cabinet/DrawerJoint"
 DOOR = "/World/Cabinet/DoorJoint"
 
@@ -50,8 +55,11 @@ def test_grasps_the_drawer_handle_and_opens_the_drawer_by_driving_back(sim, room
     h = np.asarray(room.drawer_handle)
     ctl, ik = _reset(sim, base=(h[0] - 0.75, h[1], 0.0))
     rot = Rotation.from_euler("y", 20, degrees=True).as_matrix() @ np.stack(
-        [[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
-    move_ee(sim, ctl, ik, pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.2, rng=np.random.default_rng(1))
+        [[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1
+    ).astype(float)
+    move_ee(
+        sim, ctl, ik, pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.2, rng=np.random.default_rng(1)
+    )
     move_ee(sim, ctl, ik, pose(h, rot), 1.0, segments=2, settle=0.2, rng=np.random.default_rng(2))
     st = read_state(sim)
     assert np.linalg.norm(np.asarray(st.robot.ee_pose.position) - h) < 0.01
@@ -111,7 +119,8 @@ def test_grasps_the_door_handle_and_swings_the_door_open(sim, room):
     ctl, ik = _reset(sim, base=(hinge[0] - 0.655, hinge[1] - 0.58, 0.3))
     rng = np.random.default_rng(1)
     grip = Rotation.from_euler("y", 35, degrees=True).as_matrix() @ np.stack(
-        [[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
+        [[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1
+    ).astype(float)
 
     def handle_pose(theta: float, back: float = 0.0) -> np.ndarray:
         rz = Rotation.from_euler("z", theta).as_matrix()
@@ -139,9 +148,15 @@ def test_robotiq_2f85_grasps_the_full_size_mug(shared_assets, tmp_path):
     """The alternative gripper (2F-85 as a parallel approximation, 85 mm stroke) takes the real,
     unscaled 82 mm mug across its body, lifts it 15 cm and holds it 2 s. Slow (own simulation)."""
     room = write_demo_room(tmp_path / "room.usda", shared_assets=shared_assets)
-    desc = write_robot_urdf(tmp_path, gripper="robotiq_2f85", panda_root=shared_assets / PANDA,
-                            robotiq_root=shared_assets / "robots/robotiq_2f85__menagerie")
-    sim = build_sim(SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0))
+    desc = write_robot_urdf(
+        tmp_path,
+        gripper="robotiq_2f85",
+        panda_root=shared_assets / PANDA,
+        robotiq_root=shared_assets / "robots/robotiq_2f85__menagerie",
+    )
+    sim = build_sim(
+        SimConfig(scenes=(room.usd,), spawn_near=room.mug_position[:2]), desc, np.random.default_rng(0)
+    )
     ctl, ik = RobotControl(sim), Clik(desc)
     mug0 = np.asarray(read_state(sim).objects["/World/Mug"].position)
     grasp = mug0 + [0.0, 0.0, 0.105 - 0.03]

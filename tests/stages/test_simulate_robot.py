@@ -17,8 +17,12 @@ ROBOTIQ = "robots/robotiq_2f85__menagerie"
 
 @pytest.fixture(scope="module", params=[GripperKind.PANDA_HAND, GripperKind.ROBOTIQ_2F85])
 def desc(request, shared_assets, tmp_path_factory):
-    return write_robot_urdf(tmp_path_factory.mktemp("robot"), gripper=request.param,
-                            panda_root=shared_assets / PANDA, robotiq_root=shared_assets / ROBOTIQ)
+    return write_robot_urdf(
+        tmp_path_factory.mktemp("robot"),
+        gripper=request.param,
+        panda_root=shared_assets / PANDA,
+        robotiq_root=shared_assets / ROBOTIQ,
+    )
 
 
 def _matrix(t):

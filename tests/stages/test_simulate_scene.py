@@ -51,8 +51,15 @@ def _collider_bodies(sim) -> np.ndarray:
 
     flags = sim.model.shape_flags.numpy()
     shape_body = sim.model.shape_body.numpy()
-    return np.array(sorted({int(shape_body[s]) for s in range(sim.robot.shape_start, sim.robot.shape_end)
-                            if flags[s] & int(newton.ShapeFlags.COLLIDE_SHAPES)}))
+    return np.array(
+        sorted(
+            {
+                int(shape_body[s])
+                for s in range(sim.robot.shape_start, sim.robot.shape_end)
+                if flags[s] & int(newton.ShapeFlags.COLLIDE_SHAPES)
+            }
+        )
+    )
 
 
 def test_drives_across_a_generated_room_and_is_stopped_by_the_wall(desc, tmp_path):
@@ -72,7 +79,9 @@ def test_drives_across_a_generated_room_and_is_stopped_by_the_wall(desc, tmp_pat
     boxes, idx = shape_footprints(probe)
     walls = boxes[[k for k, i in enumerate(idx) if scene.shape_label[i] == "wall"]]
     lo, hi = walls[:, :2].min(0), walls[:, 2:].max(0)
-    x0, y0, _ = find_free_spawn(probe, np.random.default_rng(0), radius=0.5, near=(lo[0], (lo[1] + hi[1]) / 2))
+    x0, y0, _ = find_free_spawn(
+        probe, np.random.default_rng(0), radius=0.5, near=(lo[0], (lo[1] + hi[1]) / 2)
+    )
     sim = build_sim(SimConfig(scenes=(layout.usd,), spawn=(x0, y0, 0.0)), desc, np.random.default_rng(0))
     ctl = RobotControl(sim)
     # the inner face of the first wall east of the robot, across the robot's width
@@ -170,8 +179,9 @@ def test_camera_frames_agree_with_the_geometry(sim, room, desc, tmp_path):
 
     sim.reset()
     sim.step(5)
-    third = CameraSpec(name="third", width=160, height=120, vertical_fov=1.0,
-                       pose=look_at((0.4, 0.4, 2.2), (3.0, 3.0, 0.4)))
+    third = CameraSpec(
+        name="third", width=160, height=120, vertical_fov=1.0, pose=look_at((0.4, 0.4, 2.2), (3.0, 3.0, 0.4))
+    )
     rig = CameraRig(sim, robot_cameras(desc) + [third])
     frames = rig.render()
     out = Path(os.environ.get("AGENTWORLD_TEST_ARTIFACTS", tmp_path))
@@ -191,8 +201,10 @@ def test_camera_frames_agree_with_the_geometry(sim, room, desc, tmp_path):
     floor = pts[labels == "floor"]
     assert np.abs(floor[:, 2]).max() < 0.01
     wall = pts[labels == "wall"]
-    dist = np.min(np.abs(np.stack([wall[:, 0], wall[:, 0] - room.size[0], wall[:, 1], wall[:, 1] - room.size[1]])),
-                  axis=0)
+    dist = np.min(
+        np.abs(np.stack([wall[:, 0], wall[:, 0] - room.size[0], wall[:, 1], wall[:, 1] - room.size[1]])),
+        axis=0,
+    )
     assert np.percentile(dist, 99) < 0.01
     tab = pts[labels == "table"]
     c, s = np.asarray(room.table.center), np.asarray(room.table.size)
@@ -207,7 +219,9 @@ def test_camera_frames_agree_with_the_geometry(sim, room, desc, tmp_path):
     st = read_state(sim)
     e = frames["head"].extrinsics[0]
     assert e[2, 3] > 1.2 and np.hypot(e[0, 3] - st.robot.base.x, e[1, 3] - st.robot.base.y) < 0.35
-    assert np.allclose(frames["head"].extrinsics_opencv()[0] @ np.append(e[:3, 3], 1.0), [0, 0, 0, 1], atol=1e-6)
+    assert np.allclose(
+        frames["head"].extrinsics_opencv()[0] @ np.append(e[:3, 3], 1.0), [0, 0, 0, 1], atol=1e-6
+    )
     assert rig.lights_used and rig.lights_used[0].source == "/World/Lights/Sun"
 
 
@@ -247,8 +261,9 @@ def test_two_worlds_are_independent(room, desc):
     """Two replicated worlds (MuJoCo-Warp, here on CPU; slow: its CPU kernels compile for minutes
     on a cold cache): a base command to world 0 moves only world 0's robot, per-world state and
     per-world camera frames follow."""
-    sim2 = build_sim(SimConfig(scenes=(room.usd,), world_count=2, spawn=(1.0, 1.0, 0.0)), desc,
-                     np.random.default_rng(0))
+    sim2 = build_sim(
+        SimConfig(scenes=(room.usd,), world_count=2, spawn=(1.0, 1.0, 0.0)), desc, np.random.default_rng(0)
+    )
     ctl = RobotControl(sim2)
     ctl.set_base_velocity(0.5, 0.0, 0.0, world=0)
     sim2.step(200)
@@ -258,8 +273,9 @@ def test_two_worlds_are_independent(room, desc):
     frames = CameraRig(sim2, robot_cameras(desc)[:1]).render()
     head = frames["head"]
     assert head.rgb.shape[0] == 2 and not np.array_equal(head.depth[0], head.depth[1])
-    np.testing.assert_allclose(head.extrinsics[0, 0, 3] - head.extrinsics[1, 0, 3], s0.robot.base.x - s1.robot.base.x,
-                               atol=1e-4)
+    np.testing.assert_allclose(
+        head.extrinsics[0, 0, 3] - head.extrinsics[1, 0, 3], s0.robot.base.x - s1.robot.base.x, atol=1e-4
+    )
 
 
 def test_usd_lights_map_photometrically(tmp_path):
@@ -303,5 +319,5 @@ def test_usd_lights_map_photometrically(tmp_path):
     lamp = kinds["/W/Lamp"]
     assert lamp.type == POINT and lamp.position == pytest.approx((1.0, 2.0, 2.5))
     # renderer falloff 1 / (1 + 0.02 d^2) at 2 m gives 400/500 of white
-    assert lamp.color[0] / (1 + 0.02 * REFERENCE_DISTANCE ** 2) == pytest.approx(0.8, rel=1e-4)
+    assert lamp.color[0] / (1 + 0.02 * REFERENCE_DISTANCE**2) == pytest.approx(0.8, rel=1e-4)
     np.testing.assert_allclose(sky, [0.2, 0.2, 0.2], rtol=1e-4)
