@@ -148,26 +148,40 @@ def find_panda_description(explicit: Path | None = None) -> Path:
     """The package root that holds ``robots/panda_description`` (the folder that
     ``package://example-robot-data/`` resolves to).
 
-    Tries, in order: ``explicit`` (either that root, or a folder holding ``example-robot-data/``,
-    as in the shared assets), then the pip package ``example_robot_data``. Raises ItemError naming
-    what was tried.
+    ``explicit``: that root, or a folder holding ``example-robot-data/`` (as the shared assets do);
+    without it, the pip package ``example-robot-data`` (the default). Raises ItemError naming what
+    was tried (an explicit folder that lacks the URDF is an error, not a fallback).
     """
-    tried: list[str] = []
     if explicit is not None:
+        tried = []
         for root in (Path(explicit), Path(explicit) / PANDA_PACKAGE):
             if (root / PANDA_URDF_REL).is_file():
                 return root.resolve()
             tried.append(str(root / PANDA_URDF_REL))
-    spec = importlib.util.find_spec("example_robot_data")
-    if spec is not None and spec.submodule_search_locations:
-        pkg = Path(next(iter(spec.submodule_search_locations)))
-        for root in (pkg, pkg.parent / "share" / PANDA_PACKAGE, pkg.parents[3] / "share" / PANDA_PACKAGE):
-            if (root / PANDA_URDF_REL).is_file():
-                return root.resolve()
-            tried.append(str(root / PANDA_URDF_REL))
-    else:
-        tried.append("pip package example_robot_data (not installed)")
-    raise ItemError(f"{PANDA_URDF_REL}: Panda description not found; tried: {'; '.join(tried)}")
+        raise ItemError(f"{explicit}: Panda description not found; tried: {'; '.join(tried)}")
+    root = _pip_panda_root()
+    if root is None:
+        raise ItemError(f"{PANDA_URDF_REL}: Panda description not found: the pip package example-robot-data "
+                        "is not installed (or has no panda_description); pass panda_root")
+    return root
+
+
+def _pip_panda_root() -> Path | None:
+    """The data root of the pip package ``example-robot-data`` (a cmeel package: its files live
+    under ``site-packages/cmeel.prefix/share/example-robot-data``), or None."""
+    from importlib import metadata
+
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return None
+    suffix = PANDA_URDF_REL.as_posix()
+    for f in dist.files or ():
+        if f.as_posix().endswith(suffix):
+            urdf = Path(dist.locate_file(f))
+            if urdf.is_file():
+                return urdf.parents[3].resolve()
+    return None
 
 
 def find_robotiq_description(explicit: Path) -> Path:

@@ -110,3 +110,20 @@ def test_solver_settings_refuse_long_explicit_steps():
     ok = SolverSettings(kind=SolverKind.XPBD, dt=1 / 120, substeps=8)
     assert ok.dt / ok.substeps <= 1 / 960
     assert SolverSettings().kind == SolverKind.MUJOCO and SolverSettings().substeps == 1
+
+
+def test_default_description_is_the_pip_package(shared_assets, tmp_path):
+    """Without a folder the Panda comes from the pip package example-robot-data; its kinematics
+    equal the shared assets' copy."""
+    from importlib import metadata
+
+    try:
+        metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        pytest.skip("example-robot-data is not installed")
+    default = write_robot_urdf(tmp_path / "pip")
+    shared = write_robot_urdf(tmp_path / "shared", panda_root=shared_assets / PANDA)
+    assert "cmeel.prefix" in default.urdf.read_text() or "site-packages" in default.urdf.read_text()
+    a, b = Clik(default), Clik(shared)
+    q = a.neutral()
+    np.testing.assert_allclose(a.fk(q), b.fk(q), atol=1e-9)
