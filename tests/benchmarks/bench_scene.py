@@ -1,0 +1,119 @@
+"""Benchmark: seconds per populated room and per 3-room house on one core (placement, composition,
+Newton settle, USD validation), and how a room's cost grows with 10, 50 and 200 objects.
+
+Assets: the scene job's index (``out/scenes/catalog.sqlite``) when it exists, else packages built
+in-process from the default catalog's generators (``stages.scene.standin``). Prints the figures and
+writes bench_results/scene.json.
+
+    python -m pytest -q -m benchmark tests/benchmarks/bench_scene.py -s
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "bench_results" / "scene.json"
+JOB_INDEX = ROOT / "out" / "scenes" / "catalog.sqlite"
+SCALE = (10, 50, 200)
+SMALL = ["mug", "cup", "can", "book", "box", "plate", "bottle", "sponge", "pitcher", "bowl"]
+
+
+def _scale_rules(n: int) -> str:
+    """A rule file for a living room holding about n objects: 7 pieces of furniture with surfaces,
+    the rest small objects spread over them."""
+    furn = [("dining_table", 3, "floor"), ("kitchen_counter", 2, "wall"), ("bookshelf", 2, "wall")]
+    lines = ["[defaults]", "max_tries = 25", "", "[room.living_room]"]
+    for cat, k, mode in furn:
+        lines += ["[[room.living_room.furniture]]", f'category = "{cat}"', f"count = [0, {k}]", f'mode = "{mode}"']
+    rest = max(n - sum(k for _, k, _ in furn), 0)
+    per, extra = divmod(rest, len(SMALL))
+    for i, cat in enumerate(SMALL):
+        k = per + (1 if i < extra else 0)
+        if k:
+            lines += ["[[room.living_room.objects]]", f'category = "{cat}"', f"count = [0, {k}]",
+                      'on = ["dining_table", "kitchen_counter", "bookshelf"]']
+    return "\n".join(lines) + "\n"
+
+
+def _library(tmp: Path):
+    from stages.scene.solver import Library
+    from stages.scene.standin import build_library
+
+    if JOB_INDEX.is_file():
+        return Library.from_index(JOB_INDEX), "job index"
+    cats = sorted({"sofa", "tv_stand", "coffee_table", "armchair", "bookshelf", "cabinet", "floor_lamp", "rug",
+                   "kitchen_counter", "fridge", "oven", "dining_table", "chair", "microwave", "bed", "nightstand",
+                   "wardrobe", "dresser", "pillow", "alarm_clock", "hanger", "apple", "orange", "banana",
+                   "crumpled_paper", *SMALL})
+    return Library.from_index(build_library(tmp / "lib", categories=cats, variants=2)), "standin"
+
+
+def _build(lib, rules, lay, seed: int, out: Path, tries: int = 4):
+    from stages.scene.build import BuildOptions, SceneRejected, build_scene
+
+    for a in range(tries):
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            s = build_scene(lay.plan_json, lay.usd, lib, rules, np.random.default_rng(seed * 100 + a),
+                            out / f"{seed}_{a}", out / f"{seed}_{a}", BuildOptions(n_looks=2))
+        except SceneRejected:
+            continue
+        return s, time.perf_counter() - t0, time.process_time() - c0
+    return None, float("nan"), float("nan")
+
+
+@pytest.mark.benchmark
+def test_bench_scene(tmp_path: Path) -> None:
+    import usd_schemas  # noqa: F401
+    from stages.layout.build import generate_layout
+    from stages.layout.spec import LayoutSpec
+    from stages.scene.rules import PlacementRules, load_rules
+
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
+    lib, source = _library(tmp_path)
+    rules = load_rules()
+    rooms = {rt: generate_layout(LayoutSpec(rooms={rt: 1}), 11, tmp_path / f"lay_{rt}")
+             for rt in ("living_room", "kitchen", "bedroom")}
+    house = generate_layout(LayoutSpec(rooms={"living_room": 1, "kitchen": 1, "bedroom": 1}), 12, tmp_path / "house")
+    _build(lib, rules, rooms["bedroom"], 99, tmp_path / "warm")  # imports, kernel caches, MuJoCo compile
+
+    per_room = {}
+    for rt, lay in rooms.items():
+        s, wall, cpu = _build(lib, rules, lay, 1, tmp_path / f"room_{rt}")
+        per_room[rt] = {"seconds": round(wall, 2), "cpu_seconds": round(cpu, 2),
+                        "objects": len(s.instances) if s else 0, "phases": s.seconds if s else {}}
+    s, wall, cpu = _build(lib, rules, house, 2, tmp_path / "house_out")
+    per_house = {"seconds": round(wall, 2), "cpu_seconds": round(cpu, 2), "objects": len(s.instances) if s else 0,
+                 "phases": s.seconds if s else {}}
+
+    scale = {}
+    big = generate_layout(LayoutSpec(rooms={"living_room": 1}), 13, tmp_path / "big")
+    for n in SCALE:
+        p = tmp_path / f"rules_{n}.toml"
+        p.write_text(_scale_rules(n), encoding="utf-8")
+        r: PlacementRules = load_rules(p)
+        s, wall, cpu = _build(lib, r, big, 3, tmp_path / f"scale_{n}")
+        scale[str(n)] = {"requested": n, "placed": len(s.instances) if s else 0, "seconds": round(wall, 2),
+                         "cpu_seconds": round(cpu, 2), "phases": s.seconds if s else {}}
+
+    room_secs = [v["seconds"] for v in per_room.values() if v["objects"]]
+    result = {
+        "assets": source, "cpu": platform.processor() or platform.machine(), "cores_used": 1,
+        "seconds_per_room_median": round(float(np.median(room_secs)), 2) if room_secs else None,
+        "per_room": per_room, "per_3_room_house": per_house, "scaling": scale,
+        "note": "wall seconds of build_scene (place + compose + settle 2 s + validate); one core; the machine is "
+                "shared, so cpu_seconds is the steadier figure",
+    }
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    OUT.write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    print(json.dumps(result, indent=1))
+    assert room_secs and per_house["objects"] > 0
