@@ -319,6 +319,42 @@ class CameraFrame:
         flip = np.diag([1.0, -1.0, -1.0, 1.0])
         return np.linalg.inv(self.extrinsics @ flip)
 
+    def calibration(self, view: int = 0) -> "CameraCalibration":
+        """The intrinsics and extrinsics of one view, to record next to its images."""
+        k = self.intrinsics
+        return CameraCalibration(
+            name=self.name, width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx, cy=k.cy,
+            camera_to_world_gl=tuple(tuple(float(v) for v in row) for row in self.extrinsics[view]),
+            world_to_camera_cv=tuple(tuple(float(v) for v in row) for row in self.extrinsics_opencv()[view]),
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraCalibration:
+    """A camera's recorded calibration: image size [px], pinhole intrinsics [px] (principal
+    point with the pixel-edge origin), camera-to-world 4x4 in the USD/OpenGL optical convention
+    (-Z forward, +Y up) and world-to-camera 4x4 in the OpenCV convention (+Z forward, +Y down)."""
+
+    name: str
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    camera_to_world_gl: tuple[tuple[float, ...], ...]
+    world_to_camera_cv: tuple[tuple[float, ...], ...]
+
+    def to_json(self) -> dict:
+        from dataclasses import asdict
+
+        return asdict(self)
+
+    def project(self, point_world) -> tuple[float, float, float]:
+        """(u, v) pixel coordinates and depth [m] of a world point (OpenCV model)."""
+        p = np.asarray(self.world_to_camera_cv) @ np.append(np.asarray(point_world, float), 1.0)
+        return float(self.fx * p[0] / p[2] + self.cx), float(self.fy * p[1] / p[2] + self.cy), float(p[2])
+
 
 @dataclass
 class CameraRig:

@@ -223,6 +223,13 @@ def test_camera_frames_agree_with_the_geometry(sim, room, desc, tmp_path):
         frames["head"].extrinsics_opencv()[0] @ np.append(e[:3, 3], 1.0), [0, 0, 0, 1], atol=1e-6
     )
     assert rig.lights_used and rig.lights_used[0].source == "/World/Lights/Sun"
+    # the recorded calibration projects the mug's centre onto a mug pixel at its depth
+    cal = f.calibration(0)
+    assert set(cal.to_json()) >= {"fx", "fy", "cx", "cy", "camera_to_world_gl", "world_to_camera_cv"}
+    centre = np.asarray(room.mug_position) + [0.0, 0.0, 0.03]
+    u, v, d = cal.project(centre)
+    assert labels[int(v), int(u)] == "mug"
+    assert abs(f.depth[0][int(v), int(u)] - d) < 0.06
 
 
 def test_recording_saves_the_scene_with_the_robot_as_usd(sim, tmp_path):
