@@ -319,7 +319,7 @@ class CameraFrame:
         flip = np.diag([1.0, -1.0, -1.0, 1.0])
         return np.linalg.inv(self.extrinsics @ flip)
 
-    def calibration(self, view: int = 0) -> "CameraCalibration":
+    def calibration(self, view: int = 0) -> CameraCalibration:
         """The intrinsics and extrinsics of one view, to record next to its images."""
         k = self.intrinsics
         return CameraCalibration(
