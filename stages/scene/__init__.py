@@ -1,0 +1,18 @@
+"""Scene population: semantic placement, PBR materials, lighting and composition into USD scenes.
+
+Public surface (pxr/newton are imported inside the functions, never at import time):
+
+    rules.load_rules(path=DEFAULT_RULES) -> PlacementRules          # rules/*.toml, data not code
+    solver.Library.from_index(catalog_sqlite) -> Library             # ingested assets by category
+    solver.Populator(plan, layout_usd, library, rules, rng).populate_room(room) -> RoomReport
+    solver.verify(populator) -> CheckReport                          # exact collider + robot path checks
+    collide.penetration_depth(a, b) -> float                         # convex pieces, exact SAT
+    build.build_scene(plan_json, layout_usd, library, rules, rng, out_dir, final_dir, BuildOptions())
+        -> SceneSummary                                              # one attempt; SceneRejected(reason)
+    settle.settle_check(scene_usd, seconds=2.0, tolerance=0.01) -> SettleReport   # Newton add_usd
+    render.contact_sheet(scene_usds, out_png) -> Path                # `agentworld render-scenes`
+    job.SCENE_JOB                                                    # job kind "scene"
+
+Scene folder: scene.usda (root) + lighting.usda, materials.usdc, placement.usda sublayers,
+textures/*.png, scene.json (instances, checks, chosen lights, timings).
+"""
