@@ -29,7 +29,8 @@ log = logging.getLogger(__name__)
 
 ROBOT_RADIUS = 0.40  # planning footprint radius of the base with the arm tucked [m]
 APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retreat waypoints [m]
-MUG_GRASP_HEIGHT = 0.059  # fingertip centre above the mug's base (25 mm below the rim of the 0.8-scaled mug) [m]
+# fingertip centre above the mug's base (25 mm below the rim of the 0.8-scaled mug) [m]
+MUG_GRASP_HEIGHT = 0.059
 
 
 class ExpertFailure(RuntimeError):
@@ -217,7 +218,8 @@ def _drawer_rot(pitch: float = 20.0) -> np.ndarray:
 
 
 def _grasp_drawer(inst: TaskInstance, d: Driver, opening: float) -> np.ndarray:
-    """Drive in front of the drawer (its handle ``opening`` [m] out), grasp the bar; returns the handle position."""
+    """Drive in front of the drawer (its handle ``opening`` [m] out), grasp the bar; returns the
+    handle position."""
     h = np.asarray(inst.room.drawer_handle) - [opening, 0.0, 0.0]
     d.drive_to((float(h[0] - 0.75), float(h[1]), 0.0), _grid(inst))
     rot = _drawer_rot()

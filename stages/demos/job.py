@@ -122,7 +122,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
-                                 fps=config.fps, device=config.device, shared_assets=str(config.shared_assets))
+                                 fps=config.fps, device=config.device,
+                                 shared_assets=str(config.shared_assets))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params,
                                   input_files=(urdf,)))
     return items
@@ -226,4 +227,5 @@ def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any
 
 
 DEMOS_JOB = JobKind(name="demos", config=DemosConfig, plan=plan_demos, finalize=finalize_demos,
-                    description="scripted demonstrations of the basic tasks: LeRobot shards, merged, success report")
+                    description="scripted demonstrations of the basic tasks: LeRobot shards, merged, "
+                                "success report")

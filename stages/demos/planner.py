@@ -32,7 +32,8 @@ class NavGrid:
     occupied: np.ndarray
 
     @staticmethod
-    def from_boxes(bounds: tuple[float, float, float, float], boxes: np.ndarray, cell: float = 0.05) -> NavGrid:
+    def from_boxes(bounds: tuple[float, float, float, float], boxes: np.ndarray,
+                   cell: float = 0.05) -> NavGrid:
         """A grid over ``bounds`` (xmin, ymin, xmax, ymax) [m] with the axis-aligned ``boxes``
         (K, 4) [xmin, ymin, xmax, ymax] marked occupied (every cell they overlap)."""
         x0, y0, x1, y1 = bounds
@@ -57,7 +58,8 @@ class NavGrid:
         return dist < radius + 0.5 * self.cell
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
-        return int(math.floor((y - self.origin[1]) / self.cell)), int(math.floor((x - self.origin[0]) / self.cell))
+        c = self.cell
+        return int(math.floor((y - self.origin[1]) / c)), int(math.floor((x - self.origin[0]) / c))
 
     def center(self, iy: int, ix: int) -> tuple[float, float]:
         return self.origin[0] + (ix + 0.5) * self.cell, self.origin[1] + (iy + 0.5) * self.cell

@@ -50,8 +50,8 @@ class Timings:
             setattr(self, k, getattr(self, k) + getattr(other, k))
 
     def to_json(self) -> dict:
-        return {k: round(getattr(self, k), 4) for k in ("simulation", "rendering", "control", "encoding", "writing")} | {
-            "frames": self.frames}
+        stages = ("simulation", "rendering", "control", "encoding", "writing")
+        return {k: round(getattr(self, k), 4) for k in stages} | {"frames": self.frames}
 
 
 @dataclass

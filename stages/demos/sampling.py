@@ -68,7 +68,8 @@ class TaskRoom:
         t = self.wall_thickness
         tx, ty = self.table_xy
         hx, hy = TABLE_SIZE[0] / 2, TABLE_SIZE[1] / 2
-        boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t), (sx, -t, sx + t, sy + t),
+        boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t),
+                 (sx, -t, sx + t, sy + t),
                  (tx - hx, ty - hy, tx + hx, ty + hy), self.cabinet_box]
         if door_open:
             hxg, hyg = self.door_hinge[:2]
@@ -116,7 +117,8 @@ def _add_button(w, front_x: float, y: float, top_z: float, colors: dict) -> None
     from stages.simulate.demo_scene import _box, _labels
 
     (pc, ps), bc, bs = _button_parts(front_x, y, top_z)
-    w.prim("/World/ControlPanel", "Xform", apis=_labels("control_panel")[0], attrs=_labels("control_panel")[1])
+    la, lv = _labels("control_panel")
+    w.prim("/World/ControlPanel", "Xform", apis=la, attrs=lv)
     _box(w, "/World/ControlPanel/Box", pc, ps, colors["panel"])
     la, lv = _labels("button")
     w.prim("/World/Button", "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
@@ -158,7 +160,8 @@ def _overlay(path: Path, base: str, room, bowl_xy, block_xy, colors: dict, butto
                   "physics:mass": (Sdf.ValueTypeNames.Float, 0.15)})
     _box(w, "/World/Block/Geom", (0, 0, 0), (BLOCK_SIZE,) * 3, colors["block"])
     _add_button(w, *button_at, colors)
-    overs = {"/World/Floor": "floor", "/World/Table/Top": "table", "/World/Cabinet/Drawer/Front": "cabinet_front",
+    overs = {"/World/Floor": "floor", "/World/Table/Top": "table",
+             "/World/Cabinet/Drawer/Front": "cabinet_front",
              "/World/Cabinet/Door/Panel": "cabinet_front"}
     overs.update({f"/World/{b}": "wall" for b in ("WallSouth", "WallNorth", "WallWest", "WallEast")})
     w.write(path, "World")
@@ -174,7 +177,8 @@ def _overlay(path: Path, base: str, room, bowl_xy, block_xy, colors: dict, butto
     layer.Save()
 
 
-def write_task_room(out_dir: Path, *, shared_assets: Path, scene_id: str, rng: np.random.Generator) -> TaskRoom:
+def write_task_room(out_dir: Path, *, shared_assets: Path, scene_id: str,
+                    rng: np.random.Generator) -> TaskRoom:
     """Author one world in ``out_dir`` (``room.usda`` + overlay ``scene.usda``) from ``rng``:
     table position, bowl and block, materials. ``shared_assets``: the third-party assets folder
     (the mug mesh)."""
@@ -201,10 +205,12 @@ def write_task_room(out_dir: Path, *, shared_assets: Path, scene_id: str, rng: n
     _, bc, bs = _button_parts(*button_at)
     d, wdt, _ = cab.size
     box = (xmin - 0.01, cab.origin[1] - wdt / 2, cab.origin[0] + d / 2, cab.origin[1] + wdt / 2)
-    return TaskRoom(usd=usd, scene_id=scene_id, size=room.size, wall_thickness=room.wall_thickness, table_xy=table_xy,
+    return TaskRoom(usd=usd, scene_id=scene_id, size=room.size, wall_thickness=room.wall_thickness,
+                    table_xy=table_xy,
                     table_height=TABLE_HEIGHT, bowl_xy=bowl_xy, bowl_inner_radius=BOWL_INNER,
                     drawer_handle=tuple(room.drawer_handle), door_handle=tuple(room.door_handle),
-                    door_hinge=tuple(room.door_hinge), drawer_travel=cab.drawer_travel, door_range=cab.door_range,
+                    door_hinge=tuple(room.door_hinge), drawer_travel=cab.drawer_travel,
+                    door_range=cab.door_range,
                     button=(bc[0] - bs[0] / 2, bc[1], bc[2]), button_travel=BUTTON_TRAVEL, cabinet_box=box,
                     materials=colors)
 
@@ -229,7 +235,8 @@ def sample_instance(task_name: str, room: TaskRoom, seed: int) -> TaskInstance:
     spec = task(task_name)
     rng = np.random.default_rng(seed)
     tx, ty = room.table_xy
-    mug = (tx + MUG_OFFSET[0] + float(rng.uniform(-0.03, 0.03)), ty + MUG_OFFSET[1] + float(rng.uniform(-0.03, 0.03)))
+    mug = (tx + MUG_OFFSET[0] + float(rng.uniform(-0.03, 0.03)),
+           ty + MUG_OFFSET[1] + float(rng.uniform(-0.03, 0.03)))
     block = (tx + BLOCK_OFFSET[0] + float(rng.uniform(-0.02, 0.02)),
              ty + BLOCK_OFFSET[1] + float(rng.uniform(-0.02, 0.02)))
     joints = {DRAWER_JOINT: 0.0, DOOR_JOINT: 0.0, BUTTON_JOINT: 0.0}
@@ -244,5 +251,6 @@ def sample_instance(task_name: str, room: TaskRoom, seed: int) -> TaskInstance:
     ids = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("block", "table"),
            "press_button": ("control_panel",)}.get(task_name, ("cabinet",))
     return TaskInstance(task=task_name, seed=int(seed), room=room, instruction=instruction, names=names,
-                        start_base=start, mug_xy=mug, block_xy=block, push_direction=(0.0, 1.0), joints=joints,
+                        start_base=start, mug_xy=mug, block_xy=block, push_direction=(0.0, 1.0),
+                        joints=joints,
                         asset_ids=tuple(f"{room.scene_id}/{a}" for a in ids))

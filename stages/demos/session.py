@@ -128,14 +128,16 @@ class DemoWorld:
 
         values = {}
         for c0, xy, z in ((self._mug, inst.mug_xy, top), (self._block, inst.block_xy, top + BLOCK_SIZE / 2)):
-            values.update({c0: xy[0], c0 + 1: xy[1], c0 + 2: z, c0 + 3: 0.0, c0 + 4: 0.0, c0 + 5: 0.0, c0 + 6: 1.0})
+            # free joint: position, then quaternion x, y, z, w (identity)
+            values.update(dict(enumerate((xy[0], xy[1], z, 0.0, 0.0, 0.0, 1.0), start=c0)))
         for path, v in inst.joints.items():
             values[self._scene_joint[path]] = v
         set_coords(sim, values)
         self.cmd.base_velocity = np.zeros(3)
         self.cmd.gripper, self.cmd.mode = 0.0, 0
 
-    def run_episode(self, inst: TaskInstance, sink=None, *, max_seconds: float | None = None) -> EpisodeResult:
+    def run_episode(self, inst: TaskInstance, sink=None, *,
+                    max_seconds: float | None = None) -> EpisodeResult:
         """Reset, run the task's expert while recording into ``sink``, evaluate the predicate.
         ``max_seconds``: time limit [s] (default: the task's)."""
         from stages.simulate.state import read_state

@@ -52,12 +52,14 @@ def _door_angle(state) -> float:
 def _released(state, obj: str, min_gap: float = 0.03) -> bool:
     """The gripper is open and away from the object (the object is not held)."""
     ee = np.asarray(state.robot.ee_pose.position)
-    return state.robot.gripper_opening > 0.06 and np.linalg.norm(ee - np.asarray(state.objects[obj].position)) > min_gap
+    gap = np.linalg.norm(ee - np.asarray(state.objects[obj].position))
+    return state.robot.gripper_opening > 0.06 and gap > min_gap
 
 
 def open_drawer_success(inst, state) -> tuple[bool, str]:
     """Open: the drawer is out by at least 75% of its travel."""
-    return (True, "") if _drawer_opening(state) >= 0.75 * inst.room.drawer_travel else (False, "drawer_not_open")
+    ok = _drawer_opening(state) >= 0.75 * inst.room.drawer_travel
+    return (True, "") if ok else (False, "drawer_not_open")
 
 
 def close_drawer_success(inst, state) -> tuple[bool, str]:
@@ -110,7 +112,8 @@ def press_button_success(inst, state) -> tuple[bool, str]:
 
 
 TASKS: dict[str, TaskSpec] = {t.name: t for t in (
-    TaskSpec(name="pick_place_bowl", family=Family.PICK_PLACE, max_seconds=25.0, success=pick_place_bowl_success,
+    TaskSpec(name="pick_place_bowl", family=Family.PICK_PLACE, max_seconds=25.0,
+             success=pick_place_bowl_success,
              templates=("put the {object} in the {container}", "place the {object} into the {container}",
                         "pick up the {object} and put it in the {container}")),
     TaskSpec(name="open_drawer", family=Family.OPEN_CLOSE, max_seconds=20.0, success=open_drawer_success,

@@ -51,8 +51,8 @@ def _world_run(args: tuple) -> dict:
     room = write_task_room(Path(base) / f"w{w}", shared_assets=ASSETS, scene_id=f"bench_{w}",
                            rng=np.random.default_rng(1000 + w))
     settings = DemoSettings(width=size[0], height=size[1], device=device)
-    world = DemoWorld(room, panda_root=ASSETS / "robots/franka_panda__example_robot_data", work_dir=Path(base) / f"w{w}",
-                      settings=settings, seed=w)
+    world = DemoWorld(room, panda_root=ASSETS / "robots/franka_panda__example_robot_data",
+                      work_dir=Path(base) / f"w{w}", settings=settings, seed=w)
     build = time.perf_counter() - t0
     per_episode = []
     t_run = time.perf_counter()
@@ -88,10 +88,12 @@ def run(device: str = "cpu", worlds=(1,), episodes: int = 1, tasks=("open_drawer
                     runs = pool.map(_world_run, args)
         eps = [e for r in runs for e in r["episodes"]]
         frames = sum(e["frames"] for e in eps)
-        per_frame_ms = {s: round(1000 * statistics.median(e[s] / max(1, e["frames"]) for e in eps), 3) for s in STAGES}
+        per_frame_ms = {s: round(1000 * statistics.median(e[s] / max(1, e["frames"]) for e in eps), 3)
+                        for s in STAGES}
         out["worlds"][str(n)] = {
             "frames": frames,
-            "frames_per_s": round(sum(sum(e["frames"] for e in r["episodes"]) / r["wall_s"] for r in runs), 3),
+            "frames_per_s": round(sum(sum(e["frames"] for e in r["episodes"]) / r["wall_s"]
+                                      for r in runs), 3),
             "frames_per_s_per_world": round(statistics.median(
                 sum(e["frames"] for e in r["episodes"]) / r["wall_s"] for r in runs), 3),
             "per_frame_ms_median": per_frame_ms,
@@ -113,7 +115,8 @@ def test_bench_demos():
     res = run(device=os.environ.get("BENCH_DEMOS_DEVICE", "cpu"),
               worlds=tuple(int(v) for v in os.environ.get("BENCH_DEMOS_WORLDS", "1").split(",")),
               episodes=int(os.environ.get("BENCH_DEMOS_EPISODES", "1")),
-              tasks=tuple(os.environ.get("BENCH_DEMOS_TASKS", "open_drawer,pick_place_bowl").split(",")), size=size)
+              tasks=tuple(os.environ.get("BENCH_DEMOS_TASKS", "open_drawer,pick_place_bowl").split(",")),
+              size=size)
     for v in res["worlds"].values():
         assert v["frames"] > 0 and v["frames_per_s"] > 0
 

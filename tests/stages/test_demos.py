@@ -62,7 +62,8 @@ def test_follower_drives_a_holonomic_base_to_the_goal_pose():
         th += w * dt
         assert not blocked[grid.cell_of(x, y)], f"the base cut the corner at ({x:.2f}, {y:.2f})"
     assert done and step < 600, step
-    assert math.hypot(x - 3.5, y - 0.8) < 0.01 and abs((th - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < 0.01
+    assert math.hypot(x - 3.5, y - 0.8) < 0.01
+    assert abs((th - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < 0.01
 
 
 # -- sampling ---------------------------------------------------------------------------------
@@ -73,7 +74,8 @@ def rooms(shared_assets, tmp_path_factory):
     from stages.demos.sampling import write_task_room
 
     d = tmp_path_factory.mktemp("rooms")
-    return [write_task_room(d / name, shared_assets=shared_assets, scene_id=name, rng=np.random.default_rng(seed))
+    return [write_task_room(d / name, shared_assets=shared_assets, scene_id=name,
+                            rng=np.random.default_rng(seed))
             for name, seed in (("a", 5), ("b", 5), ("c", 6))]
 
 
@@ -141,7 +143,8 @@ def recorded(rooms, shared_assets, tmp_path_factory):
 def test_the_expert_opens_the_drawer_and_a_timed_out_episode_is_counted_not_written(recorded):
     r, f = recorded["result"], recorded["failed"]
     assert r.success, r.detail
-    assert -recorded["end_state"].scene_joints["/World/Cabinet/DrawerJoint"] >= 0.75 * recorded["room"].drawer_travel
+    opened = -recorded["end_state"].scene_joints["/World/Cabinet/DrawerJoint"]
+    assert opened >= 0.75 * recorded["room"].drawer_travel
     assert r.frames == len(recorded["frames"]) == pytest.approx(r.sim_seconds * 30, abs=2)
     assert not f.success and f.reason == "timeout" and f.frames == 30
     m = recorded["merged"]
@@ -163,7 +166,8 @@ def test_recorded_state_and_action_follow_the_simulation(recorded):
     # the base pose integrates the commanded base velocity (world frame, over one frame)
     th = state[:-1, 16]
     vx, vy = action[:-1, 14], action[:-1, 15]
-    pred = state[:-1, 14:16] + np.stack([np.cos(th) * vx - np.sin(th) * vy, np.sin(th) * vx + np.cos(th) * vy], 1) / 30
+    v_world = np.stack([np.cos(th) * vx - np.sin(th) * vy, np.sin(th) * vx + np.cos(th) * vy], 1)
+    pred = state[:-1, 14:16] + v_world / 30
     err = np.linalg.norm(pred - state[1:, 14:16], axis=1)
     assert np.median(err[drive[:-1]]) < 0.01, np.median(err[drive[:-1]])
     # the gripper closes on the handle and opens at the end; arm targets are tracked
