@@ -2,8 +2,11 @@
 
 For each world count: world-steps/s of the furnished demo room + mobile Panda built through
 ``stages.simulate`` (scene USD via add_usd, robot URDF, drives, base-velocity pre-step kernel),
-and of a bare Newton scene built directly with the ModelBuilder (ground, four walls, the same
-number of free boxes, the same robot URDF, no pre-step) stepped with the same solver settings;
+of the same scene USD and robot URDF loaded straight into Newton and stepped in a plain loop
+("direct": the cost of our layer alone), and of a bare Newton scene built with the ModelBuilder
+(ground, four walls, as many free boxes as the scene has free bodies, the same robot with the
+same drives, no pre-step; "bare": the cost of the furnished scene's content plus our layer), all with the same
+solver settings;
 plus RGB-D frames/s of one 128x128 camera per world for both (same render settings: shadows on,
 no backface culling; ours with the scene's mapped UsdLux lights, bare with one directional light).
 ratio = bare / ours (our overhead). MuJoCo-Warp capacities are ours (njmax 1024, nconmax 256 per
@@ -55,18 +58,24 @@ def _time_steps(step, device, n_steps: int, repeats: int) -> float:
     return statistics.median(out)
 
 
-def _ours(device: str, worlds: int, tmp: Path):
+def _ours(device: str, worlds: int, tmp: Path, scene: Path | None = None):
+    """The demo room with CLUTTER loose boxes, or ``scene`` (e.g. a composed scene.usda) with the
+    robot at a free spawn pose."""
     from stages.simulate.control import RobotControl
     from stages.simulate.demo_scene import write_demo_room
     from stages.simulate.robot import write_robot_urdf
     from stages.simulate.world import SimConfig, build_sim
 
-    room = write_demo_room(
-        tmp / "room.usda", shared_assets=SHARED, clutter=CLUTTER, rng=np.random.default_rng(0)
-    )
+    if scene is None:
+        scene = write_demo_room(
+            tmp / "room.usda", shared_assets=SHARED, clutter=CLUTTER, rng=np.random.default_rng(0)
+        ).usd
+        spawn = (1.0, 1.0, 0.0)
+    else:
+        spawn = None
     desc = write_robot_urdf(tmp, panda_root=SHARED / "robots/franka_panda__example_robot_data")
     sim = build_sim(
-        SimConfig(scenes=(room.usd,), world_count=worlds, device=device, spawn=(1.0, 1.0, 0.0)),
+        SimConfig(scenes=(Path(scene),), world_count=worlds, device=device, spawn=spawn),
         desc,
         np.random.default_rng(0),
     )
@@ -96,15 +105,35 @@ def _bare(device: str, worlds: int, desc, n_free: int, solver_settings):
             xform=wp.transform((rng.uniform(0.5, 5.5), rng.uniform(1.8, 4.5), 0.1), wp.quat_identity())
         )
         b.add_shape_box(body=body, hx=0.06, hy=0.06, hz=0.06)
-    b.add_urdf(
-        str(desc.urdf),
-        xform=wp.transform((1.0, 1.0, 0.0), wp.quat_identity()),
-        floating=False,
-        enable_self_collisions=False,
-    )
+    from stages.simulate.robot import add_robot
+
+    add_robot(b, desc, spawn_xy_yaw=(1.0, 1.0, 0.0))  # the same drives and gravity compensation
+    return _finalize_and_loop(b, device, worlds, solver_settings, ground=True)
+
+
+def _direct(device: str, worlds: int, desc, scene: Path, spawn, solver_settings):
+    """The same scene USD and robot URDF straight into Newton (add_usd, add_urdf, replicate, the
+    solver loop): what our layer adds is scene/label bookkeeping, drives and the pre-step."""
+    import newton
+
+    b = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(b)
+    b.default_shape_cfg.ke, b.default_shape_cfg.kd = 4.0e4, 400.0
+    b.add_usd(str(scene), load_visual_shapes=True, hide_collision_shapes=True)
+    from stages.simulate.robot import add_robot
+
+    add_robot(b, desc, spawn_xy_yaw=tuple(spawn))
+    return _finalize_and_loop(b, device, worlds, solver_settings, ground=False)
+
+
+def _finalize_and_loop(b, device: str, worlds: int, solver_settings, *, ground: bool):
+    import newton
+
     main = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(main)
     main.replicate(b, worlds)
-    main.add_ground_plane()
+    if ground:
+        main.add_ground_plane()
     model = main.finalize(device=device)
     from stages.simulate.world import _make_solver
 
@@ -136,19 +165,33 @@ def _render_rate(sensor, model, state, rays, transforms, images, repeats: int) -
     return statistics.median(out)
 
 
-def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int = 3, width: int = 128) -> dict:
+def run(
+    device: str,
+    world_counts: list[int],
+    *,
+    steps: int = 50,
+    repeats: int = 3,
+    width: int = 128,
+    scene: Path | None = None,
+) -> dict:
     import tempfile
 
+    import newton
     import warp as wp
     from newton.sensors import SensorCamera
 
     from stages.simulate.sensors import CameraRig, CameraSpec
 
-    results = {"device": device, "clutter": CLUTTER, "image": [width, width], "rows": []}
+    results = {
+        "device": device,
+        "scene": str(scene) if scene else f"demo room + {CLUTTER} boxes",
+        "image": [width, width],
+        "rows": [],
+    }
     for n in world_counts:
         with tempfile.TemporaryDirectory() as td:
             t0 = time.perf_counter()
-            sim, desc = _ours(device, n, Path(td))
+            sim, desc = _ours(device, n, Path(td), scene)
             build_s = time.perf_counter() - t0
             ours_dt = _time_steps(sim.step, device, steps, repeats)
             rig = CameraRig(
@@ -165,7 +208,14 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
                 _sync(device)
                 rt.append(time.perf_counter() - t)
             ours_render = statistics.median(rt)
-            n_free = sum(1 for p in sim.scene.body_path.values() if "Cabinet" not in p)
+            # the scene's free bodies (FREE joints) of world 0 become free boxes in the bare scene
+            jt = sim.model.joint_type.numpy()
+            jw = sim.model.joint_world.numpy()
+            n_free = int(np.sum((jt == int(newton.JointType.FREE)) & (jw == 0)))
+            _, direct_step, _ = _direct(
+                device, n, desc, Path(sim.settings.scenes[0]), sim.spawn, sim.solver_settings
+            )
+            direct_dt = _time_steps(direct_step, device, steps, repeats)
             model, bare_step, bstate = _bare(device, n, desc, n_free, sim.solver_settings)
             bare_dt = _time_steps(bare_step, device, steps, repeats)
             # the same render settings as CameraRig (shadows, both faces), one directional light
@@ -187,6 +237,8 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
             "ours_world_steps_per_s": n / ours_dt,
             "bare_world_steps_per_s": n / bare_dt,
             "step_ratio_bare_over_ours": (n / bare_dt) / (n / ours_dt),
+            "direct_world_steps_per_s": n / direct_dt,
+            "step_ratio_direct_over_ours": ours_dt / direct_dt,
             "ours_rgbd_frames_per_s": n / ours_render,
             "bare_rgbd_frames_per_s": n / bare_render,
             "render_ratio_bare_over_ours": ours_render / bare_render,
@@ -196,6 +248,7 @@ def run(device: str, world_counts: list[int], *, steps: int = 50, repeats: int =
         }
         print(
             f"[simulate] {device} worlds={n}: ours {row['ours_world_steps_per_s']:.0f} world-steps/s, "
+            f"direct {row['direct_world_steps_per_s']:.0f} (ratio {row['step_ratio_direct_over_ours']:.2f}), "
             f"bare {row['bare_world_steps_per_s']:.0f} (ratio {row['step_ratio_bare_over_ours']:.2f}); "
             f"RGB-D ours {row['ours_rgbd_frames_per_s']:.0f} frames/s, "
             f"bare {row['bare_rgbd_frames_per_s']:.0f}"
@@ -222,6 +275,12 @@ if __name__ == "__main__":
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--worlds", type=int, nargs="+", default=None)
     ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--scene", type=Path, default=None, help="a scene USD (default: the demo room)")
     a = ap.parse_args()
     sys.path.insert(0, str(REPO))
-    run(a.device, a.worlds or ([1] if a.device == "cpu" else [1, 64, 1024, 4096]), steps=a.steps)
+    run(
+        a.device,
+        a.worlds or ([1] if a.device == "cpu" else [1, 64, 1024, 4096]),
+        steps=a.steps,
+        scene=a.scene,
+    )
