@@ -49,7 +49,8 @@ class _Strict(BaseModel):
 class DemosConfig(_Strict):
     """shared_assets: the third-party assets folder (Panda URDF + meshes, mug mesh); tasks: task
     names (default all); worlds: worlds per task; episodes_per_shard: episodes per item; width,
-    height: camera image size [px]; fps; device: "cpu" or "cuda"."""
+    height: camera image size [px]; fps; device: "cpu" or "cuda"; record_images: False writes
+    state/action only (no camera is rendered: a fast success-rate run)."""
 
     shared_assets: Path
     tasks: tuple[str, ...] = tuple(TASKS)
@@ -59,6 +60,7 @@ class DemosConfig(_Strict):
     height: int = Field(default=96, ge=16, le=1080)
     fps: int = Field(default=30, ge=1, le=120)
     device: str = "cpu"
+    record_images: bool = True
 
     @field_validator("tasks")
     @classmethod
@@ -81,6 +83,7 @@ class ShardParams(_Strict):
     fps: int
     device: str
     shared_assets: str
+    record_images: bool = True
 
 
 class EpisodeRecord(_Strict):
@@ -122,7 +125,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
-                                 fps=config.fps, device=config.device,
+                                 fps=config.fps, device=config.device, record_images=config.record_images,
                                  shared_assets=str(config.shared_assets))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params,
                                   input_files=(urdf,)))
@@ -147,7 +150,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     scene_id = f"demo_room_{params.world:03d}"
     room = write_task_room(ctx.out_dir / "world", shared_assets=assets, scene_id=scene_id,
                            rng=np.random.default_rng(params.world_seed))
-    settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device)
+    settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device,
+                            record_images=params.record_images)
     world = DemoWorld(room, panda_root=assets / PANDA_REL, work_dir=ctx.out_dir / "world", settings=settings,
                       seed=params.world_seed)
     build = time.perf_counter() - t0
@@ -191,7 +195,7 @@ def success_report(results: list[ShardResult]) -> dict[str, Any]:
     for t in tasks.values():
         t["success_rate"] = round(t["successes"] / max(1, t["attempts"]), 4)
         t["failures"] = dict(sorted(t["failures"].items()))
-    frames = sum(r.timings.get("frames", 0) for r in results)
+    frames = int(sum(r.timings.get("frames", 0) for r in results))
     busy = sum(v for k, v in stage_s.items() if k != "build")
     return {"tasks": dict(sorted(tasks.items())),
             "attempts": sum(t["attempts"] for t in tasks.values()),

@@ -39,10 +39,12 @@ class DemoSettings:
     device: str = "cpu"
 
     def dataset_spec(self):
+        """The dataset spec: 3 cameras (RGB + depth) when images are recorded, else state/action only."""
         from stages.dataset import CameraSpec, DatasetSpec
 
+        cams = CAMERAS if self.record_images else ()
         return DatasetSpec(fps=self.fps, cameras=tuple(CameraSpec(c, height=self.height, width=self.width)
-                                                       for c in CAMERAS))
+                                                       for c in cams))
 
 
 @dataclass

@@ -88,7 +88,8 @@ def test_worlds_and_instances_come_from_their_seeds(rooms):
     assert (a.table_xy, a.materials, a.bowl_xy) == (b.table_xy, b.materials, b.bowl_xy)
     assert a.table_xy != c.table_xy and a.materials != c.materials
     stage = Usd.Stage.Open(str(a.usd))  # the overlay composes the room with the bowl, block and colours
-    assert stage.GetPrimAtPath("/World/Cabinet/DrawerJoint") and stage.GetPrimAtPath("/World/Bowl/Wall0")
+    for p in ("/World/Cabinet/DrawerJoint", "/World/Bowl/Wall0", "/World/Block", "/World/ButtonJoint"):
+        assert stage.GetPrimAtPath(p), p
     top = stage.GetPrimAtPath("/World/Table/Top").GetAttribute("primvars:displayColor").Get()[0]
     np.testing.assert_allclose(tuple(top), a.materials["table"], rtol=1e-6)
     i1, i2 = sample_instance("close_drawer", a, 11), sample_instance("close_drawer", a, 11)
