@@ -87,10 +87,18 @@ def _prim(parent, name: str, type_name: str = "", *, over: bool = False, kind: s
 
 
 def _export(layer, path: Path) -> None:
+    """Write ``layer`` to ``path`` (temporary name, then rename). A layer of that path still open in
+    this process (a stage of an earlier settle check not yet collected) is reloaded, else the next
+    stage opened on the scene would reuse its stale content."""
+    from pxr import Sdf
+
     tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
     if not layer.Export(str(tmp)):
         raise OSError(f"{path}: could not write the layer")
     os.replace(tmp, path)
+    stale = Sdf.Layer.Find(str(path))
+    if stale is not None:
+        stale.Reload(force=True)
 
 
 # ---------------------------------------------------------------------------------------------

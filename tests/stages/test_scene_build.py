@@ -112,3 +112,26 @@ def test_scene_composes_settles_and_validates(world, tmp_path):
     assert b.body_count >= len(s.instances) and b.shape_count > 0
     info = json.loads((out / "scene.json").read_text())
     assert len(info["instances"]) == len(s.instances)
+
+
+def test_rewritten_placement_is_seen_by_the_next_stage(world, tmp_path):
+    """The settle repair rewrites placement.usda while an earlier stage may still hold the layer:
+    the next stage opened on the scene must see the new content."""
+    from pxr import Usd
+
+    from stages.scene import compose
+    from stages.scene.build import BuildOptions, build_scene
+
+    lib, plan_json, usd, _ = world
+    out = tmp_path / "s"
+    s = build_scene(plan_json, usd, lib, load_rules(), np.random.default_rng(4), out, out,
+                    BuildOptions(n_looks=1, settle=False, validate=False))
+    held = Usd.Stage.Open(str(out / "scene.usda"))                    # keeps the layers alive
+    names = [i.name for i in s.instances]
+    assert held.GetPrimAtPath(f"/World/Objects/{names[-1]}")
+    keep = [compose.InstanceSpec(name=i.name, usd=Path(i.usd), position=i.position, yaw=i.yaw, material="wood",
+                                 room=i.room, support=i.support or "", category=i.category) for i in s.instances[:-1]]
+    compose.write_placement(out, out, keep)
+    fresh = Usd.Stage.Open(str(out / "scene.usda"))
+    assert not fresh.GetPrimAtPath(f"/World/Objects/{names[-1]}").IsDefined()
+    assert len(fresh.GetPrimAtPath("/World/Objects").GetChildren()) == len(names) - 1
