@@ -181,7 +181,7 @@ def contact_sheet(scenes: Sequence[Path], out_png: Path, *, tile: int = 320, max
 
     h = tile * 3 // 4
     tiles = []
-    for s in scenes:
+    for s in (Path(x).resolve() for x in scenes):  # relative references resolve from the real folder
         info = json.loads((s.parent / "scene.json").read_text(encoding="utf-8"))
         rooms = list(info["rooms"])[:max_rooms]
         views = render_scene_views(s, room_cameras(_plan_of(s), rooms), width=tile, height=h, device=device)
