@@ -45,6 +45,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="recompute items that failed with bad input even if their inputs did not change")
     p.add_argument("--log-level", choices=LOG_LEVELS, default="INFO",
                    help="log level (stderr and logs/job.log)")
+    p.add_argument("--verbose", "-v", action="store_true",
+                   help="also show INFO messages on stderr (by default they go to logs/job.log only)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit with status 3 if any item failed")
 
@@ -126,12 +128,15 @@ def _console() -> Any:
     return Console(stderr=True)
 
 
-def _setup_logging(level: str, console: Any) -> None:
+def _setup_logging(level: str, console: Any, *, verbose: bool = False) -> None:
+    """Root logger at ``level`` (what logs/job.log records); stderr shows WARNING and above unless
+    ``verbose``, so the progress bar stays readable."""
     from rich.logging import RichHandler
 
     handler = RichHandler(console=console, show_path=False, rich_tracebacks=False, markup=False)
     handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
-    handler.setLevel(level)
+    numeric = logging.getLevelName(level)
+    handler.setLevel(level if verbose or numeric >= logging.WARNING else logging.WARNING)
     root = logging.getLogger()
     root.handlers[:] = [handler]
     root.setLevel(level)
@@ -142,7 +147,7 @@ def _execute(job: Any, args: argparse.Namespace, registry: Any = None) -> int:
     from pipeline._src.runner import run_job
 
     console = _console()
-    _setup_logging(args.log_level, console)
+    _setup_logging(args.log_level, console, verbose=getattr(args, "verbose", False))
     summary = run_job(job, out=args.out, executor=args.executor, workers=args.workers, retries=args.retries,
                       ray_address=args.ray_address, registry=registry,
                       progress=False if args.no_progress else None,
