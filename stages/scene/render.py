@@ -168,7 +168,8 @@ def render_scene_views(scene_usd: Path, cameras: Sequence[tuple[str, np.ndarray,
     tf = wp.array(xfs, dtype=wp.transformf, device=device)
     rays = SensorCamera.compute_camera_rays_pinhole(width, height, camera_fov=fov, device=device)
     img = cam.allocate_image_color(len(xfs), width, height)
-    cam.update(model.state(), tf, rays, color_image=img,
+    worlds = wp.array(np.zeros(len(xfs), dtype=np.int32), dtype=wp.int32, device=device)  # every view: world 0
+    cam.update(model.state(), tf, rays, color_image=img, world_indices=worlds,
                clear_data=SensorCamera.ClearData(clear_color=0xFF302820))
     return img.numpy().view(np.uint8).reshape(len(xfs), height, width, 4)[..., :3].copy()
 
