@@ -43,7 +43,7 @@ def test_obj_with_mtl_and_texture_ycb(shared_assets):
     (part,) = m.links[0].visuals
     assert part.uvs is not None and part.uvs.shape == (len(part.vertices), 2)
     (mat,) = m.materials.values()
-    assert mat.base_color_texture == (shared_assets / a.source).parent / "texture_map.png"
+    assert mat.base_color_texture == ((shared_assets / a.source).parent / "texture_map.png").resolve()
     assert len(m.source_sha256) == 64
 
 
@@ -52,7 +52,7 @@ def test_obj_texture_outside_the_mesh_folder_but_inside_the_catalog(shared_asset
     m = load_mesh_asset(shared_assets / a.source, a, catalog_root=shared_assets)
     _check_normalised(m, (0.05, 0.05, 0.08))
     (mat,) = m.materials.values()
-    assert mat.base_color_texture == shared_assets / "objects_rigid/household__robosuite/textures/soda.png"
+    assert mat.base_color_texture == (shared_assets / "objects_rigid/household__robosuite/textures/soda.png").resolve()
 
 
 def test_stl_without_normals_gets_computed_normals_and_material_defaults(shared_assets):
