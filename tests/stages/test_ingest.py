@@ -357,9 +357,12 @@ KNOWN_REST_ISSUES = {
     "os_toothpaste": "stands on its crimped end (1.6 mm wide) as authored, topples (physically right); the "
                      "20 cm tube falls flat and the soft contact (solref 0.02 s, Newton's default "
                      "ke/kd) lets it penetrate 11.3 mm for an instant (tolerance 10 mm), then rests at -0.2 mm",
+    "os_mouse": "nearly flat bottom: MuJoCo's plane-mesh collision gives at most 3 contacts, whose triangle "
+                "leaves the center of mass near/outside an edge, so it micro-rocks at ~0.5 rad/s forever "
+                "(rests with rest_check(contacts='newton'))",
+    "ycb_dice": "flat face: its 3 MuJoCo plane-mesh contacts have an edge through the center of mass, it "
+                "teeters at 0.2-0.4 rad/s (rests with rest_check(contacts='newton'))",
 }
-# Fixed: os_mouse and ycb_dice (flat faces of 4+ hull vertices) micro-rocked forever with MuJoCo's
-# plane-mesh contacts (at most 3); rest_check now uses Newton's collision pipeline (full manifold).
 
 
 def _has_newton_usd() -> bool:

@@ -39,10 +39,8 @@ def test_rigid_assets_come_to_rest(packages, name):
     assert r.settled_min_height > -0.003
     assert r.max_rise < 0.02
     assert r.final_linear_speed < 0.02 and r.final_angular_speed < 0.2
-    # Newton's collision pipeline (full contact manifold; MuJoCo's plane-mesh collision gives at most
-    # 3 contacts, on which flat-bottomed hulls teeter forever), stepped by mujoco-warp
-    assert r.solver.solver == "SolverMuJoCo" and r.solver.device == "cpu"
-    assert r.solver.backend == "mujoco-warp" and r.solver.contacts == "newton"
+    assert r.solver.solver == "SolverMuJoCo" and r.solver.device == "cpu" and r.solver.backend == "mujoco-c"
+    assert r.solver.contacts == "mujoco"
 
 
 def test_rest_check_detects_an_asset_that_does_not_rest(tmp_path):
