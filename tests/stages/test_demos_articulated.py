@@ -1,0 +1,121 @@
+"""Articulated parts of default-catalog packages (stages.demos.articulated): frames from the ingested
+USD joints placed in a composed scene, and the generic open/close experts on the mobile Panda."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stages.demos.articulated import ArticulatedPart, JointFrame, load_generated_info, package_joint_frames, parts_of
+
+CATEGORIES = ("microwave", "cabinet", "oven", "door")
+
+
+@pytest.fixture(scope="module")
+def catalog(tmp_path_factory) -> Path:
+    """The default catalog's first variant of CATEGORIES, generated and ingested (a few seconds)."""
+    from pipeline import build_job, run_job
+
+    out = tmp_path_factory.mktemp("articulated") / "out"
+    data = {"job": {"name": "articulated", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+            "step": [{"name": "catalog", "kind": "default_catalog",
+                      "config": {"variants": 1, "categories": list(CATEGORIES)}},
+                     {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}}]}
+    summary = run_job(build_job(data, source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps}["assets"] == 0
+    return out
+
+
+def _package(out: Path, asset_id: str) -> Path:
+    return out / "assets" / asset_id / f"{asset_id}.usda"
+
+
+def test_joint_frames_follow_the_generator_conventions(catalog: Path):
+    info = load_generated_info(catalog / "catalog" / "default" / "generated.json")
+    mw = package_joint_frames(_package(catalog, "microwave_00"))
+    p = info["microwave_00"]["params"]
+    door = mw["door_joint"]
+    assert door.kind == "revolute" and door.link == "door"
+    np.testing.assert_allclose(door.axis, (0, 0, -1), atol=1e-6)  # hinge on -Y, opens towards +X
+    np.testing.assert_allclose(door.origin, (p["depth"] / 2, -p["width"] / 2 + 0.003, (0.01 + p["height"]) / 2),
+                               atol=1e-4)
+    assert door.upper == pytest.approx(math.pi / 2, abs=1e-4) and door.lower == 0.0
+    assert mw["button_joint"].kind == "prismatic"
+    cab = package_joint_frames(_package(catalog, "cabinet_00"))
+    drawers = [j for j in cab.values() if j.name.startswith("drawer")]
+    assert drawers and all(np.allclose(j.axis, (1, 0, 0)) and j.upper > 0.1 for j in drawers)
+    oven = package_joint_frames(_package(catalog, "oven_00"))["door_joint"]
+    np.testing.assert_allclose(oven.axis, (0, 1, 0), atol=1e-6)  # drops down towards +X
+
+
+def test_parts_in_a_composed_scene_match_the_usd_composition(catalog: Path, tmp_path: Path):
+    """Reference each package at a pose (as the scene stage does); the part's joint path is the
+    composed joint prim and its axis point / handle are where the composed stage puts them."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
+
+    info = load_generated_info(catalog / "catalog" / "default" / "generated.json")
+    pose = (1.3, 2.1, 0.4, 2.0)
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    with Sdf.ChangeBlock():
+        world = Sdf.CreatePrimInLayer(layer, "/World")
+        world.specifier = Sdf.SpecifierDef
+        for aid in ("microwave_00", "oven_00", "door_00", "cabinet_00"):
+            s = Sdf.CreatePrimInLayer(layer, f"/World/{aid}")
+            s.specifier, s.typeName = Sdf.SpecifierDef, "Xform"
+            s.referenceList.Prepend(Sdf.Reference(str(_package(catalog, aid))))
+            a = Sdf.AttributeSpec(s, "xformOp:translate", Sdf.ValueTypeNames.Double3)
+            a.default = Gf.Vec3d(*pose[:3])
+            a = Sdf.AttributeSpec(s, "xformOp:orient", Sdf.ValueTypeNames.Quatd)
+            a.default = Gf.Quatd(math.cos(pose[3] / 2), 0, 0, math.sin(pose[3] / 2))
+            a = Sdf.AttributeSpec(s, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
+            a.default = ["xformOp:translate", "xformOp:orient"]
+    stage = Usd.Stage.Open(layer)
+    xc = UsdGeom.XformCache()
+    n = 0
+    for aid in ("microwave_00", "oven_00", "door_00", "cabinet_00"):
+        parts = parts_of(info[aid], asset_id=aid, prim_root=f"/World/{aid}", pose=pose,
+                         joint_frames=package_joint_frames(_package(catalog, aid)))
+        assert parts and all(isinstance(p, ArticulatedPart) for p in parts)
+        for part in parts:
+            n += 1
+            prim = stage.GetPrimAtPath(part.joint_path)
+            assert prim and prim.IsA(UsdPhysics.Joint), part.joint_path
+            j = UsdPhysics.Joint(prim)
+            body1 = stage.GetPrimAtPath(j.GetBody1Rel().GetTargets()[0])
+            m1 = xc.GetLocalToWorldTransform(body1)
+            # the joint anchor is the child link's origin at closed (localPos1 = 0)
+            np.testing.assert_allclose(part.origin, np.asarray(m1.ExtractTranslation()), atol=1e-5)
+            # the handle (asset root frame in generated.json) maps like any point of the asset
+            root = xc.GetLocalToWorldTransform(stage.GetPrimAtPath(f"/World/{aid}"))
+            rec = next(h for h in info[aid]["handles"] if h["link"] == part.link and h["center"][0] > 0)
+            np.testing.assert_allclose(part.handle, np.asarray(root.Transform(Gf.Vec3d(*rec["center"]))),
+                                       atol=1e-5)
+            # opening moves the handle away from the front (+X of the asset)
+            moved = part.handle_at(part.closed + 0.5 * part.travel) - np.asarray(part.handle)
+            assert np.dot(moved, part.front) > 0.05, (part.joint_path, moved)
+            # revolute: the handle stays at its distance from the axis
+            if part.kind == "revolute":
+                def dist(p):
+                    v = np.asarray(p) - np.asarray(part.origin)
+                    return np.linalg.norm(v - np.dot(v, part.axis) * np.asarray(part.axis))
+                assert dist(part.handle_at(part.upper)) == pytest.approx(dist(part.handle), abs=1e-9)
+    assert n >= 1 + 1 + 1 + 3
+
+
+def test_parts_of_names_a_missing_joint():
+    from pipeline.types import ItemError
+
+    rec = {"category": "cabinet", "joints": {"drawer_0_joint": "drawer"},
+           "handles": [{"link": "drawer_0", "kind": "bar", "center": [0.3, 0, 0.2], "grip_width": 0.012,
+                        "clearance": 0.03, "bar_axis": [0, 1, 0]}]}
+    jf = JointFrame(name="drawer_0_joint", link="drawer_0", kind="prismatic", axis=(1.0, 0.0, 0.0),
+                    origin=(0.25, 0.0, 0.2), lower=0.0, upper=0.3)
+    (part,) = parts_of(rec, asset_id="cabinet_x", prim_root="/World/C", pose=(1, 0, 0, math.pi / 2),
+                       joint_frames={"drawer_0_joint": jf})
+    np.testing.assert_allclose(part.axis, (0, 1, 0), atol=1e-12)
+    np.testing.assert_allclose(part.handle_at(0.1), (1.0, 0.4, 0.2), atol=1e-12)
+    with pytest.raises(ItemError, match="drawer_0_joint"):
+        parts_of(rec, asset_id="cabinet_x", prim_root="/World/C", pose=(0, 0, 0, 0), joint_frames={})
