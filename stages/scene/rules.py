@@ -53,6 +53,7 @@ class FurnitureRule(_Entry):
     clearance: float = Field(default=0.0, ge=0.0, le=3.0)
     yaw_jitter: float = Field(default=0.0, ge=0.0, le=180.0)
     tall_ok_at_window: bool = False
+    snap: float = Field(default=0.0, ge=0.0, le=1.0)
 
     def problems(self) -> list[str]:
         errs = super().problems()
@@ -81,7 +82,9 @@ class RoomRules(_Strict):
 
 
 class Defaults(_Strict):
-    """path_width, reach, door_clearance, wall_gap, min_gap [m]; max_tries: samples per instance."""
+    """path_width, reach, door_clearance, wall_gap, min_gap [m]; max_tries: samples per instance;
+    room_attempts: arrangements tried per room (a room whose required entry fails is emptied and
+    arranged again) before the populate attempt fails."""
 
     path_width: float = Field(default=0.6, gt=0.0)
     reach: float = Field(default=0.9, gt=0.0)
@@ -89,6 +92,7 @@ class Defaults(_Strict):
     wall_gap: float = Field(default=0.02, ge=0.0)
     min_gap: float = Field(default=0.03, ge=0.0)
     max_tries: int = Field(default=40, ge=1, le=10000)
+    room_attempts: int = Field(default=8, ge=1, le=100)
 
 
 class PlacementRules(_Strict):

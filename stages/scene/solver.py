@@ -78,17 +78,20 @@ class _Inst:
     block: np.ndarray | None       # world footprint that blocks the robot, or None
     zones: list[np.ndarray]        # world keep-out zones (clearance, swings)
     on_floor: bool
+    reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
 
 
 @dataclass
 class RoomReport:
-    """What happened in one room: placed counts per category and rejected candidates by reason."""
+    """What happened in one room: placed counts per category, rejected candidates by reason, and
+    the arrangements of the room that were given up (a required entry failed) with the reason."""
 
     room: str
     room_type: str
     placed: dict[str, int] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
     skipped: list[str] = field(default_factory=list)
+    arrangements_rejected: list[str] = field(default_factory=list)
 
     def reject(self, reason: str) -> None:
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
@@ -346,11 +349,14 @@ class Populator:
         self.counter: Counter[str] = Counter()
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
+        self._compact = False  # furniture restricted to the narrower half of each category's variants
 
     # -- public ---------------------------------------------------------------------------------
 
     def populate_room(self, room: RoomModel) -> RoomReport:
-        """Place furniture then objects in ``room``; raises PlacementFailure if a required entry fails."""
+        """Place furniture then objects in ``room``. When a required entry cannot be placed, the room
+        is emptied again and re-arranged (up to ``room_attempts`` arrangements, each recorded with
+        its reason in ``RoomReport.arrangements_rejected``); raises PlacementFailure when all fail."""
         rt = str(room.type)
         rr = self.rules.for_room(rt)
         rep = RoomReport(room.id, rt)
@@ -363,11 +369,33 @@ class Populator:
         live = tuple(p for p in ctx.door_points if grid.cell_label(labels, p))
         ctx = replace(ctx, door_points=live)  # doors the robot can use in the empty room
         self.room_ctx[room.id] = ctx
-        for rule in rr.furniture:
-            self._entry(rule, ctx, grid, rep, furniture=True)
-        for rule in rr.objects:
-            self._entry(rule, ctx, grid, rep, furniture=False)
-        return rep
+        n_arr = self.rules.defaults.room_attempts
+        for a in range(n_arr):
+            mark, counts = len(self.insts), Counter(self.counter)
+            # the later half of the arrangements furnishes with the compact variants (a small room)
+            self._compact = n_arr > 1 and a >= n_arr // 2
+            try:
+                for rule in rr.furniture:
+                    self._entry(rule, ctx, grid, rep, furniture=True)
+                for rule in rr.objects:
+                    self._entry(rule, ctx, grid, rep, furniture=False)
+                return rep
+            except PlacementFailure as e:
+                rep.arrangements_rejected.append(str(e))
+                self._rollback(mark, counts)
+                rep.placed.clear()
+                rep.skipped.clear()
+                log.debug("%s: arrangement %d rejected: %s", room.id, a, e)
+        raise PlacementFailure(f"{rep.arrangements_rejected[-1]} [{n_arr} arrangements]")
+
+    def _rollback(self, mark: int, counts: Counter) -> None:
+        """Forget the instances placed after the first ``mark`` (one room's failed arrangement)."""
+        gone = {i.p.inst for i in self.insts[mark:]}
+        self.insts = self.insts[:mark]
+        self.counter = counts
+        for g in self.grids.values():
+            for k in gone & set(g.blocks):
+                del g.blocks[k]
 
     def placements(self) -> list[Placement]:
         return [i.p for i in self.insts]
@@ -387,7 +415,8 @@ class Populator:
                 rep.skipped.append(f"{rule.category}: requires {', '.join(missing)}")
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
-        keep = None if furniture else (lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
+        keep = (self._compact_keep(rule.category) if furniture and self._compact else None) if furniture else (
+            lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
             if rec is None:
@@ -404,6 +433,15 @@ class Populator:
             elif k < rule.count[0]:
                 worst = max(rep.rejected.items(), key=lambda kv: kv[1])[0] if rep.rejected else "no candidate"
                 raise PlacementFailure(f"{ctx.room.id}: could not place required {rule.category} ({worst})")
+
+    def _compact_keep(self, category: str):
+        """Predicate on records: the variant is at most as wide (along its back) as the median one."""
+        widths = {r.id: float(g.hi[1] - g.lo[1]) for r in self.library.records.get(category, ())
+                  for g in (load_asset_geometry(self.library.usd(r)),)}
+        if not widths:
+            return None
+        med = float(np.median(list(widths.values())))
+        return lambda r: widths.get(r.id, math.inf) <= med + 1e-9
 
     def _new_id(self, category: str) -> str:
         self.counter[category] += 1
@@ -429,23 +467,39 @@ class Populator:
 
     # -- furniture ------------------------------------------------------------------------------
 
+    def _narrower(self, rule: FurnitureRule, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext):
+        """Another variant of the category, narrower (along its back) than ``rec`` if there is one,
+        else any other: (record, geometry)."""
+        width = geo.hi[1] - geo.lo[1]
+
+        def narrower(r: CatalogRecord) -> bool:
+            g = load_asset_geometry(self.library.usd(r))
+            return r.id != rec.id and g.hi[1] - g.lo[1] < width - 1e-6
+
+        new = (self.library.pick(rule.category, str(ctx.room.type), self.rng, narrower)
+               or self.library.pick(rule.category, str(ctx.room.type), self.rng) or rec)
+        return new, load_asset_geometry(self.library.usd(new))
+
     def _place_furniture(self, rule: FurnitureRule, rec: CatalogRecord, ctx: RoomContext, grid: PathGrid,
                          rep: RoomReport) -> bool:
         geo = load_asset_geometry(self.library.usd(rec))
         tries = self.rules.defaults.max_tries
+        no_room = False
         for k in range(tries):
-            if k and k % max(tries // 4, 1) == 0:  # another variant of the category (a smaller one may fit)
-                rec = self.library.pick(rule.category, str(ctx.room.type), self.rng) or rec
-                geo = load_asset_geometry(self.library.usd(rec))
+            if k and (no_room or k % max(tries // 4, 1) == 0):
+                # another variant of the category: a narrower one may fit where this one did not
+                rec, geo = self._narrower(rule, rec, geo, ctx)
             # a target-relative mode that keeps failing falls back to a plain wall/floor position
             fallback = k >= tries // 2 and rule.mode in ("beside", "facing", "front", "around")
             pose = self._sample_pose(rule, geo, ctx, fallback=fallback)
+            no_room = pose is None
             if pose is None:
                 rep.reject(f"{rule.category}: no {rule.mode} position")
                 continue
             xy, yaw = pose
             inst = self._instance(rec, geo, ctx, xy, ctx.elevation + REST_GAP - geo.lo[2], yaw, None, rule.clearance)
             why = self._floor_conflict(inst, rule, ctx, geo)
+            no_room = why == "outside the room"
             if why is None:
                 why = self._collides(inst)
             if why is None:
@@ -465,7 +519,8 @@ class Populator:
         if mode in ("front", "beside", "around") and not targets:
             mode = "wall" if mode == "beside" else "floor"
         if mode in ("wall", "facing"):
-            return self._wall_pose(geo, ctx, gap, targets[0] if (mode == "facing" and targets) else None)
+            return self._wall_pose(geo, ctx, gap, targets[0] if (mode == "facing" and targets) else None,
+                                   tall=not rule.tall_ok_at_window, snap=rule.snap)
         if mode == "floor":
             return self._floor_pose(geo, ctx, rule.yaw_jitter)
         t = targets[int(self.rng.integers(len(targets)))]
@@ -480,13 +535,14 @@ class Populator:
             anchor = R @ np.array([tg.hi[0], (tg.lo[1] + tg.hi[1]) / 2 + jitter]) + txy + f * d
             return anchor - rot2(yaw) @ np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]), yaw
         if mode == "beside":
-            side = 1 if self.rng.random() < 0.5 else -1
             along = R @ np.array([0.0, 1.0])
-            if side > 0:
-                anchor = R @ np.array([tg.lo[0], tg.hi[1]]) + txy + along * d
-                return anchor - R @ np.array([geo.lo[0], geo.lo[1]]), ty
-            anchor = R @ np.array([tg.lo[0], tg.lo[1]]) + txy - along * d
-            return anchor - R @ np.array([geo.lo[0], geo.hi[1]]), ty
+            poses = [R @ np.array([tg.lo[0], tg.hi[1]]) + txy + along * d - R @ np.array([geo.lo[0], geo.lo[1]]),
+                     R @ np.array([tg.lo[0], tg.lo[1]]) + txy - along * d - R @ np.array([geo.lo[0], geo.hi[1]])]
+            if self.rng.random() < 0.5:
+                poses.reverse()
+            # a random side, but one where the asset is inside the room when only one is
+            fits = [xy for xy in poses if convex_inside(geo.footprint @ R.T + xy, ctx.interior)]
+            return (fits or poses)[0], ty
         # around: a side of the target's box, facing its center
         k = int(self.rng.integers(4))
         out_dir = [np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]), np.array([0.0, -1.0])][k]
@@ -500,19 +556,72 @@ class Populator:
         yaw = math.atan2(-world_out[1], -world_out[0])
         return anchor - rot2(yaw) @ np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]), yaw
 
-    def _wall_pose(self, geo: AssetGeometry, ctx: RoomContext, gap: float, facing: _Inst | None):
+    def _free_wall_spans(self, edge, depth: float, height: float, ctx: RoomContext, tall: bool,
+                         gap: float) -> list[tuple[float, float]]:
+        """Free (start, end) spans [m along the edge] of a wall edge for an against-wall asset of
+        ``depth`` and ``height`` [m]: the edge minus what reaches into its band (the strip
+        ``gap + depth`` deep in front of it): room-door keep-outs, windows (when ``tall`` and the
+        asset rises above sill + WINDOW_SILL_MARGIN), footprints (+ min_gap) and keep-out zones of
+        floor-standing assets already placed. Conservative (projections of convex outlines)."""
+        a, t, L, n = edge
+        band = gap + depth
+        blocked: list[tuple[float, float]] = []
+
+        def block(poly: np.ndarray, pad: float = 0.0) -> None:
+            rel = np.asarray(poly) - a
+            s, h = rel @ t, rel @ n
+            if h.min() < band and h.max() > 0.0:
+                blocked.append((float(s.min()) - pad, float(s.max()) + pad))
+
+        for dz in ctx.door_zones:
+            block(dz)
+        if tall:
+            for wz, sill in ctx.windows:
+                if height > sill + WINDOW_SILL_MARGIN:
+                    block(wz)
+        min_gap = self.rules.setting(ctx.room.type, "min_gap")
+        for o in self.insts:
+            if o.on_floor and o.p.floor == ctx.room.floor:
+                block(o.footprint, min_gap)
+                for z in o.zones:
+                    block(z)
+        spans, cur = [], 0.0
+        for lo, hi in sorted(blocked):
+            if lo > cur:
+                spans.append((cur, min(lo, L)))
+            cur = max(cur, hi)
+            if cur >= L:
+                break
+        if cur < L:
+            spans.append((cur, L))
+        return spans
+
+    def _wall_pose(self, geo: AssetGeometry, ctx: RoomContext, gap: float, facing: _Inst | None, *,
+                   tall: bool = True, snap: float = 0.0):
+        """Back against a free span of a wall (see ``_free_wall_spans``), front into the room; with
+        probability ``snap`` pushed to one end of the span (a corner, a door or window edge, a
+        neighbour); None when no span is wide enough."""
         width = geo.hi[1] - geo.lo[1]
-        edges = [e for e in _edges(ctx.interior) if e[2] >= width + 0.02]
-        if not edges:
+        need = width + 0.02
+        cands = []  # (edge, span start, span end)
+        for e in _edges(ctx.interior):
+            for s0, s1 in self._free_wall_spans(e, geo.hi[0] - geo.lo[0], geo.hi[2] - geo.lo[2], ctx, tall, gap):
+                if s1 - s0 >= need:
+                    cands.append((e, s0, s1))
+        if not cands:
             return None
-        w = np.array([e[2] for e in edges])
+        w = np.array([s1 - s0 - width + 0.2 for _, s0, s1 in cands])  # tight spans keep a fair chance
         if facing is not None:
             f = rot2(facing.p.yaw) @ np.array([1.0, 0.0])
-            opp = np.array([-(e[3] @ f) for e in edges])
+            opp = np.array([-(e[3] @ f) for e, _, _ in cands])
             if (opp > 0.5).any():
                 w = w * (opp > 0.5)
-        a, t, L, n = edges[int(self.rng.choice(len(edges), p=w / w.sum()))]
-        s = float(self.rng.uniform(width / 2 + 0.01, L - width / 2 - 0.01))
+        (a, t, L, n), s0, s1 = cands[int(self.rng.choice(len(cands), p=w / w.sum()))]
+        lo, hi = s0 + width / 2 + 0.01, s1 - width / 2 - 0.01
+        if snap > 0 and self.rng.random() < snap:
+            s = lo if self.rng.random() < 0.5 else hi
+        else:
+            s = float(self.rng.uniform(lo, hi))
         yaw = math.atan2(n[1], n[0])
         anchor = a + t * s + n * gap
         return anchor - rot2(yaw) @ np.array([geo.lo[0], (geo.lo[1] + geo.hi[1]) / 2]), yaw
@@ -572,22 +681,35 @@ class Populator:
         got.discard(0)
         return len(got) <= 1, (next(iter(got)) if got else 0)
 
+    def _reach_of(self, inst: _Inst, grid: PathGrid, reach: float) -> np.ndarray:
+        if inst.reach is None:
+            inst.reach = grid.reach_mask(inst.footprint, reach)
+        return inst.reach
+
     def _path_conflict(self, inst: _Inst, ctx: RoomContext, grid: PathGrid) -> str | None:
-        if inst.block is None or not ctx.door_points:
+        """Why adding ``inst`` would break the robot path of its room, or of a room populated
+        earlier on the same floor (a path may run through a neighbour room); None if it does not."""
+        if inst.block is None:
             return None
         extra = grid.raster(inst.block)
         labels = grid.components(extra)
-        doors = [grid.cell_label(labels, p) for p in ctx.door_points]
-        live = {d for d in doors if d}
-        if len(live) != 1:
-            return "cuts the robot path between the room's doors" if live else "blocks the room door"
-        lab = next(iter(live))
-        reach = self.rules.setting(ctx.room.type, "reach")
-        room_insts = [i for i in self.insts if i.p.room == ctx.room.id and i.p.record.interactable] + (
-            [inst] if inst.p.record.interactable else [])
-        for i in room_insts:
-            if not (grid.reach_mask(i.footprint, reach) & (labels == lab)).any():
-                return f"leaves {i.p.record.category} out of the robot's reach"
+        for rid, rctx in self.room_ctx.items():
+            if rctx.room.floor != ctx.room.floor or not rctx.door_points:
+                continue
+            own = rid == ctx.room.id
+            live = {d for d in (grid.cell_label(labels, p) for p in rctx.door_points) if d}
+            where = "" if own else f" of {rid}"
+            if len(live) != 1:
+                if own:
+                    return "cuts the robot path between the room's doors" if live else "blocks the room door"
+                return f"cuts the robot path{where}"
+            lab = next(iter(live))
+            reach = self.rules.setting(rctx.room.type, "reach")
+            room_insts = [i for i in self.insts if i.p.room == rid and i.p.record.interactable] + (
+                [inst] if own and inst.p.record.interactable else [])
+            for i in room_insts:
+                if not (self._reach_of(i, grid, reach) & (labels == lab)).any():
+                    return f"leaves {i.p.record.category}{where} out of the robot's reach"
         return None
 
     def _accept(self, inst: _Inst, grid: PathGrid | None) -> None:
