@@ -264,3 +264,338 @@ def part_closed(part: ArticulatedPart, state, tol: float | None = None) -> tuple
         tol = math.radians(5.0) if part.kind == "revolute" else 0.02
     q = joint_value(part, state)
     return (True, "") if q - part.closed <= tol else (False, f"{part.role}_not_closed")
+
+
+# --------------------------------------------------------------------------------------------
+# Experts
+# --------------------------------------------------------------------------------------------
+
+GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
+SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
+ENOUGH = 0.12       # a swing may stop this fraction of its sweep short of the goal when the arm runs out
+
+
+def _heading(v) -> float:
+    return math.atan2(float(v[1]), float(v[0]))
+
+
+def _rz(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _ry(pitch: float) -> np.ndarray:
+    c, s = math.cos(pitch), math.sin(pitch)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+# tool frames with the approach (tool z) along +X: fingers closing vertically (horizontal bars) or
+# horizontally (vertical bars)
+_FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
+_FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
+
+
+def grasp_rotation(part: ArticulatedPart, pitch: float) -> np.ndarray:
+    """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
+    pitched ``pitch`` [rad] down, fingers closing across the bar."""
+    vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
+    base = _FINGERS_HORIZONTAL if vertical_bar else _FINGERS_VERTICAL
+    return _rz(_heading(-np.asarray(part.front))) @ _ry(pitch) @ base
+
+
+def handle_pose(part: ArticulatedPart, q: float, pitch: float, back: float = 0.0) -> np.ndarray:
+    """4x4 world pose of the gripper on the handle at joint value ``q`` (turning with the part),
+    ``back`` [m] behind it along the approach axis."""
+    rot = part.rotation_at(q) @ grasp_rotation(part, pitch)
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = part.handle_at(q) - back * rot[:, 2]
+    return m
+
+
+def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
+    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
+    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+    x0, y0, yaw0 = d.sim.spawn
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    dx, dy = base[0] - x0, base[1] - y0
+    local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
+    for name, v in zip(d.sim.desc.base_joints, local, strict=True):
+        q[d.ik.q_idx[name]] = v
+    return q
+
+
+def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
+    """Whether every world pose of ``targets`` (4x4 each, in order) is reached by CLIK from a
+    base at ``base`` (arm only, each solve warm-started from the previous one)."""
+    from stages.simulate.control import Clik
+
+    q = _base_q(d, base)
+    for k, t in enumerate(targets):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
+                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
+        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+            return False
+        q = res.q
+    return True
+
+
+def _free(grid, blocked, x: float, y: float) -> bool:
+    iy, ix = grid.cell_of(x, y)
+    ny, nx = blocked.shape
+    return 0 <= iy < ny and 0 <= ix < nx and not blocked[iy, ix]
+
+
+def _lateral(part: ArticulatedPart) -> np.ndarray:
+    """Horizontal unit vector from the hinge axis towards the handle (doors), or the bar axis
+    (drawers), perpendicular to the front."""
+    n = np.asarray(part.front, float)
+    if part.kind == "revolute":
+        v = np.asarray(part.handle) - np.asarray(part.origin)
+    else:
+        v = np.asarray(part.bar_axis, float)
+    v = v - np.dot(v, n) * n
+    v[2] = 0.0
+    return v / max(np.linalg.norm(v), 1e-9)
+
+
+def _toward_hinge(part: ArticulatedPart) -> float:
+    """+1 when turning the base counter-clockwise from facing the part turns it towards the hinge
+    side (away from the handle), else -1."""
+    face, lat = -np.asarray(part.front, float), _lateral(part)
+    return 1.0 if face[0] * (-lat[1]) - face[1] * (-lat[0]) > 0 else -1.0
+
+
+def choose_base(d, part: ArticulatedPart, grid, candidates, targets_of) -> tuple[tuple[float, float, float], float]:
+    """The first (base pose, pitch) of ``candidates`` ((dn, dl, dyaw, pitch): metres out from the
+    handle along the front, metres along the lateral direction (from the hinge towards the handle),
+    yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
+    footprint is free on ``grid`` and from which ``targets_of(base, pitch)`` are all reachable;
+    raises ExpertFailure("no_base_pose")."""
+    from stages.demos.experts import ROBOT_RADIUS, ExpertFailure
+
+    n, lat = np.asarray(part.front, float), _lateral(part)
+    h = np.asarray(part.handle, float)
+    face, sgn = _heading(-n), _toward_hinge(part)
+    blocked = grid.inflate(ROBOT_RADIUS)
+    tried = 0
+    for dn, dl, dyaw, pitch in candidates:
+        p = h + dn * n + dl * lat
+        base = (float(p[0]), float(p[1]), face + sgn * dyaw)
+        if not _free(grid, blocked, base[0], base[1]):
+            continue
+        tried += 1
+        if reachable(d, base, targets_of(base, pitch)):
+            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl, dyaw,
+                      pitch)
+            return base, pitch
+    raise ExpertFailure("no_base_pose",
+                        f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
+
+
+def _release(d, back: float = 0.08) -> None:
+    """Open the hand and back it off ``back`` [m] along its approach axis (if reachable)."""
+    from stages.demos.experts import APPROACH_TOL, ExpertFailure
+    from stages.simulate.control import Clik, pose
+
+    d.grip(0.0, 0.5)
+    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+    x, y, yaw = d.sim.spawn
+    to_world = np.linalg.inv(Clik.world_to_root((x, y, yaw), np.eye(4)))
+    w = to_world @ d.ik.fk(q)
+    try:
+        d.move(pose(w[:3, 3] - back * w[:3, 2], w[:3, :3]), 0.6, segments=1, tol=APPROACH_TOL)
+    except ExpertFailure as e:
+        log.info("no straight back-off from the handle (%s)", e)
+
+
+def _drawer_pitch(z: float) -> float:
+    """Gripper pitch [rad] for a handle at height ``z`` [m]: level at shoulder height, pointing
+    further down for low handles."""
+    return math.radians(float(np.clip(20.0 + (0.75 - z) * 80.0, 0.0, 60.0)))
+
+
+def _slide(d, distance: float, speed: float = 0.12) -> None:
+    """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held."""
+    d.cmd.mode = 1
+    d.base((math.copysign(speed, distance), 0.0, 0.0))
+    d.step(abs(distance) / speed)
+    d.base((0.0, 0.0, 0.0))
+    d.step(0.3)
+
+
+def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
+    """Grasp the drawer's bar at opening q0, move the base along the drawer axis to q1, release, tuck."""
+    from stages.demos.experts import APPROACH_TOL
+
+    out = q0 - part.closed
+
+    def targets(base, pitch):
+        # the arm holds its pose in the base frame while the base slides: only the grasp matters
+        return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
+
+    p0 = _drawer_pitch(float(part.handle[2]))
+    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(15)) for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
+             for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
+    base, pitch = choose_base(d, part, grid, cands, targets)
+    d.drive_to(base, grid)
+    d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
+    d.grip(1.0, 0.6)
+    _slide(d, (q0 - q1) + (0.01 if q1 < q0 else 0.0))
+    _release(d)
+    d.home(1.0)
+
+
+def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: float = 0.06):
+    """A copy of ``grid`` with the cells the part's front sweeps between joint values q_lo and
+    q_hi marked occupied (the door leaf out to its handle plus ``margin`` [m]; a drawer's front
+    slides out by q_hi)."""
+    from stages.demos.planner import NavGrid
+
+    occ = grid.occupied.copy()
+    o = np.asarray(part.origin, float)
+    h = np.asarray(part.handle, float)
+    lat = _lateral(part)
+    n = np.asarray(part.front, float)
+    if part.kind == "revolute":
+        v = h - o
+        reach = float(np.linalg.norm(v[:2])) + margin + 0.04
+        qs = np.linspace(q_lo, q_hi, max(2, int(abs(q_hi - q_lo) / math.radians(2.0)) + 2))
+        pts = []
+        for q in qs:
+            rot = part.rotation_at(q)
+            for t in np.linspace(0.0, 1.0, int(reach / (grid.cell / 2)) + 2):
+                for off in (0.0, 0.05):
+                    pts.append(o + rot @ (t * reach * lat + off * n))
+    else:
+        width = 0.3
+        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20) for b in np.linspace(-1, 1, 13)]
+    for p in pts:
+        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
+        if 0 <= iy < occ.shape[0] and 0 <= ix < occ.shape[1]:
+            occ[iy, ix] = True
+    return NavGrid(grid.origin, grid.cell, occ)
+
+
+def _door_pitch(z: float) -> float:
+    """Gripper pitch [rad] for a vertical bar at height ``z`` [m] (down for low handles, up for
+    high ones)."""
+    return math.radians(float(np.clip(35.0 - (z - 0.3) * 45.0, -25.0, 40.0)))
+
+
+def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0) -> None:
+    """Grasp the handle at q0, carry it along its arc to q1 in ``step_deg`` steps, release, back off."""
+    from stages.demos.experts import APPROACH_TOL, ExpertFailure
+
+    step = math.copysign(math.radians(step_deg), q1 - q0)
+    qs = [float(q) for q in np.arange(q0 + step, q1 + 0.5 * step, step)]
+
+    def targets(base, pitch):
+        return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch),
+                *(handle_pose(part, q, pitch) for q in qs)]
+
+    z = float(part.handle_at(q0)[2])
+    if abs(float(np.asarray(part.axis)[2])) > 0.7:
+        p0 = _door_pitch(z)
+        cands = [(dn, dl, dyaw, p0 + dp) for dp in (0.0, math.radians(-15), math.radians(15))
+                 for dyaw in (0.3, 0.5, 0.0, 0.8) for dn in (0.6, 0.7, 0.5, 0.8) for dl in (0.2, 0.35, 0.1, 0.5, 0.0)]
+    else:
+        p0 = _drawer_pitch(z)
+        cands = [(dn, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-15), math.radians(15))
+                 for dn in (0.6, 0.7, 0.8, 0.9, 0.5) for dl in (0.0, 0.1, -0.1, 0.2, -0.2)]
+    lo, hi = min(q0, q1), max(q0, q1)
+    plan = swept_grid(grid, part, lo, hi)
+    base, pitch = choose_base(d, part, plan, cands, targets)
+    d.drive_to(base, swept_grid(grid, part, q0, q0))
+    d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
+    d.grip(1.0, 0.6)
+    for q in qs:
+        try:
+            _move(d, handle_pose(part, q, pitch), 0.4, tol=SWING_TOL)
+            log.debug("%s: swing %.3f -> %.3f", part.joint_path, q, d.sim.joint_q_of_path(part.joint_path))
+        except ExpertFailure:
+            # the base gives a little under the door's pull: far enough along, stop here
+            if abs(q - q1) > ENOUGH * abs(q1 - q0):
+                raise
+            log.info("%s: swing stopped at %.2f of %.2f", part.joint_path, q, q1)
+            break
+    log.info("%s: swung to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
+    _retreat_from_leaf(part, d, q)
+    log.info("%s: after retreat %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
+    d.home(1.0)
+
+
+def _retreat_from_leaf(part: ArticulatedPart, d, q: float) -> None:
+    """Release the handle and take the hand clear of the leaf with base motions (arm held): back
+    along the approach axis, then out past the leaf's free edge (an arm wrapped round an opened
+    door's edge would sweep it shut when tucked)."""
+    d.grip(0.0, 0.5)
+    w = _ee_world(d)
+    _base_shift(d, -0.08 * w[:3, 2])
+    if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
+        _base_shift(d, 0.35 * (part.rotation_at(q) @ _lateral(part)))
+
+
+def _base_shift(d, delta, speed: float = 0.12) -> None:
+    """Translate the base by the horizontal part of world vector ``delta`` [m] (heading kept)."""
+    from stages.demos.record import base_pose
+
+    v = np.asarray(delta, float)[:2]
+    dist = float(np.linalg.norm(v))
+    if dist < 1e-3:
+        return
+    _, _, yaw = base_pose(d.sim)
+    c, s = math.cos(yaw), math.sin(yaw)
+    u = v / dist * speed
+    d.cmd.mode = 1
+    d.base((c * u[0] + s * u[1], -s * u[0] + c * u[1], 0.0))
+    d.step(dist / speed)
+    d.base((0.0, 0.0, 0.0))
+    d.step(0.2)
+
+
+def _move(d, target: np.ndarray, duration: float, *, segments: int = 1, settle: float = 0.0,
+          tol: float = 0.005) -> None:
+    """:meth:`Driver.move` without random IK restarts: a contact move must continue from the
+    current arm configuration (a restart may flip the elbow and slam the part)."""
+    from stages.demos.experts import ExpertFailure
+    from stages.simulate.control import move_ee
+
+    d.cmd.mode = 1
+    d.base((0.0, 0.0, 0.0))
+    try:
+        move_ee(d.sim, d.ctl, d.ik, target, duration, segments=segments, settle=settle, rng=None, tol=tol)
+    except RuntimeError as e:
+        if "unreachable" in str(e):
+            raise ExpertFailure("ik_unreachable", str(e)) from None
+        raise
+
+
+def _ee_world(d) -> np.ndarray:
+    """4x4 world pose of the end-effector target (the arm joint targets' forward kinematics)."""
+    from stages.simulate.control import Clik
+
+    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+    return np.linalg.inv(Clik.world_to_root(d.sim.spawn, np.eye(4))) @ d.ik.fk(q)
+
+
+def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> None:
+    """Open ``part`` from closed to ``goal_fraction`` of its travel: drawers by backing the base
+    away holding the bar, doors by carrying the handle along its arc. ``d``: a
+    :class:`~stages.demos.experts.Driver`; ``grid``: the room's NavGrid with the part closed.
+    Raises ExpertFailure."""
+    q1 = part.closed + goal_fraction * part.travel
+    if part.kind == "prismatic":
+        _drawer(part, d, grid, part.closed, q1)
+    else:
+        _swing(part, d, grid, part.closed, q1)
+
+
+def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
+    """Close ``part`` from joint value ``start`` (its opening at the episode start)."""
+    if part.kind == "prismatic":
+        _drawer(part, d, grid, start, part.closed)
+    else:
+        _swing(part, d, grid, start, part.closed)
