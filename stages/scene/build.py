@@ -55,8 +55,10 @@ class SceneSummary(BaseModel):
     rooms: dict[str, str]
     placed: dict[str, dict[str, int]]
     candidates_rejected: dict[str, int]
+    arrangements_rejected: dict[str, int] = {}
     repairs: tuple[str, ...]
     settle_max_move: float
+    settle_simulated: float = 0.0
     settle_bodies: int
     penetrations: int
     path_problems: int
@@ -71,7 +73,9 @@ class SceneSummary(BaseModel):
 class BuildOptions:
     """rooms: room types to populate (empty: all); n_looks: material variants; settle seconds [s]
     and tolerance [m]; max_repairs: settle repairs (drop offenders) before rejecting; validate: run
-    usd_schemas.validate_package on the scene; settle: run the Newton settle check."""
+    usd_schemas.validate_package on the scene; settle: run the Newton settle check;
+    settle_early_exit: stop the settle simulation early once every body is provably still
+    (``stages.scene.settle.StillExit``)."""
 
     rooms: tuple[str, ...] = ()
     n_looks: int = 3
@@ -80,6 +84,7 @@ class BuildOptions:
     max_repairs: int = 2
     validate: bool = True
     settle: bool = True
+    settle_early_exit: bool = True
     lighting: LightingConfig = field(default_factory=LightingConfig)
 
 
@@ -159,11 +164,12 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
 
     t = time.perf_counter()
     repairs: list[str] = []
-    max_move, bodies = 0.0, 0
+    max_move, bodies, simulated = 0.0, 0, 0.0
     if opts.settle:
         for attempt in range(opts.max_repairs + 1):
             rep = _settle(scene, opts)
             max_move, bodies = (max(rep.moved.values()) if rep.moved else 0.0), rep.bodies
+            simulated = rep.simulated
             if rep.passed:
                 break
             if rep.nan:
@@ -204,18 +210,31 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
             rejected[key] = rejected.get(key, 0) + v
     summary = SceneSummary(
         instances=records, rooms={r.id: str(r.type) for r in rooms},
-        placed={rr.room: rr.placed for rr in pop.reports}, candidates_rejected=rejected, repairs=tuple(repairs),
-        settle_max_move=max_move, settle_bodies=bodies, penetrations=len(check.penetrations),
+        placed={rr.room: rr.placed for rr in pop.reports}, candidates_rejected=rejected,
+        arrangements_rejected=arrangement_reasons(pop), repairs=tuple(repairs),
+        settle_max_move=max_move, settle_simulated=simulated, settle_bodies=bodies, penetrations=len(check.penetrations),
         path_problems=len(check.path), validation_errors=n_err, validation_warnings=n_warn,
         looks=tuple(lk.name for lk in looks), lights=tuple(lights), seconds={k: round(v, 3) for k, v in secs.items()})
     (out_dir / SCENE_JSON).write_text(summary.model_dump_json(indent=1) + "\n", encoding="utf-8")
     return summary
 
 
-def _settle(scene: Path, opts: BuildOptions):
-    from stages.scene.settle import settle_check
+def arrangement_reasons(pop: Populator) -> dict[str, int]:
+    """Room arrangements given up while populating (see ``Populator.populate_room``), counted by
+    reason, the room id replaced by its type ("kitchen: could not place required fridge (...)")."""
+    out: dict[str, int] = {}
+    for rr in pop.reports:
+        for reason in rr.arrangements_rejected:
+            key = f"{rr.room_type}: {reason.split(': ', 1)[-1]}"
+            out[key] = out.get(key, 0) + 1
+    return out
 
-    return settle_check(scene, seconds=opts.settle_seconds, tolerance=opts.settle_tolerance)
+
+def _settle(scene: Path, opts: BuildOptions):
+    from stages.scene.settle import StillExit, settle_check
+
+    return settle_check(scene, seconds=opts.settle_seconds, tolerance=opts.settle_tolerance,
+                        early_exit=StillExit() if opts.settle_early_exit else None)
 
 
 def populate_rooms(plan_path: Path, layout_usd: Path, library: Library, rules: PlacementRules,

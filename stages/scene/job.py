@@ -12,6 +12,7 @@ One work item per (layout house x population); each writes ``scene.usda`` (+ sub
     # rules = "stages/scene/rules/default.toml"   # placement rules (default: the built-in file)
     attempts = 4                    # populate attempts per scene (different sub-seeds) before failing
     looks = 3                       # material variants per scene (variant set "look")
+    # settle_early_exit = true      # stop the 2 s settle once every body is provably still
     [[step.config.group]]
     id = "living"                   # a name for the summary
     layouts = ["living_*"]          # layout item ids (fnmatch patterns)
@@ -20,8 +21,10 @@ One work item per (layout house x population); each writes ``scene.usda`` (+ sub
 
 Each attempt that fails (a required rule cannot be met, a check fails after repairs) is recorded
 with its reason in the item's result; an item fails (ItemError) only when all its attempts did.
-``finalize`` writes ``<out>/reports/<step>_summary.json``: scenes emitted, attempts rejected by
-reason, candidate placements rejected by reason, settle repairs.
+``finalize`` writes ``<out>/reports/<step>_summary.json``: scenes emitted, failed items with their
+reasons, attempts rejected by reason, room arrangements given up by reason (a required entry could
+not be placed, the room was arranged again), candidate placements rejected by reason, settle
+repairs (instances dropped) by reason.
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ class SceneConfig(_Strict):
     max_repairs: int = Field(default=2, ge=0, le=10)
     validate_usd: bool = True
     settle: bool = True
+    settle_early_exit: bool = True
     group: tuple[SceneGroup, ...] = Field(min_length=1)
 
 
@@ -95,6 +99,7 @@ class SceneParams(_Strict):
     max_repairs: int
     validate_usd: bool
     settle: bool
+    settle_early_exit: bool = True
 
 
 class RejectedAttempt(_Strict):
@@ -105,7 +110,10 @@ class RejectedAttempt(_Strict):
 class SceneResult(_Strict):
     """scene: final path of scene.usda; instances, rooms; rejected: the attempts that failed and why;
     repairs: instances dropped by the settle check; settle_max_move [m]; validation_warnings;
-    candidates_rejected: rejected candidate placements by reason; seconds by phase."""
+    candidates_rejected: rejected candidate placements by reason; arrangements_rejected: room
+    arrangements given up (a required entry failed; the room was arranged again) by reason, in the
+    attempt that succeeded; settle_simulated: seconds simulated by the settle check (early exit);
+    seconds by phase."""
 
     scene: str
     group: str
@@ -118,6 +126,8 @@ class SceneResult(_Strict):
     settle_max_move: float
     validation_warnings: int
     candidates_rejected: dict[str, int]
+    arrangements_rejected: dict[str, int] = {}
+    settle_simulated: float = 0.0
     seconds: dict[str, float]
 
 
@@ -148,7 +158,8 @@ def plan_scenes(config: SceneConfig, ctx: PlanContext) -> list[WorkItem | Planne
                                 index=str(index), rules=str(rules), rooms=g.rooms, attempts=config.attempts,
                                 looks=config.looks, settle_seconds=config.settle_seconds,
                                 settle_tolerance=config.settle_tolerance, max_repairs=config.max_repairs,
-                                validate_usd=config.validate_usd, settle=config.settle)
+                                validate_usd=config.validate_usd, settle=config.settle,
+                                settle_early_exit=config.settle_early_exit)
                 items.append(WorkItem(item_id=f"{lid}_p{k}", fn=FN, params=p,
                                       input_files=(Path(lr.plan), Path(lr.usd), index, rules),
                                       depends_on=(f"{config.layouts_step}/{lid}",)))
@@ -171,7 +182,8 @@ def build_scene_item(params: SceneParams, ctx: ItemContext) -> SceneResult:
         raise ItemError(str(e)) from None
     opts = BuildOptions(rooms=params.rooms, n_looks=params.looks, settle_seconds=params.settle_seconds,
                         settle_tolerance=params.settle_tolerance, max_repairs=params.max_repairs,
-                        validate=params.validate_usd, settle=params.settle)
+                        validate=params.validate_usd, settle=params.settle,
+                        settle_early_exit=params.settle_early_exit)
     rejected: list[RejectedAttempt] = []
     for a in range(params.attempts):
         if ctx.out_dir.exists():
@@ -188,6 +200,7 @@ def build_scene_item(params: SceneParams, ctx: ItemContext) -> SceneResult:
                            attempt=a, instances=len(s.instances), rooms=s.rooms, rejected=tuple(rejected),
                            repairs=s.repairs, settle_max_move=s.settle_max_move,
                            validation_warnings=s.validation_warnings, candidates_rejected=s.candidates_rejected,
+                           arrangements_rejected=s.arrangements_rejected, settle_simulated=s.settle_simulated,
                            seconds=s.seconds)
     raise ItemError(f"{ctx.item_id}: no valid scene in {params.attempts} attempts: "
                     + " | ".join(r.reason for r in rejected)[:600])
@@ -207,8 +220,10 @@ def finalize_scenes(config: SceneConfig, ctx: PlanContext, results: dict[str, An
     failed = ctx.failed.get(ctx.step, {}) if ctx.step else {}
     attempts = Counter(reason_kind(r.reason) for res in results.values() for r in res.rejected)
     cands: Counter[str] = Counter()
+    arrangements: Counter[str] = Counter()
     for res in results.values():
         cands.update(res.candidates_rejected)
+        arrangements.update(res.arrangements_rejected)
     by_group = Counter(res.group for res in results.values())
     summary = {
         "scenes_emitted": len(results),
@@ -218,8 +233,13 @@ def finalize_scenes(config: SceneConfig, ctx: PlanContext, results: dict[str, An
         "attempts_rejected": sum(len(r.rejected) for r in results.values()),
         "attempts_rejected_by_reason": dict(attempts.most_common()),
         "failed_items": failed,
+        "room_arrangements_rejected": sum(arrangements.values()),
+        "room_arrangements_rejected_by_reason": dict(arrangements.most_common(30)),
         "settle_repairs": sum(len(r.repairs) for r in results.values()),
+        "settle_repairs_by_reason": dict(Counter(_repair_kind(x) for r in results.values() for x in r.repairs)
+                                         .most_common(20)),
         "settle_max_move_m": max((r.settle_max_move for r in results.values()), default=0.0),
+        "settle_simulated_s_median": _median([r.settle_simulated for r in results.values()]),
         "candidates_rejected_by_reason": dict(cands.most_common(40)),
         "seconds_median": _median_seconds(results),
     }
@@ -228,6 +248,18 @@ def finalize_scenes(config: SceneConfig, ctx: PlanContext, results: dict[str, An
     out.write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
     log.info("scenes: %d emitted, %d failed, %d attempts rejected (%s) -> %s", len(results), len(failed),
              summary["attempts_rejected"], ", ".join(f"{k}: {v}" for k, v in attempts.most_common(5)), out)
+
+
+def _repair_kind(repair: str) -> str:
+    """'dropped book_03 (moved 1.4 cm)' -> 'dropped book'."""
+    head = repair.split(" (")[0]
+    return head.rsplit("_", 1)[0] if head[-2:].isdigit() else head
+
+
+def _median(values: list[float]) -> float:
+    import numpy as np
+
+    return round(float(np.median(values)), 3) if values else 0.0
 
 
 def _median_seconds(results: dict[str, Any]) -> dict[str, float]:
