@@ -349,7 +349,7 @@ class Populator:
         self.counter: Counter[str] = Counter()
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
-        self._compact = False  # furniture restricted to the narrower half of each category's variants
+        self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
 
     # -- public ---------------------------------------------------------------------------------
 
@@ -372,8 +372,10 @@ class Populator:
         n_arr = self.rules.defaults.room_attempts
         for a in range(n_arr):
             mark, counts = len(self.insts), Counter(self.counter)
-            # the later half of the arrangements furnishes with the compact variants (a small room)
-            self._compact = n_arr > 1 and a >= n_arr // 2
+            # the later half of the arrangements furnishes with ever more compact variants (a small
+            # room): the narrower half of each category's variants, down to the narrowest one
+            half = n_arr // 2
+            self._compact = 0.5 * (1.0 - (a - half) / max(n_arr - half, 1)) if n_arr > 1 and a >= half else 0.0
             try:
                 for rule in rr.furniture:
                     self._entry(rule, ctx, grid, rep, furniture=True)
@@ -415,7 +417,7 @@ class Populator:
                 rep.skipped.append(f"{rule.category}: requires {', '.join(missing)}")
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
-        keep = (self._compact_keep(rule.category) if furniture and self._compact else None) if furniture else (
+        keep = (self._compact_keep(rule.category, self._compact) if self._compact else None) if furniture else (
             lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
@@ -434,14 +436,16 @@ class Populator:
                 worst = max(rep.rejected.items(), key=lambda kv: kv[1])[0] if rep.rejected else "no candidate"
                 raise PlacementFailure(f"{ctx.room.id}: could not place required {rule.category} ({worst})")
 
-    def _compact_keep(self, category: str):
-        """Predicate on records: the variant is at most as wide (along its back) as the median one."""
+    def _compact_keep(self, category: str, fraction: float):
+        """Predicate on records: the variant is among the ``fraction`` (at least one) of the
+        category's variants that are narrowest along their back."""
         widths = {r.id: float(g.hi[1] - g.lo[1]) for r in self.library.records.get(category, ())
                   for g in (load_asset_geometry(self.library.usd(r)),)}
         if not widths:
             return None
-        med = float(np.median(list(widths.values())))
-        return lambda r: widths.get(r.id, math.inf) <= med + 1e-9
+        order = sorted(widths.values())
+        limit = order[max(1, math.ceil(len(order) * fraction)) - 1]
+        return lambda r: widths.get(r.id, math.inf) <= limit + 1e-9
 
     def _new_id(self, category: str) -> str:
         self.counter[category] += 1
