@@ -47,7 +47,8 @@ class SolverSettings:
     (True on CPU with one world); iterations / ls_iterations: MuJoCo solver iterations;
     cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and
     contacts for MuJoCo-Warp (None: Newton's estimate, which overflows in a furnished room: a mug
-    of 14 convex pieces on a table and 20 boxes on the floor exceed its 64 rows / 128 contacts).
+    of 14 convex pieces on a table and 20 boxes on the floor exceed its 64 rows / 128 contacts; the
+    demos task room overflows MuJoCo-Warp's broadphase at 256 contacts, dropping contacts).
     """
 
     kind: SolverKind = SolverKind.MUJOCO
@@ -60,7 +61,7 @@ class SolverSettings:
     impratio: float = 10.0
     integrator: str = "implicitfast"
     njmax: int | None = 1024
-    nconmax: int | None = 256
+    nconmax: int | None = 1024
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
