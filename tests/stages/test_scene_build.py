@@ -135,3 +135,41 @@ def test_rewritten_placement_is_seen_by_the_next_stage(world, tmp_path):
     fresh = Usd.Stage.Open(str(out / "scene.usda"))
     assert not fresh.GetPrimAtPath(f"/World/Objects/{names[-1]}").IsDefined()
     assert len(fresh.GetPrimAtPath("/World/Objects").GetChildren()) == len(names) - 1
+
+
+@pytest.mark.skipif(importlib.util.find_spec("newton_usd_schemas") is None,
+                    reason="Newton's add_usd needs newton-usd-schemas")
+def test_settle_early_exit_keeps_the_1cm_criterion(world, tmp_path):
+    """The early exit gives the full 2 s run's verdict: a resting scene stops early with the same
+    displacements; a scene with an object dropped from 5 cm is simulated to the end and fails."""
+    from stages.scene import compose
+    from stages.scene.build import BuildOptions, build_scene
+    from stages.scene.settle import settle_check
+
+    lib, plan_json, usd, _ = world
+    out = tmp_path / "s"
+    s = build_scene(plan_json, usd, lib, load_rules(), np.random.default_rng(5), out, out,
+                    BuildOptions(n_looks=1, settle=False, validate=False))
+    scene = out / "scene.usda"
+
+    def place(keep, lift=None):
+        compose.write_placement(out, out, [
+            compose.InstanceSpec(name=i.name, usd=Path(i.usd), material="wood", room=i.room, support=i.support or "",
+                                 category=i.category, yaw=i.yaw,
+                                 position=(*i.position[:2], i.position[2] + (0.05 if i is lift else 0.0)))
+            for i in s.instances if keep(i)])
+
+    full, early = settle_check(scene, early_exit=None), settle_check(scene)        # the whole scene
+    assert full.simulated == pytest.approx(2.0) and full.passed == early.passed
+    assert set(early.moved) == set(full.moved) and early.offenders == full.offenders
+    assert all(abs(early.moved[k] - full.moved[k]) < 0.001 for k in full.moved)   # within 1 mm
+    place(lambda i: not i.support)                                                 # the furniture alone rests
+    full, early = settle_check(scene, early_exit=None), settle_check(scene)
+    assert full.passed and early.passed and early.simulated < 1.0
+    assert all(abs(early.moved[k] - full.moved[k]) < 0.001 for k in full.moved)
+    # a small object dropped from 5 cm above its support moves ~5 cm: simulated to the end, it fails
+    obj = next(i for i in s.instances if i.support)
+    place(lambda i: True, lift=obj)
+    dropped = settle_check(scene)
+    assert not dropped.passed and obj.name in dropped.offenders
+    assert dropped.moved[obj.name] > 0.04 and dropped.simulated == pytest.approx(2.0)
