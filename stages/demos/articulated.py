@@ -270,6 +270,10 @@ def part_closed(part: ArticulatedPart, state, tol: float | None = None) -> tuple
 # Experts
 # --------------------------------------------------------------------------------------------
 
+STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
+PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
+PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
+PUSH_OVERSHOOT = 0.04  # a push ends this far [rad] past closed (pressing the part onto its stop)
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 ENOUGH = 0.12       # a swing may stop this fraction of its sweep short of the goal when the arm runs out
@@ -295,11 +299,12 @@ _FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(f
 _FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
 
 
-def grasp_rotation(part: ArticulatedPart, pitch: float) -> np.ndarray:
+def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False) -> np.ndarray:
     """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
-    pitched ``pitch`` [rad] down, fingers closing across the bar."""
+    pitched ``pitch`` [rad] down, fingers closing across the bar (``push``: along it, so that the
+    hand's width runs parallel to the bar)."""
     vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
-    base = _FINGERS_HORIZONTAL if vertical_bar else _FINGERS_VERTICAL
+    base = _FINGERS_HORIZONTAL if vertical_bar != push else _FINGERS_VERTICAL
     return _rz(_heading(-np.asarray(part.front))) @ _ry(pitch) @ base
 
 
@@ -393,22 +398,6 @@ def choose_base(d, part: ArticulatedPart, grid, candidates, targets_of) -> tuple
                         f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
 
 
-def _release(d, back: float = 0.08) -> None:
-    """Open the hand and back it off ``back`` [m] along its approach axis (if reachable)."""
-    from stages.demos.experts import APPROACH_TOL, ExpertFailure
-    from stages.simulate.control import Clik, pose
-
-    d.grip(0.0, 0.5)
-    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
-    x, y, yaw = d.sim.spawn
-    to_world = np.linalg.inv(Clik.world_to_root((x, y, yaw), np.eye(4)))
-    w = to_world @ d.ik.fk(q)
-    try:
-        d.move(pose(w[:3, 3] - back * w[:3, 2], w[:3, :3]), 0.6, segments=1, tol=APPROACH_TOL)
-    except ExpertFailure as e:
-        log.info("no straight back-off from the handle (%s)", e)
-
-
 def _drawer_pitch(z: float) -> float:
     """Gripper pitch [rad] for a handle at height ``z`` [m]: level at shoulder height, pointing
     further down for low handles."""
@@ -443,7 +432,7 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.6)
     _slide(d, (q0 - q1) + (0.01 if q1 < q0 else 0.0))
-    _release(d)
+    _retreat_from_leaf(part, d, q1, grid)
     d.home(1.0)
 
 
@@ -484,58 +473,202 @@ def _door_pitch(z: float) -> float:
     return math.radians(float(np.clip(35.0 - (z - 0.3) * 45.0, -25.0, 40.0)))
 
 
-def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0) -> None:
-    """Grasp the handle at q0, carry it along its arc to q1 in ``step_deg`` steps, release, back off."""
-    from stages.demos.experts import APPROACH_TOL, ExpertFailure
+def reach_count(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> int:
+    """How many of ``targets`` (4x4 world poses, in order) CLIK reaches one after the other from a
+    base at ``base`` (the first with random restarts, then warm-started, as the swing runs)."""
+    from stages.simulate.control import Clik
 
-    step = math.copysign(math.radians(step_deg), q1 - q0)
-    qs = [float(q) for q in np.arange(q0 + step, q1 + 0.5 * step, step)]
+    q = _base_q(d, base)
+    for k, t in enumerate(targets):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
+                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
+        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+            return k
+        q = res.q
+    return len(targets)
 
-    def targets(base, pitch):
-        return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch),
-                *(handle_pose(part, q, pitch) for q in qs)]
+
+def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
+    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-0.95 m
+    around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
+    the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
+    from stages.demos.experts import ROBOT_RADIUS
+
+    blocked = grid.inflate(ROBOT_RADIUS)
+    h0 = part.handle_at(q0)
+    mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
+    f = part.front_at(q0)
+    f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
+    out = []
+    for rho in (0.55, 0.65, 0.75, 0.85, 0.95):
+        for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
+            c, s_ = math.cos(phi), math.sin(phi)
+            v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
+            xy = h0[:2] + rho * v
+            if not _free(grid, blocked, float(xy[0]), float(xy[1])):
+                continue
+            to_mid = _heading(mid[:2] - xy)
+            reach = float(np.linalg.norm(mid[:2] - xy))
+            for dyaw in (0.0, 0.4, -0.4):
+                yaw = to_mid + dyaw
+                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
+                if not _free(grid, blocked, float(stage[0]), float(stage[1])):
+                    continue
+                out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
+    out.sort(key=lambda t: t[0])
+    return [b for _, b in out]
+
+
+def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float = 0.0,
+             push: bool = False) -> np.ndarray:
+    """4x4 world gripper pose at the link point ``p_closed`` (3,) carried to joint value q, ``out``
+    [m] off the front face along its normal, turning with the part."""
+    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push)
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = part.point_at(p_closed, q) + out * part.front_at(q)
+    return m
+
+
+def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool):
+    """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
+    round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar.
+    Push (closed hand): on the front face 7 cm inboard of the bar, pressing along the arc."""
+    h = np.asarray(part.handle, float)
+    front0 = np.asarray(part.front, float)
+    if push:
+        face = h - (part.clearance + part.grip_width / 2) * front0 - PUSH_INBOARD * _lateral(part)
+        contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
+        arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
+        pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
+        around = PUSH_INBOARD + 0.12
+    else:
+        contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
+        pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
+        around = 0.12
+    approach = [pre, contact]
+    if part.kind == "revolute" and q0 - part.closed > 0.15 * part.travel:
+        edge = pre.copy()
+        edge[:3, 3] += around * (part.rotation_at(q0) @ _lateral(part))
+        approach.insert(0, edge)
+    return approach, arc
+
+
+def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70):
+    """(base, pitch, n): the base pose and gripper pitch from which the approach at q0 and the
+    first n waypoints of ``qs`` are reachable, n as large as found (all of them ends the search)."""
+    from stages.demos.experts import ExpertFailure
 
     z = float(part.handle_at(q0)[2])
-    if abs(float(np.asarray(part.axis)[2])) > 0.7:
-        p0 = _door_pitch(z)
-        cands = [(dn, dl, dyaw, p0 + dp) for dp in (0.0, math.radians(-15), math.radians(15))
-                 for dyaw in (0.3, 0.5, 0.0, 0.8) for dn in (0.6, 0.7, 0.5, 0.8) for dl in (0.2, 0.35, 0.1, 0.5, 0.0)]
-    else:
-        p0 = _drawer_pitch(z)
-        cands = [(dn, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-15), math.radians(15))
-                 for dn in (0.6, 0.7, 0.8, 0.9, 0.5) for dl in (0.0, 0.1, -0.1, 0.2, -0.2)]
-    lo, hi = min(q0, q1), max(q0, q1)
-    plan = swept_grid(grid, part, lo, hi)
-    base, pitch = choose_base(d, part, plan, cands, targets)
-    d.drive_to(base, swept_grid(grid, part, q0, q0))
-    d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
-    d.grip(1.0, 0.6)
-    for q in qs:
-        try:
-            _move(d, handle_pose(part, q, pitch), 0.4, tol=SWING_TOL)
-            log.debug("%s: swing %.3f -> %.3f", part.joint_path, q, d.sim.joint_q_of_path(part.joint_path))
-        except ExpertFailure:
-            # the base gives a little under the door's pull: far enough along, stop here
-            if abs(q - q1) > ENOUGH * abs(q1 - q0):
-                raise
-            log.info("%s: swing stopped at %.2f of %.2f", part.joint_path, q, q1)
+    vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
+    p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
+    best = (None, 0.0, -1)
+    checks = 0
+    for base in _swing_bases(part, grid, q0, qs):
+        for pitch in (p0, p0 - math.radians(15), p0 + math.radians(15)):
+            approach, arc = _gesture(part, q0, qs, pitch, push)
+            n = reach_count(d, base, approach + arc) - len(approach)
+            checks += 1
+            if n > best[2]:
+                best = (base, pitch, n)
+            if n == len(qs):
+                return best
+            if checks >= max_checks:
+                break
+        if checks >= max_checks:
             break
-    log.info("%s: swung to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
-    _retreat_from_leaf(part, d, q)
-    log.info("%s: after retreat %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
-    d.home(1.0)
+    if best[0] is None or best[2] < 0:
+        raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
+    return best
 
 
-def _retreat_from_leaf(part: ArticulatedPart, d, q: float) -> None:
+def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 3,
+           push: bool = False) -> None:
+    """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
+    ``push``, pressing the front face with the closed hand). Each stage drives to the base pose
+    that reaches the longest part of the remaining arc, takes hold, swings, lets go and backs
+    off; the part stays where it was left (damped joint) and the next stage starts from there."""
+    from stages.demos.experts import APPROACH_TOL, ExpertFailure
+
+    opening = q1 > q0
+    done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
+
+    def done(q):
+        return q >= done_at if opening else q <= done_at
+
+    q = q0
+    for stage in range(max_stages):
+        step = math.copysign(math.radians(step_deg), q1 - q)
+        qs = [float(v) for v in np.arange(q + step, q1 + 0.5 * step, step)]
+        if push:
+            qs.append(part.closed - PUSH_OVERSHOOT)
+        plan = swept_grid(grid, part, min(q, q1), max(q, q1))
+        base, pitch, n = _plan_stage(d, part, plan, q, qs, push)
+        if n < 2 and not done(qs[max(n - 1, 0)]):
+            raise ExpertFailure("no_base_pose", f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
+        log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
+                 tuple(round(v, 2) for v in base), pitch, n, len(qs))
+        d.drive_to(base, swept_grid(grid, part, q, q))
+        approach, arc = _gesture(part, q, qs, pitch, push)
+        if push:
+            d.grip(1.0, 0.4)
+        d.move(approach[0], 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+        for t in approach[1:-1]:
+            _move(d, t, 0.8, tol=APPROACH_TOL)
+        _move(d, approach[-1], 1.0, segments=2, settle=0.2)
+        if not push:
+            d.grip(1.0, 0.6)
+        log.debug("%s: at the part: hand %s handle %s (q %.3f)", part.joint_path, np.round(_tcp_world(d), 3),
+                  np.round(part.handle_at(d.sim.joint_q_of_path(part.joint_path)), 3),
+                  d.sim.joint_q_of_path(part.joint_path))
+        last = q
+        for qw, t in zip(qs[:n], arc[:n], strict=True):
+            try:
+                _move(d, t, 0.4, tol=SWING_TOL)
+            except ExpertFailure:
+                log.info("%s: swing stopped at %.2f", part.joint_path, qw)
+                break
+            last = qw
+            log.debug("%s: swing %.3f -> %.3f", part.joint_path, qw, d.sim.joint_q_of_path(part.joint_path))
+        _retreat_from_leaf(part, d, last, grid)
+        log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
+        d.home(1.0)
+        q = d.sim.joint_q_of_path(part.joint_path)
+        log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
+        if done(q):
+            return
+    raise ExpertFailure("not_reached", f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _tcp_world(d) -> np.ndarray:
+    """World position (3,) of the end-effector frame in the simulation now."""
+    from stages.simulate.control import Clik
+
+    m = np.linalg.inv(Clik.world_to_root(d.sim.spawn, np.eye(4))) @ d.ik.fk(d.ik.from_sim(d.sim))
+    return m[:3, 3]
+
+
+def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid) -> None:
     """Release the handle and take the hand clear of the leaf with base motions (arm held): back
-    along the approach axis, then out past the leaf's free edge (an arm wrapped round an opened
-    door's edge would sweep it shut when tucked)."""
+    along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
+    edge (an arm wrapped round an opened door's edge would sweep it shut when tucked) as far as
+    the room allows (up to 0.35 m)."""
+    from stages.demos.experts import ROBOT_RADIUS
+    from stages.demos.record import base_pose
+
     d.grip(0.0, 0.5)
     w = _ee_world(d)
     _base_shift(d, -0.08 * w[:3, 2])
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
-        _base_shift(d, 0.35 * (part.rotation_at(q) @ _lateral(part)))
+        e = part.rotation_at(q) @ _lateral(part)
+        blocked = grid.inflate(ROBOT_RADIUS - 0.08)
+        x, y, _ = base_pose(d.sim)
+        dist = 0.0
+        for s_ in np.arange(0.05, 0.351, 0.05):
+            if not _free(grid, blocked, x + s_ * e[0], y + s_ * e[1]):
+                break
+            dist = float(s_)
+        _base_shift(d, dist * e)
 
 
 def _base_shift(d, delta, speed: float = 0.12) -> None:
@@ -598,4 +731,5 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     if part.kind == "prismatic":
         _drawer(part, d, grid, start, part.closed)
     else:
-        _swing(part, d, grid, start, part.closed)
+        vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
+        _swing(part, d, grid, start, part.closed, push=vertical)
