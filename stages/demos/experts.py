@@ -1,12 +1,13 @@
 """Scripted experts: one per task, driving the mobile Panda in a :class:`~stages.simulate.world.Sim`.
 
-Every expert first drives the base to a task pose (A* over the room's occupancy grid, then the
+Every expert first drives the base to a task pose (A* over the world's occupancy grid, then the
 pure-pursuit follower of :mod:`stages.demos.planner`; mode 0, locomotion), then manipulates
 (mode 1): end-effector motions are straight Cartesian segments solved by CLIK
-(``stages.simulate.control.move_ee``), grasps come from the object's geometry (the mug's body
-diameter and height, the block's faces) or the furniture's handle (bar position and the joint's
-axis: drawers are pulled along the prismatic axis by backing the base away, doors follow their
-hinge arc with the gripper turning with the door).
+(``stages.simulate.control.move_ee``). Grasps come from the catalog asset's geometry (its
+generated.json parameters: the mug's body radius and height, the pushed object's bounds) and the
+world's facts (support heights, the microwave's cavity and button). The mug is grasped top-down
+across its body on the table (bowl task) and from the side, hand horizontal, for the microwave
+tasks (a top-down hand does not fit under the cavity's ceiling).
 
 An expert raises :class:`ExpertFailure` with a short reason ("no_path", "ik_unreachable",
 "drive_timeout", ...) when it cannot finish; the task's success predicate decides the rest.
@@ -23,14 +24,14 @@ import numpy as np
 
 from stages.demos.planner import NavGrid, NoPathError, PathFollower, plan_path
 from stages.demos.record import Commands, Recorder, base_pose
-from stages.demos.sampling import BLOCK_SIZE, TABLE_SIZE, TaskInstance
+from stages.demos.sampling import TaskInstance
+from stages.demos.tasks import TASKS
 
 log = logging.getLogger(__name__)
 
 ROBOT_RADIUS = 0.40  # planning footprint radius of the base with the arm tucked [m]
 APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retreat waypoints [m]
-# fingertip centre above the mug's base (25 mm below the rim of the 0.8-scaled mug) [m]
-MUG_GRASP_HEIGHT = 0.059
+RIM_CLEARANCE = 0.025  # top-down grasp: fingertip centre below the mug's rim [m]
 
 
 class ExpertFailure(RuntimeError):
@@ -106,6 +107,7 @@ class Driver:
 
     def home(self, duration: float = 1.0) -> None:
         """Arm joint targets back to the tucked home configuration (linear in joint space)."""
+        self.cmd.mode = 1
         q0 = self.ctl.arm_targets()
         q1 = np.asarray(self.sim.desc.arm_home, float)
         n = max(1, int(duration / self.frame_dt))
@@ -127,6 +129,17 @@ class Driver:
             raise ExpertFailure("no_path", str(e)) from None
         path = np.vstack([path, [gx, gy]])
         self.plan_seconds += time.perf_counter() - t0
+        self.follow(path, gyaw, timeout=timeout)
+
+    def drive_straight(self, goal: tuple[float, float, float], *, timeout: float = 10.0) -> None:
+        """Drive the base in a straight line to ``goal`` (x, y, yaw), no planning (the last metre
+        in front of furniture, where the inflated grid is blocked)."""
+        x, y, _ = base_pose(self.sim)
+        self.follow(np.array([[x, y], goal[:2]], float), goal[2], timeout=timeout)
+
+    def follow(self, path: np.ndarray, gyaw: float, *, timeout: float = 15.0) -> None:
+        """Follow ``path`` (N, 2) [m] to its end, turning to ``gyaw`` [rad]; mode 0 (locomotion)."""
+        goal = (*path[-1], gyaw)
         follower = PathFollower(path, gyaw)
         self.cmd.mode = 0
         t_end = self.sim.time + timeout
@@ -144,9 +157,8 @@ class Driver:
         self.step(0.1)
 
 
-def _grid(inst: TaskInstance, door_open: bool = False) -> NavGrid:
-    r = inst.room
-    return NavGrid.from_boxes((-0.2, -0.2, r.size[0] + 0.2, r.size[1] + 0.2), r.nav_boxes(door_open))
+def _grid(inst: TaskInstance) -> NavGrid:
+    return inst.world.grid()
 
 
 def _pose(p, rot) -> np.ndarray:
@@ -155,10 +167,35 @@ def _pose(p, rot) -> np.ndarray:
     return pose(np.asarray(p, float), rot)
 
 
-def _table_goal(inst: TaskInstance, x: float) -> tuple[float, float, float]:
-    """Base pose facing the table (+Y) from its -Y side, 0.10 m between chassis front and table edge."""
-    edge = inst.room.table_xy[1] - TABLE_SIZE[1] / 2
-    return (x, edge - 0.10 - 0.30, math.pi / 2)
+def facing_north_goal(front_y: float, x: float, gap: float = 0.08) -> tuple[float, float, float]:
+    """Base pose facing +Y with the chassis front ``gap`` [m] before the obstacle face at ``front_y``."""
+    return (x, front_y - gap - 0.30, math.pi / 2)
+
+
+def side_rot(pitch_deg: float = 0.0) -> np.ndarray:
+    """Hand pointing along world +Y (tool Z), pitched down ``pitch_deg``, fingers closing along world X."""
+    p = math.radians(pitch_deg)
+    z = np.array([0.0, math.cos(p), -math.sin(p)])
+    y = np.array([1.0, 0.0, 0.0])
+    return np.stack([np.cross(y, z), y, z], axis=1)
+
+
+def _mug(inst: TaskInstance) -> tuple[str, float, float]:
+    w = inst.world
+    return w.placed["mug"].body(), w.mug_radius, w.mug_height
+
+
+def _retreat(d: Driver, back: float = 0.15) -> None:
+    """Open the hand, back it off ``back`` [m] along its approach axis, tuck the arm."""
+    d.grip(0.0, 0.5)
+    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+    cur = d.ik.fk(q)
+    x, y, yaw = d.sim.spawn
+    c, s = math.cos(yaw), math.sin(yaw)
+    to_world = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    w = to_world @ cur
+    d.move(_pose(w[:3, 3] - back * w[:3, 2], w[:3, :3]), 0.8, segments=2, tol=APPROACH_TOL)
+    d.home(1.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,21 +203,23 @@ def _table_goal(inst: TaskInstance, x: float) -> tuple[float, float, float]:
 # --------------------------------------------------------------------------------------------
 
 def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
-    """Drive to the table, grasp the mug top-down across its body, lift, carry over the bowl,
-    lower, release, retreat."""
+    """Drive to the table, grasp the mug top-down across its body (fingers along world X, the
+    handle points away), lift, carry over the bowl, lower, release, retreat."""
     from stages.simulate.control import top_down
 
-    bowl = np.asarray(inst.room.bowl_xy)
-    mug = np.asarray(inst.mug_xy)
-    d.drive_to(_table_goal(inst, float((mug[0] + bowl[0]) / 2)), _grid(inst))
-    top = inst.room.table_height
-    rot = top_down(0.0)  # fingers close along world y; the handle (+x) stays clear
-    grasp = np.array([mug[0], mug[1], top + 0.001 + MUG_GRASP_HEIGHT])
+    w = inst.world
+    body, _, h = _mug(inst)
+    mug = np.asarray(inst.objects[body][:2])
+    bowl = np.asarray(inst.target)
+    d.drive_to(facing_north_goal(w.table_rect[1], float((mug[0] + bowl[0]) / 2)), _grid(inst))
+    top = w.table_z
+    rot = top_down(math.pi / 2)
+    grasp = np.array([mug[0], mug[1], top + 0.002 + h - RIM_CLEARANCE])
     d.move(_pose(grasp + [0, 0, 0.12], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(grasp, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2)
-    place = np.array([bowl[0], bowl[1], top + 0.006 + MUG_GRASP_HEIGHT + 0.02])
+    place = np.array([bowl[0], bowl[1], top + 0.012 + h - RIM_CLEARANCE + 0.02])
     d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
     d.grip(0.0, 0.6)
@@ -188,18 +227,115 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.home(1.0)
 
 
+def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray | None = None,
+                     lift: float = 0.12, reach: float = 0.35) -> None:
+    """Bring the base in front of the counter at ``x`` facing +Y: A* to a pose 0.6 m back, raise
+    the hand to ``lift`` [m] above the counter top, ``reach`` [m] ahead of the base (the tucked arm
+    would hit the counter's front), then drive the last 0.6 m straight in."""
+    w = inst.world
+    goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
+    stage = (goal[0], goal[1] - 0.6, goal[2])
+    d.drive_to(stage, _grid(inst), approach=0.0)
+    bx, by, th = base_pose(d.sim)
+    ready = np.array([bx + reach * math.cos(th), by + reach * math.sin(th), w.counter_z + lift])
+    d.move(_pose(ready, side_rot(0.0) if rot is None else rot), 1.5, segments=3, tol=APPROACH_TOL)
+    d.drive_straight(goal)
+
+
+def _side_pick(d: Driver, at: np.ndarray, rot: np.ndarray, lift: float, pre: float = 0.14) -> np.ndarray:
+    """Side grasp of the mug whose grasp point is ``at`` (3,): in front, in, close, lift ``lift`` [m];
+    returns the lifted TCP position."""
+    approach = rot[:, 2]
+    d.grip(0.0, 0.1)
+    d.move(_pose(at - pre * approach, rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(at, rot), 1.0, segments=2, settle=0.2)
+    d.grip(1.0, 0.8)
+    up = at + [0, 0, lift]
+    d.move(_pose(up, rot), 0.6, segments=1)
+    return up
+
+
+SIDE_PITCH = 15.0  # side grasps: hand pitched down [deg] so the wrist clears the counter's edge
+SIDE_HEIGHT = 0.45  # side grasps: TCP at this fraction of the mug's height
+
+
+def _microwave_front(inst: TaskInstance) -> float:
+    """World y of the microwave's front (its bounds, door closed) [m]."""
+    return inst.world.placed["microwave"].footprint()[1]
+
+
+def pick_place_microwave(inst: TaskInstance, d: Driver) -> None:
+    """From the counter beside the opened microwave: side-grasp the mug (hand pitched 20 deg down,
+    from the front), lift 3 cm, carry it in front of the cavity, slide it in, lower, release, back out."""
+    w = inst.world
+    body, r, h = _mug(inst)
+    start = np.asarray(inst.objects[body][:3], float)
+    tgt = np.asarray(inst.target, float)
+    approach_counter(inst, d, float((start[0] + tgt[0]) / 2))
+    rot = side_rot(SIDE_PITCH)
+    gz = SIDE_HEIGHT * h
+    _side_pick(d, start + [0.0, -0.003, gz], rot, 0.03)
+    front = _microwave_front(inst)
+    z = w.cavity_z + gz + 0.025
+    d.move(_pose([start[0], front - 0.10, z], rot), 1.0, segments=2, tol=APPROACH_TOL)
+    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3, tol=APPROACH_TOL)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.5, segments=3)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.02], rot), 0.5, segments=1, settle=0.2)
+    d.grip(0.0, 0.6)
+    d.move(_pose([tgt[0], front - 0.12, z], rot), 1.2, segments=3, tol=APPROACH_TOL)
+    leave_counter(inst, d)
+
+
+def pick_from_microwave(inst: TaskInstance, d: Driver) -> None:
+    """Out of the opened microwave onto the counter beside it: reach in (hand pitched 20 deg down),
+    grasp the mug from the front, lift 2 cm, pull it out, carry it over the spot, lower, release,
+    back off."""
+    w = inst.world
+    body, r, h = _mug(inst)
+    start = np.asarray(inst.objects[body][:3], float)
+    tgt = np.asarray(inst.target, float)
+    approach_counter(inst, d, float((start[0] + tgt[0]) / 2))
+    rot = side_rot(SIDE_PITCH)
+    gz = SIDE_HEIGHT * h
+    front = _microwave_front(inst)
+    d.grip(0.0, 0.1)
+    d.move(_pose([start[0], front - 0.10, start[2] + gz], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
+    up = _side_pick(d, start + [0.0, -0.003, gz], rot, 0.02, pre=0.0)
+    d.move(_pose([up[0], front - 0.10, up[2]], rot), 1.5, segments=3)
+    z = w.counter_z + gz + 0.02
+    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.0, segments=2)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.015], rot), 0.5, segments=1, settle=0.2)
+    d.grip(0.0, 0.6)
+    d.move(_pose([tgt[0], tgt[1] - 0.15, z], rot), 1.0, segments=2, tol=APPROACH_TOL)
+    leave_counter(inst, d)
+
+
+def _half_extent(inst: TaskInstance, role: str, yaw: float, direction) -> float:
+    """Half extent [m] of a placed asset's bounds, turned by ``yaw``, along the unit ``direction`` (2,)."""
+    a = inst.world.placed[role].asset
+    corners = np.array([[x, y] for x in (a.lo[0], a.hi[0]) for y in (a.lo[1], a.hi[1])])
+    c, s = math.cos(yaw), math.sin(yaw)
+    pts = corners @ np.array([[c, s], [-s, c]])
+    return float(np.max(-(pts @ np.asarray(direction))))
+
+
 def push_object(inst: TaskInstance, d: Driver) -> None:
-    """Drive to the table, close the hand, lower it behind the block (on the side facing the
-    robot), push it 16 cm along +Y at table level, lift away."""
+    """Drive to the table, close the hand, lower it behind the object (on the robot's side, from its
+    bounds), push it 16 cm along +Y at 2 cm above the table, lift away."""
     from stages.simulate.control import top_down
 
-    b = np.asarray(inst.block_xy)
+    w = inst.world
+    body = w.placed["pusher"].body()
+    x, y, _, yaw = inst.objects[body]
+    b = np.array([x, y])
     dirn = np.asarray(inst.push_direction, float)
-    d.drive_to(_table_goal(inst, float(b[0])), _grid(inst))
+    d.drive_to(facing_north_goal(w.table_rect[1], float(b[0])), _grid(inst))
     rot = top_down(math.pi / 2)  # fingers close along x: the pads face the push direction
     d.grip(1.0, 0.4)
-    z = inst.room.table_height + 0.022
-    start = np.array([*(b - dirn * (BLOCK_SIZE / 2 + 0.035)), z])
+    a = w.placed["pusher"].asset
+    z = w.table_z + float(np.clip(0.5 * (a.hi[2] - a.lo[2]), 0.015, 0.022))
+    start = np.array([*(b - dirn * (_half_extent(inst, "pusher", yaw, dirn) + 0.03)), z])
     d.move(_pose(start + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(start, rot), 0.8, segments=2, settle=0.1)
     end = start + np.array([*(dirn * 0.16), 0.0])
@@ -209,134 +345,57 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     d.home(1.0)
 
 
-def _drawer_rot(pitch: float = 20.0) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    # gripper pointing at the cabinet (+X), pitched ``pitch`` deg down, fingers closing vertically
-    return Rotation.from_euler("y", pitch, degrees=True).as_matrix() @ np.stack(
-        [[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
-
-
-def _grasp_drawer(inst: TaskInstance, d: Driver, opening: float) -> np.ndarray:
-    """Drive in front of the drawer (its handle ``opening`` [m] out), grasp the bar; returns the
-    handle position."""
-    h = np.asarray(inst.room.drawer_handle) - [opening, 0.0, 0.0]
-    d.drive_to((float(h[0] - 0.75), float(h[1]), 0.0), _grid(inst))
-    rot = _drawer_rot()
-    d.move(_pose(h + [-0.12, 0, 0], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(h, rot), 1.0, segments=2, settle=0.2)
-    d.grip(1.0, 0.6)
-    return h
-
-
-def _slide_base(d: Driver, distance: float, speed: float = 0.12) -> None:
-    """Move the base straight along its heading by ``distance`` [m] (negative: backwards), arm held."""
-    d.cmd.mode = 1
-    d.base((math.copysign(speed, distance), 0.0, 0.0))
-    d.step(abs(distance) / speed)
-    d.base((0.0, 0.0, 0.0))
-    d.step(0.3)
-
-
-def _release_and_back(d: Driver) -> None:
-    """Open the hand, back it off 8 cm along its approach axis, tuck the arm."""
-    d.grip(0.0, 0.6)
-    from stages.simulate.control import pose
-
-    # back the hand off 8 cm along its approach axis, then tuck the arm
-    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
-    cur = d.ik.fk(q)
-    x, y, yaw = d.sim.spawn
-    c, s = math.cos(yaw), math.sin(yaw)
-    to_world = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-    w = to_world @ cur
-    back = w[:3, 3] - 0.08 * w[:3, 2]
-    try:
-        d.move(pose(back, w[:3, :3]), 0.6, segments=1, tol=APPROACH_TOL)
-    except ExpertFailure as e:
-        log.info("no straight back-off from the handle (%s); tucking the arm directly", e)
-    d.home(1.0)
-
-
-def open_drawer(inst: TaskInstance, d: Driver) -> None:
-    """Grasp the drawer's bar, back the base away along the drawer's axis by 90% of the travel, release."""
-    _grasp_drawer(inst, d, 0.0)
-    _slide_base(d, -0.9 * inst.room.drawer_travel)
-    _release_and_back(d)
-
-
-def close_drawer(inst: TaskInstance, d: Driver) -> None:
-    """Grasp the bar of the open drawer, drive the base forward by the opening, release."""
-    from stages.demos.tasks import DRAWER_JOINT
-
-    opening = -inst.joints[DRAWER_JOINT]
-    _grasp_drawer(inst, d, opening)
-    _slide_base(d, opening + 0.005)
-    _release_and_back(d)
-
-
-def _door_frames(inst: TaskInstance):
-    from scipy.spatial.transform import Rotation
-
-    h, hinge = np.asarray(inst.room.door_handle), np.asarray(inst.room.door_hinge)
-    grip = Rotation.from_euler("y", 35, degrees=True).as_matrix() @ np.stack(
-        [[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
-
-    def handle_pose(theta: float, back: float = 0.0) -> np.ndarray:
-        rz = Rotation.from_euler("z", theta).as_matrix()
-        p = hinge + rz @ (h - hinge)
-        p[2] = h[2]
-        rot = rz @ grip
-        return _pose(p - back * rot[:, 2], rot)
-
-    return hinge, handle_pose
-
-
-def _swing_door(inst: TaskInstance, d: Driver, theta0: float, theta1: float, back: float = 0.12) -> None:
-    hinge, handle_pose = _door_frames(inst)
-    d.drive_to((float(hinge[0] - 0.655), float(hinge[1] - 0.58), 0.3), _grid(inst, door_open=theta0 != 0.0))
-    d.move(handle_pose(theta0, back), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(handle_pose(theta0), 1.0, segments=2, settle=0.2)
-    d.grip(1.0, 0.6)
-    step = math.copysign(math.radians(6.0), theta1 - theta0)
-    for th in np.arange(theta0 + step, theta1 + 0.5 * step, step):
-        d.move(handle_pose(float(th)), 0.4, segments=1)
-    if theta1 != 0.0:
-        # the arm ends wrapped around the open door's free edge at its joint limits: no straight
-        # retreat is reachable and tucking would sweep the door shut, so the episode ends released
-        d.grip(0.0, 0.6)
-        return
-    _release_and_back(d)
-
-
-def open_door(inst: TaskInstance, d: Driver) -> None:
-    """Grasp the door's vertical bar, carry it along the hinge arc to 86 deg in 6 deg steps, release."""
-    _swing_door(inst, d, 0.0, -math.radians(86.0))
-
-
-def close_door(inst: TaskInstance, d: Driver) -> None:
-    """Grasp the bar of the open door, carry it back along the hinge arc to closed, release."""
-    from stages.demos.tasks import DOOR_JOINT
-
-    _swing_door(inst, d, float(inst.joints[DOOR_JOINT]), 0.0, back=0.06)
-
-
 def press_button(inst: TaskInstance, d: Driver) -> None:
-    """Drive in front of the control panel, close the hand, point it at the button (tool axis +X,
-    fingers vertical), push the fingertips 12 mm past the button's rest face, pull back, tuck."""
-    b = np.asarray(inst.room.button)
-    d.drive_to((float(b[0] - 0.72), float(b[1]), 0.0), _grid(inst))
-    rot = _drawer_rot(pitch=10.0)
+    """Drive in front of the microwave's button, close the hand, point it at the button (pitched
+    25 deg down so the hand clears the counter top), push the fingertips in 1 mm steps until the
+    button is in by 80% of its travel (at most 25 mm past its face), pull back, leave."""
+    w = inst.world
+    b = np.asarray(w.button, float)
+    push = np.asarray(w.button_push, float)
+    joint = w.placed["microwave"].joint("button_joint")
+    approach_counter(inst, d, float(b[0]))
+    rot = side_rot(25.0)
     d.grip(1.0, 0.4)
-    d.move(_pose(b + [-0.10, 0, 0], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(b + [-0.01, 0, 0], rot), 0.6, segments=1)
-    d.move(_pose(b + [inst.room.button_travel + 0.002, 0, 0], rot), 0.8, segments=2, settle=0.3)
-    d.move(_pose(b + [-0.10, 0, 0], rot), 0.8, segments=2, tol=APPROACH_TOL)
+    d.move(_pose(b - 0.10 * push, rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(b - 0.015 * push, rot), 0.6, segments=1)
+    depth = -0.015
+    while d.sim.joint_q_of_path(joint) < 0.8 * w.button_travel and depth < 0.025:
+        depth += 0.001
+        d.move(_pose(b + depth * push, rot), 0.08, segments=1)
+    d.step(0.2)
+    d.move(_pose(b - 0.10 * push, rot), 1.0, segments=2, tol=APPROACH_TOL)
     d.grip(0.0, 0.3)
+    leave_counter(inst, d)
+
+
+def leave_counter(inst: TaskInstance, d: Driver) -> None:
+    """Raise the hand to the approach pose (clear of the counter), back the base 0.6 m away, tuck."""
+    w = inst.world
+    bx, by, th = base_pose(d.sim)
+    ready = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + 0.12])
+    d.move(_pose(ready, side_rot(0.0)), 1.2, segments=3, tol=APPROACH_TOL)
+    d.drive_straight((bx - 0.6 * math.cos(th), by - 0.6 * math.sin(th), th))
     d.home(1.0)
 
 
-EXPERTS = {"pick_place_bowl": pick_place_bowl, "push_object": push_object, "open_drawer": open_drawer,
-           "close_drawer": close_drawer, "open_door": open_door, "close_door": close_door,
-           "press_button": press_button}
+def open_articulated(inst: TaskInstance, d: Driver) -> None:
+    """Open the instance's part (door or drawer) with :func:`stages.demos.articulated.open_part`."""
+    from stages.demos.articulated import open_part
 
+    open_part(inst.part, d, _grid(inst))
+
+
+def close_articulated(inst: TaskInstance, d: Driver) -> None:
+    """Close the instance's part from its initial opening (:func:`stages.demos.articulated.close_part`)."""
+    from stages.demos.articulated import close_part
+
+    close_part(inst.part, d, _grid(inst), start=float(inst.joints[inst.part.joint_path]))
+
+
+EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
+           "pick_from_microwave": pick_from_microwave, "push_object": push_object, "press_button": press_button}
+for _name in TASKS:
+    if _name.startswith("open_"):
+        EXPERTS[_name] = open_articulated
+    elif _name.startswith("close_"):
+        EXPERTS[_name] = close_articulated

@@ -1,23 +1,26 @@
 """The ``demos`` job kind: scripted demonstrations of the basic tasks, one dataset shard per item.
 
-Job file::
+Job file (after a ``default_catalog`` step and an ``ingest`` step of the same job)::
 
     [[step]]
     name = "demos"
     kind = "demos"
     [step.config]
-    shared_assets = "../shared/assets"      # the Panda description and the mug mesh
+    catalog_step = "catalog"    # the default_catalog step (its generated.json: surfaces, handles, joints)
+    assets_step = "assets"      # the ingest step of that catalog (the USD packages, referenced)
     tasks = ["pick_place_bowl", "open_drawer"]   # default: every basic task
-    worlds = 1                  # worlds (scene variants) per task; one item = one shard
+    worlds = 1                  # worlds (kitchen variants) per task; one item = one shard
     episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
     width = 128
     height = 96
+    # panda_root = "..."        # the Panda description's root (default: pip example-robot-data)
 
-Items are ``<task>_w<k>``: each authors its world (table position, bowl, block, materials from the
-world's seed, shared by every task with the same ``k``), builds the simulation, runs
-``episodes_per_shard`` episodes of the scripted expert (seeds from the item's seed) and writes one
-complete shard to ``<out>/<step>/<item>/dataset`` through :mod:`stages.dataset`. ``finalize`` merges
-the shards into ``<out>/datasets/<step>`` (LeRobot v3.0, loadable with ``LeRobotDataset``) and writes
+Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
+:mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
+every task with the same ``k``), builds the simulation, runs ``episodes_per_shard`` episodes of the
+scripted expert (seeds from the item's seed) and writes one complete shard to
+``<out>/<step>/<item>/dataset`` through :mod:`stages.dataset`. ``finalize`` merges the shards into
+``<out>/datasets/<step>`` (LeRobot v3.0, loadable with ``LeRobotDataset``) and writes
 ``<out>/reports/<step>.json``: per task attempts, successes, success rate and failure reasons,
 plus recorded frames and the wall time per stage.
 """
@@ -36,10 +39,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
 from stages.demos.tasks import TASKS
 
+
 log = logging.getLogger(__name__)
 
 FN = "stages.demos.job:record_shard"
-PANDA_REL = "robots/franka_panda__example_robot_data"
 
 
 class _Strict(BaseModel):
@@ -47,12 +50,14 @@ class _Strict(BaseModel):
 
 
 class DemosConfig(_Strict):
-    """shared_assets: the third-party assets folder (Panda URDF + meshes, mug mesh); tasks: task
-    names (default all); worlds: worlds per task; episodes_per_shard: episodes per item; width,
-    height: camera image size [px]; fps; device: "cpu" or "cuda"; record_images: False writes
-    state/action only (no camera is rendered: a fast success-rate run)."""
+    """catalog_step: the default_catalog step (generated.json); assets_step: the ingest step of it
+    (packages); tasks: task names (default all); worlds: worlds per task; episodes_per_shard:
+    episodes per item; width, height: camera image size [px]; fps; device: "cpu" or "cuda";
+    record_images: False writes state/action only (no camera is rendered: a fast success-rate
+    run); panda_root: the Panda description's root (None: the pip package example-robot-data)."""
 
-    shared_assets: Path
+    catalog_step: str = "catalog"
+    assets_step: str = "assets"
     tasks: tuple[str, ...] = tuple(TASKS)
     worlds: int = Field(default=1, ge=1, le=10000)
     episodes_per_shard: int = Field(default=2, ge=1, le=1000)
@@ -61,6 +66,7 @@ class DemosConfig(_Strict):
     fps: int = Field(default=30, ge=1, le=120)
     device: str = "cpu"
     record_images: bool = True
+    panda_root: Path | None = None
 
     @field_validator("tasks")
     @classmethod
@@ -72,7 +78,8 @@ class DemosConfig(_Strict):
 
 
 class ShardParams(_Strict):
-    """One shard: task, world index and seed, episodes, image settings, the assets folder."""
+    """One shard: task, world index and seed, episodes, image settings, the catalog (generated.json
+    and the kitchen categories' package root layers by asset id), the Panda root."""
 
     task: str
     world: int
@@ -82,7 +89,9 @@ class ShardParams(_Strict):
     height: int
     fps: int
     device: str
-    shared_assets: str
+    generated: str
+    packages: dict[str, str]
+    panda_root: str | None = None
     record_images: bool = True
 
 
@@ -111,24 +120,61 @@ class ShardResult(_Strict):
     build_seconds: float
 
 
+def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[str, str]]:
+    """generated.json of the catalog step and the kitchen packages (asset id -> root layer) of the
+    assets step. Raises ItemError naming the job file and the step."""
+    import json
+
+    from stages.demos.kitchen import KITCHEN_CATEGORIES
+
+    cat = ctx.previous.get(config.catalog_step)
+    if not cat:
+        raise ItemError(f"{ctx.job_file}: demos step: catalog_step {config.catalog_step!r} has no results "
+                        f"(is it an earlier default_catalog step?)")
+    cat_dir = getattr(next(iter(cat.values())), "catalog_dir", None)
+    if cat_dir is None:
+        raise ItemError(f"{ctx.job_file}: demos step: step {config.catalog_step!r} does not produce a catalog_dir")
+    generated = Path(cat_dir) / "generated.json"
+    try:
+        info = json.loads(generated.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise ItemError(f"{generated}: cannot read the default catalog's records ({e})") from None
+    assets = ctx.previous.get(config.assets_step)
+    if not assets:
+        raise ItemError(f"{ctx.job_file}: demos step: assets_step {config.assets_step!r} has no results "
+                        f"(is it an earlier ingest step?)")
+    packages = {}
+    for r in assets.values():
+        aid = getattr(r, "asset_id", None)
+        if aid in info and info[aid].get("category") in KITCHEN_CATEGORIES:
+            packages[aid] = str((ctx.work_dir / r.usd_path).resolve())
+    if not packages:
+        raise ItemError(f"{ctx.job_file}: demos step: no kitchen package ({', '.join(KITCHEN_CATEGORIES)}) among "
+                        f"the {len(assets)} results of step {config.assets_step!r}")
+    return generated, packages
+
+
 def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | PlannedFailure]:
-    """One item per (task, world); the Panda URDF is an input file of every item."""
+    """One item per (task, world); the Panda URDF, generated.json and the packages are its inputs."""
     from stages.simulate.robot import PANDA_URDF_REL, find_panda_description
 
+    ids = [f"{t}_w{w:03d}" for t in config.tasks for w in range(config.worlds)]
     try:
-        urdf = find_panda_description(config.shared_assets / PANDA_REL) / PANDA_URDF_REL
+        urdf = find_panda_description(config.panda_root) / PANDA_URDF_REL
+        generated, packages = _catalog_inputs(config, ctx)
     except ItemError as e:
-        return [PlannedFailure(f"{t}_w{w:03d}", f"{ctx.job_file}: {e}") for t in config.tasks
-                for w in range(config.worlds)]
+        return [PlannedFailure(i, f"{ctx.job_file}: {e}" if str(ctx.job_file) not in str(e) else str(e))
+                for i in ids]
     items: list[WorkItem | PlannedFailure] = []
+    inputs = (urdf, generated, *sorted(Path(p) for p in packages.values()))
     for t in config.tasks:
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
-                                 shared_assets=str(config.shared_assets))
-            items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params,
-                                  input_files=(urdf,)))
+                                 generated=str(generated), packages=packages,
+                                 panda_root=None if config.panda_root is None else str(config.panda_root))
+            items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
 
 
@@ -139,30 +185,28 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     import numpy as np
 
     from stages.dataset import EpisodeInfo, open_shard
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
     from stages.demos.record import Timings
-    from stages.demos.sampling import sample_instance, write_task_room
+    from stages.demos.sampling import sample_instance
     from stages.demos.session import DemoSettings, DemoWorld
 
-    assets = Path(params.shared_assets)
-    if not (assets / PANDA_REL).is_dir():
-        raise ItemError(f"{assets}: no Panda description at {PANDA_REL}")
     t0 = time.perf_counter()
-    scene_id = f"demo_room_{params.world:03d}"
-    room = write_task_room(ctx.out_dir / "world", shared_assets=assets, scene_id=scene_id,
-                           rng=np.random.default_rng(params.world_seed))
+    scene_id = f"kitchen_{params.world:03d}"
+    lib = AssetLibrary.from_packages({k: Path(v) for k, v in params.packages.items()}, Path(params.generated))
+    world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id, rng=np.random.default_rng(params.world_seed))
     settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device,
                             record_images=params.record_images)
-    world = DemoWorld(room, panda_root=assets / PANDA_REL, work_dir=ctx.out_dir / "world", settings=settings,
-                      seed=params.world_seed)
+    sim = DemoWorld(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
+                    work_dir=ctx.out_dir / "world", settings=settings, seed=params.world_seed)
     build = time.perf_counter() - t0
     total, records, failures = Timings(), [], Counter()
     with open_shard(ctx.out_dir, "dataset", settings.dataset_spec()) as shard:
         for k in range(params.episodes):
             seed = derive_seed(ctx.seed, "episode", str(k)) % (2**62)
-            inst = sample_instance(params.task, room, seed)
+            inst = sample_instance(params.task, world, seed)
             shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,
                                             seed=seed, asset_ids=inst.asset_ids))
-            res = world.run_episode(inst, sink=shard.add_frame)
+            res = sim.run_episode(inst, sink=shard.add_frame)
             t1 = time.perf_counter()
             shard.end_episode(success=res.success, reason=res.reason)
             res.timings.writing += time.perf_counter() - t1

@@ -2,15 +2,16 @@
 
 ::
 
-    room = write_task_room(dir, shared_assets=..., scene_id="w0", rng=rng)
-    world = DemoWorld(room, panda_root=..., work_dir=dir, settings=DemoSettings())
-    inst = sample_instance("open_drawer", room, seed=7)
+    kitchen = write_kitchen(dir, library, scene_id="w0", rng=rng)
+    world = DemoWorld(kitchen, panda_root=None, work_dir=dir, settings=DemoSettings())
+    inst = sample_instance("press_button", kitchen, seed=7)
     result = world.run_episode(inst, sink=shard.add_frame)   # EpisodeResult
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,8 +20,9 @@ import numpy as np
 
 from stages.demos.experts import EXPERTS, Driver, ExpertFailure, timed_clik
 from stages.demos.record import Commands, EpisodeTimeout, Recorder, Timings
-from stages.demos.sampling import TaskInstance, TaskRoom
-from stages.demos.tasks import BLOCK, MUG, task
+from stages.demos.kitchen import KitchenWorld
+from stages.demos.sampling import TaskInstance
+from stages.demos.tasks import task
 
 log = logging.getLogger(__name__)
 
@@ -83,19 +85,48 @@ def set_coords(sim, values: dict[int, float]) -> None:
     sim.state_1.assign(sim.state_0)
 
 
-class DemoWorld:
-    """A simulation of one :class:`TaskRoom` with the robot, controllers, cameras and a recorder."""
+class JointPeaks:
+    """Pre-step callback: the largest value [m or rad] each watched scene joint (prim path) reached
+    during an episode (sampled every ``every`` physics steps), for predicates of momentary
+    events (a pressed button)."""
 
-    def __init__(self, room: TaskRoom, *, panda_root: Path, work_dir: Path, settings: DemoSettings,
+    def __init__(self, sim, paths, every: int = 5) -> None:
+        qs = sim.model.joint_q_start.numpy()
+        self.index = {p: int(qs[j]) for j, p in sim.scene.joint_path.items() if p in set(paths)}
+        self.peak: dict[str, float] = {}
+        self.every, self.active = every, False
+        sim.pre_step.append(self)
+
+    def start(self) -> None:
+        self.peak = {p: -math.inf for p in self.index}
+        self.active = True
+
+    def stop(self) -> None:
+        self.active = False
+
+    def __call__(self, sim) -> None:
+        if not self.active or not self.index or sim.steps % self.every:
+            return
+        q = sim.state_0.joint_q.numpy()
+        for p, i in self.index.items():
+            self.peak[p] = max(self.peak[p], float(q[i]))
+
+
+class DemoWorld:
+    """A simulation of one :class:`~stages.demos.kitchen.KitchenWorld` with the robot, controllers,
+    cameras and a recorder. ``panda_root``: the Panda description's package root (None: the pip
+    package example-robot-data)."""
+
+    def __init__(self, world: KitchenWorld, *, panda_root: Path | None, work_dir: Path, settings: DemoSettings,
                  seed: int = 0) -> None:
         from stages.simulate.control import RobotControl
-        from stages.simulate.robot import write_robot_urdf
+        from stages.simulate.robot import find_panda_description, write_robot_urdf
         from stages.simulate.world import SimConfig, build_sim
 
-        self.room, self.settings = room, settings
+        self.world, self.settings = world, settings
         t0 = time.perf_counter()
-        desc = write_robot_urdf(Path(work_dir) / "robot", panda_root=panda_root)
-        self.sim = build_sim(SimConfig(scenes=(room.usd,), spawn=(1.0, 2.0, 0.0), device=settings.device),
+        desc = write_robot_urdf(Path(work_dir) / "robot", panda_root=find_panda_description(panda_root))
+        self.sim = build_sim(SimConfig(scenes=(world.usd,), spawn=world.spawn, device=settings.device),
                              desc, np.random.default_rng(seed))
         self.ctl = RobotControl(self.sim)
         self.ik = timed_clik(desc)
@@ -103,8 +134,9 @@ class DemoWorld:
         self.rig = self._rig(desc) if settings.record_images else None
         self.recorder = Recorder(self.sim, self.ik, self.ctl, self.cmd, rig=self.rig, fps=settings.fps)
         self.build_seconds = time.perf_counter() - t0
-        self._mug = _free_joint_coords(self.sim, MUG)
-        self._block = _free_joint_coords(self.sim, BLOCK)
+        self._free = {p.body(): _free_joint_coords(self.sim, p.body())
+                      for k, p in world.placed.items() if k in ("mug", "bowl", "pusher")}
+        self.peaks = JointPeaks(self.sim, [world.placed["microwave"].joint("button_joint")])
         qs = self.sim.model.joint_q_start.numpy()
         self._scene_joint = {p: int(qs[j]) for j, p in self.sim.scene.joint_path.items()}
 
@@ -114,24 +146,22 @@ class DemoWorld:
         s = self.settings
         cams = [CameraSpec(name=n, width=s.width, height=s.height, vertical_fov=desc.cameras[n].vertical_fov,
                            link=desc.cameras[n].link) for n in ("wrist", "head")]
-        tx, ty = self.room.table_xy
-        eye, target = (0.5, 0.6, 2.3), ((tx + 3.9) / 2, (ty + 2.5) / 2, 0.5)
+        sx, sy = self.world.size
+        eye, target = (0.3, 0.3, 2.3), (0.6 * sx, 0.6 * sy, 0.6)
         cams.append(CameraSpec(name="third_person", width=s.width, height=s.height, vertical_fov=1.0,
                                pose=look_at(eye, target)))
         return CameraRig(self.sim, cams, segmentation=False)
 
     def reset(self, inst: TaskInstance) -> None:
-        """Robot at the instance's start pose, objects and cabinet joints at their initial values."""
+        """Robot at the instance's start pose, objects and scene joints at their initial values."""
         sim = self.sim
         sim.reset(base=inst.start_base)
         self.ctl.reset()
-        top = inst.room.table_height + 0.001
-        from stages.demos.sampling import BLOCK_SIZE
-
         values = {}
-        for c0, xy, z in ((self._mug, inst.mug_xy, top), (self._block, inst.block_xy, top + BLOCK_SIZE / 2)):
-            # free joint: position, then quaternion x, y, z, w (identity)
-            values.update(dict(enumerate((xy[0], xy[1], z, 0.0, 0.0, 0.0, 1.0), start=c0)))
+        for body, (x, y, z, yaw) in inst.objects.items():
+            # free joint: position, then quaternion x, y, z, w
+            values.update(dict(enumerate((x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+                                         start=self._free[body])))
         for path, v in inst.joints.items():
             values[self._scene_joint[path]] = v
         set_coords(sim, values)
@@ -152,6 +182,7 @@ class DemoWorld:
         drv = Driver(self.sim, self.ctl, self.ik, self.cmd, rec, np.random.default_rng(inst.seed))
         t0 = time.perf_counter()
         rec.start(spec.max_seconds if max_seconds is None else max_seconds)
+        self.peaks.start()
         reason = detail = ""
         try:
             EXPERTS[inst.task](inst, drv)
@@ -162,11 +193,12 @@ class DemoWorld:
             reason, detail = "timeout", str(e)
         finally:
             rec.stop()
+            self.peaks.stop()
             self.ctl.set_base_velocity(0.0, 0.0, 0.0)
         wall = time.perf_counter() - t0
         state = read_state(self.sim)
         if not reason:
-            ok, reason = spec.success(inst, state)
+            ok, reason = spec.success(inst, state, peaks=dict(self.peaks.peak))
             detail = reason
         tm = rec.timings
         tm.control += self.ik.seconds + drv.plan_seconds

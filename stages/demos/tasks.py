@@ -1,24 +1,28 @@
-"""The basic household tasks as data: family, instruction templates, what the episode starts with,
-and a success predicate evaluated on the simulation's typed state.
+"""The basic household tasks as data: family, instruction templates, time limit and a success
+predicate evaluated on the simulation's typed state.
 
-Every predicate takes the :class:`~stages.demos.sampling.TaskInstance` and a
-:class:`~stages.simulate.state.StepState` (world frame, metres, radians) and returns
+Every predicate takes the :class:`~stages.demos.sampling.TaskInstance`, a
+:class:`~stages.simulate.state.StepState` (world frame, metres, radians) at the episode's end and
+``peaks`` (watched scene joint path -> largest value during the episode) and returns
 ``(success, reason)``; ``reason`` is a short failure category ("" on success) counted in reports.
+The world's facts (support heights, cavity, button) come from the instance's
+:class:`~stages.demos.kitchen.KitchenWorld`; prim paths from its placed packages.
+
+The open/close tasks of articulated parts (microwave, fridge and oven doors, a counter drawer, the
+room door) use the parts and predicates of :mod:`stages.demos.articulated` (the instance's
+``part``).
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
 
-DRAWER_JOINT = "/World/Cabinet/DrawerJoint"
-DOOR_JOINT = "/World/Cabinet/DoorJoint"
-MUG = "/World/Mug"
-BLOCK = "/World/Block"
-BUTTON_JOINT = "/World/ButtonJoint"
+log = logging.getLogger(__name__)
 
 
 class Family(StrEnum):
@@ -39,96 +43,156 @@ class TaskSpec:
     success: Callable
 
 
-def _drawer_opening(state) -> float:
-    """Drawer opening [m] (the joint is at 0 closed and negative when pulled out)."""
-    return -float(state.scene_joints[DRAWER_JOINT])
+def _upright(q) -> bool:
+    """Tilt of the body's +Z from world +Z below 30 deg (q: w, x, y, z)."""
+    w, x, y, z = q
+    return 1 - 2 * (x * x + y * y) >= np.cos(np.deg2rad(30.0))
 
 
-def _door_angle(state) -> float:
-    """Door opening [rad] (negative joint rotation opens it)."""
-    return -float(state.scene_joints[DOOR_JOINT])
-
-
-def _released(state, obj: str, min_gap: float = 0.03) -> bool:
-    """The gripper is open and away from the object (the object is not held)."""
+def _released(state, body: str, min_gap: float = 0.03) -> bool:
+    """The gripper is open and its TCP away from the body's origin (the object is not held)."""
     ee = np.asarray(state.robot.ee_pose.position)
-    gap = np.linalg.norm(ee - np.asarray(state.objects[obj].position))
+    gap = np.linalg.norm(ee - np.asarray(state.objects[body].position))
     return state.robot.gripper_opening > 0.06 and gap > min_gap
 
 
-def open_drawer_success(inst, state) -> tuple[bool, str]:
-    """Open: the drawer is out by at least 75% of its travel."""
-    ok = _drawer_opening(state) >= 0.75 * inst.room.drawer_travel
-    return (True, "") if ok else (False, "drawer_not_open")
+def _inside(xy, rect, margin: float = 0.0) -> bool:
+    x0, y0, x1, y1 = rect
+    return x0 + margin <= xy[0] <= x1 - margin and y0 + margin <= xy[1] <= y1 - margin
 
 
-def close_drawer_success(inst, state) -> tuple[bool, str]:
-    """Closed: the drawer is within 2 cm of closed."""
-    return (True, "") if _drawer_opening(state) <= 0.02 else (False, "drawer_not_closed")
+def _placed_check(inst, state, body: str, z_min: float) -> str:
+    """'' when ``body`` is upright, at or above ``z_min`` [m] and released; else the reason."""
+    o = state.objects[body]
+    if o.position[2] < z_min:
+        return "object_fell"
+    if not _upright(o.orientation):
+        return "object_tipped"
+    if not _released(state, body):
+        return "object_still_held"
+    return ""
 
 
-def open_door_success(inst, state) -> tuple[bool, str]:
-    """Open: the door is open by at least 75% of its range."""
-    return (True, "") if _door_angle(state) >= 0.75 * inst.room.door_range else (False, "door_not_open")
-
-
-def close_door_success(inst, state) -> tuple[bool, str]:
-    """Closed: the door is within 5 deg of closed."""
-    return (True, "") if _door_angle(state) <= np.deg2rad(5.0) else (False, "door_not_closed")
-
-
-def pick_place_bowl_success(inst, state) -> tuple[bool, str]:
-    """The mug rests inside the bowl's inner radius, upright (tilt < 30 deg), above the table top,
-    and the hand has let go of it."""
-    p = np.asarray(state.objects[MUG].position)
-    bowl = np.asarray(inst.room.bowl_xy)
-    if np.linalg.norm(p[:2] - bowl) > inst.room.bowl_inner_radius:
+def pick_place_bowl_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The mug rests in the bowl (its centre within the bowl's rim radius less 2 cm of the bowl's
+    centre), upright, above the table top, released."""
+    w = inst.world
+    mug, bowl = w.placed["mug"].body(), w.placed["bowl"].body()
+    p, b = np.asarray(state.objects[mug].position), np.asarray(state.objects[bowl].position)
+    if np.linalg.norm(p[:2] - b[:2]) > w.bowl_radius - 0.02:
         return False, "object_not_in_container"
-    if p[2] < inst.room.table_height - 0.01:
-        return False, "object_fell"
-    w, x, y, z = state.objects[MUG].orientation
-    up_z = 1 - 2 * (x * x + y * y)
-    if up_z < np.cos(np.deg2rad(30.0)):
-        return False, "object_tipped"
-    if not _released(state, MUG):
-        return False, "object_still_held"
-    return True, ""
+    reason = _placed_check(inst, state, mug, w.table_z - 0.01)
+    return (not reason), reason
 
 
-def push_object_success(inst, state) -> tuple[bool, str]:
-    """The block moved at least 10 cm along the push direction and is still on the table."""
-    p = np.asarray(state.objects[BLOCK].position)
-    d = np.asarray(inst.push_direction)
-    moved = float(np.dot(p[:2] - np.asarray(inst.block_xy), d))
-    if p[2] < inst.room.table_height - 0.01:
+def pick_place_microwave_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The mug stands inside the microwave's cavity (its centre over the cavity floor, 2 cm in from
+    the edges), upright, released."""
+    w = inst.world
+    mug = w.placed["mug"].body()
+    p = np.asarray(state.objects[mug].position)
+    if not _inside(p[:2], w.cavity, 0.02) or p[2] < w.cavity_z - 0.02:
+        return False, "object_not_in_container"
+    reason = _placed_check(inst, state, mug, w.cavity_z - 0.02)
+    return (not reason), reason
+
+
+def pick_from_microwave_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The mug stands on the counter top outside the microwave (centre within the counter's top,
+    not over the cavity), upright, released."""
+    w = inst.world
+    mug = w.placed["mug"].body()
+    p = np.asarray(state.objects[mug].position)
+    if _inside(p[:2], w.cavity, -0.02):
+        return False, "object_still_in_container"
+    if not _inside(p[:2], w.counter_rect, 0.0) or abs(p[2] - w.counter_z) > 0.03:
+        return False, "object_not_on_counter"
+    reason = _placed_check(inst, state, mug, w.counter_z - 0.02)
+    return (not reason), reason
+
+
+def push_object_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The object moved at least 10 cm along the push direction and is still on the table top."""
+    w = inst.world
+    body = w.placed["pusher"].body()
+    p = np.asarray(state.objects[body].position)
+    x0, y0 = inst.objects[body][:2]
+    moved = float(np.dot(p[:2] - (x0, y0), np.asarray(inst.push_direction)))
+    if p[2] < w.table_z - 0.01 or not _inside(p[:2], w.table_rect):
         return False, "object_fell"
     return (True, "") if moved >= 0.10 else (False, "object_not_pushed")
 
 
-def press_button_success(inst, state) -> tuple[bool, str]:
-    """The button is pressed in by at least 60% of its travel (it has no spring: it stays in)."""
-    pressed = float(state.scene_joints[BUTTON_JOINT])
-    return (True, "") if pressed >= 0.6 * inst.room.button_travel else (False, "button_not_pressed")
+def press_button_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The microwave's button went in by at least 60% of its travel during the episode (a momentary
+    button: ``peaks`` holds its deepest position; without it, the final one)."""
+    w = inst.world
+    path = w.placed["microwave"].joint("button_joint")
+    pressed = float((peaks or {}).get(path, state.scene_joints[path]))
+    return (True, "") if pressed >= 0.6 * w.button_travel else (False, "button_not_pressed")
 
+
+_PICK = ("put the {object} in the {container}", "place the {object} into the {container}",
+         "pick up the {object} and put it in the {container}")
 
 TASKS: dict[str, TaskSpec] = {t.name: t for t in (
-    TaskSpec(name="pick_place_bowl", family=Family.PICK_PLACE, max_seconds=25.0,
-             success=pick_place_bowl_success,
-             templates=("put the {object} in the {container}", "place the {object} into the {container}",
-                        "pick up the {object} and put it in the {container}")),
-    TaskSpec(name="open_drawer", family=Family.OPEN_CLOSE, max_seconds=20.0, success=open_drawer_success,
-             templates=("open the drawer of the {furniture}", "pull the {furniture} drawer open")),
-    TaskSpec(name="close_drawer", family=Family.OPEN_CLOSE, max_seconds=20.0, success=close_drawer_success,
-             templates=("close the drawer of the {furniture}", "push the {furniture} drawer shut")),
-    TaskSpec(name="open_door", family=Family.OPEN_CLOSE, max_seconds=25.0, success=open_door_success,
-             templates=("open the door of the {furniture}", "swing the {furniture} door open")),
-    TaskSpec(name="close_door", family=Family.OPEN_CLOSE, max_seconds=25.0, success=close_door_success,
-             templates=("close the door of the {furniture}", "swing the {furniture} door shut")),
-    TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=20.0, success=push_object_success,
+    TaskSpec(name="pick_place_bowl", family=Family.PICK_PLACE, max_seconds=30.0,
+             success=pick_place_bowl_success, templates=_PICK),
+    TaskSpec(name="pick_place_microwave", family=Family.PICK_PLACE, max_seconds=30.0,
+             success=pick_place_microwave_success, templates=_PICK),
+    TaskSpec(name="pick_from_microwave", family=Family.PICK_PLACE, max_seconds=30.0,
+             success=pick_from_microwave_success,
+             templates=("take the {object} out of the {container}", "move the {object} from the {container} to "
+                        "the counter", "pick the {object} out of the {container} and put it on the counter")),
+    TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
-    TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=20.0, success=press_button_success,
+    TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
              templates=("press the button on the {panel}", "push the {panel} button")),
 )}
+
+
+# -- open / close of articulated parts (stages.demos.articulated) -------------------------------
+
+#: articulated task target -> (placed role in the world, part role, instruction noun)
+ARTICULATED = {"microwave": ("microwave", "door", "microwave"), "fridge": ("fridge", "door", "fridge"),
+               "oven": ("oven", "door", "oven"), "drawer": ("counter", "drawer", "kitchen counter"),
+               "door": ("door", "door", "room")}
+OPEN_FRACTION = 0.75  # open: the joint past this fraction of its travel
+
+
+def _opened(inst, state, peaks=None) -> tuple[bool, str]:
+    from stages.demos.articulated import part_opened
+
+    return part_opened(inst.part, state, OPEN_FRACTION)
+
+
+def _closed(inst, state, peaks=None) -> tuple[bool, str]:
+    from stages.demos.articulated import part_closed
+
+    return part_closed(inst.part, state)
+
+
+def _articulated_specs() -> list[TaskSpec]:
+    specs = []
+    for target in ARTICULATED:
+        if target == "door":
+            opens, closes = ("open the door", "open the room door"), ("close the door", "shut the room door")
+        elif target == "drawer":
+            opens = ("open the drawer of the {furniture}", "pull the drawer of the {furniture} open")
+            closes = ("close the drawer of the {furniture}", "push the drawer of the {furniture} shut")
+        else:
+            opens, closes = ("open the {furniture} door", "open the {furniture}"), ("close the {furniture} door",
+                                                                                   "shut the {furniture}")
+        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0, success=_opened,
+                              templates=opens))
+        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0, success=_closed,
+                              templates=closes))
+    return specs
+
+
+TASKS.update({t.name: t for t in _articulated_specs()})
+#: the tasks a basic dataset covers (every family; articulated open/close of every part kind)
+BASIC_TASKS = tuple(TASKS)
 
 
 def task(name: str) -> TaskSpec:

@@ -1,8 +1,10 @@
-"""Scripted demonstrations: planner, sampling, and one recorded episode through the dataset stage.
+"""Scripted demonstrations: planner, the kitchen task world from the default catalog, sampling, and
+one recorded episode through the dataset stage.
 
-The recorded-episode tests build one world (the demo room with bowl, block and randomized
-materials), run the open-drawer expert while recording 3 cameras at 96x72 into a shard, then a
-second episode that times out (counted, not written), merge the shard, load it with
+The catalog fixture generates the default catalog's kitchen categories and ingests one package of
+each (the graspable mug variant among them) through the real job steps. The recorded-episode tests
+build one kitchen world, run the press-button expert while recording 3 cameras at 96x72 into a
+shard, then a second episode that times out (counted, not written), merge the shard, load it with
 ``LeRobotDataset`` and compare every frame against what the simulation produced.
 """
 
@@ -17,7 +19,6 @@ import pytest
 
 from stages.demos.planner import NavGrid, NoPathError, PathFollower, plan_path
 
-PANDA = "robots/franka_panda__example_robot_data"
 
 
 # -- planner ----------------------------------------------------------------------------------
@@ -66,46 +67,108 @@ def test_follower_drives_a_holonomic_base_to_the_goal_pose():
     assert abs((th - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < 0.01
 
 
-# -- sampling ---------------------------------------------------------------------------------
+# -- the kitchen world and sampling -------------------------------------------------------------
+
+KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
+# one package per category; mug_04 is the variant of catalog seed 0 the hand's 80 mm stroke grasps
+PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00", "mug_04",
+            "bowl_00", "can_00")
+
+
+def _catalog_job(out: Path, extra_steps: list | None = None) -> dict:
+    return {"job": {"name": "demos_catalog", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+            "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": list(KITCHEN)}},
+                     {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}},
+                     *(extra_steps or [])]}
 
 
 @pytest.fixture(scope="module")
-def rooms(shared_assets, tmp_path_factory):
-    from stages.demos.sampling import write_task_room
+def catalog(tmp_path_factory) -> Path:
+    """The kitchen packages generated and ingested by the real job steps (~20 s); the work dir."""
+    from pipeline import build_job, run_job
 
-    d = tmp_path_factory.mktemp("rooms")
-    return [write_task_room(d / name, shared_assets=shared_assets, scene_id=name,
-                            rng=np.random.default_rng(seed))
+    out = tmp_path_factory.mktemp("kitchen_catalog") / "out"
+    summary = run_job(build_job(_catalog_job(out), source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
+    return out
+
+
+@pytest.fixture(scope="module")
+def library(catalog):
+    from stages.demos.kitchen import AssetLibrary
+
+    return AssetLibrary.from_folder(catalog / "assets", catalog / "catalog" / "default" / "generated.json")
+
+
+@pytest.fixture(scope="module")
+def worlds(library, tmp_path_factory):
+    from stages.demos.kitchen import write_kitchen
+
+    d = tmp_path_factory.mktemp("worlds")
+    return [write_kitchen(d / name, library, scene_id=name, rng=np.random.default_rng(seed))
             for name, seed in (("a", 5), ("b", 5), ("c", 6))]
 
 
-def test_worlds_and_instances_come_from_their_seeds(rooms):
-    from pxr import Usd
+def test_the_kitchen_references_the_ingested_packages_and_places_them_from_the_seed(worlds, catalog):
+    from pxr import Sdf, Usd, UsdGeom
 
+    a, b, c = worlds
+    assert {k: (p.position, p.yaw) for k, p in a.placed.items()} == {k: (p.position, p.yaw) for k, p in b.placed.items()}
+    assert a.materials == b.materials and a.materials != c.materials and a.size != c.size or a.spawn != c.spawn
+    assert a.asset_ids() == {"counter": "kitchen_counter_00", "microwave": "microwave_00", "fridge": "fridge_00",
+                             "oven": "oven_00", "door": "door_00", "table": "dining_table_00", "mug": "mug_04",
+                             "bowl": "bowl_00", "pusher": "can_00"}
+    layer = Sdf.Layer.FindOrOpen(str(a.usd))
+    refs = {str(p.path): [r.assetPath for r in p.referenceList.prependedItems] for p in layer.rootPrims[0].nameChildren
+            if p.referenceList.prependedItems}
+    assert len(refs) == 9 and all(r[0].startswith(".") for r in refs.values())  # relative references, no copies
+    assert not list(a.usd.parent.glob("**/*.usdc"))
+    stage = Usd.Stage.Open(str(a.usd))
+    for path in (a.placed["microwave"].joint("button_joint"), a.placed["door"].joint("leaf_joint"),
+                 a.placed["mug"].body(), "/World/WallSouthW", "/World/Lights/Ceiling"):
+        assert stage.GetPrimAtPath(path), path
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default", "render"])
+    # the microwave stands on the counter top, inside its footprint; the mug on the table top
+    mw = cache.ComputeWorldBound(stage.GetPrimAtPath("/World/Microwave")).ComputeAlignedRange()
+    assert mw.GetMin()[2] == pytest.approx(a.counter_z, abs=0.005)
+    x0, y0, x1, y1 = a.placed["counter"].footprint()
+    assert x0 <= mw.GetMin()[0] and mw.GetMax()[0] <= x1 and y0 <= mw.GetMin()[1] and mw.GetMax()[1] <= y1 + 0.01
+    mug = cache.ComputeWorldBound(stage.GetPrimAtPath("/World/Mug")).ComputeAlignedRange()
+    assert mug.GetMin()[2] == pytest.approx(a.table_z, abs=0.005)
+    assert 2 * a.mug_radius <= 0.076  # the Franka hand's stroke is 80 mm
+    # the button face and the cavity are where the microwave's package puts them
+    assert a.cavity[0] < a.cavity[2] and a.cavity[1] < a.cavity[3] and a.cavity_z > a.counter_z
+    assert y0 - 0.01 < a.button[1] < a.cavity[1] + 0.05 and a.counter_z < a.button[2] < a.counter_z + 0.3
+
+
+def test_instances_come_from_their_seeds_and_start_clear(worlds):
     from stages.demos.sampling import sample_instance
+    from stages.demos.tasks import TASKS
 
-    a, b, c = rooms
-    assert (a.table_xy, a.materials, a.bowl_xy) == (b.table_xy, b.materials, b.bowl_xy)
-    assert a.table_xy != c.table_xy and a.materials != c.materials
-    stage = Usd.Stage.Open(str(a.usd))  # the overlay composes the room with the bowl, block and colours
-    for p in ("/World/Cabinet/DrawerJoint", "/World/Bowl/Wall0", "/World/Block", "/World/ButtonJoint"):
-        assert stage.GetPrimAtPath(p), p
-    top = stage.GetPrimAtPath("/World/Table/Top").GetAttribute("primvars:displayColor").Get()[0]
-    np.testing.assert_allclose(tuple(top), a.materials["table"], rtol=1e-6)
+    a = worlds[0]
     i1, i2 = sample_instance("close_drawer", a, 11), sample_instance("close_drawer", a, 11)
     assert i1 == i2 and i1 != sample_instance("close_drawer", a, 12)
-    assert i1.joints["/World/Cabinet/DrawerJoint"] < -0.1  # the close task starts with the drawer open
+    assert i1.part is not None and i1.joints[i1.part.joint_path] > 0.5 * i1.part.travel  # starts open
+    mw = sample_instance("pick_from_microwave", a, 3)
+    door = a.placed["microwave"].joint("door_joint")
+    assert mw.joints[door] > 1.4
+    x, y, z, _ = mw.objects[a.placed["mug"].body()]
+    x0, y0, x1, y1 = a.cavity
+    assert x0 < x < x1 and y0 < y < y1 and z == pytest.approx(a.cavity_z, abs=0.005)
+    grid = a.grid()
     starts = [sample_instance("open_door", a, s).start_base for s in range(20)]
-    grid = NavGrid.from_boxes((-0.2, -0.2, a.size[0] + 0.2, a.size[1] + 0.2), a.nav_boxes())
     assert not any(grid.inflate(0.45)[grid.cell_of(x, y)] for x, y, _ in starts)
     assert len({s[:2] for s in starts}) == 20
+    for t in TASKS:  # every task samples in the world, with an instruction naming its things
+        inst = sample_instance(t, a, 1)
+        assert inst.instruction and "{" not in inst.instruction and inst.asset_ids
 
 
 # -- one recorded episode through the dataset stage ---------------------------------------------
 
 
 @pytest.fixture(scope="module")
-def recorded(rooms, shared_assets, tmp_path_factory):
+def recorded(worlds, tmp_path_factory):
     pytest.importorskip("newton")
     pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
     pytest.importorskip("lerobot")
@@ -115,10 +178,10 @@ def recorded(rooms, shared_assets, tmp_path_factory):
     from stages.simulate.state import read_state
 
     d = tmp_path_factory.mktemp("demos")
-    room = rooms[0]
+    room = worlds[0]
     settings = DemoSettings(width=96, height=72)
-    world = DemoWorld(room, panda_root=shared_assets / PANDA, work_dir=d, settings=settings)
-    inst = sample_instance("open_drawer", room, 3)
+    world = DemoWorld(room, panda_root=None, work_dir=d, settings=settings)
+    inst = sample_instance("press_button", room, 3)
     frames = []
     with open_shard(d / "shards", "s0", settings.dataset_spec()) as shard:
         def tee(frame):
@@ -129,23 +192,24 @@ def recorded(rooms, shared_assets, tmp_path_factory):
                                         seed=inst.seed, asset_ids=inst.asset_ids))
         result = world.run_episode(inst, sink=tee)
         end_state = read_state(world.sim)
+        peak = dict(world.peaks.peak)
         end_ee = world.recorder.ee_in_base(np.asarray(end_state.robot.q[3:10]))
         shard.end_episode(success=result.success, reason=result.reason)
-        short = dataclasses.replace(sample_instance("open_drawer", room, 4))
+        short = dataclasses.replace(sample_instance("press_button", room, 4))
         shard.begin_episode(EpisodeInfo(task=short.instruction, task_kind=short.task, scene_id=room.scene_id,
                                         seed=short.seed))
         failed = world.run_episode(short, sink=shard.add_frame, max_seconds=1.0)
         shard.end_episode(success=failed.success, reason=failed.reason)
     merged = merge_datasets([d / "shards" / "s0"], d / "merged", repo_id="agentworld/demos_test")
     return dict(inst=inst, result=result, failed=failed, frames=frames, merged=merged, end_state=end_state,
-                end_ee=end_ee, room=room)
+                end_ee=end_ee, room=room, peak=peak)
 
 
-def test_the_expert_opens_the_drawer_and_a_timed_out_episode_is_counted_not_written(recorded):
+def test_the_expert_presses_the_button_and_a_timed_out_episode_is_counted_not_written(recorded):
     r, f = recorded["result"], recorded["failed"]
     assert r.success, r.detail
-    opened = -recorded["end_state"].scene_joints["/World/Cabinet/DrawerJoint"]
-    assert opened >= 0.75 * recorded["room"].drawer_travel
+    room = recorded["room"]
+    assert recorded["peak"][room.placed["microwave"].joint("button_joint")] >= 0.6 * room.button_travel
     assert r.frames == len(recorded["frames"]) == pytest.approx(r.sim_seconds * 30, abs=2)
     assert not f.success and f.reason == "timeout" and f.frames == 30
     m = recorded["merged"]
@@ -171,7 +235,7 @@ def test_recorded_state_and_action_follow_the_simulation(recorded):
     pred = state[:-1, 14:16] + v_world / 30
     err = np.linalg.norm(pred - state[1:, 14:16], axis=1)
     assert np.median(err[drive[:-1]]) < 0.01, np.median(err[drive[:-1]])
-    # the gripper closes on the handle and opens at the end; arm targets are tracked
+    # the hand closes to press and opens at the end; arm targets are tracked
     assert action[:, 17].max() == 1.0 and action[-1, 17] == 0.0
     assert np.abs(state[-1, :7] - action[-1, :7]).max() < 0.05
     # the last recorded state is the simulation's (recorded one physics step earlier at most)
@@ -230,44 +294,52 @@ def test_the_dataset_loads_and_matches_the_recorded_frames(recorded):
     assert float(np.squeeze(dst["mean"])) == pytest.approx(depth.mean(), rel=0.1)
     (row,) = read_episode_columns(recorded["merged"].root)
     assert (row["scene_id"], row["seed"], row["task_kind"], row["success"]) == (room.scene_id, inst.seed,
-                                                                                "open_drawer", True)
+                                                                                "press_button", True)
     assert list(row["asset_ids"]) == list(inst.asset_ids)
 
 
 # -- the job ----------------------------------------------------------------------------------
 
 
+def test_the_job_plans_from_the_catalog_and_ingest_steps(catalog, tmp_path):
+    from pipeline import load_results
+    from pipeline.types import PlanContext, PlannedFailure
+    from stages.demos.job import DemosConfig, plan_demos
+
+    prev = {"catalog": load_results(catalog, "catalog"), "assets": load_results(catalog, "assets")}
+    ctx = PlanContext(job_file=tmp_path / "job.toml", job_dir=tmp_path, work_dir=catalog, seed=0, previous=prev)
+    items = plan_demos(DemosConfig(tasks=("press_button", "open_fridge"), worlds=2), ctx)
+    assert [i.item_id for i in items] == ["press_button_w000", "press_button_w001", "open_fridge_w000",
+                                          "open_fridge_w001"]
+    p = items[0].params
+    assert set(p.packages) == set(PACKAGES) and Path(p.generated).name == "generated.json"
+    assert p.world_seed != items[1].params.world_seed and p.world_seed == items[2].params.world_seed
+    assert all(Path(f).is_file() for f in items[0].input_files)
+    missing = plan_demos(DemosConfig(assets_step="ingest", tasks=("press_button",)),
+                         PlanContext(job_file=tmp_path / "job.toml", job_dir=tmp_path, work_dir=catalog, seed=0,
+                                     previous={"catalog": prev["catalog"]}))
+    assert isinstance(missing[0], PlannedFailure) and "assets_step 'ingest'" in missing[0].reason
+    assert str(tmp_path / "job.toml") in missing[0].reason
+
+
 @pytest.mark.slow
-def test_demos_job_records_every_task_and_reports_success(shared_assets, tmp_path):
+def test_demos_job_records_every_task_and_reports_success(tmp_path):
+    """default catalog -> ingest -> demos (every task, 1 episode, 64x48) in one job, as the main job."""
     import json
 
-    from pipeline import load_job, run_job
+    from pipeline import build_job, run_job
     from stages.dataset import load_dataset, read_episode_columns
     from stages.demos.tasks import TASKS
 
-    job = tmp_path / "demos.toml"
-    job.write_text(f'''
-[job]
-name = "demos_test"
-seed = 1
-out = "{tmp_path / 'out'}"
-executor = "local"
-workers = 2
-
-[[step]]
-name = "demos"
-kind = "demos"
-[step.config]
-shared_assets = "{shared_assets}"
-episodes_per_shard = 1
-width = 64
-height = 48
-''')
-    summary = run_job(load_job(job))
+    out = tmp_path / "out"
+    demos = {"name": "demos", "kind": "demos", "config": {"episodes_per_shard": 1, "width": 64, "height": 48}}
+    data = _catalog_job(out, [demos])
+    data["job"].update(executor="local", workers=2)
+    summary = run_job(build_job(data, source="<test>", base_dir=tmp_path), progress=False)
     assert summary.status == "ok", summary
-    report = json.loads((tmp_path / "out" / "reports" / "demos.json").read_text())
+    report = json.loads((out / "reports" / "demos.json").read_text())
     assert set(report["tasks"]) == set(TASKS)
-    assert report["successes"] >= 5, report
+    assert report["successes"] >= 0.8 * len(TASKS), report
     ds = load_dataset(Path(report["dataset"]["root"]))
     assert ds.num_episodes == report["successes"] and len(ds) == report["dataset"]["frames"]
     kinds = {r["task_kind"] for r in read_episode_columns(Path(report["dataset"]["root"]))}

@@ -1,0 +1,420 @@
+"""The task world: a kitchen furnished from the ingested default catalog.
+
+:func:`write_kitchen` authors one scene USD (``scene.usda``) in a folder: a rectangular room (floor,
+four walls, the south wall with a catalog room door standing in an opening, lights) and catalog
+packages REFERENCED from the ingest step's output (never copied): along the north wall a fridge, a
+kitchen counter (drawers, doors) and an oven, a microwave on the counter, a table (dining or coffee
+table) in the room with a mug, a bowl and an object to push (a can or a sponge) on it. Asset
+variants, positions and the colours of floor and walls are drawn from the world's ``rng``.
+
+Frame: world, Z up, metres, radians; the room spans ``[0, size[0]] x [0, size[1]]``. Appliances
+face south (asset +X -> world -Y, yaw -90 deg); the robot works on the counter and the table from
+their south side, facing +Y. Every package's facts come from its ``generated.json`` record
+(surfaces, handles, joint roles, parameters) and its USD bounds; a placed package is a
+:class:`Placed` (the articulated tasks build their parts from it).
+
+::
+
+    lib = AssetLibrary.from_folder(Path("out/main/assets"), Path("out/main/catalog/default/generated.json"))
+    world = write_kitchen(out_dir, lib, scene_id="kitchen_000", rng=np.random.default_rng(0))
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.types import ItemError
+
+log = logging.getLogger(__name__)
+
+#: categories the kitchen is furnished from
+KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "coffee_table",
+                      "mug", "bowl", "can", "sponge")
+GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
+WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
+SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
+
+
+@dataclass(frozen=True, eq=False)
+class CatalogAsset:
+    """One ingested package: asset_id, category, usd (root layer, absolute), lo / hi (3,) bounds in the
+    asset frame [m], info: its ``generated.json`` record (surfaces, handles, joints, params)."""
+
+    asset_id: str
+    category: str
+    usd: Path
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+    info: dict = field(repr=False)
+    root_link: str = "base"
+
+    @property
+    def params(self) -> dict:
+        return self.info.get("params", {})
+
+
+def _package_facts(usd: Path) -> tuple[tuple, tuple, str]:
+    """Bounds (lo, hi) in the asset frame [m] and the first rigid-body link's name."""
+    from pxr import Usd, UsdGeom, UsdPhysics
+
+    stage = Usd.Stage.Open(str(usd))
+    if stage is None or not stage.GetDefaultPrim():
+        raise ItemError(f"{usd}: cannot open the asset package (no default prim)")
+    root = stage.GetDefaultPrim()
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    r = cache.ComputeWorldBound(root).ComputeAlignedRange()
+    links = [c.GetName() for c in root.GetChildren() if c.HasAPI(UsdPhysics.RigidBodyAPI)]
+    return (tuple(float(v) for v in r.GetMin()), tuple(float(v) for v in r.GetMax()),
+            "base" if "base" in links or not links else links[0])
+
+
+def link_bounds(usd: Path, link: str) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi) (3,) [m] of one link prim of a package in the asset frame (zero joint positions)."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(usd))
+    prim = stage.GetDefaultPrim().GetChild(link)
+    if not prim:
+        raise ItemError(f"{usd}: no link {link!r}")
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    r = cache.ComputeRelativeBound(prim, stage.GetDefaultPrim()).ComputeAlignedRange()
+    return np.array(r.GetMin(), float), np.array(r.GetMax(), float)
+
+
+@dataclass(frozen=True, eq=False)
+class AssetLibrary:
+    """Ingested default-catalog packages by id."""
+
+    assets: dict[str, CatalogAsset]
+
+    def of(self, category: str) -> list[CatalogAsset]:
+        """The packages of ``category``, sorted by id."""
+        return sorted((a for a in self.assets.values() if a.category == category), key=lambda a: a.asset_id)
+
+    @staticmethod
+    def from_packages(usd_by_id: dict[str, Path], generated_json: Path,
+                      categories: tuple[str, ...] = KITCHEN_CATEGORIES) -> AssetLibrary:
+        """From package root layers by asset id and the catalog's ``generated.json``; only ``categories``."""
+        generated_json = Path(generated_json)
+        try:
+            info = json.loads(generated_json.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as e:
+            raise ItemError(f"{generated_json}: cannot read the default catalog's records ({e})") from None
+        out = {}
+        for aid, usd in sorted(usd_by_id.items()):
+            rec = info.get(aid)
+            if rec is None or rec.get("category") not in categories:
+                continue
+            lo, hi, link = _package_facts(Path(usd))
+            out[aid] = CatalogAsset(asset_id=aid, category=rec["category"], usd=Path(usd).resolve(), lo=lo, hi=hi,
+                                    info=rec, root_link=link)
+        return AssetLibrary(out)
+
+    @staticmethod
+    def from_folder(assets_dir: Path, generated_json: Path,
+                    categories: tuple[str, ...] = KITCHEN_CATEGORIES) -> AssetLibrary:
+        """From an ingest output folder (``<assets_dir>/<id>/<id>.usda``) and ``generated.json``."""
+        assets_dir = Path(assets_dir)
+        usd = {p.parent.name: p for p in assets_dir.glob("*/*.usda") if p.stem == p.parent.name}
+        if not usd:
+            raise ItemError(f"{assets_dir}: no asset packages (<id>/<id>.usda)")
+        return AssetLibrary.from_packages(usd, generated_json, categories)
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True, eq=False)
+class Placed:
+    """A package placed in the world: name (prim ``/World/<name>``), the asset, position (3,) of its
+    origin [m] and yaw [rad] about +Z."""
+
+    name: str
+    asset: CatalogAsset
+    position: tuple[float, float, float]
+    yaw: float
+
+    @property
+    def prim(self) -> str:
+        return f"/World/{self.name}"
+
+    @property
+    def info(self) -> dict:
+        return self.asset.info
+
+    def matrix(self) -> np.ndarray:
+        """4x4 asset frame -> world."""
+        m = np.eye(4)
+        m[:3, :3] = _rot(self.yaw)
+        m[:3, 3] = self.position
+        return m
+
+    def to_world(self, p) -> np.ndarray:
+        """A point (3,) of the asset frame in the world [m]."""
+        return _rot(self.yaw) @ np.asarray(p, float) + np.asarray(self.position, float)
+
+    def dir_to_world(self, v) -> np.ndarray:
+        return _rot(self.yaw) @ np.asarray(v, float)
+
+    def body(self, link: str | None = None) -> str:
+        """Prim path of a link (rigid body) in the scene (default: the package's root link)."""
+        return f"{self.prim}/{link or self.asset.root_link}"
+
+    def joint(self, name: str) -> str:
+        """Prim path of a joint of the package in the scene."""
+        return f"{self.prim}/joints/{name}"
+
+    def rect(self, lo2, hi2) -> tuple[float, float, float, float]:
+        """World AABB (xmin, ymin, xmax, ymax) of an asset-frame rectangle (lo (2,), hi (2,))."""
+        pts = np.array([self.to_world((x, y, 0.0))[:2] for x in (lo2[0], hi2[0]) for y in (lo2[1], hi2[1])])
+        return (*pts.min(0), *pts.max(0))
+
+    def footprint(self) -> tuple[float, float, float, float]:
+        """World AABB of the package's bounds [m]."""
+        return self.rect(self.asset.lo[:2], self.asset.hi[:2])
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class KitchenWorld:
+    """One task world. usd: scene file; scene_id; size (x, y) [m]; placed: packages by role
+    ("counter", "microwave", "fridge", "oven", "door", "table", "mug", "bowl", "pusher"); spawn:
+    robot root (x, y, yaw) for the build; counter_z / table_z: support heights [m]; table_rect /
+    counter_rect: (xmin, ymin, xmax, ymax) of the support surfaces [m]; counter_spot: (x, y) on the
+    counter beside the microwave; cavity: microwave cavity floor (xmin, ymin, xmax, ymax) [m] at
+    cavity_z with cavity_height of clearance; button: centre of the button face at rest (3,) [m],
+    button_travel [m], button_push (3,) unit push direction; mug_radius, mug_height [m];
+    materials: colours used (name -> rgb)."""
+
+    usd: Path
+    scene_id: str
+    size: tuple[float, float]
+    wall_thickness: float
+    placed: dict[str, Placed]
+    spawn: tuple[float, float, float]
+    counter_z: float
+    counter_rect: tuple[float, float, float, float]
+    counter_spot: tuple[float, float]
+    table_z: float
+    table_rect: tuple[float, float, float, float]
+    cavity: tuple[float, float, float, float]
+    cavity_z: float
+    cavity_height: float
+    button: tuple[float, float, float]
+    button_travel: float
+    button_push: tuple[float, float, float]
+    mug_radius: float
+    mug_height: float
+    bowl_radius: float
+    materials: dict
+
+    def nav_boxes(self) -> np.ndarray:
+        """Obstacle footprints (K, 4) [xmin, ymin, xmax, ymax] for base planning: walls, the floor
+        furniture (fridge, counter, oven, table, door frame)."""
+        sx, sy = self.size
+        t = self.wall_thickness
+        boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t), (sx, -t, sx + t, sy + t)]
+        boxes += [self.placed[k].footprint() for k in ("fridge", "counter", "oven", "table", "door")]
+        return np.asarray(boxes, float)
+
+    def grid(self):
+        from stages.demos.planner import NavGrid
+
+        return NavGrid.from_boxes((-0.2, -0.2, self.size[0] + 0.2, self.size[1] + 0.2), self.nav_boxes())
+
+    def asset_ids(self) -> dict[str, str]:
+        return {k: p.asset.asset_id for k, p in self.placed.items()}
+
+
+# --------------------------------------------------------------------------------------------
+# choosing the assets
+# --------------------------------------------------------------------------------------------
+
+
+def _pick(lib: AssetLibrary, rng: np.random.Generator, categories: tuple[str, ...], ok=lambda a: True,
+          what: str = "") -> CatalogAsset:
+    cands = [a for c in categories for a in lib.of(c) if ok(a)]
+    if not cands:
+        raise ItemError(f"default catalog: no usable {what or '/'.join(categories)} among the ingested packages "
+                        f"({', '.join(categories)}: {sum(len(lib.of(c)) for c in categories)} packages)")
+    return cands[int(rng.integers(len(cands)))]
+
+
+def _mug_ok(a: CatalogAsset) -> bool:
+    return 2.0 * float(a.params.get("radius", 1.0)) <= GRASP_MAX_DIAMETER
+
+
+def _counter_segment(a: CatalogAsset, need: float) -> dict | None:
+    """The counter's widest top surface segment (asset frame) if it is at least ``need`` [m] long."""
+    tops = [s for s in a.info.get("surfaces", []) if not s["inside"] and s["link"] == "base"]
+    if not tops:
+        return None
+    best = max(tops, key=lambda s: s["hi"][1] - s["lo"][1])
+    return best if best["hi"][1] - best["lo"][1] >= need else None
+
+
+def _top(a: CatalogAsset) -> dict:
+    tops = [s for s in a.info.get("surfaces", []) if not s["inside"]]
+    if not tops:
+        raise ItemError(f"{a.usd}: no top surface in its generated.json record")
+    return max(tops, key=lambda s: s["z"])
+
+
+def _cavity(a: CatalogAsset) -> dict:
+    cav = [s for s in a.info.get("surfaces", []) if s["inside"]]
+    if not cav:
+        raise ItemError(f"{a.usd}: microwave without a cavity surface (inside=true)")
+    return cav[0]
+
+
+# --------------------------------------------------------------------------------------------
+# writing the scene
+# --------------------------------------------------------------------------------------------
+
+
+def _rgb(rng, lo=0.15, hi=0.9) -> tuple[float, float, float]:
+    return tuple(float(v) for v in rng.uniform(lo, hi, 3))
+
+
+def _rel(target: Path, layer_dir: Path) -> str:
+    r = os.path.relpath(Path(target).resolve(), Path(layer_dir).resolve()).replace(os.sep, "/")
+    return r if r.startswith(".") else f"./{r}"
+
+
+def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap: tuple[float, float]) -> None:
+    """Author the scene layer: physics scene, floor, walls (the south one split around the door
+    opening ``door_gap`` (x0, x1)), lights, and one referencing Xform per placed package."""
+    from pxr import Gf, Sdf
+
+    from stages.simulate.demo_scene import _add_lights, _box, _labels, _Writer, _xform_attrs
+
+    sx, sy = size
+    t, h = WALL_T, WALL_H
+    w = _Writer()
+    w.prim("/World", "Xform", meta={"kind": "assembly"})
+    w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
+        "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
+        "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81)})
+    _box(w, "/World/Floor", (sx / 2, sy / 2, -0.05), (sx + 2 * t, sy + 2 * t, 0.1), colors["floor"], label="floor")
+    x0, x1 = door_gap
+    walls = {"WallNorth": ((sx / 2, sy + t / 2, h / 2), (sx + 2 * t, t, h)),
+             "WallWest": ((-t / 2, sy / 2, h / 2), (t, sy, h)),
+             "WallEast": ((sx + t / 2, sy / 2, h / 2), (t, sy, h)),
+             "WallSouthW": (((x0 - t) / 2, -t / 2, h / 2), (x0 + t, t, h)),
+             "WallSouthE": (((x1 + sx + t) / 2, -t / 2, h / 2), (sx + t - x1, t, h)),
+             "WallSouthTop": (((x0 + x1) / 2, -t / 2, (h + 2.2) / 2), (x1 - x0, t, h - 2.2))}
+    for name, (c, s) in walls.items():
+        _box(w, f"/World/{name}", c, s, colors["wall"], label="wall")
+    for p in placed:
+        la, lv = _labels(p.asset.category)
+        ref = Sdf.Reference(_rel(p.asset.usd, path.parent))
+        w.prim(p.prim, "Xform", apis=la, attrs={**_xform_attrs(p.position, p.yaw), **lv},
+               meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
+    _add_lights(w, size)
+    w.write(Path(path), "World")
+
+
+def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str, rng: np.random.Generator) -> KitchenWorld:
+    """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    micro = _pick(lib, rng, ("microwave",))
+    mw_w = micro.hi[1] - micro.lo[1]
+    counter = _pick(lib, rng, ("kitchen_counter",), lambda a: _counter_segment(a, mw_w + 0.33) is not None,
+                    "kitchen counter with a top segment for a microwave and a mug")
+    fridge, oven = _pick(lib, rng, ("fridge",)), _pick(lib, rng, ("oven",))
+    door = _pick(lib, rng, ("door",))
+    tables = ("dining_table",) if lib.of("dining_table") else ("coffee_table",)
+    table = _pick(lib, rng, tables)
+    mug = _pick(lib, rng, ("mug",), _mug_ok, f"mug narrower than {GRASP_MAX_DIAMETER * 1000:.0f} mm")
+    bowl = _pick(lib, rng, ("bowl",))
+    pusher = _pick(lib, rng, tuple(c for c in ("can", "sponge") if lib.of(c)) or ("can",))
+
+    # along the north wall, west to east: fridge, counter, oven (or oven first), 5 cm apart
+    row = [fridge, counter, oven] if rng.random() < 0.5 else [oven, counter, fridge]
+    widths = [a.hi[1] - a.lo[1] for a in row]
+    sx = max(5.0, sum(widths) + 0.1 + 1.0)
+    sy = 4.6
+    x = 0.5 + float(rng.uniform(0.0, sx - 1.0 - 0.1 - sum(widths)))
+    placed: dict[str, Placed] = {}
+    roles = {id(fridge): "fridge", id(counter): "counter", id(oven): "oven"}
+    for a, wdt in zip(row, widths, strict=True):
+        role = roles[id(a)]
+        # yaw -90 deg: asset +Y -> world +X, asset +X -> world -Y; the back (asset lo x) 1 cm off the wall
+        cx = x - a.lo[1]
+        cy = sy - 0.01 + a.lo[0]
+        placed[role] = Placed(role.capitalize(), a, (cx, cy, 0.0), SOUTH)
+        x += wdt + 0.05
+    cnt = placed["counter"]
+    seg = _counter_segment(counter, mw_w + 0.33)
+    top_z = float(seg["z"])
+    # microwave on the segment, along it with room for the mug spot on one side
+    # the mug's spot is on the side of the door's free edge (the handle): the open door swings
+    # out on the hinge side and would stand between the spot and the cavity
+    door_handle = [h for h in micro.info.get("handles", []) if h["link"] == "door"]
+    mug_side = 1.0 if not door_handle or door_handle[0]["center"][1] >= 0 else -1.0
+    y_lo, y_hi = seg["lo"][1] + 0.03, seg["hi"][1] - 0.03
+    # the hand (0.2 m wide across its fingers) grasps the mug from the front: the spot is 0.17 m
+    # beside the microwave
+    span = (y_lo - micro.lo[1] + (0.27 if mug_side < 0 else 0.0), y_hi - micro.hi[1] - (0.27 if mug_side > 0 else 0.0))
+    my = float(rng.uniform(*span)) if span[1] > span[0] else 0.5 * (span[0] + span[1])
+    # near the counter's front edge: the hand reaches the mug with its wrist in front of the edge
+    mx = seg["hi"][0] - 0.01 - micro.hi[0]
+    mw_pos = cnt.to_world((mx, my, top_z + 0.001))
+    placed["microwave"] = Placed("Microwave", micro, tuple(mw_pos), SOUTH)
+    spot_local = (seg["hi"][0] - 0.07, my + (micro.hi[1] + 0.17 if mug_side > 0 else micro.lo[1] - 0.17))
+    counter_spot = tuple(float(v) for v in cnt.to_world((*spot_local, 0.0))[:2])
+    counter_rect = cnt.rect(seg["lo"], seg["hi"])
+
+    # the room door in the south wall, opening into the room (asset +X -> world +Y)
+    dw = door.hi[1] - door.lo[1]
+    door_x = float(rng.uniform(0.35 + dw / 2, 1.0 + dw / 2))
+    placed["door"] = Placed("Door", door, (door_x, -WALL_T / 2, 0.0), math.pi / 2)
+    door_gap = (door_x - dw / 2 + 0.002, door_x + dw / 2 - 0.002)
+
+    # the table: long side along x, in the eastern part of the room, clear of the door swing
+    ttop = _top(table)
+    t_len, t_wid = table.hi[0] - table.lo[0], table.hi[1] - table.lo[1]
+    tx_lo, tx_hi = max(door_x + dw / 2 + 0.9 + t_len / 2, 1.0 + t_len / 2), sx - 0.9 - t_len / 2
+    tx = float(rng.uniform(tx_lo, tx_hi)) if tx_hi > tx_lo else 0.5 * (tx_lo + tx_hi)
+    ty = 1.45 + t_wid / 2 + float(rng.uniform(0.0, 0.15))
+    placed["table"] = Placed("Table", table, (tx, ty, 0.0), 0.0)
+    table_rect = placed["table"].rect(ttop["lo"], ttop["hi"])
+    table_z = float(ttop["z"])
+    south = table_rect[1]
+    # objects along the table's south edge (poses are re-sampled per episode)
+    placed["mug"] = Placed("Mug", mug, (tx - 0.18, south + 0.22, table_z + 0.002), 0.0)
+    placed["bowl"] = Placed("Bowl", bowl, (tx + 0.10, south + 0.22, table_z + 0.002), 0.0)
+    placed["pusher"] = Placed("Pusher", pusher, (tx + 0.40, south + 0.14, table_z + 0.002), 0.0)
+
+    cav = _cavity(micro)
+    mwp = placed["microwave"]
+    cavity = mwp.rect(cav["lo"], cav["hi"])
+    cavity_z = float(mwp.position[2] + cav["z"])
+    blo, bhi = link_bounds(micro.usd, "button")
+    bface = np.array([bhi[0], (blo[1] + bhi[1]) / 2, (blo[2] + bhi[2]) / 2])
+    button = mwp.to_world(bface)
+    push = mwp.dir_to_world((-1.0, 0.0, 0.0))
+
+    colors = {"floor": _rgb(rng, 0.3, 0.7), "wall": _rgb(rng, 0.6, 0.95)}
+    usd = out_dir / "scene.usda"
+    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap)
+    spawn = (float(tx), float(south - 0.9), math.pi / 2)
+    world = KitchenWorld(
+        usd=usd, scene_id=scene_id, size=(sx, sy), wall_thickness=WALL_T, placed=placed, spawn=spawn,
+        counter_z=float(top_z), counter_rect=counter_rect, counter_spot=counter_spot, table_z=table_z,
+        table_rect=table_rect, cavity=cavity, cavity_z=cavity_z, cavity_height=float(cav["clear_height"]),
+        button=tuple(float(v) for v in button), button_travel=float(micro.params.get("button_travel", 0.005)),
+        button_push=tuple(float(v) for v in push), mug_radius=float(mug.params["radius"]),
+        mug_height=float(mug.params["height"]), bowl_radius=float(bowl.params.get("rim_radius", 0.07)),
+        materials=colors)
+    log.info("kitchen %s: %s", scene_id, world.asset_ids())
+    return world
