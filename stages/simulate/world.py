@@ -48,7 +48,9 @@ class SolverSettings:
     cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and
     contacts for MuJoCo-Warp (None: Newton's estimate, which overflows in a furnished room: a mug
     of 14 convex pieces on a table and 20 boxes on the floor exceed its 64 rows / 128 contacts; the
-    demos task room overflows MuJoCo-Warp's broadphase at 256 contacts, dropping contacts).
+    demos task room overflows MuJoCo-Warp's broadphase at 256 contacts, dropping contacts);
+    cuda_graph: on CUDA, replay MuJoCo-Warp's step as a captured CUDA graph (one graph per
+    state-buffer parity) instead of launching its kernels one by one from Python.
     """
 
     kind: SolverKind = SolverKind.MUJOCO
@@ -62,6 +64,7 @@ class SolverSettings:
     integrator: str = "implicitfast"
     njmax: int | None = 1024
     nconmax: int | None = 1024
+    cuda_graph: bool = True
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
@@ -336,23 +339,51 @@ class Sim:
         before each (the controllers use it to update drive targets)."""
         s = self.settings
         h = s.dt / s.substeps
+        graphs = self._use_graphs()
         for _ in range(n):
             for cb in self.pre_step:
                 cb(self)
             for _ in range(s.substeps):
-                self.state_0.clear_forces()
-                if self.pipeline is not None:
-                    self.pipeline.collide(self.state_0, self.contacts)
-                self.solver.step(
-                    self.state_0,
-                    self.state_1,
-                    self.control,
-                    None if self.pipeline is None else self.contacts,
-                    h,
-                )
+                if graphs:
+                    self._graph_substep(h)
+                else:
+                    self._substep(h)
                 self.state_0, self.state_1 = self.state_1, self.state_0
             self.time += s.dt
             self.steps += 1
+
+    def _substep(self, h: float) -> None:
+        """One solver step of ``h`` [s] from ``state_0`` into ``state_1``."""
+        self.state_0.clear_forces()
+        if self.pipeline is not None:
+            self.pipeline.collide(self.state_0, self.contacts)
+        self.solver.step(self.state_0, self.state_1, self.control,
+                         None if self.pipeline is None else self.contacts, h)
+
+    def _use_graphs(self) -> bool:
+        """CUDA graph replay applies to MuJoCo-Warp on a CUDA device (no Newton pipeline)."""
+        return (self.solver_settings.cuda_graph and self.pipeline is None
+                and str(self.model.device).startswith("cuda")
+                and self.solver_settings.kind == SolverKind.MUJOCO)
+
+    def _graph_substep(self, h: float) -> None:
+        """:meth:`_substep` replayed from a CUDA graph captured for the current buffer parity (the
+        step writes ``state_1`` from ``state_0``; the two buffers alternate, so two graphs). The
+        first step runs uncaptured so that every kernel is compiled and loaded before capture."""
+        import warp as wp
+
+        graphs = self.__dict__.setdefault("_graphs", {})
+        key = (id(self.state_0), h)
+        if not graphs.get("warm"):
+            self._substep(h)
+            graphs["warm"] = True
+            return
+        g = graphs.get(key)
+        if g is None:
+            with wp.ScopedCapture(device=self.model.device) as cap:
+                self._substep(h)
+            g = graphs[key] = cap.graph
+        wp.capture_launch(g)
 
     def reset(self, base: tuple[float, float, float] | None = None) -> None:
         """Back to the model's initial state (joint positions, velocities, drive targets), time 0;
@@ -509,6 +540,7 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
             **{k: v for k, v in opts.items() if v is not None},
             "contact_ke": cfg.contact_ke,
             "contact_kd": cfg.contact_kd,
+            "cuda_graph": cfg.solver.cuda_graph and pipeline is None and cfg.device.startswith("cuda"),
         },
         spawn=tuple(spawn),
         bodies_per_world=tpl.body_count,
