@@ -274,6 +274,7 @@ STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
 PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
 PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
 PUSH_OVERSHOOT = 0.04  # a push ends this far [rad] past closed (pressing the part onto its stop)
+OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 ENOUGH = 0.12       # a swing may stop this fraction of its sweep short of the goal when the arm runs out
@@ -352,15 +353,18 @@ def _free(grid, blocked, x: float, y: float) -> bool:
 
 
 def _lateral(part: ArticulatedPart) -> np.ndarray:
-    """Horizontal unit vector from the hinge axis towards the handle (doors), or the bar axis
-    (drawers), perpendicular to the front."""
+    """Doors: unit vector from the hinge axis towards the handle, perpendicular to the axis and
+    the front (horizontal for vertical hinges, up for the oven's bottom hinge). Drawers: the
+    horizontal bar axis."""
     n = np.asarray(part.front, float)
     if part.kind == "revolute":
+        a = np.asarray(part.axis, float)
         v = np.asarray(part.handle) - np.asarray(part.origin)
+        v = v - np.dot(v, a) * a
     else:
-        v = np.asarray(part.bar_axis, float)
+        v = np.asarray(part.bar_axis, float).copy()
+        v[2] = 0.0
     v = v - np.dot(v, n) * n
-    v[2] = 0.0
     return v / max(np.linalg.norm(v), 1e-9)
 
 
@@ -449,14 +453,18 @@ def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: fl
     n = np.asarray(part.front, float)
     if part.kind == "revolute":
         v = h - o
-        reach = float(np.linalg.norm(v[:2])) + margin + 0.04
+        reach = float(np.linalg.norm(v - np.dot(v, part.axis) * np.asarray(part.axis))) + margin + 0.04
         qs = np.linspace(q_lo, q_hi, max(2, int(abs(q_hi - q_lo) / math.radians(2.0)) + 2))
+        a = np.asarray(part.axis, float)
+        # a bottom-hinged (oven) door spans its width along the axis
+        widths = [0.0] if abs(a[2]) > 0.7 else np.linspace(-OVEN_HALF_WIDTH, OVEN_HALF_WIDTH, 17)
         pts = []
         for q in qs:
             rot = part.rotation_at(q)
             for t in np.linspace(0.0, 1.0, int(reach / (grid.cell / 2)) + 2):
                 for off in (0.0, 0.05):
-                    pts.append(o + rot @ (t * reach * lat + off * n))
+                    for wd in widths:
+                        pts.append(o + rot @ (t * reach * lat + off * n) + wd * a)
     else:
         width = 0.3
         pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20) for b in np.linspace(-1, 1, 13)]
@@ -473,18 +481,44 @@ def _door_pitch(z: float) -> float:
     return math.radians(float(np.clip(35.0 - (z - 0.3) * 45.0, -25.0, 40.0)))
 
 
-def reach_count(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> int:
-    """How many of ``targets`` (4x4 world poses, in order) CLIK reaches one after the other from a
-    base at ``base`` (the first with random restarts, then warm-started, as the swing runs)."""
+def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> list[np.ndarray]:
+    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses, in order) that CLIK reaches
+    one after the other from a base at ``base`` (the first with random restarts, the others
+    warm-started from the previous solution, as the motion runs)."""
     from stages.simulate.control import Clik
 
     q = _base_q(d, base)
+    out = []
     for k, t in enumerate(targets):
         res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
                          restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
         if res.position_error > tol or res.rotation_error > math.radians(2.0):
-            return k
+            break
         q = res.q
+        out.append(d.ik.arm_q(q))
+    return out
+
+
+def track(d, targets, seeds, durations, *, tol: float) -> int:
+    """Follow world poses ``targets`` with the arm: each is solved by CLIK from the robot's actual
+    state with the arm seeded by the planned solution in ``seeds`` (so execution stays on the
+    planned branch), and the joint targets move linearly there in ``durations`` [s]. Returns how
+    many were reached; stops at the first one CLIK misses by more than ``tol`` [m] or 3 deg."""
+    from stages.simulate.control import Clik
+
+    d.cmd.mode = 1
+    d.base((0.0, 0.0, 0.0))
+    for k, (t, seed, dur) in enumerate(zip(targets, seeds, durations, strict=False)):
+        q0 = d.ik.with_arm(d.ik.from_sim(d.sim), seed)
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q0, max_iters=300)
+        if res.position_error > tol or res.rotation_error > math.radians(3.0):
+            log.info("track: waypoint %d unreachable (%.4f m)", k, res.position_error)
+            return k
+        a0, a1 = d.ctl.arm_targets(), d.ik.arm_q(res.q)
+        n = max(1, int(round(dur / d.frame_dt)))
+        for i in range(1, n + 1):
+            d.ctl.set_arm_targets(a0 + (a1 - a0) * i / n)
+            d.step(d.frame_dt)
     return len(targets)
 
 
@@ -530,6 +564,13 @@ def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float
     return m
 
 
+def _lerp_pose(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    """Pose between 4x4 ``a`` and ``b`` with the same rotation as ``b`` (positions interpolated)."""
+    m = b.copy()
+    m[:3, 3] = a[:3, 3] + t * (b[:3, 3] - a[:3, 3])
+    return m
+
+
 def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar.
@@ -546,7 +587,7 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
         contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
         pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
         around = 0.12
-    approach = [pre, contact]
+    approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
     if part.kind == "revolute" and q0 - part.closed > 0.15 * part.travel:
         edge = pre.copy()
         edge[:3, 3] += around * (part.rotation_at(q0) @ _lateral(part))
@@ -555,22 +596,24 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
 
 
 def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70):
-    """(base, pitch, n): the base pose and gripper pitch from which the approach at q0 and the
-    first n waypoints of ``qs`` are reachable, n as large as found (all of them ends the search)."""
+    """(base, pitch, n, arm solutions): the base pose and gripper pitch from which the approach at
+    q0 and the first n waypoints of ``qs`` are reachable, n as large as found (all of them ends
+    the search), and the arm solutions of approach + those waypoints."""
     from stages.demos.experts import ExpertFailure
 
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
-    best = (None, 0.0, -1)
+    best = (None, 0.0, -1, [])
     checks = 0
     for base in _swing_bases(part, grid, q0, qs):
         for pitch in (p0, p0 - math.radians(15), p0 + math.radians(15)):
             approach, arc = _gesture(part, q0, qs, pitch, push)
-            n = reach_count(d, base, approach + arc) - len(approach)
+            sols = reach(d, base, approach + arc)
+            n = len(sols) - len(approach)
             checks += 1
             if n > best[2]:
-                best = (base, pitch, n)
+                best = (base, pitch, n, sols)
             if n == len(qs):
                 return best
             if checks >= max_checks:
@@ -603,7 +646,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n = _plan_stage(d, part, plan, q, qs, push)
+        base, pitch, n, sols = _plan_stage(d, part, plan, q, qs, push)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose", f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
@@ -612,24 +655,20 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         approach, arc = _gesture(part, q, qs, pitch, push)
         if push:
             d.grip(1.0, 0.4)
-        d.move(approach[0], 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-        for t in approach[1:-1]:
-            _move(d, t, 0.8, tol=APPROACH_TOL)
-        _move(d, approach[-1], 1.0, segments=2, settle=0.2)
+        na = len(approach)
+        durs = [1.5] + [0.6] * (na - 2) + [0.5]
+        if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
+            raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
+        d.step(0.2)
         if not push:
             d.grip(1.0, 0.6)
         log.debug("%s: at the part: hand %s handle %s (q %.3f)", part.joint_path, np.round(_tcp_world(d), 3),
                   np.round(part.handle_at(d.sim.joint_q_of_path(part.joint_path)), 3),
                   d.sim.joint_q_of_path(part.joint_path))
-        last = q
-        for qw, t in zip(qs[:n], arc[:n], strict=True):
-            try:
-                _move(d, t, 0.4, tol=SWING_TOL)
-            except ExpertFailure:
-                log.info("%s: swing stopped at %.2f", part.joint_path, qw)
-                break
-            last = qw
-            log.debug("%s: swing %.3f -> %.3f", part.joint_path, qw, d.sim.joint_q_of_path(part.joint_path))
+        k = track(d, arc[:n], sols[na:na + n], [0.4] * n, tol=SWING_TOL)
+        last = qs[k - 1] if k else q
+        log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n else q,
+                  d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         d.home(1.0)
