@@ -393,7 +393,8 @@ def close_articulated(inst: TaskInstance, d: Driver) -> None:
 
 
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
-           "pick_from_microwave": pick_from_microwave, "push_object": push_object, "press_button": press_button}
+           "pick_from_microwave": pick_from_microwave, "push_object": push_object,
+           "press_button": press_button}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

@@ -133,7 +133,8 @@ def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[s
                         f"(is it an earlier default_catalog step?)")
     cat_dir = getattr(next(iter(cat.values())), "catalog_dir", None)
     if cat_dir is None:
-        raise ItemError(f"{ctx.job_file}: demos step: step {config.catalog_step!r} does not produce a catalog_dir")
+        raise ItemError(f"{ctx.job_file}: demos step: step {config.catalog_step!r} does not produce a "
+                        "catalog_dir")
     generated = Path(cat_dir) / "generated.json"
     try:
         info = json.loads(generated.read_text(encoding="utf-8"))
@@ -149,8 +150,8 @@ def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[s
         if aid in info and info[aid].get("category") in KITCHEN_CATEGORIES:
             packages[aid] = str((ctx.work_dir / r.usd_path).resolve())
     if not packages:
-        raise ItemError(f"{ctx.job_file}: demos step: no kitchen package ({', '.join(KITCHEN_CATEGORIES)}) among "
-                        f"the {len(assets)} results of step {config.assets_step!r}")
+        raise ItemError(f"{ctx.job_file}: demos step: no kitchen package ({', '.join(KITCHEN_CATEGORIES)}) "
+                        f"among the {len(assets)} results of step {config.assets_step!r}")
     return generated, packages
 
 
@@ -193,7 +194,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
     lib = AssetLibrary.from_packages({k: Path(v) for k, v in params.packages.items()}, Path(params.generated))
-    world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id, rng=np.random.default_rng(params.world_seed))
+    world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id,
+                          rng=np.random.default_rng(params.world_seed))
     settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device,
                             record_images=params.record_images)
     sim = DemoWorld(world, panda_root=None if params.panda_root is None else Path(params.panda_root),

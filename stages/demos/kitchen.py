@@ -35,8 +35,8 @@ from pipeline.types import ItemError
 log = logging.getLogger(__name__)
 
 #: categories the kitchen is furnished from
-KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "coffee_table",
-                      "mug", "bowl", "can", "sponge")
+KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
+                      "coffee_table", "mug", "bowl", "can", "sponge")
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
@@ -113,8 +113,8 @@ class AssetLibrary:
             if rec is None or rec.get("category") not in categories:
                 continue
             lo, hi, link = _package_facts(Path(usd))
-            out[aid] = CatalogAsset(asset_id=aid, category=rec["category"], usd=Path(usd).resolve(), lo=lo, hi=hi,
-                                    info=rec, root_link=link)
+            out[aid] = CatalogAsset(asset_id=aid, category=rec["category"], usd=Path(usd).resolve(), lo=lo,
+                                    hi=hi, info=rec, root_link=link)
         return AssetLibrary(out)
 
     @staticmethod
@@ -221,7 +221,8 @@ class KitchenWorld:
         furniture (fridge, counter, oven, table, door frame)."""
         sx, sy = self.size
         t = self.wall_thickness
-        boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t), (sx, -t, sx + t, sy + t)]
+        boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t),
+                 (sx, -t, sx + t, sy + t)]
         boxes += [self.placed[k].footprint() for k in ("fridge", "counter", "oven", "table", "door")]
         return np.asarray(boxes, float)
 
@@ -243,7 +244,8 @@ def _pick(lib: AssetLibrary, rng: np.random.Generator, categories: tuple[str, ..
           what: str = "") -> CatalogAsset:
     cands = [a for c in categories for a in lib.of(c) if ok(a)]
     if not cands:
-        raise ItemError(f"default catalog: no usable {what or '/'.join(categories)} among the ingested packages "
+        raise ItemError(f"default catalog: no usable {what or '/'.join(categories)} among the ingested "
+                        f"packages "
                         f"({', '.join(categories)}: {sum(len(lib.of(c)) for c in categories)} packages)")
     return cands[int(rng.integers(len(cands)))]
 
@@ -303,7 +305,8 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
     w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
         "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
         "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81)})
-    _box(w, "/World/Floor", (sx / 2, sy / 2, -0.05), (sx + 2 * t, sy + 2 * t, 0.1), colors["floor"], label="floor")
+    _box(w, "/World/Floor", (sx / 2, sy / 2, -0.05), (sx + 2 * t, sy + 2 * t, 0.1), colors["floor"],
+         label="floor")
     x0, x1 = door_gap
     walls = {"WallNorth": ((sx / 2, sy + t / 2, h / 2), (sx + 2 * t, t, h)),
              "WallWest": ((-t / 2, sy / 2, h / 2), (t, sy, h)),
@@ -322,7 +325,8 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
     w.write(Path(path), "World")
 
 
-def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str, rng: np.random.Generator) -> KitchenWorld:
+def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
+                  rng: np.random.Generator) -> KitchenWorld:
     """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -364,7 +368,8 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str, rng: np.ra
     y_lo, y_hi = seg["lo"][1] + 0.03, seg["hi"][1] - 0.03
     # the hand (0.2 m wide across its fingers) grasps the mug from the front: the spot is 0.17 m
     # beside the microwave
-    span = (y_lo - micro.lo[1] + (0.27 if mug_side < 0 else 0.0), y_hi - micro.hi[1] - (0.27 if mug_side > 0 else 0.0))
+    span = (y_lo - micro.lo[1] + (0.27 if mug_side < 0 else 0.0),
+            y_hi - micro.hi[1] - (0.27 if mug_side > 0 else 0.0))
     my = float(rng.uniform(*span)) if span[1] > span[0] else 0.5 * (span[0] + span[1])
     # near the counter's front edge: the hand reaches the mug with its wrist in front of the edge
     mx = seg["hi"][0] - 0.01 - micro.hi[0]

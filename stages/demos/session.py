@@ -117,8 +117,8 @@ class DemoWorld:
     cameras and a recorder. ``panda_root``: the Panda description's package root (None: the pip
     package example-robot-data)."""
 
-    def __init__(self, world: KitchenWorld, *, panda_root: Path | None, work_dir: Path, settings: DemoSettings,
-                 seed: int = 0) -> None:
+    def __init__(self, world: KitchenWorld, *, panda_root: Path | None, work_dir: Path,
+                 settings: DemoSettings, seed: int = 0) -> None:
         from stages.simulate.control import RobotControl
         from stages.simulate.robot import find_panda_description, write_robot_urdf
         from stages.simulate.world import SimConfig, build_sim

@@ -142,8 +142,9 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              success=pick_place_microwave_success, templates=_PICK),
     TaskSpec(name="pick_from_microwave", family=Family.PICK_PLACE, max_seconds=30.0,
              success=pick_from_microwave_success,
-             templates=("take the {object} out of the {container}", "move the {object} from the {container} to "
-                        "the counter", "pick the {object} out of the {container} and put it on the counter")),
+             templates=("take the {object} out of the {container}",
+                        "move the {object} from the {container} to the counter",
+                        "pick the {object} out of the {container} and put it on the counter")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
@@ -181,12 +182,12 @@ def _articulated_specs() -> list[TaskSpec]:
             opens = ("open the drawer of the {furniture}", "pull the drawer of the {furniture} open")
             closes = ("close the drawer of the {furniture}", "push the drawer of the {furniture} shut")
         else:
-            opens, closes = ("open the {furniture} door", "open the {furniture}"), ("close the {furniture} door",
-                                                                                   "shut the {furniture}")
-        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0, success=_opened,
-                              templates=opens))
-        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0, success=_closed,
-                              templates=closes))
+            opens = ("open the {furniture} door", "open the {furniture}")
+            closes = ("close the {furniture} door", "shut the {furniture}")
+        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0,
+                              success=_opened, templates=opens))
+        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0,
+                              success=_closed, templates=closes))
     return specs
 
 
