@@ -272,8 +272,9 @@ def part_closed(part: ArticulatedPart, state, tol: float | None = None) -> tuple
 
 STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
 PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
+LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push further in [m]
 PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
-PUSH_OVERSHOOT = 0.04  # a push ends this far [rad] past closed (pressing the part onto its stop)
+PUSH_OVERSHOOT = -0.01  # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
@@ -578,11 +579,12 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
     h = np.asarray(part.handle, float)
     front0 = np.asarray(part.front, float)
     if push:
-        face = h - (part.clearance + part.grip_width / 2) * front0 - PUSH_INBOARD * _lateral(part)
+        inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
+        face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * _lateral(part)
         contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
         arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
         pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
-        around = PUSH_INBOARD + 0.12
+        around = inboard + 0.12
     else:
         contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
         pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
@@ -653,8 +655,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         d.drive_to(base, swept_grid(grid, part, q, q))
         approach, arc = _gesture(part, q, qs, pitch, push)
-        if push:
-            d.grip(1.0, 0.4)
+        d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
         durs = [1.5] + [0.6] * (na - 2) + [0.5]
         if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
@@ -665,13 +666,17 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         log.debug("%s: at the part: hand %s handle %s (q %.3f)", part.joint_path, np.round(_tcp_world(d), 3),
                   np.round(part.handle_at(d.sim.joint_q_of_path(part.joint_path)), 3),
                   d.sim.joint_q_of_path(part.joint_path))
-        k = track(d, arc[:n], sols[na:na + n], [0.4] * n, tol=SWING_TOL)
+        # slow near closed: a heavy leaf driven into its stop rebounds
+        durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4 for qw in qs[:n]]
+        k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
+        d.step(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n else q,
                   d.sim.joint_q_of_path(part.joint_path))
-        _retreat_from_leaf(part, d, last, grid)
+        _retreat_from_leaf(part, d, last, grid, push=push)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         d.home(1.0)
+        d.step(0.3)
         q = d.sim.joint_q_of_path(part.joint_path)
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
         if done(q):
@@ -687,7 +692,7 @@ def _tcp_world(d) -> np.ndarray:
     return m[:3, 3]
 
 
-def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid) -> None:
+def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool = False) -> None:
     """Release the handle and take the hand clear of the leaf with base motions (arm held): back
     along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
     edge (an arm wrapped round an opened door's edge would sweep it shut when tucked) as far as
@@ -695,9 +700,10 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid) -> None:
     from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
-    d.grip(0.0, 0.5)
+    if not push:  # a pushing fist stays closed: opening fingers catch the handle
+        d.grip(0.0, 0.5)
     w = _ee_world(d)
-    _base_shift(d, -0.08 * w[:3, 2])
+    _base_shift(d, -0.08 * w[:3, 2], speed=0.08)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
         e = part.rotation_at(q) @ _lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
