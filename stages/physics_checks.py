@@ -14,13 +14,29 @@ used are recorded in each report (``solver``).
 - ``joint_limit_check`` (base fixed, no ground) uses MuJoCo's C engine on CPU (``use_mujoco_cpu``)
   and mujoco-warp on CUDA, with MuJoCo's own collision.
 - ``rest_check`` uses the same by default (``contacts="mujoco"``); ``contacts="newton"`` steps
-  mujoco-warp (on any device) with Newton's collision pipeline instead. MuJoCo's own plane-mesh collision (``mjc_PlaneConvex``) returns at most
-  3 contacts: the deepest hull vertex and up to 2 vertices near it. On a flat face with 4 or more
-  hull vertices the 3 contacts span a triangle with an edge near the center of mass, so the body
-  teeters on that edge and the contact set keeps switching, which pumps energy: a die or a mouse
-  micro-rocks at 0.2-0.6 rad/s forever. Newton's pipeline gives the full contact manifold of the
-  face (4-5 points) and such bodies settle to < 0.01 rad/s; but on the shared assets os_phone and
-  os_toothbrush then keep rocking at ~0.7 rad/s (not yet understood), so it is not the default.
+  mujoco-warp (on any device) with Newton's collision pipeline instead (full contact manifolds,
+  ~5-10x slower on CPU; with it os_toothbrush and os_toothpaste of the shared assets rock about
+  their long axis at 0.4-3.7 rad/s on 4-5 contacts, so it is not the default).
+
+Contact stiffness (``RIGID_CONTACT_SOLREF`` / ``RIGID_CONTACT_SOLIMP``, set on every shape for the
+check, recorded in ``solver``). The check is about the asset (colliders, mass, pose), so contacts
+are made close to rigid: solref time constant 0.01 s (2.5 steps, critically damped) and impedance
+0.99-0.999 instead of Newton's/MuJoCo's defaults (0.02 s; 0.9-0.95). With the soft defaults:
+
+- a body rests 0.2-0.5 mm deep in the plane, deeper than the unevenness of a scanned "flat" face
+  (a die has 12 hull vertices within 0.5 mm of its lowest one). MuJoCo's plane-mesh collision
+  (``mjc_PlaneConvex``) keeps at most 3 contacts: the deepest vertex and 2 graph neighbours. With
+  many vertices in the plane that triangle changes with every tiny tilt (ycb_dice: 96 contact-set
+  switches per second, os_mouse 142) and the body micro-rocks at 0.2-0.6 rad/s forever. Impedance
+  0.99 alone stops the mouse; both settings make the depth 0.005 mm, the set stays fixed (0
+  switches) and both rest at < 0.001 rad/s.
+- a 20 cm tube toppling from its crimped end (os_toothpaste) hits with the soft 0.02 s contact and
+  sinks 12.6 mm for an instant (3.9 mm with 0.01 s); at rest it lies 0.2 mm deep (0.005 mm).
+
+Rolling across hull faces dissipates less with stiff contacts: a sphere hull authored on its pole
+vertex (the default catalog's oranges: an unstable equilibrium, 8 faces at 13-14 degrees around
+it) balances 0.7-0.9 s until float noise has grown (rate sqrt(g / h_com) = 16 1/s), rolls onto a
+face and rests after 1.9-2.4 s (0.6-1.3 s with the soft defaults), hence the 3 s default run.
 """
 
 from __future__ import annotations
@@ -37,7 +53,10 @@ log = logging.getLogger(__name__)
 
 
 class SolverSettings(BaseModel):
-    """What ran the check: solver name, device, time step [s], iterations, integrator, cone."""
+    """What ran the check: solver name, device, time step [s], iterations, integrator, cone;
+    contact_solref (time constant [s], damping ratio) and contact_solimp (MuJoCo impedance: d0,
+    dwidth, width [m], midpoint, power) set on every shape for the check, None: as authored/Newton's
+    defaults (solref 0.02 s, 1; solimp 0.9, 0.95, 0.001, 0.5, 2)."""
 
     model_config = ConfigDict(frozen=True)
 
@@ -50,6 +69,8 @@ class SolverSettings(BaseModel):
     cone: str = "elliptic"
     backend: str = "mujoco-c"
     contacts: str = "mujoco"
+    contact_solref: tuple[float, float] | None = None
+    contact_solimp: tuple[float, float, float, float, float] | None = None
 
 
 class RestReport(BaseModel):
@@ -127,16 +148,43 @@ def _settings(device: str) -> SolverSettings:
     return SolverSettings(device=str(dev), backend="mujoco-c" if dev.is_cpu else "mujoco-warp")
 
 
-def _contact_settings(device: str, contacts: str) -> SolverSettings:
+# Contact parameters of ``rest_check`` (see the module docstring, "Contact stiffness"): MuJoCo solref
+# (time constant [s] = 2.5 time steps, damping ratio: critical) and solimp (impedance 0.99 at zero
+# penetration rising to 0.999 at 1 mm; midpoint, power as MuJoCo's default).
+RIGID_CONTACT_SOLREF = (0.01, 1.0)
+RIGID_CONTACT_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+
+
+def _contact_settings(device: str, contacts: str, solref=RIGID_CONTACT_SOLREF,
+                      solimp=RIGID_CONTACT_SOLIMP) -> SolverSettings:
     """Settings of ``rest_check``: MuJoCo's contacts ("mujoco", as ``_settings``) or mujoco-warp with
-    Newton's collision pipeline ("newton", full contact manifolds; see the module docstring)."""
+    Newton's collision pipeline ("newton", full contact manifolds; see the module docstring), with
+    the contact solref/solimp to set on every shape (None: leave as loaded)."""
     import warp as wp
 
     if contacts == "mujoco":
-        return _settings(device)
-    if contacts != "newton":
+        base = _settings(device)
+    elif contacts == "newton":
+        base = SolverSettings(device=str(wp.get_device(device)), backend="mujoco-warp", contacts="newton")
+    else:
         raise ValueError(f"contacts must be 'mujoco' or 'newton', not {contacts!r}")
-    return SolverSettings(device=str(wp.get_device(device)), backend="mujoco-warp", contacts="newton")
+    return base.model_copy(update={"contact_solref": None if solref is None else tuple(map(float, solref)),
+                                   "contact_solimp": None if solimp is None else tuple(map(float, solimp))})
+
+
+def _set_contact_parameters(model, settings: SolverSettings) -> None:
+    """Write ``settings``' contact solref/solimp into every shape of the finalized ``model`` (before
+    the solver is made). solref goes through Newton's shape material: SolverMuJoCo maps ke, kd to
+    timeconst = 2 / kd, dampratio = kd / 2 * sqrt(1 / ke); solimp through ``model.mujoco.geom_solimp``."""
+    n = model.shape_count
+    if settings.contact_solref is not None:
+        timeconst, dampratio = settings.contact_solref
+        kd = 2.0 / timeconst
+        ke = (kd * dampratio / 2.0) ** 2 if dampratio > 0 else 0.0
+        model.shape_material_ke.assign(np.full(n, ke, dtype=np.float32))
+        model.shape_material_kd.assign(np.full(n, kd, dtype=np.float32))
+    if settings.contact_solimp is not None:
+        model.mujoco.geom_solimp.assign(np.tile(np.asarray(settings.contact_solimp, dtype=np.float32), (n, 1)))
 
 
 def _collider_points_in_bodies(builder) -> list[tuple[int, np.ndarray]]:
@@ -179,14 +227,17 @@ def _lowest_point(body_q: np.ndarray, shapes: list[tuple[int, np.ndarray]]) -> f
     return float(min(zs)) if zs else math.nan
 
 
-def _load(source, *, floating: bool | None, z_offset: float = 0.0):
-    """A ModelBuilder with the asset (a path or an open Usd.Stage), raised by ``z_offset`` [m]."""
+def _load(source, *, floating: bool | None, z_offset: float = 0.0, mujoco_attributes: bool = False):
+    """A ModelBuilder with the asset (a path or an open Usd.Stage), raised by ``z_offset`` [m];
+    ``mujoco_attributes``: register SolverMuJoCo's custom attributes first (``model.mujoco.*``)."""
     import newton
     import warp as wp
 
     import usd_schemas  # noqa: F401  (registers the schema plugins before USD's schema registry is built)
 
     builder = newton.ModelBuilder()
+    if mujoco_attributes:
+        newton.solvers.SolverMuJoCo.register_custom_attributes(builder)
     builder.add_usd(source if not isinstance(source, Path) else str(source),
                     xform=wp.transform((0.0, 0.0, z_offset), wp.quat_identity()), floating=floating,
                     load_visual_shapes=False)
@@ -242,12 +293,16 @@ class RestTolerances:
     angular_speed: float = 0.2
 
 
-def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, drop_height: float = 0.02,
-               tolerances: RestTolerances = RestTolerances(), contacts: str = "mujoco") -> RestReport:
+def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 3.0, drop_height: float = 0.02,
+               tolerances: RestTolerances = RestTolerances(), contacts: str = "mujoco",
+               contact_solref: tuple[float, float] | None = RIGID_CONTACT_SOLREF,
+               contact_solimp: tuple[float, ...] | None = RIGID_CONTACT_SOLIMP) -> RestReport:
     """Drop the asset from ``drop_height`` [m] (lowest collider point above the plane, asset in its
     authored orientation) onto a ground plane and simulate ``seconds`` [s] on ``device``;
-    ``contacts``: "mujoco" (MuJoCo's collision) or "newton" (Newton's pipeline, see module docstring). A fixed
-    base is released for the drop (only in memory), so that fixed assets are checked too."""
+    ``contacts``: "mujoco" (MuJoCo's collision) or "newton" (Newton's pipeline, see module docstring);
+    ``contact_solref`` (time constant [s], damping ratio) / ``contact_solimp`` (MuJoCo solimp) set on
+    every shape, None: as loaded (Newton's defaults unless the asset authors them). A fixed base is
+    released for the drop (only in memory), so that fixed assets are checked too."""
     import newton
     import warp as wp
 
@@ -256,14 +311,15 @@ def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 2.0, dro
     probe = _load(stage, floating=None)
     shapes0 = _collider_points_in_bodies(probe)
     if not shapes0:
-        return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, _contact_settings(device, contacts), probe)
+        return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, _contact_settings(device, contacts, contact_solref, contact_solimp), probe)
     start_low = _lowest_point(np.asarray([_body_q0(probe, b) for b in range(probe.body_count)]), shapes0)
-    builder = _load(stage, floating=None, z_offset=drop_height - start_low)
+    builder = _load(stage, floating=None, z_offset=drop_height - start_low, mujoco_attributes=True)
     builder.add_ground_plane()
     shapes = _collider_points_in_bodies(builder)
-    settings = _contact_settings(device, contacts)
+    settings = _contact_settings(device, contacts, contact_solref, contact_solimp)
     with wp.ScopedDevice(device):
         model = builder.finalize(device=device)
+        _set_contact_parameters(model, settings)
         solver = _solver(model, settings)
         pipeline = newton.CollisionPipeline(model) if settings.contacts == "newton" else None
         found = pipeline.contacts() if pipeline is not None else None

@@ -346,23 +346,18 @@ def test_ingest_every_shared_rigid_asset(shared_assets, tmp_path):
     if _has_newton_usd():
         from stages.physics_checks import rest_check
 
-        failures = {r.id: rest_check(out / r.usd_path).reasons for r in recs}
-        failures = {k: v for k, v in failures.items() if v}
+        reports = {r.id: rest_check(out / r.usd_path) for r in recs}
+        failures = {k: rep.reasons for k, rep in reports.items() if not rep.passed}
         assert set(failures) <= set(KNOWN_REST_ISSUES), failures
+        for k, rep in reports.items():  # the stiff contacts: resting depth well under the 3 mm bound
+            assert k in KNOWN_REST_ISSUES or rep.settled_min_height > -0.001, (k, rep.settled_min_height)
 
 
-# Assets that ingest and validate but whose 2 s rest check (stages.physics_checks) flags them, with why
-# (seen on CPU, MuJoCo solver); open items, not accepted behaviour.
-KNOWN_REST_ISSUES = {
-    "os_toothpaste": "stands on its crimped end (1.6 mm wide) as authored, topples (physically right); the "
-                     "20 cm tube falls flat and the soft contact (solref 0.02 s, Newton's default "
-                     "ke/kd) lets it penetrate 11.3 mm for an instant (tolerance 10 mm), then rests at -0.2 mm",
-    "os_mouse": "nearly flat bottom: MuJoCo's plane-mesh collision gives at most 3 contacts, whose triangle "
-                "leaves the center of mass near/outside an edge, so it micro-rocks at ~0.5 rad/s forever "
-                "(rests with rest_check(contacts='newton'))",
-    "ycb_dice": "flat face: its 3 MuJoCo plane-mesh contacts have an edge through the center of mass, it "
-                "teeters at 0.2-0.4 rad/s (rests with rest_check(contacts='newton'))",
-}
+# Assets that ingest and validate but whose rest check (stages.physics_checks) flags them, with why
+# (seen on CPU, MuJoCo solver); open items, not accepted behaviour. Empty since the check's contacts
+# are stiff (solref 0.01 s, solimp 0.99): os_mouse / ycb_dice no longer micro-rock on MuJoCo's 3
+# switching plane-mesh contacts, os_toothpaste's topple sinks 3.9 mm (was 12.6 mm, tolerance 10 mm).
+KNOWN_REST_ISSUES: dict[str, str] = {}
 
 
 def _has_newton_usd() -> bool:

@@ -6,7 +6,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
+import trimesh
 
 pytest.importorskip("newton_usd_schemas", reason="Newton's add_usd needs newton-usd-schemas")
 
@@ -15,7 +17,8 @@ import usd_test_models as M  # noqa: E402
 
 import usd_schemas  # noqa: E402
 from asset_catalog.asset_model import Pose  # noqa: E402
-from stages.physics_checks import joint_limit_check, rest_check  # noqa: E402
+from stages.physics_checks import (RIGID_CONTACT_SOLIMP, RIGID_CONTACT_SOLREF, joint_limit_check,  # noqa: E402
+                                   rest_check)
 
 
 @pytest.fixture(scope="module")
@@ -41,6 +44,57 @@ def test_rigid_assets_come_to_rest(packages, name):
     assert r.final_linear_speed < 0.02 and r.final_angular_speed < 0.2
     assert r.solver.solver == "SolverMuJoCo" and r.solver.device == "cpu" and r.solver.backend == "mujoco-c"
     assert r.solver.contacts == "mujoco"
+    assert r.solver.contact_solref == RIGID_CONTACT_SOLREF and r.solver.contact_solimp == RIGID_CONTACT_SOLIMP
+
+
+def _hull_package(tmp_path: Path, name: str, points: np.ndarray, density: float) -> Path:
+    """A one-body package whose visual and collider are the convex hull of ``points`` [m]."""
+    mesh = trimesh.convex.convex_hull(points)
+    box = M.box_model(name)
+    link = replace(box.links[0], visuals=(M.part(name, mesh),), colliders=M.hulls([mesh]),
+                   mass=M.mass_properties([mesh], density))
+    return usd_schemas.write_asset_package(box.replace_links((link,)), tmp_path / name, pipeline_version="0.1.0").root_path
+
+
+def _scanned_die(seed: int, side: float = 0.017, bump: float = 0.0005, grid: int = 6) -> np.ndarray:
+    """Hull points of a die (side [m], chamfered vertical edges) whose bottom is a grid of points up
+    to ``bump`` [m] above z = 0, like a scanned nearly flat face."""
+    rng = np.random.default_rng(seed)
+    h, c = side / 2, side / 2 - 0.002
+    pts = [(sx * a, sy * b, z) for sx in (-1, 1) for sy in (-1, 1) for a, b in ((c, h), (h, c)) for z in (0.002, side)]
+    g = np.linspace(-c, c, grid)
+    pts += [(x, y, rng.uniform(0.0, bump)) for x in g for y in g]
+    return np.asarray(pts)
+
+
+def test_nearly_flat_bottom_rests_with_rigid_contacts(tmp_path):
+    """A 17 mm die with a 0.5 mm uneven bottom (36 hull points). With MuJoCo's soft default contacts
+    it rests 0.2 mm deep, its 3 plane-mesh contacts keep switching and it micro-rocks; with the
+    check's stiff contacts it rests still."""
+    soft = []
+    for seed in (0, 3):
+        pkg = _hull_package(tmp_path, f"die_{seed}", _scanned_die(seed), density=950.0)
+        r = rest_check(pkg)
+        assert r.passed, r.reasons
+        assert r.final_angular_speed < 0.02 and r.final_linear_speed < 0.002 and abs(r.final_height) < 1e-4
+        soft.append(rest_check(pkg, contact_solref=None, contact_solimp=None))
+        assert soft[-1].solver.contact_solref is None and abs(soft[-1].final_height) > 1e-4  # rests deeper
+    assert all(r.final_angular_speed > 0.02 for r in soft)  # still rocking after 3 s
+    assert any("not at rest" in x for r in soft for x in r.reasons), [r.reasons for r in soft]
+
+
+def test_toppling_tube_impact_sink_with_rigid_contacts(tmp_path):
+    """A 20 cm tube (164 g) standing on a 1.6 mm wide crimped end off its center of mass topples and
+    comes to rest; the stiff contacts bound its impact penetration (soft defaults: ~6 mm)."""
+    w, d, hgt = 0.037, 0.052, 0.2
+    pts = [(sx * w / 2, 0.005 + sy * 0.0008, 0.0) for sx in (-1, 1) for sy in (-1, 1)]
+    pts += [(sx * w / 2, sy * d / 2, z) for sx in (-1, 1) for sy in (-1, 1) for z in (0.6 * hgt, hgt)]
+    pkg = _hull_package(tmp_path, "tube", np.asarray(pts), density=600.0)
+    r = rest_check(pkg)
+    assert r.passed, r.reasons
+    assert -0.004 < r.min_height < 0.0
+    soft = rest_check(pkg, contact_solref=None, contact_solimp=None)
+    assert soft.min_height < 1.5 * r.min_height
 
 
 def test_rest_check_detects_an_asset_that_does_not_rest(tmp_path):
