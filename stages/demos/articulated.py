@@ -6,10 +6,10 @@ Public surface (signatures are stable; the task world imports them)::
     parts = parts_of(record, asset_id="microwave_00", prim_root="/World/Objects/microwave_0",
                      pose=(x, y, z, yaw), joint_frames=frames)             # tuple[ArticulatedPart, ...]
     parts = parts_of_package(record, asset_id=..., prim_root=..., pose=..., package_usd=...)
-    part.handle_at(q)      # handle centre (3,) [m] at joint value q
-    open_part(part, d, grid, goal_fraction=0.9)     # Driver d (stages.demos.experts); ExpertFailure
-    close_part(part, d, grid, start=q0)
-    part_opened(part, state, fraction) -> (ok, reason); part_closed(part, state, tol) -> (ok, reason)
+    part.handle_at(q), part.front_at(q), part.rotation_at(q)   # handle (3,), front normal (3,), (3, 3)
+    open_part(part, d, grid, goal_fraction=0.9)      # d: stages.demos.experts.Driver; grid: NavGrid
+    close_part(part, d, grid, start=q0)              # q0: the part's joint value at the start
+    part_opened(part, state, fraction=0.75) -> (ok, reason); part_closed(part, state, tol=None)
 
 ``record`` is one asset's entry of the default catalog's ``generated.json`` (category, joints:
 name -> role, handles: link, kind, center, grip_width, clearance, bar_axis in the asset root frame
@@ -21,6 +21,20 @@ A package referenced at ``prim_root`` (translate (x, y, z) then yaw about +Z, as
 composed scene; Newton exposes them under those prim paths (``sim.scene.joint_path``,
 ``read_state(sim).scene_joints``).
 
+Experts (the robot drives with ``Driver.drive_to`` over ``grid``, the room with its parts closed;
+the experts add the part's swept area themselves):
+
+- drawers: base in front of the bar (pose checked by IK), grasp, the base backs away (or drives
+  in) along the drawer axis with the arm held, release, tuck;
+- doors (vertical hinge: fridge, microwave, cabinet, room door; bottom hinge: oven): in stages,
+  each from the base pose (searched on rings round the handle, checked by CLIK) that reaches the
+  longest part of the remaining arc; the arm follows the planned IK branch (no random restarts
+  mid-motion); opening holds the handle, closing a vertical door pushes its front face with the
+  closed hand; after each stage the hand backs off with base motions (round the free edge of an
+  opened leaf) and tucks. A fridge door of 0.7 m typically needs 2 stages; a stage lasts ~15 s.
+
+They raise :class:`~stages.demos.experts.ExpertFailure` ("no_base_pose", "ik_unreachable",
+"not_reached", "handle_faces_floor", and the Driver's "no_path", "drive_timeout").
 Conventions (catalog generators): the asset root frame has +X to the front; doors open with
 positive angles (towards +X), drawers slide along +X; the closed configuration is joint value 0.
 Frame of :class:`ArticulatedPart`: world, Z up, metres, radians.
@@ -174,7 +188,8 @@ def package_joint_frames(package_usd: Path) -> dict[str, JointFrame]:
         out[prim.GetName()] = JointFrame(
             name=prim.GetName(), link=b1[0].name, kind=kind,
             axis=tuple(float(v) for v in ax / np.linalg.norm(ax)), origin=tuple(float(v) for v in org),
-            lower=float(lo if lo is not None else 0.0) * scale, upper=float(hi if hi is not None else 0.0) * scale)
+            lower=float(lo if lo is not None else 0.0) * scale,
+            upper=float(hi if hi is not None else 0.0) * scale)
     return out
 
 
@@ -188,7 +203,8 @@ def _dir(r: np.ndarray, v) -> tuple[float, float, float]:
 
 
 def parts_of(record: Mapping, *, asset_id: str, prim_root: str, pose: Sequence[float],
-             joint_frames: Mapping[str, JointFrame], roles: Sequence[str] = ROLES) -> tuple[ArticulatedPart, ...]:
+             joint_frames: Mapping[str, JointFrame],
+             roles: Sequence[str] = ROLES) -> tuple[ArticulatedPart, ...]:
     """The doors and drawers (``roles``) of one placed asset, in the world frame.
 
     record: the asset's ``generated.json`` entry; prim_root: the referencing prim in the scene
@@ -217,7 +233,8 @@ def parts_of(record: Mapping, *, asset_id: str, prim_root: str, pose: Sequence[f
             link=jf.link, kind=jf.kind, axis=_dir(r, jf.axis), origin=_world(r, t, jf.origin),
             lower=jf.lower, upper=jf.upper, closed=0.0, handle=_world(r, t, h["center"]),
             bar_axis=_dir(r, h["bar_axis"]), grip_width=float(h["grip_width"]),
-            clearance=float(h["clearance"]), front=_dir(r, (1.0, 0.0, 0.0)), handle_kind=str(h["kind"]), back_handle=back))
+            clearance=float(h["clearance"]), front=_dir(r, (1.0, 0.0, 0.0)), handle_kind=str(h["kind"]),
+            back_handle=back))
     return tuple(parts)
 
 
@@ -274,11 +291,11 @@ STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
 PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
 LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push further in [m]
 PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
-PUSH_OVERSHOOT = -0.01  # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
+# a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
+PUSH_OVERSHOOT = -0.01
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
-ENOUGH = 0.12       # a swing may stop this fraction of its sweep short of the goal when the arm runs out
 
 
 def _heading(v) -> float:
@@ -376,7 +393,8 @@ def _toward_hinge(part: ArticulatedPart) -> float:
     return 1.0 if face[0] * (-lat[1]) - face[1] * (-lat[0]) > 0 else -1.0
 
 
-def choose_base(d, part: ArticulatedPart, grid, candidates, targets_of) -> tuple[tuple[float, float, float], float]:
+def choose_base(d, part: ArticulatedPart, grid, candidates,
+                targets_of) -> tuple[tuple[float, float, float], float]:
     """The first (base pose, pitch) of ``candidates`` ((dn, dl, dyaw, pitch): metres out from the
     handle along the front, metres along the lateral direction (from the hinge towards the handle),
     yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
@@ -396,7 +414,8 @@ def choose_base(d, part: ArticulatedPart, grid, candidates, targets_of) -> tuple
             continue
         tried += 1
         if reachable(d, base, targets_of(base, pitch)):
-            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl, dyaw,
+            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
+                     dyaw,
                       pitch)
             return base, pitch
     raise ExpertFailure("no_base_pose",
@@ -429,7 +448,8 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
         return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
 
     p0 = _drawer_pitch(float(part.handle[2]))
-    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(15)) for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
+    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(15))
+             for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
              for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
     base, pitch = choose_base(d, part, grid, cands, targets)
     d.drive_to(base, grid)
@@ -468,7 +488,8 @@ def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: fl
                         pts.append(o + rot @ (t * reach * lat + off * n) + wd * a)
     else:
         width = 0.3
-        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20) for b in np.linspace(-1, 1, 13)]
+        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20)
+               for b in np.linspace(-1, 1, 13)]
     for p in pts:
         iy, ix = grid.cell_of(float(p[0]), float(p[1]))
         if 0 <= iy < occ.shape[0] and 0 <= ix < occ.shape[1]:
@@ -633,7 +654,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     ``push``, pressing the front face with the closed hand). Each stage drives to the base pose
     that reaches the longest part of the remaining arc, takes hold, swings, lets go and backs
     off; the part stays where it was left (damped joint) and the next stage starts from there."""
-    from stages.demos.experts import APPROACH_TOL, ExpertFailure
+    from stages.demos.experts import ExpertFailure
 
     opening = q1 > q0
     done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
@@ -650,7 +671,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
         base, pitch, n, sols = _plan_stage(d, part, plan, q, qs, push)
         if n < 2 and not done(qs[max(n - 1, 0)]):
-            raise ExpertFailure("no_base_pose", f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
+            raise ExpertFailure("no_base_pose",
+                                f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         d.drive_to(base, swept_grid(grid, part, q, q))
@@ -681,7 +703,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
         if done(q):
             return
-    raise ExpertFailure("not_reached", f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+    raise ExpertFailure("not_reached",
+                        f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
 
 
 def _tcp_world(d) -> np.ndarray:
@@ -773,8 +796,13 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
 
 def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     """Close ``part`` from joint value ``start`` (its opening at the episode start)."""
+    from stages.demos.experts import ExpertFailure
+
     if part.kind == "prismatic":
         _drawer(part, d, grid, start, part.closed)
-    else:
-        vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
-        _swing(part, d, grid, start, part.closed, push=vertical)
+        return
+    vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
+    if not vertical and part.front_at(start)[2] < -0.5:
+        # a dropped oven door: its handle hangs under the leaf a few cm above the floor
+        raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {start:.2f}")
+    _swing(part, d, grid, start, part.closed, push=vertical)

@@ -135,7 +135,8 @@ def write_part_world(out_dir: Path, *, package_usd: Path, record: dict, asset_id
     w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
         "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
         "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81)})
-    _box(w, "/World/Floor", (sx / 2, sy / 2, -0.05), (sx + 2 * WALL_T, sy + 2 * WALL_T, 0.1), (0.6, 0.6, 0.58),
+    _box(w, "/World/Floor", (sx / 2, sy / 2, -0.05), (sx + 2 * WALL_T, sy + 2 * WALL_T, 0.1),
+         (0.6, 0.6, 0.58),
          label="floor")
     for b in _walls(size, WALL_T, WALL_H):
         _box(w, f"/World/{b.name}", b.center, b.size, b.rgb, label="wall")
@@ -156,9 +157,11 @@ def write_part_world(out_dir: Path, *, package_usd: Path, record: dict, asset_id
         a = Sdf.AttributeSpec(spec, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
         a.default = ["xformOp:translate", "xformOp:orient"]
     layer.Save()
-    parts = parts_of_package(record, asset_id=asset_id, prim_root=ASSET_PRIM, pose=pose, package_usd=package_usd)
+    parts = parts_of_package(record, asset_id=asset_id, prim_root=ASSET_PRIM, pose=pose,
+                             package_usd=package_usd)
     t = WALL_T
-    obstacles = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t), (sx, -t, sx + t, sy + t),
+    obstacles = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t),
+                 (sx, -t, sx + t, sy + t),
                  _footprint(bounds, pose)]
     if stand is not None:
         (cx, cy, _), (d, wd, _), yaw = stand
@@ -263,5 +266,6 @@ class PartSession:
         if not reason:
             ok, reason = part_opened(part, state) if action == "open" else part_closed(part, state)
             detail = reason
-        return PartEpisode(success=not reason, reason=reason, detail=detail, q_end=q, sim_seconds=self.sim.time,
+        return PartEpisode(success=not reason, reason=reason, detail=detail, q_end=q,
+                           sim_seconds=self.sim.time,
                            wall_seconds=time.perf_counter() - t0)

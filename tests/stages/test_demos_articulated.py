@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stages.demos.articulated import ArticulatedPart, JointFrame, load_generated_info, package_joint_frames, parts_of
+from stages.demos.articulated import (
+    ArticulatedPart, JointFrame, load_generated_info, package_joint_frames, parts_of)
 
 CATEGORIES = ("microwave", "cabinet", "oven", "door")
 
@@ -40,7 +41,8 @@ def test_joint_frames_follow_the_generator_conventions(catalog: Path):
     door = mw["door_joint"]
     assert door.kind == "revolute" and door.link == "door"
     np.testing.assert_allclose(door.axis, (0, 0, -1), atol=1e-6)  # hinge on -Y, opens towards +X
-    np.testing.assert_allclose(door.origin, (p["depth"] / 2, -p["width"] / 2 + 0.003, (0.01 + p["height"]) / 2),
+    np.testing.assert_allclose(door.origin,
+                               (p["depth"] / 2, -p["width"] / 2 + 0.003, (0.01 + p["height"]) / 2),
                                atol=1e-4)
     assert door.upper == pytest.approx(math.pi / 2, abs=1e-4) and door.lower == 0.0
     assert mw["button_joint"].kind == "prismatic"
@@ -141,7 +143,8 @@ def _session(catalog: Path, tmp_path: Path, aid: str, wall: int = 3):
     from stages.demos.part_world import PartSession, write_part_world
 
     info = load_generated_info(catalog / "catalog" / "default" / "generated.json")
-    world = write_part_world(tmp_path / aid, package_usd=_package(catalog, aid), record=info[aid], asset_id=aid,
+    world = write_part_world(tmp_path / aid, package_usd=_package(catalog, aid), record=info[aid],
+                             asset_id=aid,
                              rng=np.random.default_rng(0), wall=wall)
     return world, PartSession(world, panda_root=None, work_dir=tmp_path / aid)
 
