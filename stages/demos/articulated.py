@@ -804,5 +804,6 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     if not vertical and part.front_at(start)[2] < -0.5:
         # a dropped oven door: its handle hangs under the leaf a few cm above the floor
-        raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {start:.2f}")
+        raise ExpertFailure("handle_faces_floor",
+                            f"{part.joint_path}: handle under the open leaf at {start:.2f}")
     _swing(part, d, grid, start, part.closed, push=vertical)
