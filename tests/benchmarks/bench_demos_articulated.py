@@ -29,7 +29,8 @@ DEFAULT = "microwave:door,fridge:door,cabinet:drawer,kitchen_counter:drawer,oven
 def _catalog(out: Path, categories: list[str], variants: int) -> Path:
     from pipeline import build_job, run_job
 
-    data = {"job": {"name": "bench_articulated", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+    data = {"job": {"name": "bench_articulated", "seed": 0, "out": str(out), "executor": "inline",
+                    "workers": 1},
             "step": [{"name": "catalog", "kind": "default_catalog",
                       "config": {"variants": variants, "categories": categories}},
                      {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}}]}
@@ -80,8 +81,8 @@ def test_bench_demos_articulated(tmp_path: Path):
                 "median_sim_s": round(statistics.median(r["sim_s"] for r in rs), 1),
                 "median_wall_s": round(statistics.median(r["wall_s"] for r in rs), 1),
                 "assets": sorted({r["asset"] for r in rs})}
-    figures = {"variants": variants, "seeds_per_action": seeds, "cpu_count": os.cpu_count(), "summary": summary,
-               "episodes": rows}
+    figures = {"variants": variants, "seeds_per_action": seeds, "cpu_count": os.cpu_count(),
+               "summary": summary, "episodes": rows}
     (REPO / "bench_results").mkdir(exist_ok=True)
     (REPO / "bench_results" / "demos_articulated.json").write_text(json.dumps(figures, indent=2) + "\n")
     print(json.dumps(summary, indent=2))
