@@ -294,6 +294,7 @@ PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the clos
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
+GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 
@@ -425,7 +426,7 @@ def choose_base(d, part: ArticulatedPart, grid, candidates,
 def _drawer_pitch(z: float) -> float:
     """Gripper pitch [rad] for a handle at height ``z`` [m]: level at shoulder height, pointing
     further down for low handles."""
-    return math.radians(float(np.clip(20.0 + (0.75 - z) * 80.0, 0.0, 60.0)))
+    return math.radians(float(np.clip(20.0 + (0.75 - z) * 40.0, 0.0, 50.0)))
 
 
 def _slide(d, distance: float, speed: float = 0.12) -> None:
@@ -448,7 +449,7 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
         return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
 
     p0 = _drawer_pitch(float(part.handle[2]))
-    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(15))
+    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
              for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
              for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
     base, pitch = choose_base(d, part, grid, cands, targets)
@@ -456,7 +457,9 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.6)
+    _check_grasp(part, d)
     _slide(d, (q0 - q1) + (0.01 if q1 < q0 else 0.0))
+    log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
     _retreat_from_leaf(part, d, q1, grid)
     d.home(1.0)
 
@@ -685,9 +688,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         d.step(0.2)
         if not push:
             d.grip(1.0, 0.6)
-        log.debug("%s: at the part: hand %s handle %s (q %.3f)", part.joint_path, np.round(_tcp_world(d), 3),
-                  np.round(part.handle_at(d.sim.joint_q_of_path(part.joint_path)), 3),
-                  d.sim.joint_q_of_path(part.joint_path))
+            _check_grasp(part, d)
         # slow near closed: a heavy leaf driven into its stop rebounds
         durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4 for qw in qs[:n]]
         k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
@@ -705,6 +706,25 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             return
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL) -> None:
+    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle after closing."""
+    from stages.demos.experts import ExpertFailure
+
+    hand = _tcp_world(d)
+    handle = part.handle_at(d.sim.joint_q_of_path(part.joint_path))
+    gap = float(np.linalg.norm(hand - handle))
+    log.debug("%s: grasp: hand %s handle %s (%.3f m), fingers %.3f", part.joint_path, np.round(hand, 3),
+              np.round(handle, 3), gap, _finger_gap(d))
+    if gap > tol:
+        raise ExpertFailure("grasp_missed", f"{part.joint_path}: hand {gap:.3f} m from the handle")
+
+
+def _finger_gap(d) -> float:
+    """Finger opening [m] now (sum of the two finger joints)."""
+    jq = d.sim.state_0.joint_q.numpy()
+    return float(sum(jq[d.sim.world_coord(n)] for n in d.sim.desc.gripper.finger_joints))
 
 
 def _tcp_world(d) -> np.ndarray:
