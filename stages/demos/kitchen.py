@@ -40,6 +40,9 @@ KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", 
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
+ROW_GAP = 0.35              # between the fridge, the counter and the oven [m]
+END_GAP = 1.0               # from the row's ends to the side walls [m]
+ROOM_DEPTH = 5.4            # [m] (y): >= 2 m free between the table and the counter's front
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,12 +345,14 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     bowl = _pick(lib, rng, ("bowl",))
     pusher = _pick(lib, rng, tuple(c for c in ("can", "sponge") if lib.of(c)) or ("can",))
 
-    # along the north wall, west to east: fridge, counter, oven (or oven first), 5 cm apart
+    # along the north wall, west to east: fridge, counter, oven (or oven first), ROW_GAP apart, at
+    # least END_GAP from the side walls (room for the base beside a door swinging open)
     row = [fridge, counter, oven] if rng.random() < 0.5 else [oven, counter, fridge]
     widths = [a.hi[1] - a.lo[1] for a in row]
-    sx = max(5.0, sum(widths) + 0.1 + 1.0)
-    sy = 4.6
-    x = 0.5 + float(rng.uniform(0.0, sx - 1.0 - 0.1 - sum(widths)))
+    length = sum(widths) + 2 * ROW_GAP
+    sx = max(5.0, length + 2 * END_GAP + 0.2)
+    sy = ROOM_DEPTH
+    x = END_GAP + float(rng.uniform(0.0, sx - 2 * END_GAP - length))
     placed: dict[str, Placed] = {}
     roles = {id(fridge): "fridge", id(counter): "counter", id(oven): "oven"}
     for a, wdt in zip(row, widths, strict=True):
@@ -356,7 +361,7 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         cx = x - a.lo[1]
         cy = sy - 0.01 + a.lo[0]
         placed[role] = Placed(role.capitalize(), a, (cx, cy, 0.0), SOUTH)
-        x += wdt + 0.05
+        x += wdt + ROW_GAP
     cnt = placed["counter"]
     seg = _counter_segment(counter, mw_w + 0.33)
     top_z = float(seg["z"])

@@ -50,9 +50,15 @@ class TaskInstance:
 
 
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
-    """A start pose on the free floor between the table and the counter front (y in the band
-    0.6 m .. counter front - 1.0 m), clear of every obstacle by 0.5 m, random heading."""
-    grid = world.grid()
+    """A start pose on the free floor between the south wall and the counter front (y in the band
+    0.6 m .. counter front - 1.0 m), clear of every obstacle and of the room door's swing by 0.5 m,
+    random heading."""
+    from stages.demos.planner import NavGrid
+
+    # the room door's leaf may stand open (close_door): keep its swing (1.1 m around the opening) free
+    dx, dy = world.placed["door"].position[:2]
+    boxes = np.vstack([world.nav_boxes(), [(dx - 1.1, dy, dx + 1.1, dy + 1.1)]])
+    grid = NavGrid.from_boxes((-0.2, -0.2, world.size[0] + 0.2, world.size[1] + 0.2), boxes)
     blocked = grid.inflate(0.5)
     y_hi = world.counter_rect[1] - 1.0
     for _ in range(400):

@@ -184,9 +184,9 @@ def _articulated_specs() -> list[TaskSpec]:
         else:
             opens = ("open the {furniture} door", "open the {furniture}")
             closes = ("close the {furniture} door", "shut the {furniture}")
-        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0,
+        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=60.0,
                               success=_opened, templates=opens))
-        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=40.0,
+        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=60.0,
                               success=_closed, templates=closes))
     return specs
 
