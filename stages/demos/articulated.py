@@ -596,6 +596,12 @@ def _lerp_pose(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
     return m
 
 
+def _edge_gap(part: ArticulatedPart) -> float:
+    """Distance [m] from the handle's grip centre to the leaf's free edge (catalog generators:
+    bars 3-5 cm in, a lever's centre about 13 cm in)."""
+    return 0.14 if part.handle_kind == "lever" else 0.06
+
+
 def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar.
@@ -608,11 +614,11 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
         contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
         arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
         pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
-        around = inboard + 0.12
+        around = inboard + _edge_gap(part) + 0.12
     else:
         contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
         pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
-        around = 0.12
+        around = _edge_gap(part) + 0.12
     approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
     if part.kind == "revolute" and q0 - part.closed > 0.15 * part.travel:
         edge = pre.copy()
@@ -699,13 +705,30 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         _retreat_from_leaf(part, d, last, grid, push=push)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         d.home(1.0)
-        d.step(0.3)
+        _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
         if done(q):
             return
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _settle_part(part: ArticulatedPart, d, max_seconds: float = 2.0, speed: float = 0.03) -> None:
+    """Step until the part's joint moves slower than ``speed`` [rad/s or m/s] (a heavy leaf let go
+    of keeps swinging), at most ``max_seconds``; at least 0.3 s."""
+    d.step(0.3)
+    qs_ = int(d.sim.model.joint_qd_start.numpy()[_joint_index(d, part)])
+    t_end = d.sim.time + max_seconds
+    while d.sim.time < t_end and abs(float(d.sim.state_0.joint_qd.numpy()[qs_])) > speed:
+        d.step(0.1)
+
+
+def _joint_index(d, part: ArticulatedPart) -> int:
+    for j, p in d.sim.scene.joint_path.items():
+        if p == part.joint_path:
+            return int(j)
+    raise KeyError(part.joint_path)
 
 
 def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL) -> None:
