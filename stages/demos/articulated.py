@@ -294,6 +294,7 @@ PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the clos
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
+LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
@@ -517,11 +518,18 @@ def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -
     for k, t in enumerate(targets):
         res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
                          restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
             break
         q = res.q
         out.append(d.ik.arm_q(q))
     return out
+
+
+def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
+    """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
+    (such a plan breaks when the base stops a centimetre off its goal)."""
+    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
+    return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
 def track(d, targets, seeds, durations, *, tol: float) -> int:
@@ -537,7 +545,8 @@ def track(d, targets, seeds, durations, *, tol: float) -> int:
         q0 = d.ik.with_arm(d.ik.from_sim(d.sim), seed)
         res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q0, max_iters=300)
         if res.position_error > tol or res.rotation_error > math.radians(3.0):
-            log.info("track: waypoint %d unreachable (%.4f m)", k, res.position_error)
+            log.info("track: waypoint %d unreachable (%.4f m, %.3f rad; seed %s, got %s)", k, res.position_error,
+                     res.rotation_error, np.round(seed, 2), np.round(d.ik.arm_q(res.q), 2))
             return k
         a0, a1 = d.ctl.arm_targets(), d.ik.arm_q(res.q)
         n = max(1, int(round(dur / d.frame_dt)))
@@ -689,6 +698,9 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
         durs = [1.5] + [0.6] * (na - 2) + [0.5]
+        from stages.demos.record import base_pose
+
+        log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3), np.round(base, 3))
         if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
             raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
         d.step(0.2)
