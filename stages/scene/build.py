@@ -7,6 +7,7 @@ with different sub-seeds and records every rejection.
 
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import time
@@ -196,6 +197,10 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
             raise SceneRejected(f"validation: {n_err} errors: " + "; ".join(i.line() for i in vr.errors[:3])[:400])
     secs["validate"] = time.perf_counter() - t
     if Path(final_dir).resolve() != Path(out_dir).resolve():
+        # stages the checks opened (Newton's USD loader, the validators) can sit in reference cycles
+        # until the garbage collector runs; a stage still alive would recompose when its layers are
+        # rewritten for the final folder, and warn about every path that resolves only from there
+        gc.collect()
         compose.write_root(out_dir, layout_usd, layout_final, final_dir, meta)
         compose.write_placement(out_dir, final_dir, instance_specs())
 

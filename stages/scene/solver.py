@@ -433,7 +433,8 @@ class Populator:
             if ok:
                 rep.placed[rule.category] = rep.placed.get(rule.category, 0) + 1
             elif k < rule.count[0]:
-                worst = max(rep.rejected.items(), key=lambda kv: kv[1])[0] if rep.rejected else "no candidate"
+                own = {r: v for r, v in rep.rejected.items() if r.startswith(f"{rule.category}:")}
+                worst = max(own.items(), key=lambda kv: kv[1])[0] if own else "no candidate"
                 raise PlacementFailure(f"{ctx.room.id}: could not place required {rule.category} ({worst})")
 
     def _compact_keep(self, category: str, fraction: float):

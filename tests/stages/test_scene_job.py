@@ -49,6 +49,11 @@ def test_reason_kinds():
     assert reason_kind("placement: f0_kitchen_1: could not place required fridge (fridge: outside the room)") == \
         "placement: could not place required fridge"
     assert reason_kind("settle: still moving after 2 repairs: x 1.2 cm") == "settle"
+    assert reason_kind("placement: f0_kitchen_1: could not place required fridge (fridge: blocks a window) "
+                       "[8 arrangements]") == "placement: could not place required fridge"
+    from stages.scene.job import _repair_kind
+
+    assert _repair_kind("dropped alarm_clock_01 (moved 1.6 cm)") == "dropped alarm_clock"
 
 
 @pytest.mark.slow
@@ -61,6 +66,10 @@ def test_tiny_scene_job_end_to_end(tmp_path: Path):
     summary = run_job(ROOT / "jobs" / "scenes_tiny.toml", out=tmp_path, workers=2, progress=False)
     rep = json.loads((tmp_path / "reports" / "scenes_summary.json").read_text())
     assert rep["scenes_emitted"] == 2 and rep["scenes_failed"] == 0
+    for key in ("attempts_rejected_by_reason", "room_arrangements_rejected_by_reason", "settle_repairs_by_reason",
+                "failed_items"):
+        assert isinstance(rep[key], dict)
+    assert 0 < rep["settle_simulated_s_median"] <= 2.0
     scenes = find_scenes(tmp_path)
     assert len(scenes) == 2
     png = contact_sheet(scenes, tmp_path / "sheet.png", tile=160)
