@@ -14,9 +14,12 @@ used are recorded in each report (``solver``).
 - ``joint_limit_check`` (base fixed, no ground) uses MuJoCo's C engine on CPU (``use_mujoco_cpu``)
   and mujoco-warp on CUDA, with MuJoCo's own collision.
 - ``rest_check`` uses the same by default (``contacts="mujoco"``); ``contacts="newton"`` steps
-  mujoco-warp (on any device) with Newton's collision pipeline instead (full contact manifolds,
-  ~5-10x slower on CPU; with it os_toothbrush and os_toothpaste of the shared assets rock about
-  their long axis at 0.4-3.7 rad/s on 4-5 contacts, so it is not the default).
+  mujoco-warp (on any device) with Newton's collision pipeline instead (~5-10x slower on CPU). Its
+  manifold (multicontact.py) is the deepest point plus support points in directions tilted by
+  2 degrees; on a ridge-shaped bottom (os_toothbrush: faces 5-15 degrees apart, center of mass
+  0.4-2 mm beside the support line) it holds points up to 0.5 mm above the plane and alternates
+  between the two sides of the ridge every ~4 steps, so the body rocks about its long axis in a
+  32 ms cycle (up to 3.7 rad/s, 1.7 degrees) with any contact stiffness; it is not the default.
 
 Contact stiffness (``RIGID_CONTACT_SOLREF`` / ``RIGID_CONTACT_SOLIMP``, set on every shape for the
 check, recorded in ``solver``). The check is about the asset (colliders, mass, pose), so contacts
@@ -37,6 +40,11 @@ Rolling across hull faces dissipates less with stiff contacts: a sphere hull aut
 vertex (the default catalog's oranges: an unstable equilibrium, 8 faces at 13-14 degrees around
 it) balances 0.7-0.9 s until float noise has grown (rate sqrt(g / h_com) = 16 1/s), rolls onto a
 face and rests after 1.9-2.4 s (0.6-1.3 s with the soft defaults), hence the 3 s default run.
+
+The final-speed bound covers every body: a light part that gravity holds on a joint limit can
+bounce on that limit (the default catalog's alarm clock buttons, 5.8 g on a prismatic limit
+whose authored ke/kd become MuJoCo solreflimit 0.023 s / damping ratio 0.15: an exact 32 ms cycle
+at up to 0.03 m/s with either contact setting, so its final speed depends on the cycle's phase).
 """
 
 from __future__ import annotations
@@ -184,7 +192,8 @@ def _set_contact_parameters(model, settings: SolverSettings) -> None:
         model.shape_material_ke.assign(np.full(n, ke, dtype=np.float32))
         model.shape_material_kd.assign(np.full(n, kd, dtype=np.float32))
     if settings.contact_solimp is not None:
-        model.mujoco.geom_solimp.assign(np.tile(np.asarray(settings.contact_solimp, dtype=np.float32), (n, 1)))
+        solimp = np.asarray(settings.contact_solimp, dtype=np.float32)
+        model.mujoco.geom_solimp.assign(np.tile(solimp, (n, 1)))
 
 
 def _collider_points_in_bodies(builder) -> list[tuple[int, np.ndarray]]:
@@ -282,8 +291,9 @@ def _released_stage(usd_path: Path):
 class RestTolerances:
     """rest_height: final lowest point within +-rest_height of the plane [m]; sink: over the last
     quarter of the run the lowest point never goes below -sink [m]; impact_sink: bound on the
-    transient penetration at impact (MuJoCo's contacts are soft) [m]; launch: the lowest point may never rise more than launch [m]
-    above where it started; speeds: final linear [m/s] / angular [rad/s] speed bounds."""
+    transient penetration at impact (MuJoCo's contacts are soft) [m]; launch: the lowest point may
+    never rise more than launch [m] above where it started; speeds: final linear [m/s] / angular
+    [rad/s] speed bounds."""
 
     rest_height: float = 0.003
     sink: float = 0.003
@@ -307,16 +317,16 @@ def rest_check(usd_path: Path, *, device: str = "cpu", seconds: float = 3.0, dro
     import warp as wp
 
     usd_path = Path(usd_path)
+    settings = _contact_settings(device, contacts, contact_solref, contact_solimp)
     stage, released = _released_stage(usd_path)
     probe = _load(stage, floating=None)
     shapes0 = _collider_points_in_bodies(probe)
     if not shapes0:
-        return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, _contact_settings(device, contacts, contact_solref, contact_solimp), probe)
+        return _rest_fail(usd_path, "no collider shapes", drop_height, seconds, settings, probe)
     start_low = _lowest_point(np.asarray([_body_q0(probe, b) for b in range(probe.body_count)]), shapes0)
     builder = _load(stage, floating=None, z_offset=drop_height - start_low, mujoco_attributes=True)
     builder.add_ground_plane()
     shapes = _collider_points_in_bodies(builder)
-    settings = _contact_settings(device, contacts, contact_solref, contact_solimp)
     with wp.ScopedDevice(device):
         model = builder.finalize(device=device)
         _set_contact_parameters(model, settings)

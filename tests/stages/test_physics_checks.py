@@ -17,8 +17,12 @@ import usd_test_models as M  # noqa: E402
 
 import usd_schemas  # noqa: E402
 from asset_catalog.asset_model import Pose  # noqa: E402
-from stages.physics_checks import (RIGID_CONTACT_SOLIMP, RIGID_CONTACT_SOLREF, joint_limit_check,  # noqa: E402
-                                   rest_check)
+from stages.physics_checks import (  # noqa: E402
+    RIGID_CONTACT_SOLIMP,
+    RIGID_CONTACT_SOLREF,
+    joint_limit_check,
+    rest_check,
+)
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +57,8 @@ def _hull_package(tmp_path: Path, name: str, points: np.ndarray, density: float)
     box = M.box_model(name)
     link = replace(box.links[0], visuals=(M.part(name, mesh),), colliders=M.hulls([mesh]),
                    mass=M.mass_properties([mesh], density))
-    return usd_schemas.write_asset_package(box.replace_links((link,)), tmp_path / name, pipeline_version="0.1.0").root_path
+    pkg = usd_schemas.write_asset_package(box.replace_links((link,)), tmp_path / name, pipeline_version="0.1.0")
+    return pkg.root_path
 
 
 def _scanned_die(seed: int, side: float = 0.017, bump: float = 0.0005, grid: int = 6) -> np.ndarray:
@@ -61,7 +66,8 @@ def _scanned_die(seed: int, side: float = 0.017, bump: float = 0.0005, grid: int
     to ``bump`` [m] above z = 0, like a scanned nearly flat face."""
     rng = np.random.default_rng(seed)
     h, c = side / 2, side / 2 - 0.002
-    pts = [(sx * a, sy * b, z) for sx in (-1, 1) for sy in (-1, 1) for a, b in ((c, h), (h, c)) for z in (0.002, side)]
+    pts = [(sx * a, sy * b, z) for sx in (-1, 1) for sy in (-1, 1) for a, b in ((c, h), (h, c))
+           for z in (0.002, side)]
     g = np.linspace(-c, c, grid)
     pts += [(x, y, rng.uniform(0.0, bump)) for x in g for y in g]
     return np.asarray(pts)
