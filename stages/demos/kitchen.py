@@ -4,7 +4,8 @@
 four walls, the south wall with a catalog room door standing in an opening, lights) and catalog
 packages REFERENCED from the ingest step's output (never copied): along the north wall a fridge, a
 kitchen counter (drawers, doors) and an oven, a microwave on the counter, a table (dining or coffee
-table) in the room with a mug, a bowl and an object to push (a can or a sponge) on it. Asset
+table) in the room with a mug, a bowl and an object to push (a can; a sponge if the catalog has no
+can) on it. Asset
 variants, positions and the colours of floor and walls are drawn from the world's ``rng``.
 
 Frame: world, Z up, metres, radians; the room spans ``[0, size[0]] x [0, size[1]]``. Appliances
@@ -343,7 +344,8 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     table = _pick(lib, rng, tables)
     mug = _pick(lib, rng, ("mug",), _mug_ok, f"mug narrower than {GRASP_MAX_DIAMETER * 1000:.0f} mm")
     bowl = _pick(lib, rng, ("bowl",))
-    pusher = _pick(lib, rng, tuple(c for c in ("can", "sponge") if lib.of(c)) or ("can",))
+    # the object to push: a can (a 10-25 g sponge was not pushed in a measured world); else a sponge
+    pusher = _pick(lib, rng, ("can",) if lib.of("can") else ("sponge",))
 
     # along the north wall, west to east: fridge, counter, oven (or oven first), ROW_GAP apart, at
     # least END_GAP from the side walls (room for the base beside a door swinging open)
