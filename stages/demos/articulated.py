@@ -456,13 +456,21 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
              for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
     base, pitch = choose_base(d, part, grid, cands, targets)
     _drive(d, base, grid)
+    closing = q1 < q0
+    # closing pushes the bar with the closed hand (the approaching fingers would nudge an open
+    # drawer in and miss the grasp); opening grasps it
+    d.grip(1.0 if closing else 0.0, 0.3)
     d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(handle_pose(part, q0, pitch), 1.0, segments=2, settle=0.2)
-    d.grip(1.0, 0.6)
-    _check_grasp(part, d)
-    _slide(d, (q0 - q1) + (0.01 if q1 < q0 else 0.0))
+    d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF if closing else 0.0), 1.0, segments=2, settle=0.2)
+    if closing:
+        q_now = d.sim.joint_q_of_path(part.joint_path)
+        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.003, speed=0.08)
+    else:
+        d.grip(1.0, 0.6)
+        _check_grasp(part, d)
+        _slide(d, q0 - q1)
     log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
-    _retreat_from_leaf(part, d, q1, grid)
+    _retreat_from_leaf(part, d, q1, grid, push=closing)
     d.home(1.0)
 
 
@@ -763,13 +771,17 @@ def _joint_index(d, part: ArticulatedPart) -> int:
     raise KeyError(part.joint_path)
 
 
-def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL) -> None:
-    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle after closing."""
+def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False) -> None:
+    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle after closing
+    (``across_axis``: only the offset perpendicular to a drawer's axis counts)."""
     from stages.demos.experts import ExpertFailure
 
     hand = _tcp_world(d)
     handle = part.handle_at(d.sim.joint_q_of_path(part.joint_path))
-    gap = float(np.linalg.norm(hand - handle))
+    v = hand - handle
+    if across_axis:
+        v = v - np.dot(v, part.axis) * np.asarray(part.axis)
+    gap = float(np.linalg.norm(v))
     log.debug("%s: grasp: hand %s handle %s (%.3f m), fingers %.3f", part.joint_path, np.round(hand, 3),
               np.round(handle, 3), gap, _finger_gap(d))
     if gap > tol:
