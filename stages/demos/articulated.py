@@ -293,6 +293,7 @@ LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push furth
 PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
+OVEN_GRIP_OFFSET = 0.12  # a bottom-hinged door's bar (70 % of the width) may be gripped off-centre [m]
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
 LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
@@ -554,7 +555,8 @@ def track(d, targets, seeds, durations, *, tol: float) -> int:
         q0 = d.ik.with_arm(d.ik.from_sim(d.sim), seed)
         res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q0, max_iters=300)
         if res.position_error > tol or res.rotation_error > math.radians(3.0):
-            log.info("track: waypoint %d unreachable (%.4f m, %.3f rad; seed %s, got %s)", k, res.position_error,
+            log.info("track: waypoint %d unreachable (%.4f m, %.3f rad; seed %s, got %s)", k,
+                     res.position_error,
                      res.rotation_error, np.round(seed, 2), np.round(d.ik.arm_q(res.q), 2))
             return k
         a0, a1 = d.ctl.arm_targets(), d.ik.arm_q(res.q)
@@ -566,7 +568,7 @@ def track(d, targets, seeds, durations, *, tol: float) -> int:
 
 
 def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
-    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-0.95 m
+    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
     around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
     the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
     from stages.demos.experts import ROBOT_RADIUS
@@ -577,7 +579,7 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> lis
     f = part.front_at(q0)
     f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
     out = []
-    for rho in (0.55, 0.65, 0.75, 0.85, 0.95):
+    for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
         for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
             c, s_ = math.cos(phi), math.sin(phi)
             v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
@@ -620,11 +622,12 @@ def _edge_gap(part: ArticulatedPart) -> float:
     return 0.14 if part.handle_kind == "lever" else 0.06
 
 
-def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool):
+def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool, along: float = 0.0):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
-    round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar.
-    Push (closed hand): on the front face 7 cm inboard of the bar, pressing along the arc."""
-    h = np.asarray(part.handle, float)
+    round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
+    ``along`` [m] off its centre along the bar. Push (closed hand): on the front face 7 cm inboard
+    of the bar, pressing along the arc."""
+    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
     front0 = np.asarray(part.front, float)
     if push:
         inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
@@ -645,25 +648,38 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
     return approach, arc
 
 
+def _grips(part: ArticulatedPart, base, p0: float, vertical: bool) -> list[tuple[float, float]]:
+    """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
+    door's long bar is also gripped OVEN_GRIP_OFFSET towards the base."""
+    pitches = (p0, p0 - math.radians(15), p0 + math.radians(15))
+    out = [(p, 0.0) for p in pitches]
+    if not vertical:
+        side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]),
+                            np.asarray(part.bar_axis)[:2]))
+        out += [(p, math.copysign(OVEN_GRIP_OFFSET, side)) for p in pitches]
+    return out
+
+
 def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70):
-    """(base, pitch, n, arm solutions): the base pose and gripper pitch from which the approach at
-    q0 and the first n waypoints of ``qs`` are reachable, n as large as found (all of them ends
-    the search), and the arm solutions of approach + those waypoints."""
+    """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
+    bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
+    large as found (all of them ends the search), and the arm solutions of approach + those
+    waypoints."""
     from stages.demos.experts import ExpertFailure
 
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
-    best = (None, 0.0, -1, [])
+    best = (None, 0.0, -1, [], 0.0)
     checks = 0
     for base in _swing_bases(part, grid, q0, qs):
-        for pitch in (p0, p0 - math.radians(15), p0 + math.radians(15)):
-            approach, arc = _gesture(part, q0, qs, pitch, push)
+        for pitch, along in _grips(part, base, p0, vertical):
+            approach, arc = _gesture(part, q0, qs, pitch, push, along)
             sols = reach(d, base, approach + arc)
             n = len(sols) - len(approach)
             checks += 1
             if n > best[2]:
-                best = (base, pitch, n, sols)
+                best = (base, pitch, n, sols, along)
             if n == len(qs):
                 return best
             if checks >= max_checks:
@@ -696,26 +712,27 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols = _plan_stage(d, part, plan, q, qs, push)
+        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, push)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         _drive(d, base, swept_grid(grid, part, q, q))
-        approach, arc = _gesture(part, q, qs, pitch, push)
+        approach, arc = _gesture(part, q, qs, pitch, push, along)
         d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
         durs = [1.5] + [0.6] * (na - 2) + [0.5]
         from stages.demos.record import base_pose
 
-        log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3), np.round(base, 3))
+        log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
+                  np.round(base, 3))
         if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
             raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
         d.step(0.2)
         if not push:
             d.grip(1.0, 0.6)
-            _check_grasp(part, d)
+            _check_grasp(part, d, along=along)
         # slow near closed: a heavy leaf driven into its stop rebounds
         durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4 for qw in qs[:n]]
         k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
@@ -771,13 +788,15 @@ def _joint_index(d, part: ArticulatedPart) -> int:
     raise KeyError(part.joint_path)
 
 
-def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False) -> None:
+def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False,
+                 along: float = 0.0) -> None:
     """Raise ExpertFailure("grasp_missed") when the hand is not on the handle after closing
     (``across_axis``: only the offset perpendicular to a drawer's axis counts)."""
     from stages.demos.experts import ExpertFailure
 
     hand = _tcp_world(d)
-    handle = part.handle_at(d.sim.joint_q_of_path(part.joint_path))
+    grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
+    handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
     v = hand - handle
     if across_axis:
         v = v - np.dot(v, part.axis) * np.asarray(part.axis)
