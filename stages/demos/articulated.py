@@ -691,7 +691,7 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
     return best
 
 
-def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 3,
+def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 4,
            push: bool = False) -> None:
     """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
     ``push``, pressing the front face with the closed hand). Each stage drives to the base pose
@@ -730,15 +730,25 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
             raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
         d.step(0.2)
+        k = 0
         if not push:
             d.grip(1.0, 0.6)
-            _check_grasp(part, d, along=along)
-        # slow near closed: a heavy leaf driven into its stop rebounds
-        durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4 for qw in qs[:n]]
-        k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
+            try:
+                _check_grasp(part, d, along=along)
+            except ExpertFailure as e:
+                # a free leaf nudged by the fingers: let go, back off and plan again from where it is
+                if stage == max_stages - 1:
+                    raise
+                log.info("%s: %s; regrasping", part.joint_path, e)
+                n = -1
+        if n >= 0:
+            # slow near closed: a heavy leaf driven into its stop rebounds
+            durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4
+                    for qw in qs[:n]]
+            k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
         d.step(0.4)
         last = qs[k - 1] if k else q
-        log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n else q,
+        log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
