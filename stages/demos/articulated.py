@@ -355,17 +355,8 @@ def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
 
 def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
     """Whether every world pose of ``targets`` (4x4 each, in order) is reached by CLIK from a
-    base at ``base`` (arm only, each solve warm-started from the previous one)."""
-    from stages.simulate.control import Clik
-
-    q = _base_q(d, base)
-    for k, t in enumerate(targets):
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
-                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0):
-            return False
-        q = res.q
-    return True
+    base at ``base`` (see :func:`reach`)."""
+    return len(reach(d, base, targets, tol=tol)) == len(targets)
 
 
 def _free(grid, blocked, x: float, y: float) -> bool:
@@ -419,8 +410,7 @@ def choose_base(d, part: ArticulatedPart, grid, candidates,
         tried += 1
         if reachable(d, base, targets_of(base, pitch)):
             log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
-                     dyaw,
-                      pitch)
+                     dyaw, pitch)
             return base, pitch
     raise ExpertFailure("no_base_pose",
                         f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
