@@ -423,10 +423,22 @@ def _drawer_pitch(z: float) -> float:
 
 
 def _slide(d, distance: float, speed: float = 0.12) -> None:
-    """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held."""
+    """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held; closed
+    on the measured displacement (velocity commands alone fall a few centimetres short)."""
+    from stages.demos.record import base_pose
+
+    x0, y0, yaw0 = base_pose(d.sim)
+    u = np.array([math.cos(yaw0), math.sin(yaw0)]) * math.copysign(1.0, distance)
     d.cmd.mode = 1
-    d.base((math.copysign(speed, distance), 0.0, 0.0))
-    d.step(abs(distance) / speed)
+    t_end = d.sim.time + abs(distance) / speed * 2.0 + 1.0
+    while d.sim.time < t_end:
+        x, y, _ = base_pose(d.sim)
+        left = abs(distance) - float(np.dot([x - x0, y - y0], u))
+        if left <= 0.002:
+            break
+        v = min(speed, max(0.03, 2.0 * left))
+        d.base((math.copysign(v, distance), 0.0, 0.0))
+        d.step(d.frame_dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.3)
 
@@ -455,7 +467,8 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF if closing else 0.0), 1.0, segments=2, settle=0.2)
     if closing:
         q_now = d.sim.joint_q_of_path(part.joint_path)
-        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.003, speed=0.08)
+        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.08)
+        _slide(d, -0.03, speed=0.05)  # straight off the bar before the diagonal retreat drags it
     else:
         d.grip(1.0, 0.6)
         _check_grasp(part, d)
