@@ -87,7 +87,7 @@ class StillExit:
     min_seconds: float = 0.6
     chunks: int = 3
     step: float = 1.0e-4
-    margin: float = 0.5
+    margin: float = 0.8
 
 
 class _Tracker:
