@@ -12,7 +12,7 @@ Public surface (pxr/newton are imported inside the functions, never at import ti
     build.build_scene(plan_json, layout_usd, library, rules, rng, out_dir, final_dir, BuildOptions())
         -> SceneSummary                                              # one attempt; SceneRejected(reason)
     settle.settle_check(scene_usd, seconds=2.0, tolerance=0.01, early_exit=StillExit()) -> SettleReport
-        # Newton add_usd + MuJoCo; stops early only once every body is provably still (None: full 2 s)
+        # Newton add_usd + MuJoCo; stops early only once every body is still (see StillExit) (None: full 2 s)
     render.contact_sheet(scene_usds, out_png) -> Path                # `agentworld render-scenes`
     job.SCENE_JOB                                                    # job kind "scene"
 

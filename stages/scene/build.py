@@ -75,7 +75,7 @@ class BuildOptions:
     """rooms: room types to populate (empty: all); n_looks: material variants; settle seconds [s]
     and tolerance [m]; max_repairs: settle repairs (drop offenders) before rejecting; validate: run
     usd_schemas.validate_package on the scene; settle: run the Newton settle check;
-    settle_early_exit: stop the settle simulation early once every body is provably still
+    settle_early_exit: stop the settle simulation early once every body is still (see StillExit)
     (``stages.scene.settle.StillExit``)."""
 
     rooms: tuple[str, ...] = ()

@@ -12,7 +12,7 @@ One work item per (layout house x population); each writes ``scene.usda`` (+ sub
     # rules = "stages/scene/rules/default.toml"   # placement rules (default: the built-in file)
     attempts = 4                    # populate attempts per scene (different sub-seeds) before failing
     looks = 3                       # material variants per scene (variant set "look")
-    # settle_early_exit = true      # stop the 2 s settle once every body is provably still
+    # settle_early_exit = true      # stop the 2 s settle once every body is still (see StillExit)
     [[step.config.group]]
     id = "living"                   # a name for the summary
     layouts = ["living_*"]          # layout item ids (fnmatch patterns)

@@ -1,11 +1,15 @@
 """Physics settle check of a composed scene in Newton (no robot).
 
 The scene USD is loaded with ``newton.ModelBuilder.add_usd`` (the same loader the simulate stage
-uses), simulated for ``seconds`` with ``SolverMuJoCo`` (MuJoCo's C engine on CPU, mujoco-warp on
-CUDA; 4 ms steps as in ``stages.physics_checks``; multi-CCD contacts, see IMPRATIO), and every point of every dynamic body's colliders
-is compared between the first and the last state: an instance whose colliders moved more than
-``tolerance`` [m] (1 cm) fails the check. The report names the offenders so the caller can repair
-the scene (drop them) or reject it.
+uses) into ``SolverMuJoCo`` (4 ms steps as in ``stages.physics_checks``; multi-CCD contacts, see
+IMPRATIO), and the MuJoCo model Newton built is stepped on MuJoCo's C engine (CPU) for ``seconds``;
+every point of every dynamic body's colliders is compared between the first and the last state: an
+instance whose colliders moved more than ``tolerance`` [m] (1 cm) fails the check. The report names
+the offenders so the caller can repair the scene (drop them) or reject it.
+
+Speed: MuJoCo is stepped directly (``mujoco.mj_step``, no per-step Newton state round trip), and
+the simulation may stop before ``seconds`` once every body is still (``StillExit``): the
+verdict is the full run's, as long as no body that has been still for 0.3 s starts moving again.
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ def test_bench_scene(tmp_path: Path) -> None:
         "seconds_per_room_median": round(float(np.median(room_secs)), 2) if room_secs else None,
         "per_room": per_room, "per_3_room_house": per_house, "scaling": scale, "settle": settle,
         "note": "wall seconds of build_scene (place + compose + settle + validate; the settle check stops early "
-                "once every body is provably still); one core; the machine is shared, so cpu_seconds is the "
+                "once every body is still (see StillExit)); one core; the machine is shared, so cpu_seconds is the "
                 "steadier figure. settle: the check alone on each scene, full 2 s vs early exit",
     }
     OUT.parent.mkdir(parents=True, exist_ok=True)
