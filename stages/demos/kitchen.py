@@ -22,6 +22,7 @@ their south side, facing +Y. Every package's facts come from its ``generated.jso
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -48,20 +49,34 @@ ROOM_DEPTH = 5.4            # [m] (y): >= 2 m free between the table and the cou
 
 @dataclass(frozen=True, eq=False)
 class CatalogAsset:
-    """One ingested package: asset_id, category, usd (root layer, absolute), lo / hi (3,) bounds in the
-    asset frame [m], info: its ``generated.json`` record (surfaces, handles, joints, params)."""
+    """One ingested package: asset_id, category, usd (root layer, absolute), info: its
+    ``generated.json`` record (surfaces, handles, joints, params). ``lo`` / ``hi`` (3,) bounds in the
+    asset frame [m] and ``root_link`` (its first rigid body's name) are read from the USD on first use."""
 
     asset_id: str
     category: str
     usd: Path
-    lo: tuple[float, float, float]
-    hi: tuple[float, float, float]
     info: dict = field(repr=False)
-    root_link: str = "base"
 
     @property
     def params(self) -> dict:
         return self.info.get("params", {})
+
+    @functools.cached_property
+    def _facts(self) -> tuple[tuple, tuple, str]:
+        return _package_facts(self.usd)
+
+    @property
+    def lo(self) -> tuple[float, float, float]:
+        return self._facts[0]
+
+    @property
+    def hi(self) -> tuple[float, float, float]:
+        return self._facts[1]
+
+    @property
+    def root_link(self) -> str:
+        return self._facts[2]
 
 
 def _package_facts(usd: Path) -> tuple[tuple, tuple, str]:
@@ -116,9 +131,9 @@ class AssetLibrary:
             rec = info.get(aid)
             if rec is None or rec.get("category") not in categories:
                 continue
-            lo, hi, link = _package_facts(Path(usd))
-            out[aid] = CatalogAsset(asset_id=aid, category=rec["category"], usd=Path(usd).resolve(), lo=lo,
-                                    hi=hi, info=rec, root_link=link)
+            if not Path(usd).is_file():
+                raise ItemError(f"{usd}: asset package of {aid} not found")
+            out[aid] = CatalogAsset(asset_id=aid, category=rec["category"], usd=Path(usd).resolve(), info=rec)
         return AssetLibrary(out)
 
     @staticmethod
