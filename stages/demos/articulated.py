@@ -295,6 +295,7 @@ PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the clos
 PUSH_OVERSHOOT = -0.01
 OVEN_GRIP_OFFSET = 0.12  # a bottom-hinged door's bar (70 % of the width) may be gripped off-centre [m]
 OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
+BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
 LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
@@ -545,18 +546,25 @@ def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
     return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
-def track(d, targets, seeds, durations, *, tol: float) -> int:
+def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -> int:
     """Follow world poses ``targets`` with the arm: each is solved by CLIK from the robot's actual
     state with the arm seeded by the planned solution in ``seeds`` (so execution stays on the
-    planned branch), and the joint targets move linearly there in ``durations`` [s]. Returns how
-    many were reached; stops at the first one CLIK misses by more than ``tol`` [m] or 3 deg."""
+    planned branch), and the joint targets move linearly there in ``durations`` [s]; with
+    ``fallback`` (free-space moves) a miss is solved again from the arm's state with restarts.
+    Returns how many were reached; stops at the first one CLIK misses by more than ``tol`` [m] or
+    3 deg."""
     from stages.simulate.control import Clik
 
     d.cmd.mode = 1
     d.base((0.0, 0.0, 0.0))
     for k, (t, seed, dur) in enumerate(zip(targets, seeds, durations, strict=False)):
         q0 = d.ik.with_arm(d.ik.from_sim(d.sim), seed)
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q0, max_iters=300)
+        goal = Clik.world_to_root(d.sim.spawn, t)
+        res = d.ik.solve(goal, q0, max_iters=300)
+        if fallback and (res.position_error > tol or res.rotation_error > math.radians(3.0)):
+            # free-space waypoints may leave the planned branch: solve again from the arm's state
+            q1 = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+            res = d.ik.solve(goal, q1, max_iters=300, restarts=8, rng=np.random.default_rng(k))
         if res.position_error > tol or res.rotation_error > math.radians(3.0):
             log.info("track: waypoint %d unreachable (%.4f m, %.3f rad; seed %s, got %s)", k,
                      res.position_error,
@@ -651,6 +659,15 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
     return approach, arc
 
 
+def _robust(d, base, part: ArticulatedPart, targets) -> bool:
+    """Whether ``targets`` stay reachable with the base stopped BASE_SLACK further from the handle
+    than planned (the drive ends within a centimetre or two of its goal)."""
+    away = np.asarray(base[:2]) - np.asarray(part.handle[:2])
+    away = away / max(np.linalg.norm(away), 1e-9) * BASE_SLACK
+    shifted = (base[0] + float(away[0]), base[1] + float(away[1]), base[2])
+    return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
+
+
 def _grips(part: ArticulatedPart, base, p0: float, vertical: bool) -> list[tuple[float, float]]:
     """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
     door's long bar is also gripped OVEN_GRIP_OFFSET towards the base."""
@@ -681,10 +698,10 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
             sols = reach(d, base, approach + arc)
             n = len(sols) - len(approach)
             checks += 1
-            if n > best[2]:
+            if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)]):
                 best = (base, pitch, n, sols, along)
-            if n == len(qs):
-                return best
+                if n == len(qs):
+                    return best
             if checks >= max_checks:
                 break
         if checks >= max_checks:
@@ -708,7 +725,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     def done(q):
         return q >= done_at if opening else q <= done_at
 
-    q = q0
+    q = d.sim.joint_q_of_path(part.joint_path)  # a free leaf may have moved since q0 was set
     for stage in range(max_stages):
         step = math.copysign(math.radians(step_deg), q1 - q)
         qs = [float(v) for v in np.arange(q + step, q1 + 0.5 * step, step)]
@@ -721,7 +738,15 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
-        _drive(d, base, swept_grid(grid, part, q, q))
+        here = swept_grid(grid, part, q, q)
+        _escape(d, here)
+        _drive(d, base, here)
+        q_now = d.sim.joint_q_of_path(part.joint_path)
+        if abs(q_now - q) > math.radians(2.0) and stage < max_stages - 1:
+            log.info("%s: the part moved from %.3f to %.3f during the drive; planning again", part.joint_path,
+                     q, q_now)
+            q = q_now
+            continue
         approach, arc = _gesture(part, q, qs, pitch, push, along)
         d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
@@ -730,7 +755,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
 
         log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
                   np.round(base, 3))
-        if track(d, approach, sols[:na], durs, tol=SWING_TOL) < na:
+        if track(d, approach[:-1], sols[:na - 1], durs, tol=SWING_TOL, fallback=True) < na - 1 or \
+                track(d, approach[-1:], sols[na - 1:na], durs[-1:], tol=SWING_TOL) < 1:
             raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
         d.step(0.2)
         k = 0
@@ -763,6 +789,31 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             return
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _escape(d, grid, reach: float = 0.5) -> None:
+    """When the base stands where the planner counts it blocked (the leaf it just moved now lies
+    near it), move it straight to the nearest free spot within ``reach`` [m] first."""
+    from stages.demos.experts import ROBOT_RADIUS
+    from stages.demos.record import base_pose
+
+    blocked = grid.inflate(ROBOT_RADIUS)
+    x, y, _ = base_pose(d.sim)
+    if _free(grid, blocked, x, y):
+        return
+    best = None
+    for r in np.arange(0.05, reach + 1e-9, 0.05):
+        for a in np.radians(np.arange(0.0, 360.0, 15.0)):
+            px, py = x + r * math.cos(a), y + r * math.sin(a)
+            if _free(grid, blocked, px, py):
+                best = (px, py)
+                break
+        if best:
+            break
+    if best is None:
+        return
+    log.info("base at (%.2f, %.2f) is blocked for planning: moving to (%.2f, %.2f)", x, y, *best)
+    _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]), speed=0.1)
 
 
 def _drive(d, base: tuple[float, float, float], grid) -> None:

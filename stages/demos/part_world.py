@@ -211,9 +211,15 @@ class PartSession:
         self.coord = {p: int(qs[j]) for j, p in self.sim.scene.joint_path.items()}
         self.build_seconds = time.perf_counter() - t0
 
-    def _free_spot(self, rng: np.random.Generator) -> tuple[float, float, float]:
-        """A base pose (x, y, yaw) whose footprint (0.45 m radius) is clear of every obstacle."""
+    def _free_spot(self, rng: np.random.Generator, part: ArticulatedPart | None = None,
+                   q: float = 0.0) -> tuple[float, float, float]:
+        """A base pose (x, y, yaw) whose footprint (0.5 m radius) is clear of every obstacle (and of
+        ``part`` standing at joint value ``q``)."""
+        from stages.demos.articulated import swept_grid
+
         grid = self.world.grid()
+        if part is not None:
+            grid = swept_grid(grid, part, q, q)
         blocked = grid.inflate(0.5)
         for _ in range(500):
             x, y = rng.uniform(0.5, self.world.size[0] - 0.5), rng.uniform(0.5, self.world.size[1] - 0.5)
@@ -243,7 +249,7 @@ class PartSession:
 
         rng = np.random.default_rng(seed)
         q0 = part.closed if action == "open" else part.closed + start_fraction * part.travel
-        self.reset(self._free_spot(rng), {part.joint_path: q0})
+        self.reset(self._free_spot(rng, part, q0), {part.joint_path: q0})
         drv = Driver(self.sim, self.ctl, self.ik, self.cmd, self.recorder, rng)
         t0 = time.perf_counter()
         self.recorder.start(max_seconds)
