@@ -1,7 +1,8 @@
 """Scripted experts: one per task, driving the mobile Panda in a :class:`~stages.simulate.world.Sim`.
 
-Every expert first drives the base to a task pose (A* over the world's occupancy grid, then the
-pure-pursuit follower of :mod:`stages.demos.planner`; mode 0, locomotion), then manipulates
+Every expert first raises the hand over the base (:func:`stow`) and drives the base to a task pose
+(A* over the world's occupancy grid, then the pure-pursuit follower of :mod:`stages.demos.planner`;
+mode 0, locomotion), then manipulates
 (mode 1): end-effector motions are straight Cartesian segments solved by CLIK
 (``stages.simulate.control.move_ee``). Grasps come from the catalog asset's geometry (its
 generated.json parameters: the mug's body radius and height, the pushed object's bounds) and the
@@ -180,6 +181,19 @@ def side_rot(pitch_deg: float = 0.0) -> np.ndarray:
     return np.stack([np.cross(y, z), y, z], axis=1)
 
 
+STOW_REACH, STOW_Z = 0.30, 1.0  # hand while driving: this far ahead of the base centre, this high [m]
+
+
+def stow(d: Driver) -> None:
+    """Raise the hand from home (0.52 m ahead at 0.75 m: table-top height, it sweeps objects off a
+    table the base drives past) to 0.30 m ahead, 1.0 m high, inside the planner's footprint disc."""
+    from stages.simulate.control import top_down
+
+    bx, by, th = base_pose(d.sim)
+    at = np.array([bx + STOW_REACH * math.cos(th), by + STOW_REACH * math.sin(th), STOW_Z])
+    d.move(_pose(at, top_down(th - math.pi / 2)), 1.0, segments=2, tol=APPROACH_TOL)
+
+
 def _mug(inst: TaskInstance) -> tuple[str, float, float]:
     w = inst.world
     return w.placed["mug"].body(), w.mug_radius, w.mug_height
@@ -211,6 +225,7 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     body, _, h = _mug(inst)
     mug = np.asarray(inst.objects[body][:2])
     bowl = np.asarray(inst.target)
+    stow(d)
     d.drive_to(facing_north_goal(w.table_rect[1], float((mug[0] + bowl[0]) / 2)), _grid(inst))
     top = w.table_z
     rot = top_down(math.pi / 2)
@@ -219,7 +234,7 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(grasp, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2)
-    place = np.array([bowl[0], bowl[1], top + 0.012 + h - RIM_CLEARANCE + 0.02])
+    place = np.array([bowl[0], bowl[1], top + 0.012 + h - RIM_CLEARANCE + 0.008])
     d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
     d.grip(0.0, 0.6)
@@ -235,6 +250,7 @@ def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray
     w = inst.world
     goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
     stage = (goal[0], goal[1] - 0.6, goal[2])
+    stow(d)
     d.drive_to(stage, _grid(inst), approach=0.0)
     bx, by, th = base_pose(d.sim)
     ready = np.array([bx + reach * math.cos(th), by + reach * math.sin(th), w.counter_z + lift])
@@ -320,9 +336,14 @@ def _half_extent(inst: TaskInstance, role: str, yaw: float, direction) -> float:
     return float(np.max(-(pts @ np.asarray(direction))))
 
 
+PUSH_GRIP = 0.45  # gripper command while pushing: fingers ~4 cm apart cradle the object [0 open .. 1 closed]
+
+
 def push_object(inst: TaskInstance, d: Driver) -> None:
-    """Drive to the table, close the hand, lower it behind the object (on the robot's side, from its
-    bounds), push it 16 cm along +Y at 2 cm above the table, lift away."""
+    """Drive to the table, half-close the hand (the two fingertips ~4 cm apart across the push
+    direction cradle a round can: a single contact lets it slip sideways), lower it behind the
+    object (on the robot's side, from its bounds), push it 16 cm along +Y at about 2 cm above the
+    table, lift away."""
     from stages.simulate.control import top_down
 
     w = inst.world
@@ -330,9 +351,10 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     x, y, _, yaw = inst.objects[body]
     b = np.array([x, y])
     dirn = np.asarray(inst.push_direction, float)
+    stow(d)
     d.drive_to(facing_north_goal(w.table_rect[1], float(b[0])), _grid(inst))
-    rot = top_down(math.pi / 2)  # fingers close along x: the pads face the push direction
-    d.grip(1.0, 0.4)
+    rot = top_down(math.pi / 2)  # fingers close along x, across the push direction
+    d.grip(PUSH_GRIP, 0.4)
     a = w.placed["pusher"].asset
     z = w.table_z + float(np.clip(0.5 * (a.hi[2] - a.lo[2]), 0.015, 0.022))
     start = np.array([*(b - dirn * (_half_extent(inst, "pusher", yaw, dirn) + 0.03)), z])

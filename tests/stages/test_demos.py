@@ -229,8 +229,10 @@ def test_recorded_state_and_action_follow_the_simulation(recorded):
     state = np.stack([f.state() for f in frames])
     action = np.stack([f.action() for f in frames])
     mode = action[:, -1]
-    # locomotion first (base commands, base moving), then manipulation with the base mostly still
-    assert mode[0] == 0 and mode[-1] == 1 and set(np.unique(mode)) == {0.0, 1.0}
+    # the hand is raised (manipulation), the base drives (locomotion: base commands, base moving),
+    # then manipulation with the base mostly still
+    assert mode[0] == 1 and mode[-1] == 1 and set(np.unique(mode)) == {0.0, 1.0}
+    assert 0 < int(np.argmax(mode == 0)) < 60
     drive = mode == 0
     assert np.abs(action[drive, 14:17]).max() > 0.2
     start = recorded["inst"].start_base
