@@ -23,7 +23,6 @@ their south side, facing +Y. Every package's facts come from its ``generated.jso
 from __future__ import annotations
 
 import functools
-import json
 import logging
 import math
 import os
@@ -121,11 +120,9 @@ class AssetLibrary:
     def from_packages(usd_by_id: dict[str, Path], generated_json: Path,
                       categories: tuple[str, ...] = KITCHEN_CATEGORIES) -> AssetLibrary:
         """From package root layers by asset id and the catalog's ``generated.json``; only ``categories``."""
-        generated_json = Path(generated_json)
-        try:
-            info = json.loads(generated_json.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as e:
-            raise ItemError(f"{generated_json}: cannot read the default catalog's records ({e})") from None
+        from stages.demos.articulated import load_generated_info
+
+        info = load_generated_info(generated_json)
         out = {}
         for aid, usd in sorted(usd_by_id.items()):
             rec = info.get(aid)

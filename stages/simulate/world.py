@@ -329,6 +329,8 @@ class Sim:
     time: float = 0.0
     steps: int = 0
     pre_step: list = field(default_factory=list)
+    _graphs: dict = field(default_factory=dict, repr=False)  # (state_0 id, h) -> captured CUDA graph
+    _graphs_warm: bool = field(default=False, repr=False)
 
     @property
     def world_count(self) -> int:
@@ -372,17 +374,16 @@ class Sim:
         first step runs uncaptured so that every kernel is compiled and loaded before capture."""
         import warp as wp
 
-        graphs = self.__dict__.setdefault("_graphs", {})
-        key = (id(self.state_0), h)
-        if not graphs.get("warm"):
+        if not self._graphs_warm:
             self._substep(h)
-            graphs["warm"] = True
+            self._graphs_warm = True
             return
-        g = graphs.get(key)
+        key = (id(self.state_0), h)
+        g = self._graphs.get(key)
         if g is None:
             with wp.ScopedCapture(device=self.model.device) as cap:
                 self._substep(h)
-            g = graphs[key] = cap.graph
+            g = self._graphs[key] = cap.graph
         wp.capture_launch(g)
 
     def reset(self, base: tuple[float, float, float] | None = None) -> None:

@@ -23,11 +23,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
 
-LIGHT_SCALE = float(__import__("os").environ.get("BLENDER_LIGHT_SCALE", "0.001"))
+LIGHT_SCALE = float(os.environ.get("BLENDER_LIGHT_SCALE", "0.001"))
 
 
 def _bounds():
@@ -114,7 +115,9 @@ def main(argv: list[str]) -> int:
         print(json.dumps(rec), flush=True)
         records.append(rec)
     ok = [r for r in records if r["result"] == ["FINISHED"] and r["meshes"] > 0]
-    summary = {"blender": __import__("bpy").app.version_string, "scenes": len(records), "opened": len(ok),
+    import bpy
+
+    summary = {"blender": bpy.app.version_string, "scenes": len(records), "opened": len(ok),
                "records": records}
     (a.out / "blender.json").write_text(json.dumps(summary, indent=2))
     print(f"opened {len(ok)}/{len(records)} scenes in Blender {summary['blender']}")
