@@ -6,7 +6,8 @@ packages REFERENCED from the ingest step's output (never copied): along the nort
 kitchen counter (drawers, doors) and an oven, a microwave on the counter, a table (dining or coffee
 table) in the room with a mug, a bowl and an object to push (a can; a sponge if the catalog has no
 can) on it. Asset
-variants, positions and the colours of floor and walls are drawn from the world's ``rng``.
+variants and positions are drawn from the world's ``rng``, then its look (``stages.demos.looks``:
+colours of floor and walls and of the packages' materials, the lights) from a child generator.
 
 Frame: world, Z up, metres, radians; the room spans ``[0, size[0]] x [0, size[1]]``. Appliances
 face south (asset +X -> world -Y, yaw -90 deg); the robot works on the counter and the table from
@@ -32,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
+from stages.demos.looks import KitchenLook, sample_look
 
 log = logging.getLogger(__name__)
 
@@ -208,7 +210,8 @@ class KitchenWorld:
     counter beside the microwave; cavity: microwave cavity floor (xmin, ymin, xmax, ymax) [m] at
     cavity_z with cavity_height of clearance; button: centre of the button face at rest (3,) [m],
     button_travel [m], button_push (3,) unit push direction; mug_radius, mug_height [m];
-    materials: colours used (name -> rgb)."""
+    materials: floor and wall colours (name -> linear rgb); look: the packages' material
+    overrides and the lights (:class:`~stages.demos.looks.KitchenLook`)."""
 
     usd: Path
     scene_id: str
@@ -231,6 +234,7 @@ class KitchenWorld:
     mug_height: float
     bowl_radius: float
     materials: dict
+    look: KitchenLook
 
     def nav_boxes(self) -> np.ndarray:
         """Obstacle footprints (K, 4) [xmin, ymin, xmax, ymax] for base planning: walls, the floor
@@ -298,21 +302,20 @@ def _cavity(a: CatalogAsset) -> dict:
 # --------------------------------------------------------------------------------------------
 
 
-def _rgb(rng, lo=0.15, hi=0.9) -> tuple[float, float, float]:
-    return tuple(float(v) for v in rng.uniform(lo, hi, 3))
-
-
 def _rel(target: Path, layer_dir: Path) -> str:
     r = os.path.relpath(Path(target).resolve(), Path(layer_dir).resolve()).replace(os.sep, "/")
     return r if r.startswith(".") else f"./{r}"
 
 
-def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap: tuple[float, float]) -> None:
+def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap: tuple[float, float],
+                 look: KitchenLook) -> None:
     """Author the scene layer: physics scene, floor, walls (the south one split around the door
-    opening ``door_gap`` (x0, x1)), lights, and one referencing Xform per placed package."""
+    opening ``door_gap`` (x0, x1)), one referencing Xform per placed package, and the look (material
+    overrides of the packages, lights)."""
     from pxr import Gf, Sdf
 
-    from stages.simulate.demo_scene import _add_lights, _box, _labels, _Writer, _xform_attrs
+    from stages.demos.looks import add_look
+    from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
 
     sx, sy = size
     t, h = WALL_T, WALL_H
@@ -337,7 +340,7 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
         ref = Sdf.Reference(_rel(p.asset.usd, path.parent))
         w.prim(p.prim, "Xform", apis=la, attrs={**_xform_attrs(p.position, p.yaw), **lv},
                meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
-    _add_lights(w, size)
+    add_look(w, look, size)
     w.write(Path(path), "World")
 
 
@@ -428,9 +431,12 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     button = mwp.to_world(bface)
     push = mwp.dir_to_world((-1.0, 0.0, 0.0))
 
-    colors = {"floor": _rgb(rng, 0.3, 0.7), "wall": _rgb(rng, 0.6, 0.95)}
+    # the look (floor, walls, materials, lights) from a child generator spawned after every other
+    # draw: the picks and poses above stay what they were for a seed, whatever the look draws
+    look = sample_look(placed, rng.spawn(1)[0])
+    colors = {"floor": look.floor, "wall": look.wall}
     usd = out_dir / "scene.usda"
-    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap)
+    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)
     world = KitchenWorld(
         usd=usd, scene_id=scene_id, size=(sx, sy), wall_thickness=WALL_T, placed=placed, spawn=spawn,
@@ -439,6 +445,6 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         button=tuple(float(v) for v in button), button_travel=float(micro.params.get("button_travel", 0.005)),
         button_push=tuple(float(v) for v in push), mug_radius=float(mug.params["radius"]),
         mug_height=float(mug.params["height"]), bowl_radius=float(bowl.params.get("rim_radius", 0.07)),
-        materials=colors)
+        materials=colors, look=look)
     log.info("kitchen %s: %s", scene_id, world.asset_ids())
     return world

@@ -411,20 +411,35 @@ def _add_cabinet(w: _Writer, c: CabinetSpec) -> dict[str, tuple[float, float, fl
     return {"drawer_handle": drawer_handle, "door_handle": door_handle, "door_hinge": hinge}
 
 
-def _add_lights(w: _Writer, size, height: float = 2.3) -> None:
-    """Photometric lights as the scene stage authors them: a ceiling SphereLight giving ``300`` lux
-    on the floor below it, a weak sun (400 lux) and a sky dome (200 lux)."""
+def _add_lights(
+    w: _Writer,
+    size,
+    height: float = 2.3,
+    *,
+    ceiling_lux: float = 300.0,
+    ceiling_kelvin: float = 4000.0,
+    ceiling_xy: tuple[float, float] | None = None,
+    sun_lux: float = 400.0,
+    sun_tilt: tuple[float, float] = (25.0, -20.0),
+    dome_lux: float = 200.0,
+) -> None:
+    """Photometric lights as the scene stage authors them: a ceiling SphereLight of colour
+    temperature ``ceiling_kelvin`` [K] at ``ceiling_xy`` (default: the room centre) [m], ``height``
+    [m] above the floor, giving ``ceiling_lux`` on the floor below it, a weak sun of ``sun_lux``
+    [lux] whose -Z axis is turned by ``sun_tilt`` (about world X, then Y) [deg], and a sky dome
+    giving ``dome_lux`` [lux] on a horizontal surface."""
     from pxr import Gf, Sdf
     from scipy.spatial.transform import Rotation
 
-    radius, lux = 0.08, 300.0
-    q = Rotation.from_euler("xy", [25.0, -20.0], degrees=True).as_quat()  # x, y, z, w; shines along -Z
+    radius, lux = 0.08, float(ceiling_lux)
+    cx, cy = (size[0] / 2, size[1] / 2) if ceiling_xy is None else ceiling_xy
+    q = Rotation.from_euler("xy", list(sun_tilt), degrees=True).as_quat()  # x, y, z, w; shines along -Z
     w.prim("/World/Lights", "Xform")
     w.prim(
         "/World/Lights/Sun",
         "DistantLight",
         attrs={
-            "inputs:intensity": (Sdf.ValueTypeNames.Float, 400.0),
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(sun_lux)),
             "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
             "xformOp:orient": (
                 Sdf.ValueTypeNames.Quatf,
@@ -439,15 +454,15 @@ def _add_lights(w: _Writer, size, height: float = 2.3) -> None:
             "inputs:intensity": (Sdf.ValueTypeNames.Float, lux * height**2 / (np.pi * radius**2)),
             "inputs:radius": (Sdf.ValueTypeNames.Float, radius),
             "inputs:enableColorTemperature": (Sdf.ValueTypeNames.Bool, True),
-            "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, 4000.0),
-            **_xform_attrs((size[0] / 2, size[1] / 2, height)),
+            "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, float(ceiling_kelvin)),
+            **_xform_attrs((cx, cy, height)),
         },
     )
     w.prim(
         "/World/Lights/Sky",
         "DomeLight",
         attrs={
-            "inputs:intensity": (Sdf.ValueTypeNames.Float, 200.0 / np.pi),
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(dome_lux) / np.pi),
             "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
         },
     )
