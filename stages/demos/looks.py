@@ -69,7 +69,7 @@ SUN_TILT_X = (10.0, 35.0)        # [deg] magnitude of the sun's tilt about world
 SUN_TILT_Y = (-35.0, 35.0)       # [deg] the sun's tilt about world Y
 DOME_LUX = (80.0, 300.0)         # [lux] from the sky dome on a horizontal surface
 APPLIANCE_MATCH = 0.75           # probability that an appliance takes the kitchen's appliance finish
-FLOOR_MAX = 0.6                  # brightest floor channel (linear): a white floor in the sun saturates
+FLOOR_MAX = 0.5                  # brightest floor channel (linear): a white floor in the sun saturates
 
 APPLIANCES = ("fridge", "oven", "microwave", "dishwasher", "washing_machine")
 

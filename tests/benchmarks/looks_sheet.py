@@ -12,7 +12,7 @@ categories are generated and ingested into a temporary folder first (a few secon
 written with ``write_kitchen(..., rng=default_rng(seed))`` and loaded exactly as the demos load it
 (:class:`stages.demos.session.DemoWorld`: the robot at the spawn pose, the scene's UsdLux lights
 mapped onto Newton's SensorCamera); under each image: the seed, the ceiling light and the appliance
-finish. Writes the PNG and ``<out>.txt`` with :func:`stages.demos.looks.describe` of every look and
+finish (the mean over the pixels that see the room). Writes the PNG and ``<out>.txt`` with :func:`stages.demos.looks.describe` of every look and
 the timings.
 """
 
@@ -83,15 +83,19 @@ def main(argv: list[str] | None = None) -> None:
         room = write_kitchen(tmp / f"w{seed}", lib, scene_id=f"looks_{seed}", rng=np.random.default_rng(seed))
         world = DemoWorld(room, panda_root=None, work_dir=tmp / f"w{seed}", settings=settings)
         t1 = time.perf_counter()
-        rgb = world.rig.render()["third_person"].rgb[0]
+        frame = world.rig.render()["third_person"]
+        rgb, hit = frame.rgb[0], frame.depth[0] > 0
         t2 = time.perf_counter()
+        lit = rgb[hit]  # pixels that see the room (the open top shows no sky: black)
+        sat, dark = float((lit.max(-1) >= 254).mean()), float((lit.max(-1) <= 10).mean())
         lt = room.look.lights
         fridge = room.look.override("fridge", "body")
         tiles.append(_caption(rgb, [f"seed {seed}: ceiling {lt.ceiling_lux:.0f} lux {lt.ceiling_kelvin:.0f} K",
-                                    f"sun {lt.sun_lux:.0f} lux, sky {lt.dome_lux:.0f} lux, mean {rgb.mean():.0f}/255",
+                                    f"sun {lt.sun_lux:.0f} lux, sky {lt.dome_lux:.0f} lux, mean {lit.mean():.0f}/255",
                                     f"fridge {fridge.rule if fridge else 'as packaged'}"]))
-        notes.append(f"== seed {seed}: build {t1 - t0:.1f} s, render {t2 - t1:.2f} s, mean rgb "
-                     f"{rgb.reshape(-1, 3).mean(0).round(1).tolist()}\n{describe(room.look)}")
+        notes.append(f"== seed {seed}: build {t1 - t0:.1f} s, render {t2 - t1:.2f} s, room pixels: mean rgb "
+                     f"{lit.mean(0).round(1).tolist()}, saturated {100 * sat:.2f}%, black {100 * dark:.2f}%\n"
+                     f"{describe(room.look)}")
         print(notes[-1], flush=True)
     gap = np.full((tiles[0].shape[0], 6, 3), 255, np.uint8)
     sheet = np.concatenate([x for t in tiles for x in (t, gap)][:-1], axis=1)
