@@ -106,6 +106,7 @@ class _JointDraft:
     damping: float
     friction: float
     role: str
+    counterbalance: tuple[float, float] | None = None
 
 
 class AssetBuilder:
@@ -144,9 +145,13 @@ class AssetBuilder:
 
     def link(self, name: str, *, parent: str, origin, joint: Literal["revolute", "prismatic"], axis,
              lower: float, upper: float, effort: float, velocity: float, damping: float = 0.0,
-             friction: float = 0.0, role: str = "") -> str:
+             friction: float = 0.0, role: str = "", counterbalance: tuple[float, float] | None = None) -> str:
         """Declare a moving link whose joint frame sits at ``origin`` (3,) [m] (root frame) with
-        ``axis`` (3,) in the root frame; limits [rad] or [m]."""
+        ``axis`` (3,) in the root frame; limits [rad] or [m]. ``counterbalance`` = (spring, hold)
+        for a leaf hinged on a horizontal axis (an oven door): a hinge spring towards zero of
+        stiffness ``spring * m g r`` [N m/rad] and joint friction ``hold * m g r`` [N m] (replacing
+        ``friction``), m g r being the leaf's largest gravity torque about the axis, computed once
+        the link's mass is known."""
         if name in self.links:
             raise ValueError(f"duplicate link {name!r}")
         self.links[name] = _LinkDraft(name, np.asarray(origin, dtype=np.float64))
@@ -154,7 +159,8 @@ class AssetBuilder:
         ax = ax / np.linalg.norm(ax)
         self.joints.append(_JointDraft(f"{name}_joint", JointType(joint), parent, name,
                                        tuple(float(a) for a in ax), float(lower), float(upper),
-                                       float(effort), float(velocity), float(damping), float(friction), role))
+                                       float(effort), float(velocity), float(damping), float(friction), role,
+                                       counterbalance))
         return name
 
     def add(self, link: str, shape: Manifold, material: str, *, density: float,
@@ -202,7 +208,9 @@ class AssetBuilder:
                 collision_source=None if rigid_format == "obj" else _collision(lk, name),
                 mass=_mass_props(mass * scale, com - lk.origin, inertia * scale),
                 mass_from_source=rigid_format == "urdf"))
-        joints = tuple(_joint(j, self.links) for j in self.joints)
+        gravity_torque = {name: _gravity_torque(masses[name][0] * scales[name], masses[name][1], lk.origin)
+                          for name, lk in self.links.items()}
+        joints = tuple(_joint(j, self.links, gravity_torque[j.child]) for j in self.joints)
         kind = "obj" if rigid_format == "obj" and not joints else "urdf"
         is_rigid = not joints
         ann = AssetAnnotation(
@@ -312,8 +320,27 @@ def _mass_props(mass: float, com: np.ndarray, inertia: np.ndarray) -> MassProper
                           principal_axes=(float(qw), float(x), float(y), float(z)))
 
 
-def _joint(j: _JointDraft, links: dict[str, _LinkDraft]) -> Joint:
+def _gravity_torque(mass: float, com: np.ndarray, origin: np.ndarray):
+    """A function of the unit axis (3,) giving m g r [N m]: the largest gravity torque of a link of
+    ``mass`` [kg] with centre of mass ``com`` (3,) about an axis through ``origin`` (3,) (r: the
+    centre of mass's distance from the axis; horizontal axes only, a vertical one feels none)."""
+    def torque(axis) -> float:
+        a = np.asarray(axis, dtype=np.float64)
+        if abs(a[2]) > 0.7:
+            return 0.0
+        v = np.asarray(com, dtype=np.float64) - origin
+        return float(mass * 9.81 * np.linalg.norm(v - np.dot(v, a) * a))
+    return torque
+
+
+def _joint(j: _JointDraft, links: dict[str, _LinkDraft], gravity_torque=None) -> Joint:
     rel = links[j.child].origin - links[j.parent].origin
+    stiffness, friction = 0.0, j.friction
+    if j.counterbalance is not None and gravity_torque is not None:
+        mgr = gravity_torque(j.axis)
+        stiffness = float(f"{j.counterbalance[0] * mgr:.4g}")
+        friction = float(f"{j.counterbalance[1] * mgr:.4g}")
     return Joint(name=j.name, type=j.type, parent=j.parent, child=j.child,
                  frame=Pose(tuple(float(x) for x in rel)), axis=j.axis, lower=j.lower, upper=j.upper,
-                 max_effort=j.effort, max_velocity=j.velocity, friction=j.friction, damping=j.damping)
+                 max_effort=j.effort, max_velocity=j.velocity, friction=friction, damping=j.damping,
+                 stiffness=stiffness)

@@ -119,6 +119,12 @@ def microwave(b: AssetBuilder) -> float:
     return b.param("mass", 10.0, 17.0)
 
 
+#: oven door hinge (spring, hold) as fractions of the door's gravity torque m g r: the spring
+#: (0.6 m g r per rad towards closed) and friction (0.12 m g r) hold the door anywhere below ~18 deg
+#: and let it drop gently onto its open stop above that, as a real oven door's hinge springs do
+OVEN_DOOR_BALANCE = (0.6, 0.12)
+
+
 def oven(b: AssetBuilder) -> float:
     body = b.material("body", pick_color(b, APPLIANCE, 0.02), roughness=0.3, metallic=0.4)
     inner = b.material("cavity", (0.1, 0.1, 0.11), roughness=0.6)
@@ -149,7 +155,7 @@ def oven(b: AssetBuilder) -> float:
                   density=SHELL)
     b.link("door", parent="base", origin=(d / 2, 0.0, plinth + GAP), joint="revolute", axis=(0, 1, 0),
            lower=0.0,
-           upper=1.5, effort=40.0, velocity=1.5, damping=1.0, friction=0.3, role="door")
+           upper=1.5, effort=40.0, velocity=1.5, damping=2.0, role="door", counterbalance=OVEN_DOOR_BALANCE)
     zd1 = zc1 - GAP
     panel(b, "door", (xb1 + GAP, -w / 2 + GAP, plinth + GAP), (d / 2, w / 2 - GAP, zd1), body, SHELL)
     panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.08, plinth + 0.12), (d / 2 + 0.001, w / 2 - 0.08,
@@ -163,6 +169,12 @@ def oven(b: AssetBuilder) -> float:
         ky = -w / 2 + w * (i + 0.5) / n_knobs
         knob(b, f"knob_{i}", parent="base", mat=knob_m, x_surface=d / 2, y=ky, z=kz, radius=0.02, depth=0.025)
     return b.param("mass", 40.0, 70.0)
+
+
+#: room door hinge: damping [N m s/rad] and friction [N m]; a ~30 kg leaf (~7 kg m^2 about its hinge)
+#: let go of at 0.3 rad/s coasts ~0.2 rad and stops (with 2 / 0.5 it swung on for a radian)
+ROOM_DOOR_DAMPING = 10.0
+ROOM_DOOR_FRICTION = 3.0
 
 
 def room_door(b: AssetBuilder) -> float | None:
@@ -187,7 +199,7 @@ def room_door(b: AssetBuilder) -> float | None:
     sgn = 1.0 if hinge == "left" else -1.0
     b.link("leaf", parent="base", origin=(lt / 2, hy, floor_gap), joint="revolute",
            axis=(0, 0, -1) if hinge == "left" else (0, 0, 1), lower=0.0, upper=float(np.pi / 2), effort=50.0,
-           velocity=1.5, damping=2.0, friction=0.5, role="door")
+           velocity=1.5, damping=ROOM_DOOR_DAMPING, friction=ROOM_DOOR_FRICTION, role="door")
     ly0, ly1 = sorted((hy, hy + sgn * lw))
     panel(b, "leaf", (-lt / 2, ly0, floor_gap), (lt / 2, ly1, floor_gap + lh), wood, 450.0)
     hz = b.param("handle_height", 0.95, 1.05)

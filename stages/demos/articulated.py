@@ -32,6 +32,10 @@ the experts add the part's swept area themselves):
   mid-motion); opening holds the handle, closing a vertical door pushes its front face with the
   closed hand; after each stage the hand backs off with base motions (round the free edge of an
   opened leaf) and tucks. A fridge door of 0.7 m typically needs 2 stages; a stage lasts ~15 s.
+  A bottom-hinged (oven) door opened past 20 deg lies with its handle under the leaf: closing
+  first lifts it by pinching its free edge from beside the leaf (the base drives towards the
+  front while holding when the arm runs out of reach) to below ~15 deg, where its counterbalanced
+  hinge holds it, then presses it shut with the closed hand.
 
 They raise :class:`~stages.demos.experts.ExpertFailure` ("no_base_pose", "ik_unreachable",
 "not_reached", "handle_faces_floor", and the Driver's "no_path", "drive_timeout").
@@ -301,6 +305,16 @@ LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
+# pinching the free edge of a bottom-hinged (oven) door: catalog ovens have the bar's centre 5 cm
+# from the edge and a leaf about 4 cm thick; the tool centre sits 1.5 cm in from the edge
+EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
+EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
+LEAF_HALF_THICKNESS = 0.019  # [m]
+EDGE_LIFT_ABOVE = math.radians(20.0)  # close a bottom-hinged door opened further by lifting its edge first
+EDGE_LIFT_TO = math.radians(9.0)      # ... towards here (it stays put below ~18 deg), then by the handle
+EDGE_HOLD = math.radians(15.0)       # the lift ends once the leaf stays below this
+EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
+EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
 
 
 def _heading(v) -> float:
@@ -633,11 +647,51 @@ def _edge_gap(part: ArticulatedPart) -> float:
     return 0.14 if part.handle_kind == "lever" else 0.06
 
 
-def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool, along: float = 0.0):
+def edge_point(part: ArticulatedPart, along: float = 0.0) -> np.ndarray:
+    """The tool centre (3,) [m] pinching a bottom-hinged door's free edge, at closed: mid-thickness,
+    EDGE_PINCH_IN in from the edge, above the bar's centre (``along`` [m] off it along the bar)."""
+    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
+    n = np.asarray(part.front, float)
+    face = h - (part.clearance + part.grip_width / 2) * n
+    return face + (EDGE_FROM_BAR - EDGE_PINCH_IN) * _lateral(part) - LEAF_HALF_THICKNESS * n
+
+
+def edge_rotation(part: ArticulatedPart, tilt: float, flip: bool = False) -> np.ndarray:
+    """(3, 3) gripper rotation pinching the free edge at closed: approach (tool z) from the edge
+    towards the hinge, turned ``tilt`` [rad] about the hinge axis, fingers closing across the
+    leaf's thickness (``flip``: the hand turned half a turn about its approach axis)."""
+    z = -_lateral(part)
+    y = np.asarray(part.front, float)
+    x = np.cross(y, z)
+    r = np.stack([x, y, z], axis=1)
+    if flip:
+        r = r @ np.diag([-1.0, -1.0, 1.0])
+    return _axis_angle(np.asarray(part.axis, float), tilt) @ r
+
+
+def _edge_tool(part: ArticulatedPart, q: float, tilt: float, along: float, back: float = 0.0) -> np.ndarray:
+    """4x4 world gripper pose pinching the edge at joint value q (``back`` [m] out along the
+    approach axis); tilt > pi / 2 encodes the flipped hand (tilt - pi)."""
+    flip = tilt > math.pi / 2
+    rot = part.rotation_at(q) @ edge_rotation(part, tilt - math.pi if flip else tilt, flip)
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = part.point_at(edge_point(part, along), q) - back * rot[:, 2]
+    return m
+
+
+def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool, along: float = 0.0,
+             mode: str | None = None):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
     ``along`` [m] off its centre along the bar. Push (closed hand): on the front face 7 cm inboard
-    of the bar, pressing along the arc."""
+    of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged doors): pinching the
+    leaf's free edge, ``pitch`` being the tilt about the hinge axis (see :func:`_edge_tool`)."""
+    if mode == "edge":
+        contact = _edge_tool(part, q0, pitch, along)
+        pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)
+        approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
+        return approach, [_edge_tool(part, q, pitch, along) for q in qs]
     h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
     front0 = np.asarray(part.front, float)
     if push:
@@ -668,19 +722,23 @@ def _robust(d, base, part: ArticulatedPart, targets) -> bool:
     return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
 
 
-def _grips(part: ArticulatedPart, base, p0: float, vertical: bool) -> list[tuple[float, float]]:
+def _grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = False) -> list[tuple[float, float]]:
     """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
-    door's long bar is also gripped OVEN_GRIP_OFFSET towards the base."""
+    door's long bar is also gripped OVEN_GRIP_OFFSET towards the base. ``edge``: tilts 0 and
+    +-20 deg, each also with the hand flipped (tilt + pi), at the bar's centre and offset."""
+    side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]), np.asarray(part.bar_axis)[:2]))
+    if edge:  # from beside the lying leaf: pinch its edge near the corner on the base's side
+        tilts = tuple(t + f for f in (0.0, math.pi) for t in (0.0, math.radians(-20), math.radians(20)))
+        return [(t, math.copysign(a, side)) for a in EDGE_ALONG for t in tilts]
     pitches = (p0, p0 - math.radians(15), p0 + math.radians(15))
     out = [(p, 0.0) for p in pitches]
     if not vertical:
-        side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]),
-                            np.asarray(part.bar_axis)[:2]))
         out += [(p, math.copysign(OVEN_GRIP_OFFSET, side)) for p in pitches]
     return out
 
 
-def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70):
+def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70,
+                mode: str | None = None):
     """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
     bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
     large as found (all of them ends the search), and the arm solutions of approach + those
@@ -692,9 +750,16 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
     p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
     best = (None, 0.0, -1, [], 0.0)
     checks = 0
-    for base in _swing_bases(part, grid, q0, qs):
-        for pitch, along in _grips(part, base, p0, vertical):
-            approach, arc = _gesture(part, q0, qs, pitch, push, along)
+    bases = _swing_bases(part, grid, q0, qs)
+    if mode == "edge":
+        # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
+        # rises): bases about EDGE_SIDE off the bar's centre along it first
+        bar = np.asarray(part.bar_axis, float)[:2]
+        bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
+        max_checks = 3 * max_checks
+    for base in bases:
+        for pitch, along in _grips(part, base, p0, vertical, edge=mode == "edge"):
+            approach, arc = _gesture(part, q0, qs, pitch, push, along, mode)
             sols = reach(d, base, approach + arc)
             n = len(sols) - len(approach)
             checks += 1
@@ -711,16 +776,19 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
     return best
 
 
-def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 4,
-           push: bool = False) -> None:
+def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 5,
+           push: bool = False, mode: str | None = None, done_at: float | None = None) -> None:
     """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
     ``push``, pressing the front face with the closed hand). Each stage drives to the base pose
     that reaches the longest part of the remaining arc, takes hold, swings, lets go and backs
-    off; the part stays where it was left (damped joint) and the next stage starts from there."""
+    off; the part stays where it was left (damped joint) and the next stage starts from there.
+    ``mode="edge"``: pinch a bottom-hinged door's free edge instead of its handle. ``done_at``:
+    the joint value that ends it (default: 80 % of the travel opening, 2.5 deg from closed closing)."""
     from stages.demos.experts import ExpertFailure
 
     opening = q1 > q0
-    done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
+    if done_at is None:
+        done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
 
     def done(q):
         return q >= done_at if opening else q <= done_at
@@ -732,7 +800,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, push)
+        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, push, mode=mode)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
@@ -747,7 +815,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                      q, q_now)
             q = q_now
             continue
-        approach, arc = _gesture(part, q, qs, pitch, push, along)
+        approach, arc = _gesture(part, q, qs, pitch, push, along, mode)
         d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
         durs = [1.5] + [0.6] * (na - 2) + [0.5]
@@ -757,13 +825,20 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                   np.round(base, 3))
         if track(d, approach[:-1], sols[:na - 1], durs, tol=SWING_TOL, fallback=True) < na - 1 or \
                 track(d, approach[-1:], sols[na - 1:na], durs[-1:], tol=SWING_TOL) < 1:
-            raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
+            if stage == max_stages - 1:
+                raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
+            # the base stopped off its planned pose: tuck and plan again from where it stands
+            log.info("%s: approach at %.2f unreachable from the base reached; planning again", part.joint_path, q)
+            d.home(1.0)
+            q = d.sim.joint_q_of_path(part.joint_path)
+            continue
         d.step(0.2)
         k = 0
         if not push:
             d.grip(1.0, 0.6)
             try:
-                _check_grasp(part, d, along=along)
+                _check_grasp(part, d, along=along,
+                             point=edge_point(part, along) if mode == "edge" else None)
             except ExpertFailure as e:
                 # a free leaf nudged by the fingers: let go, back off and plan again from where it is
                 if stage == max_stages - 1:
@@ -775,11 +850,13 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4
                     for qw in qs[:n]]
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
+            if mode == "edge" and not done(d.sim.joint_q_of_path(part.joint_path)):
+                _edge_push(part, d, grid, q1)
         d.step(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
-        _retreat_from_leaf(part, d, last, grid, push=push)
+        _retreat_from_leaf(part, d, last, grid, push=push, edge=mode == "edge")
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         d.home(1.0)
         _settle_part(part, d)
@@ -789,6 +866,34 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             return
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -> None:
+    """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
+    by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
+    travel, as far as the room allows (the leaf slides radially between the fingers)."""
+    from stages.demos.experts import ROBOT_RADIUS
+    from stages.demos.record import base_pose
+
+    q = d.sim.joint_q_of_path(part.joint_path)
+    e = edge_point(part)
+    a = np.asarray(part.axis, float)
+    v = e - np.asarray(part.origin, float)
+    r = float(np.linalg.norm(v - np.dot(v, a) * a))
+    n = np.asarray(part.front, float)[:2]
+    n = n / max(np.linalg.norm(n), 1e-9)
+    want = r * (math.sin(abs(q - part.closed)) - math.sin(abs(q1 - part.closed)))
+    blocked = grid.inflate(ROBOT_RADIUS - 0.05)
+    x, y, _ = base_pose(d.sim)
+    dist = 0.0
+    for s_ in np.arange(0.02, want + 1e-9, 0.02):
+        if not _free(grid, blocked, x - s_ * n[0], y - s_ * n[1]):
+            break
+        dist = float(s_)
+    log.info("%s: edge at %.2f out of the arm's reach: base %.2f m of %.2f towards the front", part.joint_path,
+             q, dist, want)
+    if dist > 0.0:
+        _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
 
 
 def _escape(d, grid, reach: float = 0.5) -> None:
@@ -853,13 +958,14 @@ def _joint_index(d, part: ArticulatedPart) -> int:
 
 
 def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False,
-                 along: float = 0.0) -> None:
-    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle after closing
-    (``across_axis``: only the offset perpendicular to a drawer's axis counts)."""
+                 along: float = 0.0, point=None) -> None:
+    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle (or ``point`` (3,),
+    a link point at closed) after closing (``across_axis``: only the offset perpendicular to a
+    drawer's axis counts)."""
     from stages.demos.experts import ExpertFailure
 
     hand = _tcp_world(d)
-    grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
+    grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float) if point is None else point
     handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
     v = hand - handle
     if across_axis:
@@ -885,7 +991,7 @@ def _tcp_world(d) -> np.ndarray:
     return m[:3, 3]
 
 
-def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool = False) -> None:
+def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool = False, edge: bool = False) -> None:
     """Release the handle and take the hand clear of the leaf with base motions (arm held): back
     along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
     edge (an arm wrapped round an opened door's edge would sweep it shut when tucked) as far as
@@ -896,6 +1002,18 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
     if not push:  # a pushing fist stays closed: opening fingers catch the handle
         d.grip(0.0, 0.5)
     w = _ee_world(d)
+    if edge:  # fingers straddle the leaf's edge: draw the hand straight off it first (4 cm clear it)
+        from stages.demos.experts import ExpertFailure
+
+        for dist in (0.10, 0.07, 0.04):
+            off = w.copy()
+            off[:3, 3] -= dist * w[:3, 2]
+            try:
+                _move(d, off, 1.0, segments=2, tol=0.01)
+                break
+            except ExpertFailure:
+                w = _ee_world(d)
+        w = _ee_world(d)
     _base_shift(d, -0.08 * w[:3, 2], speed=0.08)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
         e = part.rotation_at(q) @ _lateral(part)
@@ -972,8 +1090,17 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
         _drawer(part, d, grid, start, part.closed)
         return
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
-    if not vertical and part.front_at(start)[2] < -0.5:
-        # a dropped oven door: its handle hangs under the leaf a few cm above the floor
-        raise ExpertFailure("handle_faces_floor",
-                            f"{part.joint_path}: handle under the open leaf at {start:.2f}")
-    _swing(part, d, grid, start, part.closed, push=vertical)
+    if vertical:
+        _swing(part, d, grid, start, part.closed, push=True)
+        return
+    _settle_part(part, d, max_seconds=3.0)  # an opened oven door drops onto its stop
+    q = d.sim.joint_q_of_path(part.joint_path)
+    if q - part.closed > EDGE_LIFT_ABOVE:
+        # its handle hangs under the leaf: lift the leaf by its free edge to where it stays put
+        _swing(part, d, grid, q, part.closed + EDGE_LIFT_TO, mode="edge",
+               done_at=part.closed + EDGE_HOLD)
+        q = d.sim.joint_q_of_path(part.joint_path)
+    if part.front_at(q)[2] < -0.5:
+        raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {q:.2f}")
+    # the last few degrees: press the front face shut with the closed hand
+    _swing(part, d, grid, q, part.closed, step_deg=3.0, push=True)

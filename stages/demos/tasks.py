@@ -159,6 +159,8 @@ ARTICULATED = {"microwave": ("microwave", "door", "microwave"), "fridge": ("frid
                "oven": ("oven", "door", "oven"), "drawer": ("counter", "drawer", "kitchen counter"),
                "door": ("door", "door", "room")}
 OPEN_FRACTION = 0.75  # open: the joint past this fraction of its travel
+#: time limit of open/close episodes [s]: a wide door is carried in up to 4 stages of ~15-20 s
+OPEN_CLOSE_SECONDS = 90.0
 
 
 def _opened(inst, state, peaks=None) -> tuple[bool, str]:
@@ -184,9 +186,9 @@ def _articulated_specs() -> list[TaskSpec]:
         else:
             opens = ("open the {furniture} door", "open the {furniture}")
             closes = ("close the {furniture} door", "shut the {furniture}")
-        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=60.0,
+        specs.append(TaskSpec(name=f"open_{target}", family=Family.OPEN_CLOSE, max_seconds=OPEN_CLOSE_SECONDS,
                               success=_opened, templates=opens))
-        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=60.0,
+        specs.append(TaskSpec(name=f"close_{target}", family=Family.OPEN_CLOSE, max_seconds=OPEN_CLOSE_SECONDS,
                               success=_closed, templates=closes))
     return specs
 

@@ -4,7 +4,9 @@ Parsed with ``xml.etree`` after rejecting any DOCTYPE/ENTITY (no entity expansio
 visual and collision geometry (mesh: STL/OBJ/PLY/glTF via trimesh, DAE by a built-in reader, ``scale``;
 box, cylinder, sphere and the common ``capsule`` extension), origins, materials (``color rgba``,
 ``texture filename``; named robot-level materials), inertials, and revolute / continuous / prismatic /
-fixed joints with axis, limits (lower, upper, effort, velocity) and dynamics (damping, friction).
+fixed joints with axis, limits (lower, upper, effort, velocity) and dynamics (damping, friction, and
+the extension ``spring_stiffness``: a hinge spring towards joint value 0 [N m/rad or N/m], as
+Gazebo's ``spring_stiffness`` with ``spring_reference`` 0).
 ``mimic`` is ignored (logged); floating and planar joints are rejected.
 
 Mesh filenames: ``package://<pkg>/<rest>`` is looked up in the URDF's folder and each ancestor (as
@@ -143,13 +145,15 @@ class _SrcJoint:
     velocity: float | None
     damping: float
     friction: float
+    stiffness: float = 0.0
     floating: bool = False     # a 'floating' joint, kept only as world -> root (a movable base)
 
     def to_joint(self, name: str, parent: str, child: str) -> Joint:
         return Joint(name=name, type=self.type, parent=parent, child=child,
                      frame=g.pose_of(self.frame_matrix),
                      axis=self.axis, lower=self.lower, upper=self.upper, max_effort=self.effort,
-                     max_velocity=self.velocity, friction=self.friction, damping=self.damping)
+                     max_velocity=self.velocity, friction=self.friction, damping=self.damping,
+                     stiffness=self.stiffness)
 
 
 def _origin(el: ET.Element | None, path: Path, what: str) -> np.ndarray:
@@ -206,7 +210,8 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
                      effort=effort if effort and effort > 0 else None,
                      velocity=velocity if velocity and velocity > 0 else None,
                      damping=max(_opt_float(dyn, "damping", path, what) or 0.0, 0.0),
-                     friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0), floating=floating)
+                     friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0),
+                     stiffness=max(_opt_float(dyn, "spring_stiffness", path, what) or 0.0, 0.0), floating=floating)
 
 
 def _tree(links: dict[str, ET.Element], joints: list[_SrcJoint], path: Path

@@ -167,7 +167,7 @@ def test_microwave_door_opens(catalog: Path, tmp_path: Path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("aid", "action"), [("microwave_00", "close"), ("cabinet_00", "open"),
-                                             ("cabinet_00", "close"), ("oven_00", "open"),
+                                             ("cabinet_00", "close"), ("oven_00", "open"), ("oven_00", "close"),
                                              ("fridge_00", "open"), ("fridge_00", "close")])
 def test_catalog_parts_open_and_close(catalog: Path, tmp_path: Path, aid: str, action: str):
     """One episode per (asset, action) with the generic experts; the predicate holds at the end."""
@@ -181,3 +181,32 @@ def test_catalog_parts_open_and_close(catalog: Path, tmp_path: Path, aid: str, a
     state = read_state(sess.sim)
     ok, _ = part_opened(part, state) if action == "open" else part_closed(part, state)
     assert ok
+
+
+def test_oven_door_counterbalance(catalog: Path, tmp_path: Path):
+    """The oven door's hinge spring and friction are authored from the leaf's gravity torque
+    (0.6 and 0.12 m g r) and behave as a counterbalanced door in the simulation: let go of at
+    10 deg it stays within 3 deg, at 35 deg it drops onto its open stop."""
+    from pxr import Usd, UsdPhysics
+
+    from asset_catalog.generators.appliances import OVEN_DOOR_BALANCE
+
+    stage = Usd.Stage.Open(str(_package(catalog, "oven_00")))
+    joint = stage.GetPrimAtPath("/oven_00/joints/door_joint")
+    door = UsdPhysics.MassAPI(stage.GetPrimAtPath("/oven_00/door"))
+    com = np.asarray(door.GetCenterOfMassAttr().Get(), float)
+    mgr = door.GetMassAttr().Get() * 9.81 * math.hypot(com[0], com[2])  # hinge axis: the link's Y
+    k = joint.GetAttribute("drive:angular:physics:stiffness").Get() * 180.0 / math.pi  # per deg -> per rad
+    friction = joint.GetAttribute("newton:friction").Get()
+    assert k == pytest.approx(OVEN_DOOR_BALANCE[0] * mgr, rel=0.02)
+    assert friction == pytest.approx(OVEN_DOOR_BALANCE[1] * mgr, rel=0.02)
+
+    world, sess = _session(catalog, tmp_path, "oven_00")
+    (part,) = [p for p in world.parts if p.role == "door"]
+    ends = {}
+    for deg in (10.0, 35.0):
+        sess.reset(sess._free_spot(np.random.default_rng(0), part, part.upper), {part.joint_path: math.radians(deg)})
+        sess.sim.step(int(round(2.5 / sess.sim.settings.dt)))
+        ends[deg] = math.degrees(sess.sim.joint_q_of_path(part.joint_path))
+    assert abs(ends[10.0] - 10.0) < 3.0, ends
+    assert ends[35.0] > math.degrees(part.upper) - 5.0, ends
