@@ -795,6 +795,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
 
     q = d.sim.joint_q_of_path(part.joint_path)  # a free leaf may have moved since q0 was set
     for stage in range(max_stages):
+        if done(q):  # a free leaf may have moved on by itself (an oven door past its hold drops open)
+            return
         step = math.copysign(math.radians(step_deg), q1 - q)
         qs = [float(v) for v in np.arange(q + step, q1 + 0.5 * step, step)]
         if push:
@@ -808,7 +810,16 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
         _escape(d, here)
-        _drive(d, base, here)
+        try:
+            _drive(d, base, here)
+        except ExpertFailure as e:
+            if e.reason != "drive_timeout" or stage == max_stages - 1:
+                raise
+            # blocked short of the goal (a chassis corner on the leaf): plan again from here
+            log.info("%s: %s; planning again", part.joint_path, e)
+            d.base((0.0, 0.0, 0.0))
+            q = d.sim.joint_q_of_path(part.joint_path)
+            continue
         q_now = d.sim.joint_q_of_path(part.joint_path)
         if abs(q_now - q) > math.radians(2.0) and stage < max_stages - 1:
             log.info("%s: the part moved from %.3f to %.3f during the drive; planning again", part.joint_path,

@@ -239,7 +239,7 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
     d.grip(0.0, 0.6)
     d.move(_pose(place + [0, 0, 0.12], rot), 0.8, segments=2, tol=APPROACH_TOL)
-    d.home(1.0)
+    stow(d)  # home hangs at table height: swinging there from over the bowl knocks the mug over
 
 
 def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray | None = None,
@@ -364,7 +364,7 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(end, rot), 1.6, segments=4, settle=0.2)
     d.move(_pose(end + [0, 0, 0.12], rot), 0.8, segments=2, tol=APPROACH_TOL)
     d.grip(0.0, 0.3)
-    d.home(1.0)
+    stow(d)  # (not home: it sweeps the table top)
 
 
 def press_button(inst: TaskInstance, d: Driver) -> None:

@@ -274,6 +274,15 @@ def _mug_ok(a: CatalogAsset) -> bool:
     return 2.0 * float(a.params.get("radius", 1.0)) <= GRASP_MAX_DIAMETER
 
 
+def _bowl_fits(bowl: CatalogAsset, mug: CatalogAsset, margin: float = 0.002) -> bool:
+    """Whether ``mug`` stands flat on ``bowl``'s floor (radius: foot radius less the wall, as the
+    catalog's bowl generator lathes it) with ``margin`` [m] to spare; on a smaller floor it rests
+    on the curved wall and tips."""
+    p = bowl.params
+    floor = float(p.get("rim_radius", 0.0)) * float(p.get("foot_ratio", 0.0)) - float(p.get("wall", 0.0))
+    return float(mug.params.get("radius", 1.0)) + margin <= floor
+
+
 def _counter_segment(a: CatalogAsset, need: float) -> dict | None:
     """The counter's widest top surface segment (asset frame) if it is at least ``need`` [m] long."""
     tops = [s for s in a.info.get("surfaces", []) if not s["inside"] and s["link"] == "base"]
@@ -357,8 +366,9 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     door = _pick(lib, rng, ("door",))
     tables = ("dining_table",) if lib.of("dining_table") else ("coffee_table",)
     table = _pick(lib, rng, tables)
-    mug = _pick(lib, rng, ("mug",), _mug_ok, f"mug narrower than {GRASP_MAX_DIAMETER * 1000:.0f} mm")
-    bowl = _pick(lib, rng, ("bowl",))
+    mug = _pick(lib, rng, ("mug",), lambda a: _mug_ok(a) and any(_bowl_fits(b, a) for b in lib.of("bowl")),
+                f"mug narrower than {GRASP_MAX_DIAMETER * 1000:.0f} mm that stands flat in a bowl")
+    bowl = _pick(lib, rng, ("bowl",), lambda b: _bowl_fits(b, mug), f"bowl whose floor holds {mug.asset_id}")
     # the object to push: a can (a 10-25 g sponge was not pushed in a measured world); else a sponge
     pusher = _pick(lib, rng, ("can",) if lib.of("can") else ("sponge",))
 
