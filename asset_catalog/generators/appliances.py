@@ -120,9 +120,9 @@ def microwave(b: AssetBuilder) -> float:
 
 
 #: oven door hinge (spring, hold) as fractions of the door's gravity torque m g r: the spring
-#: (0.6 m g r per rad towards closed) and friction (0.12 m g r) hold the door anywhere below ~18 deg
+#: (0.55 m g r per rad towards closed) and friction (0.15 m g r) hold the door anywhere below ~20 deg
 #: and let it drop gently onto its open stop above that, as a real oven door's hinge springs do
-OVEN_DOOR_BALANCE = (0.6, 0.12)
+OVEN_DOOR_BALANCE = (0.55, 0.15)
 
 
 def oven(b: AssetBuilder) -> float:

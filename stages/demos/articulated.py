@@ -311,8 +311,8 @@ EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
 EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
 LEAF_HALF_THICKNESS = 0.019  # [m]
 EDGE_LIFT_ABOVE = math.radians(20.0)  # close a bottom-hinged door opened further by lifting its edge first
-EDGE_LIFT_TO = math.radians(9.0)      # ... towards here (it stays put below ~18 deg), then by the handle
-EDGE_HOLD = math.radians(15.0)       # the lift ends once the leaf stays below this
+EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~20 deg), then by the closed hand
+EDGE_HOLD = math.radians(17.0)       # the lift ends once the leaf stays below this
 EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
 
@@ -809,6 +809,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
+        if stage == 0:
+            _stow(d)
         _escape(d, here)
         try:
             _drive(d, base, here)
@@ -827,11 +829,23 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             q = q_now
             continue
         approach, arc = _gesture(part, q, qs, pitch, push, along, mode)
-        d.grip(1.0 if push else 0.0, 0.4)
         na = len(approach)
-        durs = [1.5] + [0.6] * (na - 2) + [0.5]
         from stages.demos.record import base_pose
 
+        actual = tuple(float(v) for v in base_pose(d.sim))
+        if math.hypot(actual[0] - base[0], actual[1] - base[1]) > 0.005:
+            # the drive stopped off the planned pose: re-solve the plan from where the base stands
+            sols2 = reach(d, actual, approach + arc[:max(n, 0)])
+            if len(sols2) < na + min(n, 2) and stage < max_stages - 1:
+                log.info("%s: plan lost from the base reached (%d of %d); planning again", part.joint_path,
+                         len(sols2), na + n)
+                _stow(d)
+                q = d.sim.joint_q_of_path(part.joint_path)
+                continue
+            if len(sols2) >= na:
+                sols, n = sols2, len(sols2) - na
+        d.grip(1.0 if push else 0.0, 0.4)
+        durs = [1.5] + [0.6] * (na - 2) + [0.5]
         log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
                   np.round(base, 3))
         if track(d, approach[:-1], sols[:na - 1], durs, tol=SWING_TOL, fallback=True) < na - 1 or \
@@ -840,7 +854,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 raise ExpertFailure("ik_unreachable", f"{part.joint_path}: approach at {q:.2f}")
             # the base stopped off its planned pose: tuck and plan again from where it stands
             log.info("%s: approach at %.2f unreachable from the base reached; planning again", part.joint_path, q)
-            d.home(1.0)
+            _stow(d)
             q = d.sim.joint_q_of_path(part.joint_path)
             continue
         d.step(0.2)
@@ -869,7 +883,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                   d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push, edge=mode == "edge")
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
-        d.home(1.0)
+        _stow(d)
         _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
@@ -905,6 +919,18 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
              q, dist, want)
     if dist > 0.0:
         _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
+
+
+def _stow(d) -> None:
+    """Tuck the hand above the base for driving (:func:`stages.demos.experts.stow`; home hangs the
+    hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails."""
+    from stages.demos.experts import ExpertFailure, stow
+
+    try:
+        stow(d)
+    except ExpertFailure as e:
+        log.info("stow failed (%s); tucking home", e)
+        d.home(1.0)
 
 
 def _escape(d, grid, reach: float = 0.5) -> None:

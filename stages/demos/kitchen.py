@@ -413,7 +413,9 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
 
     # the room door in the south wall, opening into the room (asset +X -> world +Y)
     dw = door.hi[1] - door.lo[1]
-    door_x = float(rng.uniform(0.35 + dw / 2, 1.0 + dw / 2))
+    # >= 1.1 m from the west wall: the leaf opened against that side leaves room for the base
+    # between it and the wall (a robot closing the door pushes the leaf's room-side face from there)
+    door_x = float(rng.uniform(1.1 + dw / 2, 1.5 + dw / 2))
     placed["door"] = Placed("Door", door, (door_x, -WALL_T / 2, 0.0), math.pi / 2)
     door_gap = (door_x - dw / 2 + 0.002, door_x + dw / 2 - 0.002)
 
