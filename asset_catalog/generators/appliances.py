@@ -120,9 +120,9 @@ def microwave(b: AssetBuilder) -> float:
 
 
 #: oven door hinge (spring, hold) as fractions of the door's gravity torque m g r: the spring
-#: (0.55 m g r per rad towards closed) and friction (0.15 m g r) hold the door anywhere below ~20 deg
+#: (0.5 m g r per rad towards closed) and friction (0.2 m g r) hold the door anywhere below ~25 deg
 #: and let it drop gently onto its open stop above that, as a real oven door's hinge springs do
-OVEN_DOOR_BALANCE = (0.55, 0.15)
+OVEN_DOOR_BALANCE = (0.5, 0.2)
 
 
 def oven(b: AssetBuilder) -> float:
@@ -155,7 +155,7 @@ def oven(b: AssetBuilder) -> float:
                   density=SHELL)
     b.link("door", parent="base", origin=(d / 2, 0.0, plinth + GAP), joint="revolute", axis=(0, 1, 0),
            lower=0.0,
-           upper=1.5, effort=40.0, velocity=1.5, damping=2.0, role="door", counterbalance=OVEN_DOOR_BALANCE)
+           upper=1.5, effort=40.0, velocity=1.5, damping=8.0, role="door", counterbalance=OVEN_DOOR_BALANCE)
     zd1 = zc1 - GAP
     panel(b, "door", (xb1 + GAP, -w / 2 + GAP, plinth + GAP), (d / 2, w / 2 - GAP, zd1), body, SHELL)
     panel(b, "door", (d / 2 - 0.002, -w / 2 + 0.08, plinth + 0.12), (d / 2 + 0.001, w / 2 - 0.08,

@@ -310,9 +310,9 @@ SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m
 EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
 EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
 LEAF_HALF_THICKNESS = 0.019  # [m]
-EDGE_LIFT_ABOVE = math.radians(20.0)  # close a bottom-hinged door opened further by lifting its edge first
-EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~20 deg), then by the closed hand
-EDGE_HOLD = math.radians(17.0)       # the lift ends once the leaf stays below this
+EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
+EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~25 deg), then by the closed hand
+EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
 
@@ -875,8 +875,12 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4
                     for qw in qs[:n]]
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
-            if mode == "edge" and not done(d.sim.joint_q_of_path(part.joint_path)):
+            for _ in range(2):  # the leaf slides between the fingers: push again while it is short
+                if mode != "edge" or done(d.sim.joint_q_of_path(part.joint_path)):
+                    break
                 _edge_push(part, d, grid, q1)
+            if mode == "edge" and d.sim.joint_q_of_path(part.joint_path) - part.closed <= EDGE_LIFT_ABOVE:
+                _edge_nudge(part, d, grid)
         d.step(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
@@ -919,6 +923,59 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
              q, dist, want)
     if dist > 0.0:
         _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
+
+
+def _edge_nudge(part: ArticulatedPart, d, grid) -> None:
+    """From pinching a bottom-hinged leaf's edge near closed: let go, lift the hand off the edge,
+    make a fist in front of the leaf's outer face and press it shut by driving the base towards
+    the asset's front, arm held (right there: the counterbalanced leaf creeps open while the base
+    travels to another pose). Failures to reach are logged; the caller's push stage then finishes."""
+    from stages.demos.experts import ROBOT_RADIUS, ExpertFailure
+    from stages.demos.record import base_pose
+
+    w = _ee_world(d)
+    z = w[:3, 2]
+    q = d.sim.joint_q_of_path(part.joint_path)
+    n_q = part.front_at(q)
+    p = _tcp_world(d) + 0.01 * z                  # a leaf point just below the pinch
+    o = np.asarray(part.origin, float)
+    p_closed = o + part.rotation_at(q).T @ (p - o)  # that point with the leaf closed
+    n = np.asarray(part.front, float)
+    nh = n[:2] / max(np.linalg.norm(n[:2]), 1e-9)
+
+    def at(x):
+        m = w.copy()
+        m[:3, 3] = x
+        return m
+
+    d.grip(0.0, 0.4)
+    try:
+        _move(d, at(w[:3, 3] - 0.05 * z), 0.6, tol=0.02)
+        d.grip(1.0, 0.4)
+        _move(d, at(p + 0.05 * n_q - 0.03 * z), 0.8, segments=2, tol=0.025)
+        fist = p + 0.05 * n_q
+        _move(d, at(fist), 0.5, tol=0.025)
+    except ExpertFailure as e:
+        log.info("%s: no fist in front of the leaf (%s)", part.joint_path, e)
+        return
+    # the fist's centre 2.5 cm off the closed face (1 cm past touching it)
+    want = float(np.dot((fist - (p_closed + 0.025 * n))[:2], nh))
+    blocked = grid.inflate(ROBOT_RADIUS - 0.08)
+    x, y, _ = base_pose(d.sim)
+    dist = 0.0
+    for s_ in np.arange(0.01, want + 1e-9, 0.01):
+        if not _free(grid, blocked, x - s_ * nh[0], y - s_ * nh[1]):
+            break
+        dist = float(s_)
+    _base_shift(d, -dist * np.array([nh[0], nh[1], 0.0]), speed=0.06)
+    d.step(0.2)
+    try:  # lift the fist clear of the bar before backing off (backing off would hook it open)
+        _move(d, at(_ee_world(d)[:3, 3] - 0.08 * z), 0.8, segments=2, tol=0.03)
+    except ExpertFailure as e:
+        log.info("%s: fist not lifted (%s)", part.joint_path, e)
+    _base_shift(d, 0.08 * np.array([nh[0], nh[1], 0.0]), speed=0.08)
+    log.info("%s: pressed shut from %.3f by a %.2f m base push (of %.2f) -> %.3f", part.joint_path, q, dist,
+             want, d.sim.joint_q_of_path(part.joint_path))
 
 
 def _stow(d) -> None:
