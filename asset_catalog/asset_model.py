@@ -135,7 +135,8 @@ class Joint:
     frame: the joint frame in the parent link's frame (the child's frame coincides with it at zero);
     axis: unit axis (3,) in the joint frame; lower/upper: limits [rad] or [m], None if unlimited;
     max_effort [N m] or [N]; max_velocity [rad/s] or [m/s]; friction: joint friction [N m] or [N];
-    damping [N m s/rad] or [N s/m]; stiffness: drive stiffness [N m/rad] or [N/m] (0: no drive).
+    damping [N m s/rad] or [N s/m]; stiffness: drive stiffness [N m/rad] or [N/m] (0: no drive);
+    armature: added inertia of the joint's mechanism [kg m^2] or [kg] (hinge springs, linkages).
     """
 
     name: str
@@ -151,6 +152,7 @@ class Joint:
     friction: float = 0.0
     damping: float = 0.0
     stiffness: float = 0.0
+    armature: float = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -251,5 +251,7 @@ def _joint(layer, j: JointPlan) -> None:
     # not installed here, and applying an unregistered API schema would fail validation.
     if j.friction > 0:
         _attr(spec, "newton:friction", T.Float, float(j.friction), custom=True)
+    if j.armature > 0:  # [kg m^2] or [kg]
+        _attr(spec, "newton:armature", T.Float, float(j.armature), custom=True)
     if j.max_velocity is not None:
         _attr(spec, "newton:velocityLimit", T.Float, float(j.max_velocity), custom=True)

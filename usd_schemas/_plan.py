@@ -81,6 +81,7 @@ class JointPlan:
     friction: float = 0.0
     max_velocity: float | None = None
     source_name: str = ""
+    armature: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -279,7 +280,7 @@ def _joint_plans(model: AssetModel, body_paths: dict[str, str], root: str, namer
         plans.append(JointPlan(
             path=f"{root}/joints/{namer(j.name)}", usd_type=usd_type, body0=body_paths[j.parent],
             body1=body_paths[j.child], local_pos0=p0, local_rot0=r0, local_pos1=p1, local_rot1=r1,
-            lower=lower, upper=upper, drive=drive, friction=float(j.friction),
+            lower=lower, upper=upper, drive=drive, friction=float(j.friction), armature=float(j.armature),
             max_velocity=None if j.max_velocity is None else j.max_velocity * scale, source_name=j.name))
     return plans
 

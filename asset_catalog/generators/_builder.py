@@ -107,6 +107,7 @@ class _JointDraft:
     friction: float
     role: str
     counterbalance: tuple[float, float] | None = None
+    armature: float = 0.0
 
 
 class AssetBuilder:
@@ -145,13 +146,14 @@ class AssetBuilder:
 
     def link(self, name: str, *, parent: str, origin, joint: Literal["revolute", "prismatic"], axis,
              lower: float, upper: float, effort: float, velocity: float, damping: float = 0.0,
-             friction: float = 0.0, role: str = "", counterbalance: tuple[float, float] | None = None) -> str:
+             friction: float = 0.0, role: str = "", counterbalance: tuple[float, float] | None = None,
+             armature: float = 0.0) -> str:
         """Declare a moving link whose joint frame sits at ``origin`` (3,) [m] (root frame) with
         ``axis`` (3,) in the root frame; limits [rad] or [m]. ``counterbalance`` = (spring, hold)
         for a leaf hinged on a horizontal axis (an oven door): a hinge spring towards zero of
         stiffness ``spring * m g r`` [N m/rad] and joint friction ``hold * m g r`` [N m] (replacing
         ``friction``), m g r being the leaf's largest gravity torque about the axis, computed once
-        the link's mass is known."""
+        the link's mass is known. ``armature``: the mechanism's added inertia [kg m^2] or [kg]."""
         if name in self.links:
             raise ValueError(f"duplicate link {name!r}")
         self.links[name] = _LinkDraft(name, np.asarray(origin, dtype=np.float64))
@@ -160,7 +162,7 @@ class AssetBuilder:
         self.joints.append(_JointDraft(f"{name}_joint", JointType(joint), parent, name,
                                        tuple(float(a) for a in ax), float(lower), float(upper),
                                        float(effort), float(velocity), float(damping), float(friction), role,
-                                       counterbalance))
+                                       counterbalance, float(armature)))
         return name
 
     def add(self, link: str, shape: Manifold, material: str, *, density: float,
@@ -343,4 +345,4 @@ def _joint(j: _JointDraft, links: dict[str, _LinkDraft], gravity_torque=None) ->
     return Joint(name=j.name, type=j.type, parent=j.parent, child=j.child,
                  frame=Pose(tuple(float(x) for x in rel)), axis=j.axis, lower=j.lower, upper=j.upper,
                  max_effort=j.effort, max_velocity=j.velocity, friction=friction, damping=j.damping,
-                 stiffness=stiffness)
+                 stiffness=stiffness, armature=j.armature)

@@ -311,7 +311,7 @@ EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
 EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
 LEAF_HALF_THICKNESS = 0.019  # [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
-EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~25 deg), then by the closed hand
+EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
@@ -879,8 +879,6 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 if mode != "edge" or done(d.sim.joint_q_of_path(part.joint_path)):
                     break
                 _edge_push(part, d, grid, q1)
-            if mode == "edge" and d.sim.joint_q_of_path(part.joint_path) - part.closed <= EDGE_LIFT_ABOVE:
-                _edge_nudge(part, d, grid)
         d.step(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
@@ -923,59 +921,6 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
              q, dist, want)
     if dist > 0.0:
         _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
-
-
-def _edge_nudge(part: ArticulatedPart, d, grid) -> None:
-    """From pinching a bottom-hinged leaf's edge near closed: let go, lift the hand off the edge,
-    make a fist in front of the leaf's outer face and press it shut by driving the base towards
-    the asset's front, arm held (right there: the counterbalanced leaf creeps open while the base
-    travels to another pose). Failures to reach are logged; the caller's push stage then finishes."""
-    from stages.demos.experts import ROBOT_RADIUS, ExpertFailure
-    from stages.demos.record import base_pose
-
-    w = _ee_world(d)
-    z = w[:3, 2]
-    q = d.sim.joint_q_of_path(part.joint_path)
-    n_q = part.front_at(q)
-    p = _tcp_world(d) + 0.01 * z                  # a leaf point just below the pinch
-    o = np.asarray(part.origin, float)
-    p_closed = o + part.rotation_at(q).T @ (p - o)  # that point with the leaf closed
-    n = np.asarray(part.front, float)
-    nh = n[:2] / max(np.linalg.norm(n[:2]), 1e-9)
-
-    def at(x):
-        m = w.copy()
-        m[:3, 3] = x
-        return m
-
-    d.grip(0.0, 0.4)
-    try:
-        _move(d, at(w[:3, 3] - 0.05 * z), 0.6, tol=0.02)
-        d.grip(1.0, 0.4)
-        _move(d, at(p + 0.05 * n_q - 0.03 * z), 0.8, segments=2, tol=0.025)
-        fist = p + 0.05 * n_q
-        _move(d, at(fist), 0.5, tol=0.025)
-    except ExpertFailure as e:
-        log.info("%s: no fist in front of the leaf (%s)", part.joint_path, e)
-        return
-    # the fist's centre 2.5 cm off the closed face (1 cm past touching it)
-    want = float(np.dot((fist - (p_closed + 0.025 * n))[:2], nh))
-    blocked = grid.inflate(ROBOT_RADIUS - 0.08)
-    x, y, _ = base_pose(d.sim)
-    dist = 0.0
-    for s_ in np.arange(0.01, want + 1e-9, 0.01):
-        if not _free(grid, blocked, x - s_ * nh[0], y - s_ * nh[1]):
-            break
-        dist = float(s_)
-    _base_shift(d, -dist * np.array([nh[0], nh[1], 0.0]), speed=0.06)
-    d.step(0.2)
-    try:  # lift the fist clear of the bar before backing off (backing off would hook it open)
-        _move(d, at(_ee_world(d)[:3, 3] - 0.08 * z), 0.8, segments=2, tol=0.03)
-    except ExpertFailure as e:
-        log.info("%s: fist not lifted (%s)", part.joint_path, e)
-    _base_shift(d, 0.08 * np.array([nh[0], nh[1], 0.0]), speed=0.08)
-    log.info("%s: pressed shut from %.3f by a %.2f m base push (of %.2f) -> %.3f", part.joint_path, q, dist,
-             want, d.sim.joint_q_of_path(part.joint_path))
 
 
 def _stow(d) -> None:
@@ -1169,11 +1114,26 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
     away holding the bar, doors by carrying the handle along its arc. ``d``: a
     :class:`~stages.demos.experts.Driver`; ``grid``: the room's NavGrid with the part closed.
     Raises ExpertFailure."""
+    from stages.demos.experts import ExpertFailure
+
     q1 = part.closed + goal_fraction * part.travel
     if part.kind == "prismatic":
         _drawer(part, d, grid, part.closed, q1)
-    else:
+        return
+    if abs(float(np.asarray(part.axis)[2])) > 0.7:
         _swing(part, d, grid, part.closed, q1)
+        return
+    # a bottom-hinged (oven) door: by the handle while it faces the robot, then (a counterbalanced
+    # leaf stays where it is let go of below ~30 deg) by its free edge until it drops open
+    try:
+        _swing(part, d, grid, part.closed, q1, max_stages=2)
+    except ExpertFailure as e:
+        if e.reason not in ("no_base_pose", "not_reached", "ik_unreachable"):
+            raise
+        log.info("%s: by the handle: %s; going on by the edge", part.joint_path, e)
+    q = d.sim.joint_q_of_path(part.joint_path)
+    if q < part.closed + 0.8 * part.travel:
+        _swing(part, d, grid, q, q1, mode="edge")
 
 
 def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:

@@ -5,8 +5,9 @@ visual and collision geometry (mesh: STL/OBJ/PLY/glTF via trimesh, DAE by a buil
 box, cylinder, sphere and the common ``capsule`` extension), origins, materials (``color rgba``,
 ``texture filename``; named robot-level materials), inertials, and revolute / continuous / prismatic /
 fixed joints with axis, limits (lower, upper, effort, velocity) and dynamics (damping, friction, and
-the extension ``spring_stiffness``: a hinge spring towards joint value 0 [N m/rad or N/m], as
-Gazebo's ``spring_stiffness`` with ``spring_reference`` 0).
+the extensions ``spring_stiffness``: a hinge spring towards joint value 0 [N m/rad or N/m], as
+Gazebo's ``spring_stiffness`` with ``spring_reference`` 0, and ``armature``: the mechanism's added
+inertia [kg m^2 or kg], as MuJoCo's joint armature).
 ``mimic`` is ignored (logged); floating and planar joints are rejected.
 
 Mesh filenames: ``package://<pkg>/<rest>`` is looked up in the URDF's folder and each ancestor (as
@@ -146,6 +147,7 @@ class _SrcJoint:
     damping: float
     friction: float
     stiffness: float = 0.0
+    armature: float = 0.0
     floating: bool = False     # a 'floating' joint, kept only as world -> root (a movable base)
 
     def to_joint(self, name: str, parent: str, child: str) -> Joint:
@@ -153,7 +155,7 @@ class _SrcJoint:
                      frame=g.pose_of(self.frame_matrix),
                      axis=self.axis, lower=self.lower, upper=self.upper, max_effort=self.effort,
                      max_velocity=self.velocity, friction=self.friction, damping=self.damping,
-                     stiffness=self.stiffness)
+                     stiffness=self.stiffness, armature=self.armature)
 
 
 def _origin(el: ET.Element | None, path: Path, what: str) -> np.ndarray:
@@ -211,7 +213,8 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
                      velocity=velocity if velocity and velocity > 0 else None,
                      damping=max(_opt_float(dyn, "damping", path, what) or 0.0, 0.0),
                      friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0),
-                     stiffness=max(_opt_float(dyn, "spring_stiffness", path, what) or 0.0, 0.0), floating=floating)
+                     stiffness=max(_opt_float(dyn, "spring_stiffness", path, what) or 0.0, 0.0),
+                     armature=max(_opt_float(dyn, "armature", path, what) or 0.0, 0.0), floating=floating)
 
 
 def _tree(links: dict[str, ET.Element], joints: list[_SrcJoint], path: Path
