@@ -32,6 +32,10 @@ class EpisodeTimeout(RuntimeError):
     """The episode ran past its time limit."""
 
 
+#: the recording stages :class:`Timings` splits wall time into, in report order
+STAGES = ("simulation", "rendering", "control", "encoding", "writing")
+
+
 @dataclass
 class Timings:
     """Wall time [s] per stage of recording: simulation (physics steps), rendering (cameras),
@@ -46,12 +50,11 @@ class Timings:
     frames: int = 0
 
     def add(self, other: Timings) -> None:
-        for k in ("simulation", "rendering", "control", "encoding", "writing", "frames"):
+        for k in (*STAGES, "frames"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
 
     def to_json(self) -> dict:
-        stages = ("simulation", "rendering", "control", "encoding", "writing")
-        return {k: round(getattr(self, k), 4) for k in stages} | {"frames": self.frames}
+        return {k: round(getattr(self, k), 4) for k in STAGES} | {"frames": self.frames}
 
 
 @dataclass

@@ -40,7 +40,6 @@ if str(REPO) not in sys.path:
 KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
 PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
             "mug_04", "bowl_00", "can_00")
-STAGES = ("simulation", "rendering", "control", "encoding", "writing")
 
 
 def build_catalog(out: Path) -> Path:
@@ -117,6 +116,8 @@ def run(device: str = "cpu", worlds=(1,), episodes: int = 1, tasks=("press_butto
 
 def _run_worlds(out: dict, n: int, device: str, tasks, episodes: int, size, catalog: Path) -> None:
     """Record with ``n`` worlds (processes) at once; the figures go to ``out["worlds"][str(n)]``."""
+    from stages.demos.record import STAGES
+
     with tempfile.TemporaryDirectory(prefix="bench-demos-") as base:
         args = [(w, device, tuple(tasks), episodes, tuple(size), base, str(catalog)) for w in range(n)]
         if n == 1:
