@@ -210,9 +210,8 @@ class AssetBuilder:
                 collision_source=None if rigid_format == "obj" else _collision(lk, name),
                 mass=_mass_props(mass * scale, com - lk.origin, inertia * scale),
                 mass_from_source=rigid_format == "urdf"))
-        gravity_torque = {name: _gravity_torque(masses[name][0] * scales[name], masses[name][1], lk.origin)
-                          for name, lk in self.links.items()}
-        joints = tuple(_joint(j, self.links, gravity_torque[j.child]) for j in self.joints)
+        joints = tuple(_joint(j, self.links, masses[j.child][0] * scales[j.child], masses[j.child][1])
+                       for j in self.joints)
         kind = "obj" if rigid_format == "obj" and not joints else "urdf"
         is_rigid = not joints
         ann = AssetAnnotation(
@@ -322,24 +321,24 @@ def _mass_props(mass: float, com: np.ndarray, inertia: np.ndarray) -> MassProper
                           principal_axes=(float(qw), float(x), float(y), float(z)))
 
 
-def _gravity_torque(mass: float, com: np.ndarray, origin: np.ndarray):
-    """A function of the unit axis (3,) giving m g r [N m]: the largest gravity torque of a link of
-    ``mass`` [kg] with centre of mass ``com`` (3,) about an axis through ``origin`` (3,) (r: the
-    centre of mass's distance from the axis; horizontal axes only, a vertical one feels none)."""
-    def torque(axis) -> float:
-        a = np.asarray(axis, dtype=np.float64)
-        if abs(a[2]) > 0.7:
-            return 0.0
-        v = np.asarray(com, dtype=np.float64) - origin
-        return float(mass * 9.81 * np.linalg.norm(v - np.dot(v, a) * a))
-    return torque
+def _gravity_torque(mass: float, com: np.ndarray, origin: np.ndarray, axis) -> float:
+    """m g r [N m]: the largest gravity torque of a link of ``mass`` [kg] with centre of mass ``com``
+    (3,) about the unit ``axis`` (3,) through ``origin`` (3,) (r: the centre of mass's distance from
+    the axis; horizontal axes only, a vertical one feels none)."""
+    a = np.asarray(axis, dtype=np.float64)
+    if abs(a[2]) > 0.7:
+        return 0.0
+    v = np.asarray(com, dtype=np.float64) - origin
+    return float(mass * 9.81 * np.linalg.norm(v - np.dot(v, a) * a))
 
 
-def _joint(j: _JointDraft, links: dict[str, _LinkDraft], gravity_torque=None) -> Joint:
+def _joint(j: _JointDraft, links: dict[str, _LinkDraft], child_mass: float, child_com: np.ndarray) -> Joint:
+    """The model joint of a draft; ``child_mass`` [kg] and ``child_com`` (3,) (root frame) of its
+    moving link size a counterbalance."""
     rel = links[j.child].origin - links[j.parent].origin
     stiffness, friction = 0.0, j.friction
-    if j.counterbalance is not None and gravity_torque is not None:
-        mgr = gravity_torque(j.axis)
+    if j.counterbalance is not None:
+        mgr = _gravity_torque(child_mass, child_com, links[j.child].origin, j.axis)
         stiffness = float(f"{j.counterbalance[0] * mgr:.4g}")
         friction = float(f"{j.counterbalance[1] * mgr:.4g}")
     return Joint(name=j.name, type=j.type, parent=j.parent, child=j.child,

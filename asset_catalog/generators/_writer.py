@@ -104,9 +104,9 @@ def urdf_text(gen: GeneratedAsset) -> str:
         if j.type != JointType.FIXED:
             out.append(f'    <limit lower="{j.lower:.6f}" upper="{j.upper:.6f}" effort="{j.max_effort:.3f}" '
                        f'velocity="{j.max_velocity:.3f}"/>')
-            spring = f' spring_stiffness="{j.stiffness:.4f}"' if j.stiffness > 0 else ""
-            spring += f' armature="{j.armature:.4f}"' if j.armature > 0 else ""
-            out.append(f'    <dynamics damping="{j.damping:.4f}" friction="{j.friction:.4f}"{spring}/>')
+            extra = f' spring_stiffness="{j.stiffness:.4f}"' if j.stiffness > 0 else ""  # our URDF extensions
+            extra += f' armature="{j.armature:.4f}"' if j.armature > 0 else ""
+            out.append(f'    <dynamics damping="{j.damping:.4f}" friction="{j.friction:.4f}"{extra}/>')
         out.append("  </joint>")
     out.append("</robot>")
     return "\n".join(out) + "\n"

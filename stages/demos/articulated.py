@@ -680,13 +680,14 @@ def _edge_tool(part: ArticulatedPart, q: float, tilt: float, along: float, back:
     return m
 
 
-def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, push: bool, along: float = 0.0,
-             mode: str | None = None):
+def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mode: str = "grasp",
+             along: float = 0.0):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
-    ``along`` [m] off its centre along the bar. Push (closed hand): on the front face 7 cm inboard
-    of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged doors): pinching the
-    leaf's free edge, ``pitch`` being the tilt about the hinge axis (see :func:`_edge_tool`)."""
+    ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
+    face 7 cm inboard of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged
+    doors): pinching the leaf's free edge, ``pitch`` being the tilt about the hinge axis (see
+    :func:`_edge_tool`)."""
     if mode == "edge":
         contact = _edge_tool(part, q0, pitch, along)
         pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)
@@ -694,7 +695,7 @@ def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, pu
         return approach, [_edge_tool(part, q, pitch, along) for q in qs]
     h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
     front0 = np.asarray(part.front, float)
-    if push:
+    if mode == "push":
         inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
         face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * _lateral(part)
         contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
@@ -737,8 +738,8 @@ def _grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = 
     return out
 
 
-def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push: bool, max_checks: int = 70,
-                mode: str | None = None):
+def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
+                max_checks: int = 70):
     """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
     bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
     large as found (all of them ends the search), and the arm solutions of approach + those
@@ -759,7 +760,7 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
         max_checks = 3 * max_checks
     for base in bases:
         for pitch, along in _grips(part, base, p0, vertical, edge=mode == "edge"):
-            approach, arc = _gesture(part, q0, qs, pitch, push, along, mode)
+            approach, arc = _gesture(part, q0, qs, pitch, mode, along)
             sols = reach(d, base, approach + arc)
             n = len(sols) - len(approach)
             checks += 1
@@ -777,9 +778,9 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], push
 
 
 def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 5,
-           push: bool = False, mode: str | None = None, done_at: float | None = None) -> None:
+           mode: str = "grasp", done_at: float | None = None) -> None:
     """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
-    ``push``, pressing the front face with the closed hand). Each stage drives to the base pose
+    ``mode="push"``, pressing the front face with the closed hand). Each stage drives to the base pose
     that reaches the longest part of the remaining arc, takes hold, swings, lets go and backs
     off; the part stays where it was left (damped joint) and the next stage starts from there.
     ``mode="edge"``: pinch a bottom-hinged door's free edge instead of its handle. ``done_at``:
@@ -787,6 +788,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     from stages.demos.experts import ExpertFailure
 
     opening = q1 > q0
+    push, edge = mode == "push", mode == "edge"
     if done_at is None:
         done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
 
@@ -802,7 +804,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, push, mode=mode)
+        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, mode)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
@@ -828,7 +830,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                      q, q_now)
             q = q_now
             continue
-        approach, arc = _gesture(part, q, qs, pitch, push, along, mode)
+        approach, arc = _gesture(part, q, qs, pitch, mode, along)
         na = len(approach)
         from stages.demos.record import base_pose
 
@@ -863,7 +865,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             d.grip(1.0, 0.6)
             try:
                 _check_grasp(part, d, along=along,
-                             point=edge_point(part, along) if mode == "edge" else None)
+                             point=edge_point(part, along) if edge else None)
             except ExpertFailure as e:
                 # a free leaf nudged by the fingers: let go, back off and plan again from where it is
                 if stage == max_stages - 1:
@@ -875,15 +877,16 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4
                     for qw in qs[:n]]
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
-            for _ in range(2):  # the leaf slides between the fingers: push again while it is short
-                if mode != "edge" or done(d.sim.joint_q_of_path(part.joint_path)):
+            # pinching an edge: the leaf slides between the fingers, push again while it is short
+            for _ in range(2 if edge else 0):
+                if done(d.sim.joint_q_of_path(part.joint_path)):
                     break
                 _edge_push(part, d, grid, q1)
         d.step(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
-        _retreat_from_leaf(part, d, last, grid, push=push, edge=mode == "edge")
+        _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         _stow(d)
         _settle_part(part, d)
@@ -1145,7 +1148,7 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
         return
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     if vertical:
-        _swing(part, d, grid, start, part.closed, push=True)
+        _swing(part, d, grid, start, part.closed, mode="push")
         return
     _settle_part(part, d, max_seconds=3.0)  # an opened oven door drops onto its stop
     q = d.sim.joint_q_of_path(part.joint_path)
@@ -1157,4 +1160,4 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     if part.front_at(q)[2] < -0.5:
         raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {q:.2f}")
     # the last few degrees: press the front face shut with the closed hand
-    _swing(part, d, grid, q, part.closed, step_deg=3.0, push=True)
+    _swing(part, d, grid, q, part.closed, step_deg=3.0, mode="push")
