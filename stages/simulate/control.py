@@ -77,8 +77,9 @@ class RobotControl:
         hi = sim.model.joint_limit_upper.numpy()
         self.arm_lower = np.array([lo[sim.robot.dof[n]] for n in self.desc.arm_joints])
         self.arm_upper = np.array([hi[sim.robot.dof[n]] for n in self.desc.arm_joints])
-        self._dirty = False
+        self._dirty = self._cmd_dirty = False
         self._targets = sim.control.joint_target_q.numpy().copy()
+        self._default_targets = sim.model.joint_target_q.numpy().copy()
         sim.pre_step.append(self._pre_step)
 
     def reset(self) -> None:
@@ -86,14 +87,23 @@ class RobotControl:
         self._cmd_np[:] = 0.0
         self._cmd.assign(self._cmd_np)
         self._targets = self.sim.control.joint_target_q.numpy().copy()
-        self._dirty = False
+        self._dirty = self._cmd_dirty = False
+
+    def reset_world(self, world: int) -> None:
+        """World ``world`` only: zero base command, drive targets back to the model's defaults
+        (uploaded with the next step, with every other world's targets unchanged)."""
+        c = self.sim.coords_per_world
+        sl = slice(world * c, (world + 1) * c)
+        self._targets[sl] = self._default_targets[sl]
+        self._cmd_np[world] = 0.0
+        self._dirty = self._cmd_dirty = True
 
     # -- commands -------------------------------------------------------------------------
     def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
         """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""
         sel = slice(None) if world is None else world
         self._cmd_np[sel] = (vx, vy, vtheta)
-        self._cmd.assign(self._cmd_np)
+        self._cmd_dirty = True
 
     def set_arm_targets(self, q: np.ndarray, world: int | None = None) -> None:
         """Arm joint position targets (7,) [rad], clipped to the limits."""
@@ -128,6 +138,9 @@ class RobotControl:
         if self._dirty:
             sim.control.joint_target_q.assign(self._targets.astype(np.float32))
             self._dirty = False
+        if self._cmd_dirty:
+            self._cmd.assign(self._cmd_np)
+            self._cmd_dirty = False
         r = sim.robot
         wp.launch(
             _KERNEL,

@@ -1,0 +1,524 @@
+"""The batched demonstration engine: many task worlds in one simulation, episodes independent.
+
+``worlds`` copies of a task world (a kitchen: :class:`~stages.demos.kitchen.KitchenWorld`) are one
+Newton model stepped together (MuJoCo-Warp on CPU and CUDA alike, so a world's trajectory does not
+depend on how many worlds run beside it; on CUDA the step replays as a CUDA graph). Every world runs
+its own sequence of episodes: the engine asks ``next_instance(world)`` for a task instance, resets
+that world alone (solver buffers, joints, objects, drive targets: the others keep running), runs
+the task's scripted expert (:mod:`stages.demos.experts`) as the world's program
+(:mod:`stages.engine.lockstep`), records its frames into the sink ``begin(world, instance)``
+returned, evaluates the task's success predicate and reports through ``end(world, instance,
+result)``; then the world takes its next instance, until ``next_instance`` returns None.
+
+Per step, the engine's work is batched over worlds: one upload of the drive targets and base
+commands, one kernel for the base velocity drives, one for the watched joints' peaks (a pressed
+button), the physics step; per recorded frame, one render of every camera in every world and one
+read of the state. Programs run between steps only when their requests are met (planning, IK at
+waypoints: at phase changes).
+
+Clocks: physics steps of ``dt`` [s]; frame ``k`` of an episode is captured before local step
+``ceil(k * S / fps)`` (S = 1 / dt steps per second). Worlds start episodes only at synchronisation
+points, every ``P = S / gcd(S, fps)`` steps, so every world's frames fall on the same global steps
+and one render serves them all.
+
+::
+
+    eng = BatchEngine(kitchen, panda_root=None, work_dir=d, config=EngineConfig(worlds=4))
+    eng.run(next_instance=lambda w: queue[w].pop() if queue[w] else None,
+            begin=lambda w, inst: shard[w].add_frame, end=lambda w, inst, res: ...)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from stages.demos.experts import EXPERTS, Driver, ExpertFailure, timed_clik
+from stages.demos.record import Commands, EpisodeTimeout, Timings, arm_q, base_pose, pose7
+from stages.engine.lockstep import Lockstep
+from stages.engine.view import Snapshot, WorldControl, WorldView, _WorldModel
+
+log = logging.getLogger(__name__)
+
+CAMERAS = ("wrist", "head", "third_person")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EngineConfig:
+    """worlds: worlds stepped together; device: "cpu" or "cuda[:n]"; width, height: camera image
+    size [px]; fps: recorded frames per second; record_images: render the cameras (False: state and
+    action only); cameras: names of the recorded cameras (wrist, head, third_person);
+    layout: "batched" (one model of ``worlds`` worlds, MuJoCo-Warp: the GPU layout), "per_world"
+    (one single-world model per world, the MuJoCo C library: on a CPU it is several times faster
+    than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
+    max_seconds: episode time limit [s] (None: the task's)."""
+
+    def resolved_layout(self) -> str:
+        if self.layout != "auto":
+            return self.layout
+        return "batched" if self.device.startswith("cuda") else "per_world"
+
+    worlds: int = 4
+    device: str = "cpu"
+    width: int = 128
+    height: int = 96
+    fps: int = 30
+    record_images: bool = True
+    cameras: tuple[str, ...] = CAMERAS
+    layout: str = "auto"
+    max_seconds: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.layout not in ("auto", "batched", "per_world"):
+            raise ValueError(f"engine: layout must be auto, batched or per_world, got {self.layout!r}")
+        if self.worlds < 1:
+            raise ValueError(f"engine: worlds must be >= 1, got {self.worlds}")
+        bad = set(self.cameras) - set(CAMERAS)
+        if bad:
+            raise ValueError(f"engine: unknown cameras {sorted(bad)}; known {CAMERAS}")
+
+    def dataset_spec(self):
+        """The dataset spec of what the engine records (3 cameras RGB + depth, or none)."""
+        from stages.dataset import CameraSpec, DatasetSpec
+
+        cams = self.cameras if self.record_images else ()
+        return DatasetSpec(fps=self.fps, cameras=tuple(CameraSpec(c, height=self.height, width=self.width)
+                                                       for c in cams))
+
+
+@dataclass
+class EpisodeResult:
+    """success; reason: failure category ("" on success); detail: message; frames recorded;
+    sim_seconds: simulated time of the episode [s]; wall_seconds: from its reset to its end [s]."""
+
+    success: bool
+    reason: str
+    detail: str
+    frames: int
+    sim_seconds: float
+    wall_seconds: float
+
+
+@dataclass(eq=False)
+class _WorldRec:
+    """A world's recording state (``fps`` is what a Driver reads as its recorder)."""
+
+    fps: int
+    active: bool = False
+    next_frame: int = 0
+    frames: int = 0
+    max_steps: int = 0
+    sink: Callable | None = None
+
+
+@dataclass(eq=False)
+class _Bank:
+    """One Sim of the engine: its control, state snapshot, per-world model arrays, cameras and
+    peaks; its worlds are engine worlds ``first .. first + count - 1``."""
+
+    sim: object
+    ctl: object
+    snapshot: Snapshot
+    model: _WorldModel
+    first: int
+    count: int
+    rig: object = None
+    peaks: object = None
+
+
+@dataclass
+class EngineStats:
+    """Totals of a run: timings per stage [s] (simulation: physics steps and per-step kernels;
+    rendering; control: programs' time between steps, planning and IK included; encoding: frame
+    assembly and the sinks), physics steps, frames rendered, state reads, episodes, worlds."""
+
+    timings: Timings = field(default_factory=Timings)
+    steps: int = 0
+    renders: int = 0
+    episodes: int = 0
+    worlds: int = 0
+
+    def to_json(self) -> dict:
+        return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
+                "episodes": self.episodes, "worlds": self.worlds}
+
+
+class BatchEngine:
+    """``config.worlds`` worlds of one task world in one simulation (see the module docstring).
+    ``panda_root``: the Panda description's package root (None: pip example-robot-data)."""
+
+    def __init__(self, world, *, panda_root: Path | None, work_dir: Path, config: EngineConfig,
+                 seed: int = 0) -> None:
+        from stages.simulate.robot import find_panda_description, write_robot_urdf
+
+        t0 = time.perf_counter()
+        self.world, self.config = world, config
+        desc = write_robot_urdf(Path(work_dir) / "robot", panda_root=find_panda_description(panda_root))
+        n = config.worlds
+        if config.resolved_layout() == "batched":
+            self.banks = [self._bank(desc, n, 0, seed)]
+        else:
+            self.banks = [self._bank(desc, 1, w, seed) for w in range(n)]
+        self._where = [(b, i) for b in self.banks for i in range(b.count)]
+        self.ik = timed_clik(desc)
+        sim = self.banks[0].sim
+        self.views = [WorldView(self, w, b, i, b.model) for w, (b, i) in enumerate(self._where)]
+        self.controls = [WorldControl(b.ctl, i) for b, i in self._where]
+        self.cmds = [Commands() for _ in range(n)]
+        self.recs = [_WorldRec(fps=config.fps) for _ in range(n)]
+        self.lockstep = Lockstep(n)
+        steps_per_s = 1.0 / sim.settings.dt
+        if abs(steps_per_s - round(steps_per_s)) > 1e-6:
+            raise ValueError(f"engine: physics step {sim.settings.dt} s must divide one second")
+        self.steps_per_second = int(round(steps_per_s))
+        self.sync_period = self.steps_per_second // math.gcd(self.steps_per_second, config.fps)
+        self.global_step = 0
+        self._captured_step = -1
+        self._free = {}
+        qs = self.banks[0].model.joint_q_start.numpy()
+        child = self.banks[0].model.joint_child.numpy()
+        for k, p in world.placed.items():
+            if k in ("mug", "bowl", "pusher"):
+                b = sim.body_of_path(p.body())
+                self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
+        self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
+        watched = [world.placed["microwave"].joint("button_joint")]
+        for b in self.banks:
+            b.peaks = _Peaks(b.sim, watched, self._scene_coord)
+        self._pending_reset: dict[int, object] = {}
+        self.stats = EngineStats(worlds=n)
+        self.build_seconds = time.perf_counter() - t0
+
+    def _bank(self, desc, count: int, first: int, seed: int) -> _Bank:
+        """A Sim of ``count`` worlds (engine worlds ``first`` ...) with its controls and cameras."""
+        from stages.simulate.control import RobotControl
+        from stages.simulate.world import SimConfig, SolverSettings, build_sim
+
+        cfg = self.config
+        # batched: MuJoCo-Warp for any world count, so a world's trajectory does not depend on how
+        # many run beside it; per_world: MuJoCo C (one world per model)
+        solver = SolverSettings(use_mujoco_cpu=False if cfg.resolved_layout() == "batched" else None)
+        sim = build_sim(SimConfig(scenes=(self.world.usd,), spawn=self.world.spawn, device=cfg.device,
+                                  world_count=count, solver=solver), desc, np.random.default_rng(seed))
+        bank = _Bank(sim=sim, ctl=RobotControl(sim), snapshot=Snapshot(sim), model=_WorldModel(sim),
+                     first=first, count=count)
+        bank.rig = self._rig(sim, desc) if cfg.record_images else None
+        return bank
+
+    def _rig(self, sim, desc):
+        from stages.simulate.sensors import CameraRig, CameraSpec, look_at
+
+        c = self.config
+        cams = [CameraSpec(name=n, width=c.width, height=c.height, vertical_fov=desc.cameras[n].vertical_fov,
+                           link=desc.cameras[n].link) for n in ("wrist", "head") if n in c.cameras]
+        if "third_person" in c.cameras:
+            sx, sy = self.world.size
+            eye, target = (0.3, 0.3, 2.3), (0.6 * sx, 0.6 * sy, 0.6)
+            cams.append(CameraSpec(name="third_person", width=c.width, height=c.height, vertical_fov=1.0,
+                                   pose=look_at(eye, target)))
+        return CameraRig(sim, cams, segmentation=False)
+
+    # -- the run ----------------------------------------------------------------------------
+    def run(self, next_instance: Callable, *, begin: Callable | None = None,
+            end: Callable | None = None, max_steps: int | None = None) -> EngineStats:
+        """Run episodes in every world until ``next_instance(world)`` returns None for all of
+        them. ``begin(world, instance)`` returns the episode's frame sink (or None: frames
+        dropped); ``end(world, instance, EpisodeResult)`` is called when it ends. Both are called
+        from the world's program, one world at a time, in a deterministic order. ``next_instance``
+        may return ``(instance, max_seconds)`` to give that episode its own time limit [s].
+        ``max_steps``: stop after this many physics steps (episodes in progress are abandoned:
+        neither ``end`` nor a result; for benchmarks)."""
+        ls = self.lockstep
+        stop_at = None if max_steps is None else self.global_step + max_steps
+        for w in range(self.config.worlds):
+            ls.start(w, self._program(w, next_instance, begin, end))
+        try:
+            while ls.alive():
+                t0 = time.perf_counter()
+                ls.resume_ready()
+                self.stats.timings.control += time.perf_counter() - t0
+                if not ls.alive() or (stop_at is not None and self.global_step >= stop_at):
+                    break
+                sync = ls.waiting_sync()
+                if sync and self.global_step % self.sync_period == 0:
+                    self._reset_worlds(sync)
+                    ls.release_sync(sync)
+                    continue
+                self._capture()
+                self._advance(sync)
+        finally:
+            ls.shutdown()
+        return self.stats
+
+    def _advance(self, sync: list[int]) -> None:
+        """Step every world by the largest count that meets no request, sync point or frame."""
+        ls = self.lockstep
+        k = ls.min_pending() or self.sync_period
+        if sync:
+            k = min(k, self.sync_period - self.global_step % self.sync_period)
+        k = max(1, min(k, self._next_frame_step() - self.global_step))
+        t0 = time.perf_counter()
+        for b in self.banks:
+            b.sim.step(k)
+            b.snapshot.invalidate()
+        self.stats.timings.simulation += time.perf_counter() - t0
+        self.stats.steps += k
+        self.global_step += k
+        for v in self.views:
+            v.steps += k
+        ls.advance(k)
+
+    def _next_frame_step(self) -> int:
+        """The first global frame step after the current step (frames: ceil(K * S / fps))."""
+        s, f = self.steps_per_second, self.config.fps
+        k = (self.global_step * f) // s + 1
+        return -(-k * s // f)
+
+    def _is_frame_step(self, step: int) -> bool:
+        s, f = self.steps_per_second, self.config.fps
+        k = step * f // s  # the last frame at or before this step
+        return -(-k * s // f) == step
+
+    # -- per-world programs -------------------------------------------------------------------
+    def request_steps(self, w: int, n: int) -> None:
+        """From world ``w``'s program: run ``n`` physics steps (episode time limit enforced)."""
+        rec = self.recs[w]
+        view = self.views[w]
+        n = max(1, int(n))
+        if rec.active:
+            left = rec.max_steps + 1 - view.steps
+            if left <= 0:
+                raise EpisodeTimeout(f"episode ran past {rec.max_steps / self.steps_per_second:.1f} s")
+            n = min(n, left)
+        self.lockstep.wait_steps(w, n)
+        if rec.active and view.steps > rec.max_steps:
+            raise EpisodeTimeout(f"episode ran past {rec.max_steps / self.steps_per_second:.1f} s")
+
+    def _program(self, w: int, next_instance, begin, end):
+        def main() -> None:
+            while True:
+                inst = next_instance(w)
+                if inst is None:
+                    return
+                limit = None
+                if isinstance(inst, tuple):
+                    inst, limit = inst
+                self._pending_reset[w] = inst
+                self.lockstep.wait_sync(w)  # the engine resets this world at a sync point
+                sink = begin(w, inst) if begin is not None else None
+                res = self._episode(w, inst, sink, limit)
+                if end is not None:
+                    end(w, inst, res)
+                self.stats.episodes += 1
+        return main
+
+    def _episode(self, w: int, inst, sink, limit: float | None = None) -> EpisodeResult:
+        from stages.demos.tasks import task
+        from stages.simulate.state import read_state
+
+        spec = task(inst.task)
+        view, rec, cmd, ctl = self.views[w], self.recs[w], self.cmds[w], self.controls[w]
+        drv = Driver(view, ctl, self.ik, cmd, rec, np.random.default_rng(inst.seed))
+        t0 = time.perf_counter()
+        rec.sink, rec.frames, rec.next_frame = sink, 0, 0
+        if limit is None:
+            limit = spec.max_seconds if self.config.max_seconds is None else self.config.max_seconds
+        rec.max_steps = int(math.floor(limit * self.steps_per_second + 1e-9))
+        rec.active = True
+        bank, local = self._where[w]
+        bank.peaks.start(local)
+        reason = detail = ""
+        try:
+            EXPERTS[inst.task](inst, drv)
+            drv.step(0.3)
+        except ExpertFailure as e:
+            reason, detail = e.reason, str(e)
+        except EpisodeTimeout as e:
+            reason, detail = "timeout", str(e)
+        finally:
+            rec.active = False
+            bank.peaks.stop(local)
+            ctl.set_base_velocity(0.0, 0.0, 0.0)
+        state = read_state(view)
+        if not reason:
+            ok, reason = spec.success(inst, state, peaks=bank.peaks.read(local))
+            detail = reason
+        res = EpisodeResult(success=not reason, reason=reason, detail=detail, frames=rec.frames,
+                            sim_seconds=view.time, wall_seconds=time.perf_counter() - t0)
+        log.info("world %d %s seed %d: %s %s (%d frames, %.1f s sim)", w, inst.task, inst.seed,
+                 "success" if res.success else "FAILED", detail, res.frames, res.sim_seconds)
+        return res
+
+    # -- batched engine work ----------------------------------------------------------------
+    def _reset_worlds(self, worlds: list[int]) -> None:
+        """Reset ``worlds`` to their pending instances (one batched update per Sim); every other
+        world is untouched."""
+        t0 = time.perf_counter()
+        by_bank: dict[int, list[int]] = {}
+        for w in worlds:
+            by_bank.setdefault(id(self._where[w][0]), []).append(w)
+        for ws in by_bank.values():
+            self._reset_bank(self._where[ws[0]][0], ws)
+        self.stats.timings.control += time.perf_counter() - t0
+
+    def _reset_bank(self, bank: _Bank, worlds: list[int]) -> None:
+        import newton
+        import warp as wp
+
+        sim = bank.sim
+        local = [self._where[w][1] for w in worlds]
+        mask = np.zeros(bank.count + 1, bool)
+        mask[local] = True
+        dev = sim.model.device
+        sim.solver.reset(sim.state_0, world_mask=wp.array(mask, dtype=wp.bool, device=dev))
+        q = sim.state_0.joint_q.numpy()
+        c = sim.coords_per_world
+        for w, i in zip(worlds, local, strict=True):
+            inst = self._pending_reset.pop(w)
+            for k, v in self._instance_coords(inst).items():
+                q[i * c + k] = v
+            bank.ctl.reset_world(i)
+            self.views[w].steps = 0
+            self.cmds[w].base_velocity = np.zeros(3)
+            self.cmds[w].gripper, self.cmds[w].mode = 0.0, 0
+        q_wp = wp.array(q, dtype=wp.float32, device=dev)
+        sim.state_0.joint_q.assign(q_wp)
+        jmask = wp.array(np.isin(sim.model.joint_world.numpy(), local), dtype=wp.bool, device=dev)
+        newton.eval_fk(sim.model, q_wp, sim.state_0.joint_qd, sim.state_0, joint_mask=jmask)
+        sim.state_1.assign(sim.state_0)
+        bank.snapshot.invalidate()
+
+    def _instance_coords(self, inst) -> dict[int, float]:
+        """World-local joint coordinates of an instance's start: base joints (relative to the
+        spawn pose), free objects (position, quaternion x, y, z, w) and scene joints."""
+        values: dict[int, float] = {}
+        sim = self.banks[0].sim
+        x0, y0, yaw0 = sim.spawn
+        bx, by, byaw = inst.start_base
+        cs, sn = math.cos(yaw0), math.sin(yaw0)
+        dx, dy = bx - x0, by - y0
+        local = (cs * dx + sn * dy, -sn * dx + cs * dy, byaw - yaw0)
+        for name, v in zip(sim.desc.base_joints, local, strict=True):
+            values[sim.robot.coord[name]] = v
+        for body, (x, y, z, yaw) in inst.objects.items():
+            vals = (x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+            values.update(dict(enumerate(vals, start=self._free[body])))
+        for path, v in inst.joints.items():
+            values[self._scene_coord[path]] = v
+        return values
+
+    def _capture(self) -> None:
+        """At a frame step: one render of every world, one state read, a frame per recording world."""
+        step = self.global_step
+        if step == self._captured_step or not self._is_frame_step(step):
+            return
+        self._captured_step = step
+        worlds = [w for w, r in enumerate(self.recs) if r.active and self.views[w].steps <= r.max_steps]
+        if not worlds:
+            return
+        from stages.dataset import Frame, depth_m_to_mm
+
+        t0 = time.perf_counter()
+        images = {}
+        for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
+            if b.rig is not None:
+                images[id(b)] = b.rig.render()
+        t1 = time.perf_counter()
+        for w in worlds:
+            rec, view, cmd = self.recs[w], self.views[w], self.cmds[w]
+            bank, i = self._where[w]
+            q = arm_q(view)
+            target = self.controls[w].arm_targets()
+            state = dict(arm_joint_pos=q, ee_pose=self._ee_in_base(q), base_pose=base_pose(view),
+                         arm_joint_target=target, ee_target=self._ee_in_base(target),
+                         base_velocity=np.asarray(cmd.base_velocity, float), gripper=float(cmd.gripper),
+                         mode=int(cmd.mode))
+            frames = images.get(id(bank), {})
+            rgb = {name: fr.rgb[i] for name, fr in frames.items()}
+            depth = {name: depth_m_to_mm(fr.depth[i]) for name, fr in frames.items()}
+            if rec.sink is not None:
+                rec.sink(Frame(**state, rgb=rgb, depth_mm=depth))
+            rec.frames += 1
+        tm = self.stats.timings
+        tm.rendering += t1 - t0
+        tm.encoding += time.perf_counter() - t1
+        tm.frames += len(worlds)
+        self.stats.renders += 1
+
+    def _ee_in_base(self, arm: np.ndarray) -> np.ndarray:
+        """(7,) end-effector pose in the base frame for arm joint positions (7,)."""
+        ik = self.ik
+        if not hasattr(self, "_q_neutral"):
+            self._q_neutral = ik.neutral()
+        return pose7(ik.fk(ik.with_arm(self._q_neutral, arm)))
+
+
+class _Peaks:
+    """The largest value [m or rad] each watched scene joint reached during a world's episode,
+    tracked on the device before every physics step (a momentary event: a pressed button)."""
+
+    def __init__(self, sim, paths, scene_coord: dict[str, int]) -> None:
+        import warp as wp
+
+        self.paths = [p for p in paths if p in scene_coord]
+        self.sim = sim
+        n, dev = sim.world_count, sim.model.device
+        self._coords = wp.array(np.array([scene_coord[p] for p in self.paths] or [0], np.int32), device=dev)
+        self._peak = wp.full((n, max(1, len(self.paths))), -1e9, dtype=wp.float32, device=dev)
+        self._active_np = np.zeros(n, np.int32)
+        self._active = wp.zeros(n, dtype=wp.int32, device=dev)
+        self._dirty = False
+        self._kernel = _peaks_kernel()
+        sim.pre_step.append(self._pre_step)
+
+    def start(self, w: int) -> None:
+        self._active_np[w] = 1
+        self._dirty = True
+        self._peak[w].fill_(-1e9)
+
+    def stop(self, w: int) -> None:
+        self._active_np[w] = 0
+        self._dirty = True
+
+    def read(self, w: int) -> dict[str, float]:
+        row = self._peak.numpy()[w]
+        return {p: float(row[i]) for i, p in enumerate(self.paths)}
+
+    def _pre_step(self, sim) -> None:
+        import warp as wp
+
+        if not self.paths:
+            return
+        if self._dirty:
+            self._active.assign(self._active_np)
+            self._dirty = False
+        wp.launch(self._kernel, dim=(sim.world_count, len(self.paths)), device=sim.model.device,
+                  inputs=[sim.state_0.joint_q, self._coords, self._active, sim.coords_per_world, self._peak])
+
+
+_PEAKS_KERNEL = None
+
+
+def _peaks_kernel():
+    global _PEAKS_KERNEL
+    if _PEAKS_KERNEL is None:
+        import warp as wp
+
+        @wp.kernel
+        def track_peaks(joint_q: wp.array[wp.float32], coords: wp.array[wp.int32], active: wp.array[wp.int32],
+                        coords_per_world: int, peak: wp.array2d[wp.float32]):
+            w, j = wp.tid()
+            if active[w] == 0:
+                return
+            v = joint_q[w * coords_per_world + coords[j]]
+            if v > peak[w, j]:
+                peak[w, j] = v
+
+        _PEAKS_KERNEL = track_peaks
+    return _PEAKS_KERNEL

@@ -1,0 +1,164 @@
+"""Lockstep scheduling of per-world programs over one batched simulation.
+
+Each world runs a *program* (a scripted expert, a teleop replay, a policy driver) in a thread of
+its own; a program never steps the simulation itself. It asks for ``n`` physics steps
+(:meth:`Lockstep.wait_steps`) or for the next synchronisation point (:meth:`Lockstep.wait_sync`)
+and blocks; the engine advances every world together and resumes each program when its request
+is met. Exactly one thread runs at a time (the engine hands control to one program and waits until
+it blocks again), always in world order, so a world's program sees the same states and issues the
+same commands whatever the other worlds do: a world's episode equals a single-world run of the same
+seed.
+
+Programs only touch their own world's buffers (commands, targets) between requests, and their
+planning (A*, IK solves at waypoints, grasp choice) happens then: off the per-step loop, which is
+the engine's batched array work.
+
+::
+
+    ls = Lockstep(world_count=4)
+    ls.start(w, fn)                       # fn() runs in world w's thread, calls ls.wait_steps(w, n)
+    while ls.alive():
+        ls.resume_ready()                 # every world whose request is met runs until it blocks
+        k = ls.min_pending()              # the engine steps k physics steps for all worlds
+        ...; ls.advance(k)
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+
+class WorldStopped(BaseException):
+    """Raised inside a world's program when the engine shuts down (not an Exception: programs'
+    ``except Exception`` blocks do not swallow it)."""
+
+
+@dataclass(eq=False)
+class _Slot:
+    go: threading.Semaphore = field(default_factory=lambda: threading.Semaphore(0))
+    parked: threading.Semaphore = field(default_factory=lambda: threading.Semaphore(0))
+    thread: threading.Thread | None = None
+    pending: int = 0  # physics steps still to run before the program resumes
+    sync: bool = False  # waiting for the next synchronisation point
+    done: bool = True
+    error: BaseException | None = None
+    stop: bool = False
+
+
+class Lockstep:
+    """World programs as cooperatively scheduled threads (see the module docstring)."""
+
+    def __init__(self, world_count: int) -> None:
+        self.slots = [_Slot() for _ in range(world_count)]
+        self._local = threading.local()
+
+    # -- program side ---------------------------------------------------------------------
+    def current_world(self) -> int | None:
+        """The world whose program is running in this thread (None in the engine's thread)."""
+        return getattr(self._local, "world", None)
+
+    def wait_steps(self, world: int, n: int) -> None:
+        """Block world ``world``'s program until ``n`` >= 1 physics steps have run."""
+        s = self.slots[world]
+        s.pending = max(1, int(n))
+        self._park(s)
+
+    def wait_sync(self, world: int) -> None:
+        """Block until the engine reaches its next synchronisation point (and has run its
+        synchronisation work, e.g. this world's reset)."""
+        s = self.slots[world]
+        s.sync = True
+        self._park(s)
+
+    def _park(self, s: _Slot) -> None:
+        s.parked.release()
+        s.go.acquire()
+        if s.stop:
+            raise WorldStopped()
+
+    # -- engine side ----------------------------------------------------------------------
+    def start(self, world: int, fn) -> None:
+        """Run ``fn()`` as world ``world``'s program; it runs when first resumed."""
+        s = self.slots[world]
+        if not s.done:
+            raise RuntimeError(f"world {world}: a program is already running")
+        s.done, s.error, s.pending, s.sync, s.stop = False, None, 0, False, False
+
+        def main() -> None:
+            self._local.world = world
+            s.go.acquire()
+            try:
+                if not s.stop:
+                    fn()
+            except WorldStopped:
+                pass
+            except BaseException as e:  # noqa: BLE001 (handed to the engine, re-raised there)
+                s.error = e
+            finally:
+                s.done = True
+                s.parked.release()
+
+        s.thread = threading.Thread(target=main, name=f"world-{world}", daemon=True)
+        s.thread.start()
+
+    def _resume(self, w: int) -> None:
+        s = self.slots[w]
+        s.go.release()
+        s.parked.acquire()
+        if s.error is not None:
+            err, s.error = s.error, None
+            raise RuntimeError(f"world {w}: its program failed: {err!r}") from err
+
+    def resume_ready(self) -> int:
+        """Resume, in world order, every live world with no pending steps and no sync wait; each
+        runs until it blocks again or ends. Returns how many were resumed."""
+        n = 0
+        for w, s in enumerate(self.slots):
+            if not s.done and s.pending == 0 and not s.sync:
+                self._resume(w)
+                n += 1
+        return n
+
+    def waiting_sync(self) -> list[int]:
+        return [w for w, s in enumerate(self.slots) if not s.done and s.sync]
+
+    def release_sync(self, worlds) -> None:
+        """Clear the sync wait of ``worlds`` (the engine has done their synchronisation work);
+        they resume at the next :meth:`resume_ready`."""
+        for w in worlds:
+            self.slots[w].sync = False
+
+    def min_pending(self) -> int | None:
+        """Fewest pending steps over live worlds that wait for steps (None if none does)."""
+        p = [s.pending for s in self.slots if not s.done and not s.sync and s.pending > 0]
+        return min(p) if p else None
+
+    def advance(self, k: int) -> None:
+        """``k`` physics steps ran for every world: count them off the pending requests."""
+        for s in self.slots:
+            if not s.done and s.pending > 0:
+                s.pending = max(0, s.pending - k)
+
+    def pending(self, world: int) -> int:
+        return self.slots[world].pending
+
+    def set_pending(self, world: int, n: int) -> None:
+        self.slots[world].pending = n
+
+    def alive(self) -> bool:
+        return any(not s.done for s in self.slots)
+
+    def is_done(self, world: int) -> bool:
+        return self.slots[world].done
+
+    def shutdown(self) -> None:
+        """Stop every live program (raises :class:`WorldStopped` inside it) and join the threads."""
+        for s in self.slots:
+            if not s.done:
+                s.stop = True
+                s.go.release()
+                s.parked.acquire()
+        for s in self.slots:
+            if s.thread is not None:
+                s.thread.join(timeout=5.0)

@@ -1,0 +1,203 @@
+"""Benchmark: the batched demonstration engine, end to end and per component, over world counts.
+
+For each world count N: a :class:`~stages.engine.BatchEngine` of N worlds of one default-catalog
+kitchen runs the 15 basic tasks' scripted experts (round robin, seeds per world) with 3 cameras
+(RGB + depth) at the given size for ``--sim-seconds`` of simulated time after a warm-up, and
+prints
+
+- recorded timesteps/s end to end (frames handed to the episode sinks per wall second; the sinks
+  keep the frames' arrays alive but do not encode: encoding is ``bench_encode.py``'s),
+- the split of the wall time (simulation, rendering, control: the experts' programs and resets,
+  encoding: frame assembly and sinks),
+- each component's standalone maximum in the same run, as recorded timesteps/s: simulation only
+  (N worlds stepped, 1 / (fps dt) steps per frame), rendering only (3 cameras rendered and read
+  back for all N worlds), and the end-to-end rate as a fraction of the slowest of them;
+- completed episodes, successes per hour and the median episode length per task [frames].
+
+Writes ``bench_results/engine.json``. Run on the GPU machine::
+
+    python tests/benchmarks/bench_engine.py --device cuda --worlds 1 16 64 256 1024 --catalog DIR
+
+``--catalog``: a work dir holding the kitchen categories of the default catalog, generated and
+ingested (``catalog/default/generated.json`` and ``assets/``); without it the benchmark builds
+one (about 20 s on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+
+def _catalog(work: Path) -> Path:
+    from pipeline import build_job, run_job
+    from stages.demos.kitchen import KITCHEN_CATEGORIES
+
+    out = work / "catalog_out"
+    if not (out / "catalog" / "default" / "generated.json").is_file():
+        job = {"job": {"name": "bench_engine", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+               "step": [{"name": "catalog", "kind": "default_catalog",
+                         "config": {"variants": 5, "categories": list(KITCHEN_CATEGORIES)}},
+                        {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}}]}
+        run_job(build_job(job, source="<bench>", base_dir=work), progress=False)
+    return out
+
+
+def _sync(device: str) -> None:
+    import warp as wp
+
+    wp.synchronize_device(device)
+
+
+def bench_worlds(room, work: Path, n: int, args) -> dict:
+    from stages.demos.sampling import sample_instance
+    from stages.demos.tasks import TASKS
+    from stages.engine import BatchEngine, EngineConfig
+
+    tasks = sorted(TASKS)
+    t0 = time.perf_counter()
+    eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
+                      config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
+                                          record_images=not args.no_images))
+    build = time.perf_counter() - t0
+    counter = defaultdict(int)
+
+    def next_instance(w: int):
+        k = counter[w]
+        counter[w] += 1
+        return sample_instance(tasks[(w + k * 7) % len(tasks)], room, 1000 * w + k)
+
+    held = {"frames": 0}
+
+    def begin(w, inst):
+        def sink(frame):
+            held["frames"] += 1
+            held["last"] = frame  # keep one frame alive (its arrays are real copies)
+        return sink
+
+    done: list[tuple[str, bool, int, str]] = []
+
+    def end(w, inst, res):
+        done.append((inst.task, res.success, res.frames, res.reason))
+
+    # warm-up: compile kernels, capture the CUDA graphs, first resets
+    eng.run(next_instance, begin=begin, end=end, max_steps=2 * eng.sync_period)
+    _sync(args.device)
+    done.clear()
+    held["frames"] = 0
+    s0 = eng.stats.to_json()["timings"]
+    steps = int(args.sim_seconds * eng.steps_per_second)
+    t0 = time.perf_counter()
+    eng.run(next_instance, begin=begin, end=end, max_steps=steps)
+    _sync(args.device)
+    wall = time.perf_counter() - t0
+    s1 = eng.stats.to_json()["timings"]
+    split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
+    frames = held["frames"]
+    e2e = frames / wall
+
+    # standalone maxima, same engine, same worlds
+    bank = eng.banks[0]
+    steps_per_frame = eng.steps_per_second / args.fps
+    k = max(eng.sync_period, 50)
+    bank.sim.step(k)
+    _sync(args.device)
+    t = time.perf_counter()
+    bank.sim.step(k)
+    _sync(args.device)
+    sim_only = n * (k / (time.perf_counter() - t)) / steps_per_frame
+    render_only = None
+    if bank.rig is not None:
+        bank.rig.render()
+        reps = []
+        for _ in range(3):
+            t = time.perf_counter()
+            bank.rig.render()
+            reps.append(time.perf_counter() - t)
+        render_only = n / statistics.median(reps)
+    maxima = {"simulation": round(sim_only, 1)}
+    if render_only is not None:
+        maxima["rendering"] = round(render_only, 1)
+    slowest = min(maxima.values())
+    lengths: dict[str, list[int]] = defaultdict(list)
+    for task, ok, fr, _ in done:
+        if ok:
+            lengths[task].append(fr)
+    res = {
+        "worlds": n, "build_seconds": round(build, 2), "wall_seconds": round(wall, 2),
+        "sim_seconds": args.sim_seconds, "recorded_timesteps_per_second": round(e2e, 1),
+        "split_seconds": split, "standalone_timesteps_per_second": maxima,
+        "fraction_of_slowest_component": round(e2e / slowest, 3) if slowest else None,
+        "episodes_completed": len(done), "successes": sum(ok for _, ok, _, _ in done),
+        "successful_episodes_per_hour": round(sum(ok for _, ok, _, _ in done) / wall * 3600, 1),
+        "failures": dict(sorted(_count(r for _, ok, _, r in done if not ok).items())),
+        "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
+    }
+    print(json.dumps(res), flush=True)
+    return res
+
+
+def _count(it) -> dict:
+    out: dict[str, int] = defaultdict(int)
+    for x in it:
+        out[x] += 1
+    return out
+
+
+def main(argv=None) -> dict:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--device", default=os.environ.get("AGENTWORLD_BENCH_DEVICE", "cpu"))
+    p.add_argument("--worlds", type=int, nargs="+", default=[1, 2])
+    p.add_argument("--width", type=int, default=320)
+    p.add_argument("--height", type=int, default=240)
+    p.add_argument("--fps", type=int, default=30)
+    p.add_argument("--sim-seconds", type=float, default=2.0)
+    p.add_argument("--no-images", action="store_true")
+    p.add_argument("--catalog", type=Path, default=None)
+    p.add_argument("--panda-root", type=Path, default=None)
+    p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
+    p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
+    args = p.parse_args(argv)
+    import usd_schemas  # noqa: F401
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
+
+    args.work.mkdir(parents=True, exist_ok=True)
+    cat = args.catalog or _catalog(args.work)
+    lib = AssetLibrary.from_folder(cat / "assets", cat / "catalog" / "default" / "generated.json")
+    room = write_kitchen(args.work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
+    results = []
+    for n in args.worlds:
+        try:
+            results.append(bench_worlds(room, args.work, n, args))
+        except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
+            print(f"worlds {n}: failed: {e!r}", flush=True)
+            results.append({"worlds": n, "error": repr(e)})
+    doc = {"device": args.device, "size": [args.height, args.width], "cameras": 3,
+           "images": not args.no_images, "results": results}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    prev = json.loads(args.out.read_text()) if args.out.is_file() else {}
+    prev[f"{args.device}_{args.height}x{args.width}{'_noimg' if args.no_images else ''}"] = doc
+    args.out.write_text(json.dumps(prev, indent=1))
+    return doc
+
+
+@pytest.mark.benchmark
+def test_bench_engine():
+    doc = main(["--worlds", "1", "2", "--sim-seconds", "1", "--width", "64", "--height", "48"])
+    assert all(r.get("recorded_timesteps_per_second", 0) > 0 for r in doc["results"])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,180 @@
+"""The batched demonstration engine on CPU: worlds run episodes independently, and each recorded
+episode equals a single-world replay of the same instance (state, action and camera frames).
+
+Two layouts: ``per_world`` (one MuJoCo C model per world, the CPU default) with 4 worlds and five
+episodes of four tasks, world 0 running two in a row (its second episode starts from a reset while
+the others keep running); and ``batched`` (one MuJoCo-Warp model of several worlds, the GPU layout)
+with 2 worlds, world 1 reset to a new episode while world 0 is mid-episode. Episodes are cut short
+by time limits (the experts are mid-motion when they stop: driving, reaching), so the comparison
+covers driving, arm motion and the resets at CPU cost.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
+PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
+            "mug_04", "bowl_00", "can_00")
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    pytest.importorskip("newton")
+    pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
+    from pipeline import build_job, run_job
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
+
+    out = tmp_path_factory.mktemp("engine_catalog") / "out"
+    job = {"job": {"name": "engine", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog",
+                     "config": {"variants": 5, "categories": list(KITCHEN)}},
+                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}}]}
+    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
+    lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+    return write_kitchen(out.parent / "kitchen", lib, scene_id="k", rng=np.random.default_rng(5))
+
+
+def _run(room, work: Path, layout: str, queues: dict[int, list]) -> dict:
+    """Run an engine of len(queues) worlds; queues: world -> [(task, seed, max_seconds)].
+    Returns (task, seed) -> dict(frames=[...], result=EpisodeResult, world=w)."""
+    from stages.demos.sampling import sample_instance
+    from stages.engine import BatchEngine, EngineConfig
+
+    eng = BatchEngine(room, panda_root=None, work_dir=work,
+                      config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout))
+    todo = {w: list(q) for w, q in queues.items()}
+    out: dict = {}
+
+    def next_instance(w):
+        if not todo[w]:
+            return None
+        task, seed, limit = todo[w].pop(0)
+        return sample_instance(task, room, seed), limit
+
+    def begin(w, inst):
+        rec = out[(inst.task, inst.seed)] = {"frames": [], "world": w}
+        return rec["frames"].append
+
+    def end(w, inst, res):
+        out[(inst.task, inst.seed)]["result"] = res
+
+    stats = eng.run(next_instance, begin=begin, end=end)
+    assert stats.episodes == sum(len(q) for q in queues.values())
+    return out
+
+
+def _assert_same_episode(a: dict, b: dict, key, *, exact_images: bool = True) -> None:
+    """Same result, state and action; images equal. With ``exact_images`` False (one batched model):
+    state and action within 1e-5 (MuJoCo-Warp keeps all worlds' contacts in one buffer, and another
+    world's reset can reorder them: float sums then differ in the last bit) and images within
+    1 mm / 2 levels on at most 0.2% of the pixels (the ray tracer's BVH spans all worlds)."""
+    fa, fb = a["frames"], b["frames"]
+    assert len(fa) == len(fb) > 0, key
+    ra, rb = a["result"], b["result"]
+    assert (ra.success, ra.reason, ra.frames, ra.sim_seconds) == (rb.success, rb.reason, rb.frames, rb.sim_seconds)
+    for i, (x, y) in enumerate(zip(fa, fb, strict=True)):
+        tol = 0.0 if exact_images else 1e-5
+        np.testing.assert_allclose(x.state(), y.state(), rtol=0, atol=tol, err_msg=f"{key} frame {i} state")
+        np.testing.assert_allclose(x.action(), y.action(), rtol=0, atol=tol, err_msg=f"{key} frame {i} action")
+        for cam in x.rgb:
+            if exact_images:
+                np.testing.assert_array_equal(x.rgb[cam], y.rgb[cam], err_msg=f"{key} frame {i} {cam}")
+                np.testing.assert_array_equal(x.depth_mm[cam], y.depth_mm[cam], err_msg=f"{key} frame {i} {cam}")
+                continue
+            for im_a, im_b, tol in ((x.rgb[cam], y.rgb[cam], 2), (x.depth_mm[cam], y.depth_mm[cam], 1)):
+                diff = np.abs(im_a.astype(np.int32) - im_b.astype(np.int32))
+                assert diff.max() <= tol and (diff > 0).mean() <= 0.002, (key, i, cam, diff.max())
+
+
+def test_four_worlds_record_what_single_world_replays_record(room, tmp_path):
+    queues = {0: [("press_button", 3, 1.0), ("pick_place_bowl", 8, 0.8)],
+              1: [("pick_place_bowl", 4, 1.4)],
+              2: [("push_object", 5, 1.2)],
+              3: [("press_button", 6, 0.6)]}
+    batched = _run(room, tmp_path / "b", "per_world", queues)
+    assert {k: v["world"] for k, v in batched.items()} == {
+        ("press_button", 3): 0, ("pick_place_bowl", 8): 0, ("pick_place_bowl", 4): 1,
+        ("push_object", 5): 2, ("press_button", 6): 3}
+    # every episode ran to its own time limit, frames at 30 fps from its own reset
+    for (task, seed), rec in batched.items():
+        limit = next(lim for q in queues.values() for t, s, lim in q if (t, s) == (task, seed))
+        assert rec["result"].reason == "timeout" and len(rec["frames"]) == int(limit * 30) + 1
+        assert rec["frames"][0].rgb["head"].shape == (48, 64, 3)
+    # the robot moved (the comparison is not of idle worlds)
+    moved = [np.abs(r["frames"][-1].state() - r["frames"][0].state()).max() for r in batched.values()]
+    assert min(moved) > 0.01
+    # single-world replays, each episode alone in a fresh engine's one world
+    for key in batched:
+        lim = next(lim for q in queues.values() for t, s, lim in q if (t, s) == key)
+        single = _run(room, tmp_path / f"s_{key[0]}_{key[1]}", "per_world", {0: [(*key, lim)]})
+        _assert_same_episode(batched[key], single[key], key)
+
+
+def test_a_world_reset_mid_run_leaves_the_other_world_of_a_batched_model_untouched(room, tmp_path):
+    # one MuJoCo-Warp model of 2 worlds: world 1 ends an episode at 0.1 s and is reset (at the
+    # next sync point, 0.2 s) to a new one while world 0 is mid-episode until 0.5 s
+    queues = {0: [("press_button", 3, 0.5)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
+    batched = _run(room, tmp_path / "b", "batched", queues)
+    alone_0 = _run(room, tmp_path / "s0", "batched", {0: [("press_button", 3, 0.5)]})
+    alone_1 = _run(room, tmp_path / "s1", "batched", {0: [("press_button", 6, 0.2)]})
+    _assert_same_episode(batched[("press_button", 3)], alone_0[("press_button", 3)], "world 0",
+                         exact_images=False)
+    _assert_same_episode(batched[("press_button", 6)], alone_1[("press_button", 6)], "world 1 after reset",
+                         exact_images=False)
+    assert np.abs(batched[("press_button", 3)]["frames"][-1].state()
+                  - batched[("press_button", 3)]["frames"][0].state()).max() > 0.01
+
+
+def test_lockstep_resumes_worlds_in_order_and_counts_steps():
+    from stages.engine import Lockstep
+
+    ls = Lockstep(3)
+    log: list[tuple[int, int]] = []
+    clock = {"step": 0}
+
+    def program(w: int, waits: list[int]):
+        def main():
+            for n in waits:
+                log.append((w, clock["step"]))
+                ls.wait_steps(w, n)
+            log.append((w, clock["step"]))
+        return main
+
+    plans = {0: [5, 5], 1: [3], 2: [7, 1]}
+    for w, waits in plans.items():
+        ls.start(w, program(w, waits))
+    while ls.alive():
+        ls.resume_ready()
+        k = ls.min_pending()
+        if k is None:
+            break
+        clock["step"] += k
+        ls.advance(k)
+    ls.shutdown()
+    # each world resumed exactly when its requested steps had run
+    assert [e for e in log if e[0] == 0] == [(0, 0), (0, 5), (0, 10)]
+    assert [e for e in log if e[0] == 1] == [(1, 0), (1, 3)]
+    assert [e for e in log if e[0] == 2] == [(2, 0), (2, 7), (2, 8)]
+    # at one step, worlds resume in world order
+    assert log[:3] == [(0, 0), (1, 0), (2, 0)]
+
+
+def test_a_failing_program_names_its_world():
+    from stages.engine import Lockstep
+
+    ls = Lockstep(2)
+    ls.start(0, lambda: ls.wait_steps(0, 1))
+
+    def bad():
+        raise ValueError("boom")
+
+    ls.start(1, bad)
+    with pytest.raises(RuntimeError, match="world 1: its program failed: ValueError"):
+        ls.resume_ready()
+    ls.shutdown()
+    assert ls.is_done(0) and ls.is_done(1)
