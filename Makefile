@@ -3,12 +3,19 @@ PY ?= $(shell for p in python3.12 /root/.pyenv/versions/3.12*/bin/python3.12 /us
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test install bench
+# Upgrade check: a separate venv installed WITHOUT constraints.txt (whatever resolves today), then a
+# short test selection. tests/test_pinned_env.py there lists what moved (expected to differ).
+UPVENV := .venv-upgrade
+UPGRADE_TESTS ?= tests/stages/test_simulate_robot.py tests/stages/test_simulate_manipulation.py \
+	tests/stages/test_dataset_schema.py tests/stages/test_dataset_shards.py tests/stages/test_physics_checks.py
 
-$(STAMP): pyproject.toml
+.PHONY: demo test install bench upgrade-check
+
+# Installs exactly the versions in constraints.txt (what CI tests with).
+$(STAMP): pyproject.toml constraints.txt
 	@test -x $(VENV)/bin/python || $(PY) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -q --upgrade pip
-	$(VENV)/bin/python -m pip install -q -e '.[test]'
+	$(VENV)/bin/python -m pip install -q -c constraints.txt -e '.[test]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -21,3 +28,13 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/python -m pytest -q -m benchmark tests/benchmarks -s
+
+upgrade-check:
+	rm -rf $(UPVENV)
+	$(PY) -m venv $(UPVENV)
+	$(UPVENV)/bin/python -m pip install -q --upgrade pip
+	$(UPVENV)/bin/python -m pip install -q --upgrade -e '.[test]'
+	@echo "--- versions that differ from constraints.txt (expected in an upgrade):"
+	-$(UPVENV)/bin/python -m pytest -q --no-header -p no:cacheprovider tests/test_pinned_env.py -k installed_distributions
+	@echo "--- tests on the unpinned versions:"
+	$(UPVENV)/bin/python -m pytest -q -p no:cacheprovider $(UPGRADE_TESTS)

@@ -8,7 +8,8 @@ Layout of one frame (``fps`` frames per second, 30 by default):
 - ``action`` float32 ``(arm_dof + 12,)`` = [arm joint targets (arm_dof) [rad], end-effector target
   (7: x, y, z [m], quaternion w, x, y, z), base velocity (3: vx, vy [m/s], vtheta [rad/s]) in the base
   frame, gripper command (1: 0 open .. 1 closed), mode (1: 0 locomotion / 1 manipulation)];
-- ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec);
+- ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec,
+  :class:`VideoCodecSpec`; default x264 ultrafast, crf 23, GOP 30, chosen by measurement below);
 - ``observation.images.<camera>_depth`` depth uint16 ``(H, W, 1)`` [mm], stored WITHOUT LOSS as a lerobot
   depth image (``dtype: image``, ``info.is_depth_map: true``, ``info.depth_unit: mm``): 16-bit PNG bytes
   (direct backend) or raw 16-bit TIFF bytes (lerobot backend) embedded in the data parquet.
@@ -16,6 +17,26 @@ Layout of one frame (``fps`` frames per second, 30 by default):
   (lerobot's depth *video* path quantizes to 12 bits, 4096 levels over 0.01-10 m, so it is not used.)
 - the task text (``task``) and, per episode, :class:`EpisodeInfo` as extra ``meta/episodes`` columns
   prefixed ``agentworld/`` (lerobot carries unknown columns through loading and aggregation).
+
+RGB codec choice (``tests/benchmarks/bench_encode.py``, render-like moving textured content with
+sensor noise, one encoder thread per process, 2 processes on this 2-core CI machine, frames/s of
+both together; quality against the raw frames, decoded back):
+
+    240x320            frames/s  KB/frame  PSNR [dB]  SSIM
+    x264 ultrafast       967       4.3      29.13    0.915   <- default (CODEC_PRESETS["x264_ultrafast"])
+    x264 veryfast        399       1.8      28.80    0.888
+    AV1 p10, lerobot     139       9.0      29.58    0.933   (crf 30, GOP 2)
+    AV1 p12, lerobot     130       9.0      29.58    0.933   (SVT-AV1 here maps preset 12 to 10)
+    JPEG q90 (CPU)      1333      26.9      30.16    0.951   (image features, not video)
+    480x640: x264 ultrafast 330, veryfast 144, AV1 p10 46, p12 39, JPEG 590 frames/s; quality
+    within 0.4 dB of 240x320 (x264 ultrafast 29.40 dB, 0.914).
+
+x264 ultrafast encodes 2.4x faster than veryfast at better PSNR/SSIM (at crf 23), and 7x faster than
+lerobot's AV1 default for 0.45 dB less; most of every codec's loss is the sensor noise it does not
+keep. On the 16-core GPU host issue 12 measured x264 ultrafast 10,778, veryfast 5,778, AV1 p10 5,026
+and lerobot's default 751 frames/s at 320x240. JPEG is as fast on the CPU but 6x the bytes; nvJPEG
+on CUDA tensors is measured by the benchmark with ``--device cuda``. Depth is not affected: it stays
+lossless 16-bit PNG/TIFF images.
 
 Nothing here imports torch or lerobot: the schema is plain data, usable by the recorder and tests.
 """
@@ -88,6 +109,16 @@ class VideoCodecSpec:
     def __post_init__(self) -> None:
         if self.codec not in ("h264", "libsvtav1", "hevc"):
             raise ValueError(f"video codec must be h264, libsvtav1 or hevc, got {self.codec!r}")
+
+
+# Named encoder settings measured by tests/benchmarks/bench_encode.py (the av1 ones are lerobot 0.6's
+# defaults, crf 30 and GOP 2, at two presets; preset 12 is lerobot's default).
+CODEC_PRESETS: dict[str, VideoCodecSpec] = {
+    "x264_ultrafast": VideoCodecSpec(codec="h264", preset="ultrafast", crf=23, gop=30),
+    "x264_veryfast": VideoCodecSpec(codec="h264", preset="veryfast", crf=23, gop=30),
+    "av1_p10_lerobot": VideoCodecSpec(codec="libsvtav1", preset=10, crf=30, gop=2),
+    "av1_p12_lerobot": VideoCodecSpec(codec="libsvtav1", preset=12, crf=30, gop=2),
+}
 
 
 @dataclass(frozen=True)

@@ -46,9 +46,9 @@ class SolverSettings:
     physics step (1 for MuJoCo; the others need dt / substeps <= 1/960 s); use_mujoco_cpu: None = auto
     (True on CPU with one world); iterations / ls_iterations: MuJoCo solver iterations;
     cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and
-    contacts for MuJoCo-Warp (None: Newton's estimate, which overflows in a furnished room: a mug
-    of 14 convex pieces on a table and 20 boxes on the floor exceed its 64 rows / 128 contacts; the
-    demos task room overflows MuJoCo-Warp's broadphase at 256 contacts, dropping contacts);
+    contacts for MuJoCo-Warp (None: sized from the model, :mod:`stages.simulate.contacts`);
+    contact_check_every: steps between overflow checks (a small host read; an overflow raises
+    ``ContactOverflowError`` naming the world and the count; 0: at :meth:`Sim.check_contacts` only);
     cuda_graph: on CUDA, replay MuJoCo-Warp's step as a captured CUDA graph (one graph per
     state-buffer parity) instead of launching its kernels one by one from Python.
     """
@@ -62,8 +62,9 @@ class SolverSettings:
     cone: str = "elliptic"
     impratio: float = 10.0
     integrator: str = "implicitfast"
-    njmax: int | None = 1024
-    nconmax: int | None = 1024
+    njmax: int | None = None
+    nconmax: int | None = None
+    contact_check_every: int = 250
     cuda_graph: bool = True
 
     def __post_init__(self) -> None:
@@ -331,6 +332,7 @@ class Sim:
     pre_step: list = field(default_factory=list)
     _graphs: dict = field(default_factory=dict, repr=False)  # (state_0 id, h) -> captured CUDA graph
     _graphs_warm: bool = field(default=False, repr=False)
+    contact_monitor: object | None = field(default=None, repr=False)  # contacts.OverflowMonitor
 
     @property
     def world_count(self) -> int:
@@ -353,14 +355,26 @@ class Sim:
                 self.state_0, self.state_1 = self.state_1, self.state_0
             self.time += s.dt
             self.steps += 1
+            every = self.solver_settings.contact_check_every
+            if self.contact_monitor is not None and every and self.steps % every == 0:
+                self.contact_monitor.check()
+
+    def check_contacts(self) -> None:
+        """Raise ``ContactOverflowError`` (world, count) if a step dropped contacts or rows."""
+        if self.contact_monitor is not None:
+            self.contact_monitor.check()
 
     def _substep(self, h: float) -> None:
         """One solver step of ``h`` [s] from ``state_0`` into ``state_1``."""
         self.state_0.clear_forces()
         if self.pipeline is not None:
             self.pipeline.collide(self.state_0, self.contacts)
+        mon = self.contact_monitor
         self.solver.step(self.state_0, self.state_1, self.control,
-                         None if self.pipeline is None else self.contacts, h)
+                         None if self.pipeline is None else self.contacts, h,
+                         observables=None if mon is None else mon.observables)
+        if mon is not None:
+            mon.after_step()
 
     def _use_graphs(self) -> bool:
         """CUDA graph replay applies to MuJoCo-Warp on a CUDA device (no Newton pipeline)."""
@@ -453,7 +467,9 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
     return b, loaded, robot, spawn, labels
 
 
-def _make_solver(model, s: SolverSettings, device: str, world_count: int):
+def _make_solver(model, s: SolverSettings, device: str, world_count: int, capacity=None):
+    """The solver; for MuJoCo, ``capacity`` (a :class:`~stages.simulate.contacts.ContactCapacity`)
+    gives njmax / nconmax where the settings leave them None."""
     import newton
 
     opts: dict = {}
@@ -471,8 +487,8 @@ def _make_solver(model, s: SolverSettings, device: str, world_count: int):
             impratio=s.impratio,
             iterations=s.iterations,
             ls_iterations=s.ls_iterations,
-            njmax=s.njmax,
-            nconmax=s.nconmax,
+            njmax=s.njmax if s.njmax is not None or capacity is None else capacity.njmax,
+            nconmax=s.nconmax if s.nconmax is not None or capacity is None else capacity.nconmax,
             disable_sensors=True,
         )
         return SolverMuJoCo(model, **opts), None, cpu, separate, opts
@@ -525,7 +541,17 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
         main.add_ground_plane()
         all_labels.append("floor")
     model = main.finalize(device=cfg.device)
-    solver, pipeline, cpu, separate, opts = _make_solver(model, cfg.solver, cfg.device, cfg.world_count)
+    capacity = monitor = None
+    if cfg.solver.kind == SolverKind.MUJOCO:
+        from stages.simulate import contacts as _contacts
+
+        capacity = _contacts.size_contact_buffers(
+            model, model.body_q.numpy(), cone=cfg.solver.cone, dofs_per_world=tpl.joint_dof_count,
+            robot_shapes=_contacts.robot_collision_shapes(model, robot.shape_start, robot.shape_end))
+    solver, pipeline, cpu, separate, opts = _make_solver(model, cfg.solver, cfg.device, cfg.world_count,
+                                                         capacity)
+    if capacity is not None:
+        monitor = _contacts.OverflowMonitor(solver)
     contacts = pipeline.contacts() if pipeline is not None else None
     state_0, state_1, control = model.state(), model.state(), model.control()
     newton.eval_fk(model, model.joint_q, model.joint_qd, state_0)
@@ -542,6 +568,7 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
             "contact_ke": cfg.contact_ke,
             "contact_kd": cfg.contact_kd,
             "cuda_graph": cfg.solver.cuda_graph and pipeline is None and cfg.device.startswith("cuda"),
+            **({"contact_capacity": capacity.to_json()} if capacity is not None else {}),
         },
         spawn=tuple(spawn),
         bodies_per_world=tpl.body_count,
@@ -570,4 +597,5 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
         coords_per_world=tpl.joint_coord_count,
         spawn=tuple(spawn),
         solver_settings=cfg.solver,
+        contact_monitor=monitor,
     )

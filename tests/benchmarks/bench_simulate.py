@@ -9,8 +9,8 @@ same drives, no pre-step; "bare": the cost of the furnished scene's content plus
 solver settings;
 plus RGB-D frames/s of one 128x128 camera per world for both (same render settings: shadows on,
 no backface culling; ours with the scene's mapped UsdLux lights, bare with one directional light).
-ratio = bare / ours (our overhead). MuJoCo-Warp capacities are ours (njmax 1024, nconmax 256 per
-world) for both, so overflow does not drop contacts in either.
+ratio = bare / ours (our overhead). MuJoCo-Warp capacities are ours (njmax / nconmax per world as
+``stages.simulate.contacts`` sized them for the scene) for all three, so none drops contacts.
 Timings are medians of repeats. Writes ``bench_results/simulate.json``.
 
 Run on the GPU machine::
@@ -24,6 +24,7 @@ On CPU (default) it runs 1 world (MuJoCo C) and optionally 2-4 (MuJoCo-Warp on C
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import statistics
@@ -212,11 +213,11 @@ def run(
             jt = sim.model.joint_type.numpy()
             jw = sim.model.joint_world.numpy()
             n_free = int(np.sum((jt == int(newton.JointType.FREE)) & (jw == 0)))
-            _, direct_step, _ = _direct(
-                device, n, desc, Path(sim.settings.scenes[0]), sim.spawn, sim.solver_settings
-            )
+            sized = dataclasses.replace(sim.solver_settings, njmax=sim.settings.options["njmax"],
+                                        nconmax=sim.settings.options["nconmax"])
+            _, direct_step, _ = _direct(device, n, desc, Path(sim.settings.scenes[0]), sim.spawn, sized)
             direct_dt = _time_steps(direct_step, device, steps, repeats)
-            model, bare_step, bstate = _bare(device, n, desc, n_free, sim.solver_settings)
+            model, bare_step, bstate = _bare(device, n, desc, n_free, sized)
             bare_dt = _time_steps(bare_step, device, steps, repeats)
             # the same render settings as CameraRig (shadows, both faces), one directional light
             cfg = SensorCamera.RenderConfig(enable_shadows=True, enable_backface_culling=False)

@@ -103,3 +103,17 @@ def test_importing_the_package_loads_no_heavy_module():
     out = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[2],
                          capture_output=True, text=True, check=True)  # fmt: skip
     assert out.stdout.strip() == "[]"
+
+
+def test_measured_codec_presets_round_trip_and_the_default_is_x264_ultrafast():
+    """The RGB default is the preset bench_encode.py measured fastest per quality; depth stays an image."""
+    from stages.dataset.schema import CODEC_PRESETS, CameraSpec, DatasetSpec, VideoCodecSpec
+
+    assert VideoCodecSpec() == CODEC_PRESETS["x264_ultrafast"]
+    assert CODEC_PRESETS["av1_p12_lerobot"] == VideoCodecSpec(codec="libsvtav1", preset=12, crf=30, gop=2)
+    for name, codec in CODEC_PRESETS.items():
+        spec = DatasetSpec(cameras=(CameraSpec("head", 240, 320),), video=codec)
+        assert DatasetSpec.from_json(spec.to_json()).video == codec, name
+        feats = spec.features()
+        assert feats["observation.images.head"]["dtype"] == "video"
+        assert feats["observation.images.head_depth"]["dtype"] == "image"
