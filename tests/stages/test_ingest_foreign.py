@@ -160,3 +160,88 @@ def test_mjcf_wrapped_door_swings_like_mujoco(tmp_path):
     mujoco.mj_kinematics(mj, d)
     gid = next(g for g in range(mj.ngeom) if mj.geom_bodyid[g] == 1)
     np.testing.assert_allclose(centre, d.geom_xpos[gid], atol=1e-9)
+
+
+# ------------------------------------------------------------------------------- units: plausibility
+
+
+def _duck(path: Path, scale: float) -> Path:
+    """A rubber duck 9 cm long, 7 cm tall (a body ellipsoid and a head sphere), in units of 1/``scale`` m."""
+    import numpy as np
+    import trimesh
+
+    from ingest_testutil import write_obj
+
+    body = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    body.apply_scale((0.045, 0.035, 0.025))
+    body.apply_translation((0, 0, 0.025))
+    head = trimesh.creation.icosphere(subdivisions=2, radius=0.02)
+    head.apply_translation((0.025, 0, 0.05))
+    duck = trimesh.util.concatenate([body, head])
+    return write_obj(path, np.asarray(duck.vertices) / scale, np.asarray(duck.faces))
+
+
+def test_unit_mistake_fails_with_the_likely_meters_per_unit_and_odd_assets_warn(tmp_path, caplog):
+    """A duck authored in centimetres fails alone, naming the file and meters_per_unit = 0.01; the same
+    file annotated in centimetres, or with a wider annotated range, ingests; an odd mass that no unit
+    explains (an annotated 20 kg mug) only warns."""
+    import logging
+
+    from asset_catalog.index import index_path, query_index
+    from ingest_testutil import box_arrays, write_obj
+
+    cat = tmp_path / "catalog"
+    _duck(cat / "duck_cm.obj", 0.01)
+    v, f = box_arrays((0.08, 0.08, 0.1))
+    write_obj(cat / "mug.obj", v, f)
+    toy = dict(category="toy", material="rubber")
+    _catalog(cat, [
+        dict(id="duck_as_metres", source="duck_cm.obj", **toy),
+        dict(id="duck_in_cm", source="duck_cm.obj", meters_per_unit=0.01, **toy),
+        dict(id="giant_duck", source="duck_cm.obj", plausible_size=[1.0, 20.0], plausible_mass=[10.0, 1e7],
+             **toy),
+        dict(id="heavy_mug", source="mug.obj", category="mug", material="ceramic", mass=20.0),
+    ])
+    out = tmp_path / "out"
+    with caplog.at_level(logging.WARNING, logger="stages.ingest"):
+        (step,) = _run_ingest(cat, out).steps
+    reasons = {f.item_id: f.reason for f in step.failures}
+    assert set(reasons) == {"duck_as_metres"} and step.done == 3, reasons
+    msg = reasons["duck_as_metres"]
+    assert "\n" not in msg and str(cat / "duck_cm.obj") in msg
+    assert "implausible for category 'toy'" in msg and "meters_per_unit = 0.01 (centimetres)" in msg
+    assert not (out / "assets" / "duck_as_metres").exists()
+    recs = {r.id: r for r in query_index(index_path(out), status="ok")}
+    assert max(recs["duck_in_cm"].dimensions) == pytest.approx(0.09, abs=1e-3)
+    assert recs["duck_in_cm"].mass == pytest.approx(1200 * 1.98e-4, rel=0.05)   # rubber, ~198 cm^3
+    assert max(recs["giant_duck"].dimensions) == pytest.approx(9.0, abs=0.1)
+    assert recs["heavy_mug"].mass == pytest.approx(20.0)
+    warned = [r.getMessage() for r in caplog.records if "mug.obj" in r.getMessage()]
+    assert len(warned) == 1 and "no unit mistake explains it" in warned[0], warned
+
+
+def test_plausibility_rule():
+    """The rule itself: a range per category, the generic fallback, the unit factors both ways."""
+    from asset_catalog.plausibility import GENERIC, PLAUSIBLE, judge
+
+    assert judge("mug", 0.1, 0.35).verdict == "ok"
+    mm = judge("mug", 100.0, 0.35 * 1e9)                     # a mug in millimetres, mass from density
+    assert mm.verdict == "unit" and mm.factors == (0.001,) and "= 0.001 (millimetres)" in mm.message
+    back = judge("sofa", 0.002, 6e-5, meters_per_unit=0.001)   # a 2 m, 60 kg sofa in metres annotated as mm
+    assert back.verdict == "unit" and "meters_per_unit = 1 (metres annotated as millimetres)" in back.message
+    assert judge("mug", 0.1, 20.0, mass_scales=False).verdict == "odd"   # a heavy mug: no unit explains it
+    assert judge("mug", 0.1, 20.0, mass_range=(0.1, 30.0)).verdict == "ok"
+    assert judge("widget", 8.0, 50.0).verdict == "ok" and "widget" not in PLAUSIBLE   # generic fallback
+    assert 0.01 in judge("widget", 16.0, 5e5).factors and GENERIC.size[1] < 16.0
+    for r in PLAUSIBLE.values():   # wide, but narrower than a factor 100: a cm mistake always shows
+        assert 0 < r.size[0] < r.size[1] < 100 * r.size[0] and 0 < r.mass[0] < r.mass[1]
+
+
+def test_default_catalog_categories_fit_their_plausible_size():
+    """Every built-in generator's size range lies inside its category's plausible range."""
+    from asset_catalog.generators import GENERATORS
+    from asset_catalog.plausibility import PLAUSIBLE
+
+    for spec in GENERATORS:
+        lo, hi = PLAUSIBLE[spec.category].size
+        assert lo <= max(spec.size_min) and max(spec.size_max) <= hi, spec.category
