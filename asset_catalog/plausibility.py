@@ -27,7 +27,8 @@ from typing import Literal
 
 @dataclass(frozen=True)
 class PlausibleRange:
-    """size: (low, high) of the largest bounding-box dimension [m]; mass: (low, high) of the total mass [kg]."""
+    """size: (low, high) of the largest bounding-box dimension [m]; mass: (low, high) of the total
+    mass [kg]."""
 
     size: tuple[float, float]
     mass: tuple[float, float]
@@ -96,7 +97,7 @@ UNIT_MISTAKES: dict[float, str] = {
     1000.0: "metres annotated as millimetres", 100.0: "metres annotated as centimetres",
     1 / 0.0254: "metres annotated as inches",
 }
-"""Factor on ``meters_per_unit`` -> what the mistake was (the source's unit read as metres, or the reverse)."""
+"""Factor on ``meters_per_unit`` -> the mistake (the source's unit read as metres, or the reverse)."""
 
 
 @dataclass(frozen=True)

@@ -224,7 +224,8 @@ def _check_plausible(model, stats, src: Path) -> None:
     from asset_catalog.plausibility import judge
 
     ann = model.annotation
-    verdict = judge(ann.category, max(stats.dimensions), stats.mass, meters_per_unit=ann.meters_per_unit or 1.0,
+    verdict = judge(ann.category, max(stats.dimensions), stats.mass,
+                    meters_per_unit=ann.meters_per_unit or 1.0,
                     mass_scales=ann.mass is None and not any(lk.mass_from_source for lk in model.links),
                     size_range=ann.plausible_size, mass_range=ann.plausible_mass)
     if verdict.verdict == "unit":
