@@ -20,6 +20,8 @@ A catalog is a folder of source files plus ``annotations.toml``::
     meters_per_unit = 0.001    # default: detected/1.0
     collider = "auto"          # auto | hull | coacd | none
     fixed_base = false         # articulated sources: fix the root to the world
+    plausible_size = [0.05, 0.3]   # [m] largest dimension; default: asset_catalog.plausibility
+    plausible_mass = [0.1, 1.0]    # [kg] total mass; default: asset_catalog.plausibility
 
 Everything else (bounding box, volume, mass, friction, colliders) is computed by the stages.
 """
@@ -87,6 +89,15 @@ class AssetAnnotation(_Strict):
     meters_per_unit: float | None = Field(default=None, gt=0.0)
     collider: ColliderKind = ColliderKind.AUTO
     fixed_base: bool | None = None
+    plausible_size: tuple[float, float] | None = Field(default=None, description="[m] largest dimension")
+    plausible_mass: tuple[float, float] | None = Field(default=None, description="[kg] total mass")
+
+    @field_validator("plausible_size", "plausible_mass")
+    @classmethod
+    def _range_ok(cls, v: tuple[float, float] | None) -> tuple[float, float] | None:
+        if v is not None and not 0.0 < v[0] <= v[1] < float("inf"):
+            raise ValueError(f"range {list(v)} must be [low, high] with 0 < low <= high")
+        return v
 
     @field_validator("id")
     @classmethod

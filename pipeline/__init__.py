@@ -34,7 +34,9 @@ __all__ = [
     "load_job",
     "load_results",
     "read_summary",
+    "remove_orphaned_temps",
     "run_job",
+    "temp_sibling",
 ]
 
 _WHERE = {
@@ -55,12 +57,15 @@ _WHERE = {
     "read_summary": "pipeline._src.report",
     "run_job": "pipeline._src.runner",
     "load_results": "pipeline._src.runner",
+    "temp_sibling": "pipeline._src.tempdirs",
+    "remove_orphaned_temps": "pipeline._src.tempdirs",
 }
 
 if TYPE_CHECKING:
     from pipeline._src.jobspec import JobError, JobSpec, StepSpec, build_job, load_job
     from pipeline._src.report import JobSummary, StepSummary, read_summary
     from pipeline._src.runner import load_results, run_job
+    from pipeline._src.tempdirs import remove_orphaned_temps, temp_sibling
     from pipeline.types import (ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem,
                                 derive_seed)
 

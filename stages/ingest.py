@@ -5,6 +5,8 @@ One work item per valid ``[[asset]]`` entry of the catalog's annotation file::
     load (mesh formats: stages.loaders.mesh; .urdf: stages.loaders.urdf; .xml/.mjcf: stages.loaders.mjcf)
       -> compute_colliders (stages.collision)   rng = ctx.rng("collision")
       -> annotate_physics (stages.annotate)     rng = ctx.rng("annotate")
+      -> plausible size and mass (asset_catalog.plausibility): a unit mistake fails the item with the
+         likely meters_per_unit, an odd size or mass without one is a warning
       -> usd_schemas.write_asset_package into ctx.out_dir
       -> usd_schemas.validate_package (any error -> ItemError)
 
@@ -50,7 +52,8 @@ from stages.loaders import MESH_SUFFIXES, LoadLimits
 log = logging.getLogger(__name__)
 
 CODE_DEPS = ("stages.loaders", "stages.collision", "stages.annotate", "usd_schemas",
-             "asset_catalog.asset_model", "asset_catalog.materials", "asset_catalog.annotations")
+             "asset_catalog.asset_model", "asset_catalog.materials", "asset_catalog.annotations",
+             "asset_catalog.plausibility")
 
 INGEST_FN = "stages.ingest:ingest_asset"
 _COLLIDER_RECORD = {"none": "none", "hull": "convexHull", "hulls": "convexDecomposition",
@@ -163,6 +166,7 @@ def ingest_asset(params: IngestParams, ctx: ItemContext) -> IngestResult:
         model = compute_colliders(model, params.collision, ctx.rng("collision"))
     with _step("annotate", timings, src):
         model, stats = annotate_with_stats(model, ctx.rng("annotate"))
+        _check_plausible(model, stats, src)
     with _step("write", timings, src):
         pkg = usd_schemas.write_asset_package(model, ctx.out_dir, pipeline_version=params.pipeline_version)
     with _step("validate", timings, src):
@@ -212,6 +216,22 @@ def _check_model_extent(model, limits: LoadLimits, src: Path) -> None:
     if largest < limits.min_dimension_m or largest > limits.max_dimension_m:
         raise ItemError(f"{src}: absurd scale: largest dimension {largest:.4g} m is outside "
                         f"[{limits.min_dimension_m:g}, {limits.max_dimension_m:g}] m (check meters_per_unit)")
+
+
+def _check_plausible(model, stats, src: Path) -> None:
+    """Size and mass against the category's plausible range (asset_catalog.plausibility): ItemError for a
+    likely unit mistake (naming the meters_per_unit to set), a warning for an odd asset."""
+    from asset_catalog.plausibility import judge
+
+    ann = model.annotation
+    verdict = judge(ann.category, max(stats.dimensions), stats.mass,
+                    meters_per_unit=ann.meters_per_unit or 1.0,
+                    mass_scales=ann.mass is None and not any(lk.mass_from_source for lk in model.links),
+                    size_range=ann.plausible_size, mass_range=ann.plausible_mass)
+    if verdict.verdict == "unit":
+        raise ItemError(f"{src}: {verdict.message}")
+    if verdict.verdict == "odd":
+        log.warning("%s: %s", src, verdict.message)
 
 
 # ----------------------------------------------------------------------------------------- planning

@@ -14,7 +14,9 @@ For each step, in order:
    a failed item's stale output folder is removed;
 5. the kind's ``finalize`` runs in this process with the step's succeeded results.
 
-Crash safety: stale ``.tmp`` folders are removed on start; an item interrupted anywhere between
+Crash safety: stale ``.tmp`` folders are removed on start, and so are the ``.tmp-<name>-<pid>-<nonce>``
+temporaries of atomic writes (``pipeline._src.tempdirs``, e.g. a dataset merge) anywhere in the top
+levels of the work dir whose process is dead; an item interrupted anywhere between
 "running" and "done" is recomputed on the next run (stage functions are deterministic given the
 item's seed), so ``kill -9`` at any moment and a re-run give the same outputs, one row per item.
 A lock file (``<out>/.lock``) keeps two runs from sharing a work directory.
@@ -46,6 +48,7 @@ from pipeline._src.progress import StepProgress, make_progress
 from pipeline._src.registry import KindError, Registry, import_object, resolve_kind, type_ref
 from pipeline._src.report import Failure, JobSummary, StepSummary
 from pipeline._src.state import StateDB, StateVersionError
+from pipeline._src.tempdirs import remove_orphaned_temps
 from pipeline._src.worker import Outcome, one_line
 from pipeline.types import ItemContext, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
 
@@ -154,6 +157,7 @@ class _Run:
     def run(self) -> JobSummary:
         t0 = time.perf_counter()
         _remove_stale_tmp(self.opts.out, self.spec.steps)
+        remove_orphaned_temps(self.opts.out)
         steps: list[StepSummary] = []
         try:
             db = StateDB(self.opts.out / STATE_DB)

@@ -1,6 +1,7 @@
 """Merge complete shards into one LeRobot v3.0 dataset (lerobot's ``aggregate_datasets``), and load it.
 
-The merged dataset is built in a temporary sibling folder and renamed into place, like a shard.
+The merged dataset is built in a temporary sibling folder and renamed into place, like a shard; a
+temporary left by a killed merge into the same folder is deleted first (``pipeline.remove_orphaned_temps``).
 Episodes keep their shard order (shards sorted by id, episodes in recording order); the
 ``agentworld/`` columns of ``meta/episodes`` travel with them; the sidecar ``meta/agentworld.json``
 sums the shards' counts and failure reasons.
@@ -10,7 +11,6 @@ from __future__ import annotations
 
 import logging
 import os
-import secrets
 import shutil
 from collections import Counter
 from collections.abc import Sequence
@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pipeline import remove_orphaned_temps, temp_sibling
+
 from .schema import EPISODE_COLUMN_PREFIX, DatasetSpec
-from .shards import TEMP_PREFIX, ShardInfo, list_shards, shard_info
+from .shards import ShardInfo, list_shards, shard_info
 from .writer import import_lerobot, read_sidecar, write_json_atomic
 
 logger = logging.getLogger(__name__)
@@ -88,7 +90,8 @@ def _merge(shards: list[ShardInfo], out_dir: Path, where: str, repo_id: str, dat
     filled = [s for s in shards if s.episodes > 0]
     if not filled:
         raise MergeError(f"{where}: the {len(shards)} shard(s) hold no successful episode")
-    tmp = out_dir.parent / f"{TEMP_PREFIX}{out_dir.name}-{os.getpid()}-{secrets.token_hex(4)}"
+    remove_orphaned_temps(out_dir.parent, name=out_dir.name, max_depth=1)
+    tmp = temp_sibling(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     try:
         _aggregate(filled, tmp, repo_id, spec, data_files_size_mb, video_files_size_mb)

@@ -4,7 +4,8 @@ A shard ``<shards_dir>/<shard_id>`` is written in a temporary sibling folder
 ``<shards_dir>/.tmp-<shard_id>-<pid>-<nonce>`` and renamed into place (one atomic ``rename``) only after
 lerobot finalized every file and the sidecar ``meta/agentworld.json`` was written. A worker killed at
 any point (even ``kill -9``) leaves at most a ``.tmp-*`` folder, which no reader lists and which the next
-writer of the same shard id (or :func:`clean_stale_temps`) deletes.
+writer of the same shard id (or :func:`clean_stale_temps`, or the runner's next start: see
+``pipeline.remove_orphaned_temps``) deletes once its process is gone.
 
 Usage by the recorder::
 
@@ -21,17 +22,16 @@ from __future__ import annotations
 import logging
 import os
 import re
-import secrets
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
+
+from pipeline import remove_orphaned_temps, temp_sibling
 
 from .schema import DatasetSpec
 from .writer import SIDECAR_PATH, EpisodeWriter, WriterStats, read_sidecar
 
 logger = logging.getLogger(__name__)
 
-TEMP_PREFIX = ".tmp-"
 _SHARD_ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
@@ -59,7 +59,7 @@ class ShardWriter(EpisodeWriter):
         self.shards_dir = Path(shards_dir)
         self.shard_id = shard_id
         self.final = self.shards_dir / shard_id
-        temp = self.shards_dir / f"{TEMP_PREFIX}{shard_id}-{os.getpid()}-{secrets.token_hex(4)}"
+        temp = temp_sibling(self.final)
         kwargs.setdefault("repo_id", f"agentworld/{shard_id}")
         super().__init__(temp, spec, **kwargs)
 
@@ -88,19 +88,9 @@ def open_shard(shards_dir: Path, shard_id: str, spec: DatasetSpec, **kwargs) -> 
 
 
 def clean_stale_temps(shards_dir: Path, shard_id: str | None = None) -> list[Path]:
-    """Delete temporary folders of interrupted writers: of ``shard_id`` only, or all (only when no
-    writer of ``shards_dir`` is running). Returns the deleted folders."""
-    shards_dir = Path(shards_dir)
-    if not shards_dir.is_dir():
-        return []
-    pattern = f"{TEMP_PREFIX}{shard_id}-*" if shard_id else f"{TEMP_PREFIX}*"
-    removed = []
-    for path in sorted(shards_dir.glob(pattern)):
-        if shard_id and not re.fullmatch(rf"{re.escape(TEMP_PREFIX + shard_id)}-\d+-[0-9a-f]+", path.name):
-            continue  # another shard whose id starts with this one
-        shutil.rmtree(path, ignore_errors=True)
-        removed.append(path)
-    return removed
+    """Delete temporary folders of interrupted writers (of ``shard_id`` only, or all) whose process is
+    gone; a live process's folder is kept. Returns the deleted folders."""
+    return remove_orphaned_temps(Path(shards_dir), name=shard_id, max_depth=1)
 
 
 def list_shards(shards_dir: Path) -> list[ShardInfo]:

@@ -4,7 +4,13 @@ The file is compiled by MuJoCo itself (``mujoco.MjModel.from_xml_path``), so inc
 ``<compiler angle/meshdir/texturedir/eulerseq>``, ``fromto`` and inertia-from-geometry behave exactly as in
 MuJoCo; the compiled model is read at its reference configuration ``qpos0``.
 
-One MJCF file is one asset: the world body must have exactly one child body (the root link).
+One MJCF file is one asset. Its root link is the world body's one child body, unless that body is
+hinged or slid to the world, or the world body has several child bodies (both common in public
+packages): then the world is wrapped in a fixed parent link named ``world`` at the world origin (like
+a URDF's world link), which holds the world body's own geoms (planes still skipped); jointless
+top-level bodies merge into it and jointed ones hang from it by their joint. Such an asset has a fixed
+base unless the annotation's ``fixed_base`` says otherwise; a free joint on a top-level body beside
+others raises ItemError (several loose objects are not one asset).
 
 Bodies and joints:
 - a body with one hinge or slide joint becomes a link with a revolute / prismatic joint whose frame is
@@ -70,7 +76,7 @@ def load_mjcf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
 
     ``catalog_dir``: the catalog folder; included files and mesh/texture files may not leave it.
     Raises ItemError (one line, naming the file) when the file does not compile (MuJoCo's message),
-    escapes the catalog, has no or several top-level bodies, or uses joints that cannot be represented.
+    escapes the catalog, has no body or several free ones, or uses joints that cannot be represented.
     """
     import mujoco
 
@@ -207,15 +213,23 @@ class _Extractor:
 
         m = self.m
         top = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
-        if len(top) != 1:
-            raise ItemError(f"{self.path}: expected one top-level body (one asset per file), "
-                            f"found {len(top)}")
+        if not top:
+            raise ItemError(f"{self.path}: no body in <worldbody> (one asset per file needs one)")
+        hinged = m.body_jntnum[top[0]] >= 1 and int(m.jnt_type[m.body_jntadr[top[0]]]) in (
+            int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        wrap = len(top) > 1 or bool(hinged)
         self._log_ignored()
         names, jnames = g.NameTable(), g.NameTable()
         accs: list[_LinkAcc] = []
         link_of: dict[int, int] = {}
         joints: list[tuple[int, int, int]] = []     # (joint id, parent acc, child acc)
         free_root = False
+        if wrap:    # a fixed parent link standing in for the world (see the module docstring)
+            accs.append(_LinkAcc(name=names.add("world", "world"), world=np.eye(4), body=0))
+            link_of[0] = 0
+            log.info("%s: %s; wrapped in a fixed parent link %r", self.path,
+                     f"{len(top)} top-level bodies" if len(top) > 1 else "root body jointed to the world",
+                     accs[0].name)
         for b in range(1, m.nbody):
             jids = list(range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]))
             kinds = [int(m.jnt_type[j]) for j in jids]
@@ -227,19 +241,16 @@ class _Extractor:
             if kinds and kinds[0] == mujoco.mjtJoint.mjJNT_BALL:
                 raise ItemError(f"{self.path}: {what} has a ball joint, which is not supported")
             if kinds and kinds[0] == mujoco.mjtJoint.mjJNT_FREE:
-                if b != top[0]:
-                    raise ItemError(f"{self.path}: {what} has a free joint below the root body "
-                                    "(a second object)")
+                if b != top[0] or wrap:
+                    where = "beside other top-level bodies" if b in top else "below the root body"
+                    raise ItemError(f"{self.path}: {what} has a free joint {where} (a second object; "
+                                    "one asset per file)")
                 free_root = True
                 kinds, jids = [], []
-            if b == top[0] and kinds:
-                raise ItemError(f"{self.path}: the root {what} is jointed to the world by a "
-                                f"{'hinge' if kinds[0] == mujoco.mjtJoint.mjJNT_HINGE else 'slide'}; "
-                                "wrap it in a fixed parent body")
             body_world = g.transform(self.d.xpos[b], self.d.xmat[b].reshape(3, 3))
-            if b == top[0] or jids:
+            if (b == top[0] and not wrap) or jids:
                 t = body_world @ g.transform(m.jnt_pos[jids[0]]) if jids else body_world
-                fallback = "base" if b == top[0] else f"body{b}"
+                fallback = "base" if b == top[0] and not wrap else f"body{b}"
                 accs.append(_LinkAcc(name=names.add(bname, fallback), world=t, body=b))
                 link_of[b] = len(accs) - 1
                 if jids:
@@ -345,12 +356,12 @@ class _Extractor:
         shown = (m.geom_group <= 2) & (alpha > 0)
         for gid in range(m.ngeom):
             b = int(m.geom_bodyid[gid])
-            if b != 0 and not collides[gid] and shown[gid]:
+            if b in link_of and not collides[gid] and shown[gid]:
                 accs[link_of[b]].has_visual_only = True
         skipped: dict[str, int] = {}
         for gid in range(m.ngeom):
             b = int(m.geom_bodyid[gid])
-            if b == 0:
+            if b not in link_of:
                 skipped["world-body geoms"] = skipped.get("world-body geoms", 0) + 1
                 continue
             acc = accs[link_of[b]]

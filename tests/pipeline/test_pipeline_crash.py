@@ -117,3 +117,48 @@ def test_kill_9_then_resume_gives_identical_outputs(tmp_path):
     # and the completed work dir is a no-op to run again
     again = run_job(job, out=out, registry={}, progress=False)
     assert (again.done, again.cached) == (0, N + 1)
+
+
+_HOLD_TEMP = """
+import os, secrets, sys, time
+from pathlib import Path
+tmp = Path(sys.argv[1]) / f".tmp-demos-{os.getpid()}-{secrets.token_hex(4)}"   # as a dataset merge names it
+(tmp / "data" / "chunk-000").mkdir(parents=True)
+(tmp / "data" / "chunk-000" / "file-000.parquet").write_bytes(b"partial" * 1000)
+print(tmp, flush=True)
+time.sleep(120)
+"""
+
+
+def _hold_temp(datasets: Path) -> tuple[subprocess.Popen, Path]:
+    """A process that made a merge's temporary folder in ``datasets`` and is still writing it."""
+    proc = subprocess.Popen([sys.executable, "-c", _HOLD_TEMP, str(datasets)], stdout=subprocess.PIPE,
+                            text=True)
+    return proc, Path(proc.stdout.readline().strip())
+
+
+def test_resumed_run_removes_temporaries_of_a_killed_predecessor_only(tmp_path):
+    """A merge killed mid-way leaves ``datasets/.tmp-demos-<pid>-<hex>/``: the next run removes it, and
+    keeps a temporary of a process still alive and any other dot-folder."""
+    job = text_job(tmp_path, n=3, direct=True, workers=1, executor="inline")
+    out = tmp_path / "out"
+    first = run_job(job, out=out, registry={}, progress=False)
+    assert first.failed == 0
+    killed, orphan = _hold_temp(out / "datasets")
+    killed.kill()
+    killed.wait(timeout=30)
+    live, kept = _hold_temp(out / "datasets")
+    other = out / "datasets" / ".tmp-notes"
+    other.mkdir()
+    try:
+        assert orphan.is_dir() and kept.is_dir() and orphan != kept
+        again = run_job(job, out=out, registry={}, progress=False)
+        assert (again.done, again.cached, again.failed) == (0, first.done, 0)
+        assert not orphan.exists(), "the killed run's temporary is left behind"
+        assert kept.is_dir() and (kept / "data" / "chunk-000" / "file-000.parquet").is_file()
+        assert other.is_dir()
+        log = (out / "logs" / "job.log").read_text()
+        assert f"removed {orphan}, left by process {killed.pid}" in log
+    finally:
+        live.kill()
+        live.wait(timeout=30)

@@ -247,6 +247,21 @@ def test_merge_refuses_shards_with_different_specs(tmp_path):
     assert not (tmp_path / "merged").exists() and not list(tmp_path.glob(".tmp-*"))
 
 
+def test_merge_removes_the_temporary_of_a_killed_merge_but_not_a_live_one(tmp_path):
+    """A merge killed before its rename leaves ``.tmp-<out>-<pid>-<hex>``; the next merge into the same
+    folder deletes it (its process is gone) and leaves a live process's temporary alone."""
+    write_synthetic_shard(tmp_path / "shards", "s0", DatasetSpec(cameras=(CameraSpec("wrist", 16, 16),)),
+                          shard_index=0, episodes=1, frames=2)  # fmt: skip
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait(timeout=30)
+    dead = tmp_path / f".tmp-merged-{gone.pid}-0123abcd"
+    live = tmp_path / f".tmp-merged-{os.getppid()}-4567cdef"
+    for d in (dead, live):
+        (d / "data").mkdir(parents=True)
+    merge_shards(tmp_path / "shards", tmp_path / "merged")
+    assert not dead.exists() and live.is_dir() and (tmp_path / "merged").is_dir()
+
+
 def test_render_contact_sheet_command(merged, tmp_path):
     from PIL import Image
 
