@@ -9,17 +9,20 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     catalog_step = "catalog"    # the default_catalog step (its generated.json: surfaces, handles, joints)
     assets_step = "assets"      # the ingest step of that catalog (the USD packages, referenced)
     tasks = ["pick_place_bowl", "open_drawer"]   # default: every basic task
-    worlds = 1                  # worlds (kitchen variants) per task; one item = one shard
+    worlds = 1                  # worlds (kitchen variants) per task; one item per (task, kitchen)
     episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
+    batch_worlds = 1            # engine worlds per item (simulated together, one shard each)
     width = 128
     height = 96
     # panda_root = "..."        # the Panda description's root (default: pip example-robot-data)
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
-every task with the same ``k``), builds the simulation, runs ``episodes_per_shard`` episodes of the
-scripted expert (seeds from the item's seed) and writes one complete shard to
-``<out>/<step>/<item>/dataset`` through :mod:`stages.dataset`. ``finalize`` merges the shards into
+every task with the same ``k``), builds the batched engine (:mod:`stages.engine`: ``batch_worlds``
+copies of the kitchen in one simulation), runs ``episodes_per_shard`` episodes of the scripted
+expert (seeds from the item's seed; episode ``e`` in engine world ``e mod batch_worlds``) and writes
+one complete shard per engine world to ``<out>/<step>/<item>/dataset_w<k>`` through
+:mod:`stages.dataset`. ``finalize`` merges the shards into
 ``<out>/datasets/<step>`` (LeRobot v3.0, loadable with ``LeRobotDataset``) and writes
 ``<out>/reports/<step>.json``: per task attempts, successes, success rate and failure reasons,
 plus recorded frames and the wall time per stage.
@@ -54,7 +57,9 @@ class DemosConfig(_Strict):
     (packages); tasks: task names (default all); worlds: worlds per task; episodes_per_shard:
     episodes per item; width, height: camera image size [px]; fps; device: "cpu" or "cuda";
     record_images: False writes state/action only (no camera is rendered: a fast success-rate
-    run); panda_root: the Panda description's root (None: the pip package example-robot-data)."""
+    run); batch_worlds: worlds of the batched engine per item (one model of that many worlds on
+    CUDA, one MuJoCo C model each on CPU); panda_root: the Panda description's root (None: the pip
+    package example-robot-data)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -66,6 +71,7 @@ class DemosConfig(_Strict):
     fps: int = Field(default=30, ge=1, le=120)
     device: str = "cpu"
     record_images: bool = True
+    batch_worlds: int = Field(default=1, ge=1, le=4096)
     panda_root: Path | None = None
 
     @field_validator("tasks")
@@ -93,6 +99,7 @@ class ShardParams(_Strict):
     packages: dict[str, str]
     panda_root: str | None = None
     record_images: bool = True
+    batch_worlds: int = 1
 
 
 class EpisodeRecord(_Strict):
@@ -104,7 +111,8 @@ class EpisodeRecord(_Strict):
 
 
 class ShardResult(_Strict):
-    """dataset: the shard's folder (final location; None when no episode succeeded); counts;
+    """dataset: the folder holding the item's shards (final location; None when no episode
+    succeeded); datasets: the shards (one per engine world that wrote an episode); counts;
     failures by reason; timings [s] per stage; build_seconds: world authoring + simulation build."""
 
     task: str
@@ -118,6 +126,7 @@ class ShardResult(_Strict):
     records: tuple[EpisodeRecord, ...]
     timings: dict[str, float]
     build_seconds: float
+    datasets: tuple[str, ...] = ()
 
 
 def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[str, str]]:
@@ -173,6 +182,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
+                                 batch_worlds=config.batch_worlds,
                                  generated=str(generated), packages=packages,
                                  panda_root=None if config.panda_root is None else str(config.panda_root))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
@@ -180,50 +190,65 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
 
 
 def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
-    """Stage function: author the world, run the episodes, write the shard."""
+    """Stage function: author the world, run the episodes on the batched engine, write the shards."""
     import time
+    from contextlib import ExitStack
 
     import numpy as np
 
     from stages.dataset import EpisodeInfo, open_shard
     from stages.demos.kitchen import AssetLibrary, write_kitchen
-    from stages.demos.record import Timings
     from stages.demos.sampling import sample_instance
-    from stages.demos.session import DemoSettings, DemoWorld
+    from stages.engine import BatchEngine, EngineConfig
 
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
     lib = AssetLibrary.from_packages({k: Path(v) for k, v in params.packages.items()}, Path(params.generated))
     world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id,
                           rng=np.random.default_rng(params.world_seed))
-    settings = DemoSettings(width=params.width, height=params.height, fps=params.fps, device=params.device,
-                            record_images=params.record_images)
-    sim = DemoWorld(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
-                    work_dir=ctx.out_dir / "world", settings=settings, seed=params.world_seed)
+    n = min(params.batch_worlds, params.episodes)
+    config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
+                          device=params.device, record_images=params.record_images)
+    engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
+                         work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0
-    total, records, failures = Timings(), [], Counter()
-    with open_shard(ctx.out_dir, "dataset", settings.dataset_spec()) as shard:
-        for k in range(params.episodes):
-            seed = derive_seed(ctx.seed, "episode", str(k)) % (2**62)
-            inst = sample_instance(params.task, world, seed)
-            shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,
-                                            seed=seed, asset_ids=inst.asset_ids))
-            res = sim.run_episode(inst, sink=shard.add_frame)
-            t1 = time.perf_counter()
-            shard.end_episode(success=res.success, reason=res.reason)
-            res.timings.writing += time.perf_counter() - t1
-            total.add(res.timings)
+    records: dict[int, EpisodeRecord] = {}
+    failures: Counter[str] = Counter()
+    todo = {w: [k for k in range(params.episodes) if k % n == w] for w in range(n)}
+    seeds = {k: derive_seed(ctx.seed, "episode", str(k)) % (2**62) for k in range(params.episodes)}
+    written: Counter[int] = Counter()
+    with ExitStack() as stack:
+        shards = [stack.enter_context(open_shard(ctx.out_dir, f"dataset_w{w:03d}", config.dataset_spec()))
+                  for w in range(n)]
+
+        def next_instance(w: int):
+            return sample_instance(params.task, world, seeds[todo[w][0]]) if todo[w] else None
+
+        def begin(w: int, inst):
+            shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,
+                                                seed=inst.seed, asset_ids=inst.asset_ids))
+            return shards[w].add_frame
+
+        def end(w: int, inst, res):
+            k = todo[w].pop(0)
+            shards[w].end_episode(success=res.success, reason=res.reason)
+            written[w] += res.success
             if not res.success:
                 failures[res.reason] += 1
-            records.append(EpisodeRecord(seed=seed, success=res.success, reason=res.reason, frames=res.frames,
-                                         sim_seconds=round(res.sim_seconds, 3)))
+            records[k] = EpisodeRecord(seed=inst.seed, success=res.success, reason=res.reason, frames=res.frames,
+                                       sim_seconds=round(res.sim_seconds, 3))
+
+        stats = engine.run(next_instance, begin=begin, end=end)
         t1 = time.perf_counter()
+    total = stats.timings
     total.writing += time.perf_counter() - t1
-    written = sum(r.success for r in records)
+    recs = tuple(records[k] for k in sorted(records))
+    datasets = tuple(str(ctx.final_dir / f"dataset_w{w:03d}") for w in range(n) if written[w])
     return ShardResult(task=params.task, world=params.world, scene_id=scene_id,
-                       dataset=str(ctx.final_dir / "dataset"), attempts=len(records), episodes=written,
-                       frames=sum(r.frames for r in records if r.success), failures=dict(failures),
-                       records=tuple(records), timings=total.to_json(), build_seconds=round(build, 3))
+                       dataset=str(ctx.final_dir) if datasets else None, datasets=datasets,
+                       attempts=len(recs), episodes=sum(r.success for r in recs),
+                       frames=sum(r.frames for r in recs if r.success), failures=dict(failures),
+                       records=recs, timings=total.to_json(), build_seconds=round(build, 3))
 
 
 def success_report(results: list[ShardResult]) -> dict[str, Any]:
@@ -261,7 +286,7 @@ def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any
     report = success_report(res)
     failed_items = ctx.failed.get(step, {})
     report["failed_items"] = dict(failed_items)
-    roots = [Path(r.dataset) for r in res if r.episodes > 0 and r.dataset]
+    roots = [Path(d) for r in res if r.episodes > 0 for d in (r.datasets or (r.dataset,)) if d]
     out = ctx.work_dir / "datasets" / step
     report["dataset"] = None
     if roots:
