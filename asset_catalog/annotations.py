@@ -22,6 +22,7 @@ A catalog is a folder of source files plus ``annotations.toml``::
     fixed_base = false         # articulated sources: fix the root to the world
     plausible_size = [0.05, 0.3]   # [m] largest dimension; default: asset_catalog.plausibility
     plausible_mass = [0.1, 1.0]    # [kg] total mass; default: asset_catalog.plausibility
+    mjcf_body = "mug"          # MJCF with several top-level bodies: ingest only this one (and its children)
 
 Everything else (bounding box, volume, mass, friction, colliders) is computed by the stages.
 """
@@ -91,6 +92,7 @@ class AssetAnnotation(_Strict):
     fixed_base: bool | None = None
     plausible_size: tuple[float, float] | None = Field(default=None, description="[m] largest dimension")
     plausible_mass: tuple[float, float] | None = Field(default=None, description="[kg] total mass")
+    mjcf_body: str | None = None
 
     @field_validator("plausible_size", "plausible_mass")
     @classmethod

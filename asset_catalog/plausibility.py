@@ -41,7 +41,7 @@ def _r(size_lo: float, size_hi: float, mass_lo: float, mass_hi: float) -> Plausi
 _SMALL_DEVICE = _r(0.03, 0.5, 0.01, 4.0)
 _DRINKWARE = _r(0.04, 0.4, 0.01, 3.0)
 _FRUIT = _r(0.02, 0.4, 0.003, 4.0)
-_CABINET = _r(0.2, 3.0, 1.0, 400.0)
+_CABINET = _r(0.1, 3.0, 0.5, 400.0)     # LIBERO's drawer cabinets are 0.2-0.26 m
 _TABLE = _r(0.3, 4.0, 2.0, 300.0)
 
 PLAUSIBLE: dict[str, PlausibleRange] = {
@@ -57,28 +57,28 @@ PLAUSIBLE: dict[str, PlausibleRange] = {
     "floor_lamp": _r(0.6, 2.5, 0.5, 60.0), "cabinet": _CABINET, "drawer_cabinet": _CABINET,
     "door": _r(1.2, 3.2, 3.0, 150.0), "bin": _r(0.15, 1.2, 0.1, 30.0),
     # appliances and fittings
-    "fridge": _r(0.5, 2.4, 15.0, 400.0), "microwave": _r(0.2, 0.9, 3.0, 50.0),
+    "fridge": _r(0.5, 2.4, 15.0, 400.0), "microwave": _r(0.2, 0.9, 1.0, 50.0),
     "oven": _r(0.4, 1.5, 10.0, 200.0), "dishwasher": _r(0.4, 1.2, 10.0, 150.0),
-    "light_switch": _r(0.02, 0.6, 0.005, 3.0), "light_bulb": _r(0.04, 0.3, 0.005, 0.5),
+    "light_switch": _r(0.02, 0.6, 0.005, 3.0), "light_bulb": _r(0.04, 0.3, 0.005, 1.0),
     "kettle": _r(0.1, 0.5, 0.2, 5.0),
     # tableware and kitchen
     "bowl": _r(0.05, 0.45, 0.02, 4.0), "plate": _r(0.08, 0.5, 0.03, 4.0),
     "mug": _DRINKWARE, "cup": _DRINKWARE, "wine_glass": _DRINKWARE, "bottle": _r(0.05, 0.6, 0.01, 5.0),
     "water_bottle": _r(0.05, 0.6, 0.01, 5.0), "can": _r(0.04, 0.35, 0.01, 3.0),
     "pitcher": _r(0.08, 0.5, 0.05, 5.0), "teapot": _r(0.08, 0.5, 0.05, 5.0),
-    "tea_set": _r(0.1, 1.0, 0.1, 10.0), "frying_pan": _r(0.15, 0.8, 0.1, 6.0),
+    "tea_set": _r(0.1, 1.5, 0.1, 10.0), "frying_pan": _r(0.15, 0.8, 0.1, 6.0),
     "cutlery": _r(0.05, 0.5, 0.002, 1.0), "kitchen_utensil": _r(0.05, 0.6, 0.002, 2.0),
     "milk_carton": _r(0.06, 0.5, 0.01, 4.0), "cereal_box": _r(0.08, 0.6, 0.01, 3.0),
     "sponge": _r(0.03, 0.3, 0.001, 0.5), "nut": _r(0.01, 0.5, 0.001, 5.0),
     # food
     "apple": _FRUIT, "orange": _FRUIT, "fruit": _FRUIT, "banana": _r(0.06, 0.4, 0.03, 1.0),
-    "bread": _r(0.05, 0.7, 0.02, 3.0),
+    "bread": _r(0.03, 0.7, 0.01, 3.0),
     # small objects
     "book": _r(0.08, 0.6, 0.03, 6.0), "box": _r(0.03, 1.2, 0.005, 40.0),
     "crumpled_paper": _r(0.01, 0.3, 0.0005, 0.3), "pillow": _r(0.2, 1.2, 0.05, 6.0),
     "alarm_clock": _r(0.04, 0.4, 0.02, 3.0), "hanger": _r(0.15, 0.8, 0.01, 1.0),
     "toy": _r(0.012, 1.0, 0.001, 10.0), "rubber_duck": _r(0.02, 0.6, 0.003, 3.0),
-    "ball": _r(0.02, 0.6, 0.002, 5.0), "piggy_bank": _r(0.05, 0.5, 0.02, 4.0),
+    "ball": _r(0.02, 0.6, 0.002, 5.0), "piggy_bank": _r(0.05, 0.5, 0.02, 8.0),
     "toothbrush": _r(0.08, 0.35, 0.003, 0.3), "toothpaste": _r(0.05, 0.35, 0.01, 0.5),
     "stapler": _SMALL_DEVICE, "phone": _SMALL_DEVICE, "computer_mouse": _SMALL_DEVICE,
     "camera": _SMALL_DEVICE, "headphones": _SMALL_DEVICE, "binoculars": _SMALL_DEVICE,

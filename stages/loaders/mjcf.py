@@ -10,7 +10,9 @@ packages): then the world is wrapped in a fixed parent link named ``world`` at t
 a URDF's world link), which holds the world body's own geoms (planes still skipped); jointless
 top-level bodies merge into it and jointed ones hang from it by their joint. Such an asset has a fixed
 base unless the annotation's ``fixed_base`` says otherwise; a free joint on a top-level body beside
-others raises ItemError (several loose objects are not one asset).
+others raises ItemError (several loose objects are not one asset). For one asset per top-level body,
+give each entry the annotation's ``mjcf_body``: the asset is then that body and its children only (the
+world body's geoms are left out), with the rules above for one top-level body.
 
 Bodies and joints:
 - a body with one hinge or slide joint becomes a link with a revolute / prismatic joint whose frame is
@@ -215,6 +217,13 @@ class _Extractor:
         top = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
         if not top:
             raise ItemError(f"{self.path}: no body in <worldbody> (one asset per file needs one)")
+        inside = set(range(1, m.nbody))
+        if self.annotation.mjcf_body is not None:    # one asset per top-level body: this one's subtree
+            top = [self._top_body(top, self.annotation.mjcf_body)]
+            inside = set(top)
+            for b in range(top[0] + 1, m.nbody):      # MuJoCo numbers parents before their children
+                if int(m.body_parentid[b]) in inside:
+                    inside.add(b)
         hinged = m.body_jntnum[top[0]] >= 1 and int(m.jnt_type[m.body_jntadr[top[0]]]) in (
             int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
         wrap = len(top) > 1 or bool(hinged)
@@ -230,7 +239,7 @@ class _Extractor:
             log.info("%s: %s; wrapped in a fixed parent link %r", self.path,
                      f"{len(top)} top-level bodies" if len(top) > 1 else "root body jointed to the world",
                      accs[0].name)
-        for b in range(1, m.nbody):
+        for b in sorted(inside):
             jids = list(range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]))
             kinds = [int(m.jnt_type[j]) for j in jids]
             bname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
@@ -244,7 +253,7 @@ class _Extractor:
                 if b != top[0] or wrap:
                     where = "beside other top-level bodies" if b in top else "below the root body"
                     raise ItemError(f"{self.path}: {what} has a free joint {where} (a second object; "
-                                    "one asset per file)")
+                                    "one asset per file, or per top-level body with mjcf_body)")
                 free_root = True
                 kinds, jids = [], []
             body_world = g.transform(self.d.xpos[b], self.d.xmat[b].reshape(3, 3))
@@ -258,13 +267,22 @@ class _Extractor:
             else:
                 link_of[b] = link_of[int(m.body_parentid[b])]
             self._mass(b, accs[link_of[b]])
-        self._geoms(accs, link_of)
+        self._geoms(accs, {b: a for b, a in link_of.items() if b != 0 or self.annotation.mjcf_body is None})
         root_inv = g.inverse(accs[0].world)
         links = [self._link(a, root_inv) for a in accs]
         out_joints = [self._joint(j, accs[p], accs[c], jnames) for j, p, c in joints]
         fixed = self.annotation.fixed_base if self.annotation.fixed_base is not None else not free_root
         return AssetModel(name=self.annotation.id, annotation=self.annotation, links=tuple(links),
                           joints=tuple(out_joints), materials=dict(self.materials), fixed_base=bool(fixed))
+
+    def _top_body(self, top: list[int], name: str) -> int:
+        import mujoco
+
+        names = {mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b): b for b in top}
+        if name not in names:
+            raise ItemError(f"{self.path}: mjcf_body {name!r} is not a top-level body; those are "
+                            f"{', '.join(repr(n) for n in names if n) or 'unnamed'}")
+        return names[name]
 
     def _log_ignored(self) -> None:
         m = self.m
@@ -362,7 +380,8 @@ class _Extractor:
         for gid in range(m.ngeom):
             b = int(m.geom_bodyid[gid])
             if b not in link_of:
-                skipped["world-body geoms"] = skipped.get("world-body geoms", 0) + 1
+                key = "geoms outside the asset's bodies"
+                skipped[key] = skipped.get(key, 0) + 1
                 continue
             acc = accs[link_of[b]]
             visual = shown[gid] and (not collides[gid] or not acc.has_visual_only)

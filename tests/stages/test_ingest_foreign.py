@@ -245,3 +245,53 @@ def test_default_catalog_categories_fit_their_plausible_size():
     for spec in GENERATORS:
         lo, hi = PLAUSIBLE[spec.category].size
         assert lo <= max(spec.size_min) and max(spec.size_max) <= hi, spec.category
+
+
+_TWO_OBJECTS = """<mujoco model="tabletop">
+  <worldbody>
+    <geom name="floor" type="box" size="1 1 0.01" pos="0 0 -0.01"/>
+    <body name="block" pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.04 0.03" mass="0.3"/></body>
+    <body name="flap" pos="0.5 0 0.2">
+      <joint name="flap_hinge" type="hinge" axis="1 0 0" range="-45 45"/>
+      <geom type="box" size="0.1 0.01 0.1" mass="0.5"/>
+      <body name="handle" pos="0 -0.03 0.05"><geom type="box" size="0.04 0.02 0.01" mass="0.05"/></body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_mjcf_one_asset_per_top_level_body_when_the_annotation_names_it(tmp_path):
+    """Two entries with the same file and ``mjcf_body`` give one asset per top-level body: the free block
+    (movable, no joint) and the hinged flap with its welded handle (wrapped in a fixed 'world' link);
+    the world's floor belongs to neither. An unknown body name fails alone, naming the top-level bodies."""
+    from pxr import UsdPhysics
+
+    from asset_catalog.index import index_path, query_index
+
+    cat = tmp_path / "catalog"
+    cat.mkdir()
+    (cat / "tabletop.xml").write_text(_TWO_OBJECTS, encoding="utf-8")
+    common = dict(source="tabletop.xml", material="wood")
+    _catalog(cat, [dict(id="block", category="box", mjcf_body="block", **common),
+                   dict(id="flap", category="cabinet", mjcf_body="flap", **common),
+                   dict(id="nothing", category="box", mjcf_body="lid", **common)])
+    out = tmp_path / "out"
+    (step,) = _run_ingest(cat, out).steps
+    reasons = {f.item_id: f.reason for f in step.failures}
+    assert set(reasons) == {"nothing"} and step.done == 2, reasons
+    assert "mjcf_body 'lid' is not a top-level body; those are 'block', 'flap'" in reasons["nothing"]
+    assert str(cat / "tabletop.xml") in reasons["nothing"] and "\n" not in reasons["nothing"]
+
+    recs = {r.id: r for r in query_index(index_path(out), status="ok")}
+    assert recs["block"].dimensions == pytest.approx((0.1, 0.08, 0.06), abs=1e-4)    # no floor in it
+    assert recs["block"].mass == pytest.approx(0.3) and recs["block"].n_joints == 0
+    _, joints, bodies = _usd(out, "block")
+    assert bodies == ["block"] and not joints                                         # a free rigid body
+    from stages.annotate import MIN_LINK_MASS_KG
+
+    assert recs["flap"].mass == pytest.approx(0.55 + MIN_LINK_MASS_KG)   # flap, handle, empty world link
+    _, joints, bodies = _usd(out, "flap")
+    assert sorted(bodies) == ["flap", "world"] and "flap_hinge" in joints
+    hinge = UsdPhysics.RevoluteJoint(joints["flap_hinge"])
+    assert (hinge.GetLowerLimitAttr().Get(), hinge.GetUpperLimitAttr().Get()) == pytest.approx((-45.0, 45.0))
