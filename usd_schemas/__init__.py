@@ -2,20 +2,23 @@
 
 Public API::
 
-    register()                                   # schema plugin -> Plug.Registry (idempotent)
+    register() -> bool                           # schema plugins -> Plug.Registry (idempotent)
     write_asset_package(model, out_dir, *, pipeline_version) -> AssetPackage
     validate_package(path) -> ValidationReport
 
-Importing this package imports pxr and registers the AgentWorld schema plugin, so that it is
-registered before anything in the process first uses the USD schema registry. ``pipeline`` never
-imports this package at top level.
+Importing this package puts the schema plugins on ``PXR_PLUGINPATH_NAME`` (before it imports
+pxr), then imports pxr and registers them; a process that used pxr first still works (see
+``_registry``). ``pipeline`` never imports this package at top level.
 """
 
 from __future__ import annotations
 
-from usd_schemas._package import AssetPackage, write_asset_package
-from usd_schemas._registry import ASSET_API, PLUGIN_DIR, register
-from usd_schemas._validate import ValidationIssue, ValidationReport, validate_package
+from usd_schemas._registry import ASSET_API, PLUGIN_DIR, plugin_path_env, register
+
+plugin_path_env()
+
+from usd_schemas._package import AssetPackage, write_asset_package  # noqa: E402  (after the plugin path)
+from usd_schemas._validate import ValidationIssue, ValidationReport, validate_package  # noqa: E402
 
 register()
 
@@ -25,6 +28,7 @@ __all__ = [
     "AssetPackage",
     "ValidationIssue",
     "ValidationReport",
+    "plugin_path_env",
     "register",
     "validate_package",
     "write_asset_package",

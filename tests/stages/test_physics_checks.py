@@ -149,3 +149,26 @@ def test_articulated_joints_reach_their_limits(packages, name, joints):
 def test_joint_limit_check_without_joints_fails(packages):
     r = joint_limit_check(packages["box_01"])
     assert not r.passed and r.reasons == ("no revolute or prismatic joint",)
+
+
+def test_checks_work_after_pxr_opened_the_package_first(packages):
+    """Import order: a fresh process opens packages with pxr (building USD's schema registry)
+    before anything of ours is imported, then runs both checks."""
+    import os
+    import subprocess
+
+    code = ("import sys\n"
+            "from pxr import Usd\n"
+            "stages = [Usd.Stage.Open(p) for p in sys.argv[1:]]\n"
+            "assert 'AgentWorldAssetAPI' in stages[0].GetDefaultPrim().GetMetadata('apiSchemas').GetAddedOrExplicitItems()\n"
+            "assert Usd.SchemaRegistry().FindAppliedAPIPrimDefinition('AgentWorldAssetAPI') is None\n"
+            "from stages.physics_checks import joint_limit_check, rest_check\n"
+            "r = rest_check(sys.argv[1], seconds=1.5)\n"
+            "j = joint_limit_check(sys.argv[2])\n"
+            "print(r.passed, r.reasons, j.passed, len(j.joints), j.reasons)\n")
+    repo = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if k != "PXR_PLUGINPATH_NAME"}
+    r = subprocess.run([sys.executable, "-c", code, str(packages["box_01"]), str(packages["cabinet_01"])],
+                       cwd=repo, capture_output=True, text=True, timeout=300, env={**env, "PYTHONPATH": str(repo)})
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split("\n")[-2] == "True () True 2 ()"

@@ -31,8 +31,10 @@ FALLBACKS = {
 
 
 def _run(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    """``code`` in a fresh interpreter, without the plugin path that importing usd_schemas here set."""
+    base = {k: v for k, v in os.environ.items() if k != "PXR_PLUGINPATH_NAME"}
     return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "PYTHONPATH": str(REPO), **(env or {})})
+                          env={**base, "PYTHONPATH": str(REPO), **(env or {})})
 
 
 def test_committed_generated_files_match_schema():
@@ -123,13 +125,47 @@ def test_schema_in_a_fresh_process_through_pxr_pluginpath_name():
     assert r.stdout.strip() == "True True"
 
 
-def test_late_registration_is_a_clear_error():
-    r = _run("from pxr import Usd\n"
-             "Usd.SchemaRegistry()\n"
-             "from usd_schemas._registry import register\n"
-             "register()\n")
-    assert r.returncode != 0
-    assert "before the schema registry is first used" in r.stderr
+def test_importing_usd_schemas_first_puts_both_plugins_on_the_plugin_path():
+    r = _run("import os, usd_schemas\n"
+             "print(os.environ['PXR_PLUGINPATH_NAME'])\n"
+             "from pxr import Usd\n"
+             "print(Usd.SchemaRegistry().FindAppliedAPIPrimDefinition('NewtonMaterialAPI') is not None)\n")
+    assert r.returncode == 0, r.stderr
+    path, newton_found = r.stdout.split()
+    assert path.split(os.pathsep)[0] == str(SCHEMA_DIR) and "newton_usd_schemas" in path
+    assert newton_found == "True"
+
+
+def test_late_registration_warns_once_and_writes_the_same_package(tmp_path):
+    """pxr's schema registry built first: register() returns False with one warning naming the fix,
+    and a package written and validated in that process equals one written in a fresh process."""
+    code = ("import sys, logging\n"
+            "logging.basicConfig(level=logging.WARNING)\n"
+            "from pxr import Usd\n"
+            "Usd.SchemaRegistry()\n"
+            "import usd_schemas\n"
+            "print(usd_schemas.register(), usd_schemas.register())\n"
+            "sys.path.insert(0, 'tests/usd_schemas')\n"
+            "import usd_test_models as M\n"
+            "from pathlib import Path\n"
+            "pkg = usd_schemas.write_asset_package(M.cabinet_model(), Path(sys.argv[1]), pipeline_version='0.1.0')\n"
+            "print(usd_schemas.validate_package(pkg.root_path).ok)\n")
+    late = subprocess.run([sys.executable, "-c", code, str(tmp_path / "late")], cwd=REPO, capture_output=True,
+                          text=True, timeout=120, env={**{k: v for k, v in os.environ.items()
+                                                          if k != "PXR_PLUGINPATH_NAME"}, "PYTHONPATH": str(REPO)})
+    assert late.returncode == 0, late.stderr
+    assert late.stdout.split() == ["False", "False", "True"]
+    assert late.stderr.count("is not in USD's schema registry") == 1
+    assert "PXR_PLUGINPATH_NAME=" in late.stderr
+    import usd_test_models as M
+
+    early = usd_schemas.write_asset_package(M.cabinet_model(), tmp_path / "early", pipeline_version="0.1.0")
+    for name in ("cabinet_01.usda", "cabinet_01_payload.usdc"):
+        from pxr import Sdf
+
+        a = Sdf.Layer.FindOrOpen(str(tmp_path / "late" / name)).ExportToString()
+        b = Sdf.Layer.FindOrOpen(str(early.root_path.parent / name)).ExportToString()
+        assert a == b
 
 
 def test_generate_rejects_non_codeless_schema(tmp_path):
