@@ -109,7 +109,8 @@ class Link:
     (URDF/MJCF), else None (colliders are then computed from visuals);
     colliders: convex pieces (each a closed convex MeshPart) filled in by the collision stage;
     collider_approx: how they were made; mass: filled in by the annotate stage unless the source
-    gives it (``mass_from_source``).
+    gives it (``mass_from_source``); contact: contact properties the source declares for this
+    link (URDF ``<contact>``), which override the asset's physics material on its colliders.
     """
 
     name: str
@@ -120,6 +121,7 @@ class Link:
     collider_approx: ColliderApprox | None = None
     mass: MassProperties | None = None
     mass_from_source: bool = False
+    contact: ContactSpec | None = None
 
 
 class JointType(StrEnum):
@@ -157,12 +159,37 @@ class Joint:
 
 @dataclass(frozen=True, kw_only=True)
 class PhysicsMaterialSpec:
-    """static/dynamic friction [-], restitution [-], density [kg/m^3]."""
+    """static/dynamic friction [-], restitution [-], density [kg/m^3]; torsional and rolling
+    friction [m] (torque per normal force; see ``asset_catalog.materials``; the defaults are MuJoCo's
+    and Newton's)."""
 
     static_friction: float
     dynamic_friction: float
     restitution: float
     density: float
+    torsional_friction: float = 0.005
+    rolling_friction: float = 0.0001
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactSpec:
+    """Contact properties a source declares for one link, None where it says nothing: friction
+    (static and dynamic) [-], torsional_friction [m], rolling_friction [m], restitution [-]."""
+
+    friction: float | None = None
+    torsional_friction: float | None = None
+    rolling_friction: float | None = None
+    restitution: float | None = None
+
+    def apply(self, pm: PhysicsMaterialSpec) -> PhysicsMaterialSpec:
+        """``pm`` with the values this spec declares."""
+        out = pm
+        if self.friction is not None:
+            out = replace(out, static_friction=self.friction, dynamic_friction=self.friction)
+        for name in ("torsional_friction", "rolling_friction", "restitution"):
+            if getattr(self, name) is not None:
+                out = replace(out, **{name: getattr(self, name)})
+        return out
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

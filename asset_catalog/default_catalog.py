@@ -112,7 +112,7 @@ def _info(a: GeneratedAsset) -> dict:
 
 
 def main(argv: list[str]) -> int:
-    """``agentworld catalog-build-default --out DIR [--variants N] [--seed S] [--categories a,b]``."""
+    """``agentworld catalog build-default --out DIR [--variants N] [--seed S] [--categories a,b]``."""
     import argparse
 
     p = argparse.ArgumentParser(prog="agentworld catalog build-default",

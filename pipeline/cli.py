@@ -3,6 +3,7 @@
     agentworld run JOB.toml [--out DIR] [--executor local|ray|inline] [--workers N] [--ray-address A]
     agentworld ingest CATALOG_DIR [--annotations FILE] [--out DIR] [...]   # one-step "ingest" job
     agentworld catalog list [--category C] [--room R] [--placement P] [--work-dir out/main]
+    agentworld catalog build-default --out DIR [--variants N]
     agentworld status [--out DIR]
     agentworld <extra>  ...                       # subcommands registered in stages/commands.py
 
@@ -27,12 +28,22 @@ EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_FAILED_ITEMS, EXIT_INTERRUPTED = 0, 1, 2, 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
 
 
-def _extra_commands() -> dict[str, str]:
+LEGACY_ALIASES = {"catalog-build-default": ["catalog", "build-default"]}
+"""Old spellings still accepted (not listed in ``--help``)."""
+
+
+def _extra_commands() -> dict[str, tuple[str, str]]:
+    """name -> ("module:function", one-line help) of the commands in ``stages.commands``."""
     try:
         from stages.commands import COMMANDS
     except ImportError:
         return {}
-    return {k: v for k, v in COMMANDS.items() if k not in BUILTIN}
+    out = {}
+    for name, entry in COMMANDS.items():
+        if name not in BUILTIN:
+            ref, help_text = (entry, "") if isinstance(entry, str) else entry
+            out[name] = (ref, help_text)
+    return out
 
 
 def _add_run_options(p: argparse.ArgumentParser) -> None:
@@ -55,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     extras = _extra_commands()
     parser = argparse.ArgumentParser(
         prog="agentworld", description="AgentWorld: USD asset pipeline and dataset factory.",
-        epilog=("more subcommands: " + ", ".join(sorted(extras))) if extras else None)
+        epilog="Each command has its own --help.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -71,7 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run_options(p)
     p.set_defaults(out_default=Path("out/ingest"))
 
-    p = sub.add_parser("catalog", help="query the catalog index")
+    p = sub.add_parser("catalog", help="list the catalog index (list) or write the built-in procedural "
+                                       "catalog (build-default)")
     csub = p.add_subparsers(dest="catalog_command", metavar="ACTION")
     csub.required = True
     c = csub.add_parser("list", help="list assets of the catalog index")
@@ -92,18 +104,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("out/main"), help="work dir")
     p.add_argument("--failures", type=int, default=50, help="show at most this many failures")
 
-    for name, ref in sorted(extras.items()):
-        sub.add_parser(name, help=f"(from {ref})", add_help=False)
+    for name, (_ref, help_text) in sorted(extras.items()):
+        sub.add_parser(name, help=help_text or name, add_help=False)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in LEGACY_ALIASES:
+        argv = LEGACY_ALIASES[argv[0]] + argv[1:]
     extras = _extra_commands()
     if argv and argv[0] in extras:
         from pipeline._src.registry import import_object
 
-        return int(import_object(extras[argv[0]])(argv[1:]) or 0)
+        return int(import_object(extras[argv[0]][0])(argv[1:]) or 0)
     if argv[:2] == ["catalog", "build-default"]:
         from asset_catalog.default_catalog import main as build_default
 
@@ -129,11 +143,16 @@ def _console() -> Any:
 
 
 def _setup_logging(level: str, console: Any, *, verbose: bool = False) -> None:
-    """Root logger at ``level`` (what logs/job.log records); stderr shows WARNING and above unless
-    ``verbose``, so the progress bar stays readable."""
+    """Root logger at ``level`` (what logs/job.log records); stderr shows WARNING and above of our
+    own packages unless ``verbose`` (then INFO and third-party records too), so the progress bar
+    stays readable. Third-party chatter goes to logs/job.log (``pipeline._src.chatter``)."""
     from rich.logging import RichHandler
 
+    from pipeline._src.chatter import OwnRecords
+
     handler = RichHandler(console=console, show_path=False, rich_tracebacks=False, markup=False)
+    if not verbose:
+        handler.addFilter(OwnRecords())
     handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
     numeric = logging.getLevelName(level)
     handler.setLevel(level if verbose or numeric >= logging.WARNING else logging.WARNING)

@@ -20,7 +20,9 @@ Mass of a link (unless the source gave it, ``mass_from_source``):
   moments and the rotation of the principal axes.
 
 Friction and restitution are sampled per asset from the material rules
-(``asset_catalog.materials.sample_physical_properties``) with the stage's generator.
+(``asset_catalog.materials.sample_physical_properties``) with the stage's generator; torsional and
+rolling friction are the material class's. A link whose source declares contact properties (URDF
+``<contact>``, ``Link.contact``) keeps them: the writer gives its colliders their own material.
 """
 
 from __future__ import annotations
@@ -107,7 +109,8 @@ def annotate_with_stats(model: AssetModel, rng: np.random.Generator) -> tuple[As
             mass = props.density * s.mass_volume
         links.append(replace(lk, mass=_mass_properties(max(mass, MIN_LINK_MASS_KG), s)))
     pm = PhysicsMaterialSpec(static_friction=props.static_friction, dynamic_friction=props.dynamic_friction,
-                             restitution=props.restitution, density=props.density)
+                             restitution=props.restitution, density=props.density,
+                             torsional_friction=props.torsional_friction, rolling_friction=props.rolling_friction)
     out = replace(model, links=tuple(links), physics_material=pm)
     lo, hi = model_bounds(out)
     stats = AssetStats(

@@ -1,15 +1,18 @@
 """Extra ``agentworld`` subcommands contributed by stage modules.
 
-``COMMANDS`` maps a subcommand name (e.g. ``"render-layout"``) to ``"module:function"`` where
-``function(argv: list[str]) -> int`` parses its own arguments and returns the exit status. The CLI
-lists the names in ``--help`` and imports a module only when its subcommand runs. One line per
-entry; the built-in names (run, ingest, catalog, status) cannot be overridden.
+``COMMANDS`` maps a subcommand name (e.g. ``"render-layout"``) to ``("module:function", help)``:
+``function(argv: list[str]) -> int`` parses its own arguments and returns the exit status; help is
+the one line ``agentworld --help`` shows. The CLI imports a module only when its subcommand runs.
+One entry per command; the built-in names (run, ingest, catalog, status) cannot be overridden.
 """
 
-COMMANDS: dict[str, str] = {
-    "render-dataset": "stages.dataset.render:cli",
-    "render-layout": "stages.layout.render:cli",
-    "catalog-build-default": "asset_catalog.default_catalog:main",
-    "render-assets": "stages.render_assets:main",
-    "render-scenes": "stages.scene.render:cli",
+COMMANDS: dict[str, tuple[str, str]] = {
+    "render-assets": ("stages.render_assets:main",
+                      "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
+    "render-dataset": ("stages.dataset.render:cli",
+                       "contact sheet PNG of a LeRobot dataset's camera frames (RGB and depth)"),
+    "render-layout": ("stages.layout.render:cli",
+                      "generate a house; write its top-down plan PNG and a 3D render PNG"),
+    "render-scenes": ("stages.scene.render:cli",
+                      "contact sheet PNG of a scene job's populated scenes, one camera per room"),
 }

@@ -10,7 +10,7 @@ from collections.abc import Iterable
 import numpy as np
 from pxr import Gf, Kind, Sdf, Vt
 
-from usd_schemas._plan import PHYSICS_MATERIAL, BodyPlan, JointPlan, MaterialPlan, MeshPlan, PackagePlan
+from usd_schemas._plan import BodyPlan, JointPlan, MaterialPlan, MeshPlan, PackagePlan, PhysicsMaterialPlan
 
 LABEL_INSTANCE = "class"
 _SHADER_SURFACE = "PreviewSurface"
@@ -98,25 +98,30 @@ def author_payload_layer(layer, plan: PackagePlan) -> None:
         _stage_metadata(layer, plan.asset_id, f"AgentWorld asset package {plan.asset_id}: geometry and physics")
         _prim(layer, plan.root, "Xform", ("PhysicsArticulationRootAPI",) if plan.articulated else ())
         _prim(layer, f"{plan.root}/Looks", "Scope")
-        _physics_material(layer, plan)
+        for pm in plan.physics_materials:
+            _physics_material(layer, pm)
         for m in plan.materials:
             _material(layer, m)
         for b in plan.bodies:
-            _body(layer, b, f"{plan.root}/Looks/{PHYSICS_MATERIAL}")
+            _body(layer, b, b.physics_material)
         if plan.joints:
             _prim(layer, f"{plan.root}/joints", "Scope")
             for j in plan.joints:
                 _joint(layer, j)
 
 
-def _physics_material(layer, plan: PackagePlan) -> None:
+def _physics_material(layer, pm: PhysicsMaterialPlan) -> None:
+    """UsdPhysics material plus Newton's NewtonMaterialAPI: torsional and rolling friction [m],
+    which Newton's importer reads into mu_torsional / mu_rolling (MuJoCo's geom friction 2 and 3)."""
     T = Sdf.ValueTypeNames
-    p = plan.physics
-    spec = _prim(layer, f"{plan.root}/Looks/{PHYSICS_MATERIAL}", "Material", ("PhysicsMaterialAPI",))
+    p = pm.props
+    spec = _prim(layer, pm.path, "Material", ("PhysicsMaterialAPI", "NewtonMaterialAPI"))
     _attr(spec, "physics:staticFriction", T.Float, float(p.static_friction))
     _attr(spec, "physics:dynamicFriction", T.Float, float(p.dynamic_friction))
     _attr(spec, "physics:restitution", T.Float, float(p.restitution))
     _attr(spec, "physics:density", T.Float, float(p.density))
+    _attr(spec, "newton:torsionalFriction", T.Float, float(p.torsional_friction))
+    _attr(spec, "newton:rollingFriction", T.Float, float(p.rolling_friction))
 
 
 def _material(layer, m: MaterialPlan) -> None:
@@ -214,6 +219,8 @@ def _mesh(layer, m: MeshPlan, physics_material: str) -> None:
         _attr(spec, "purpose", T.Token, "guide", uniform=True)
         _attr(spec, "physics:approximation", T.Token, "convexHull", uniform=True)
         _rel(spec, "material:binding:physics", physics_material)
+        if m.condim is not None:   # MuJoCo's MjcCollisionAPI attribute, read by Newton's SolverMuJoCo
+            _attr(spec, "mjc:condim", T.Int, int(m.condim), uniform=True, custom=True)
     elif m.material:
         _rel(spec, "material:binding", m.material)
 

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from asset_catalog.asset_model import AssetModel, JointType, Link, MassProperties, MaterialSpec, MeshPart, Pose
+from asset_catalog.asset_model import (AssetModel, JointType, Link, MassProperties, MaterialSpec, MeshPart,
+                                       PhysicsMaterialSpec, Pose)
 from asset_catalog.materials import MATERIAL_RULES, MaterialClass, PhysicalProperties, sample_physical_properties
 
 RESERVED_CHILDREN = ("Looks", "joints")
@@ -42,11 +43,13 @@ class MeshPlan:
     collider: bool = False
     normals_indices: np.ndarray | None = None
     st_indices: np.ndarray | None = None
+    condim: int | None = None   # colliders: MuJoCo contact dimensionality (mjc:condim), None: 3
 
 
 @dataclass(frozen=True)
 class BodyPlan:
-    """A link Xform. translate [m] (3,); orient (w, x, y, z); rigid: has RigidBodyAPI + MassAPI."""
+    """A link Xform. translate [m] (3,); orient (w, x, y, z); rigid: has RigidBodyAPI + MassAPI;
+    physics_material: path of the physics material its colliders are bound to."""
 
     path: str
     translate: tuple[float, float, float]
@@ -56,6 +59,15 @@ class BodyPlan:
     meshes: tuple[MeshPlan, ...]
     colliders: tuple[MeshPlan, ...]
     collider_approx: str | None
+    physics_material: str = ""
+
+
+@dataclass(frozen=True)
+class PhysicsMaterialPlan:
+    """A physics material prim (UsdPhysics + NewtonMaterialAPI) at ``path``."""
+
+    path: str
+    props: PhysicalProperties
 
 
 @dataclass(frozen=True)
@@ -116,6 +128,7 @@ class PackagePlan:
     joints: tuple[JointPlan, ...]
     materials: tuple[MaterialPlan, ...]
     physics: PhysicalProperties
+    physics_materials: tuple[PhysicsMaterialPlan, ...]  # the asset's first, then links' own
     texture_copies: tuple[tuple[Path, str], ...]  # (source file, relative destination)
     bbox_min: tuple[float, float, float]
     bbox_max: tuple[float, float, float]
@@ -173,7 +186,7 @@ def _check_mesh(asset_id: str, link: str, part: MeshPart) -> tuple[np.ndarray, n
 
 
 def _mesh_plan(asset_id: str, link: str, path: str, part: MeshPart, material: str | None,
-               collider: bool) -> MeshPlan:
+               collider: bool, condim: int | None = None) -> MeshPlan:
     v, f = _check_mesh(asset_id, link, part)
     st = None
     n = part.normals if part.normals is not None else _vertex_normals(v, f)
@@ -191,7 +204,7 @@ def _mesh_plan(asset_id: str, link: str, path: str, part: MeshPart, material: st
     st, st_idx = _indexed(st)
     return MeshPlan(path=path, points=pts, indices=np.ascontiguousarray(f.reshape(-1).astype(np.int32)),
                     normals=normals, st=st, extent=extent, material=material, collider=collider,
-                    normals_indices=n_idx, st_indices=st_idx)
+                    normals_indices=n_idx, st_indices=st_idx, condim=condim if collider else None)
 
 
 def _indexed(values: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -376,13 +389,53 @@ def _annotation_attrs(model: AssetModel, pipeline_version: str) -> dict[str, obj
     }
 
 
-def _physics(model: AssetModel) -> PhysicalProperties:
+def _physics_spec(model: AssetModel) -> PhysicsMaterialSpec:
     pm = model.physics_material
     if pm is not None:
-        return PhysicalProperties(density=pm.density, static_friction=pm.static_friction,
-                                  dynamic_friction=pm.dynamic_friction, restitution=pm.restitution)
+        return pm
     # No sampled material yet (the annotate stage fills it): the class's mean values, no randomness.
-    return sample_physical_properties(model.annotation.material, _MeanRng())  # type: ignore[arg-type]
+    p = sample_physical_properties(model.annotation.material, _MeanRng())  # type: ignore[arg-type]
+    return PhysicsMaterialSpec(static_friction=p.static_friction, dynamic_friction=p.dynamic_friction,
+                               restitution=p.restitution, density=p.density,
+                               torsional_friction=p.torsional_friction, rolling_friction=p.rolling_friction)
+
+
+def _properties(pm: PhysicsMaterialSpec) -> PhysicalProperties:
+    return PhysicalProperties(density=pm.density, static_friction=pm.static_friction,
+                              dynamic_friction=pm.dynamic_friction, restitution=pm.restitution,
+                              torsional_friction=pm.torsional_friction, rolling_friction=pm.rolling_friction)
+
+
+def contact_condim(p: PhysicalProperties) -> int | None:
+    """MuJoCo's contact dimensionality for colliders of material ``p`` (``mjc:condim``, read by
+    Newton's SolverMuJoCo; a contact takes the larger of its two geoms'): 6 (sliding, torsional
+    and rolling friction) with rolling friction, 4 (sliding and torsional) with torsional only,
+    None (MuJoCo's 3, sliding only) with neither. With 3, MuJoCo ignores the other two."""
+    if p.rolling_friction > 0:
+        return 6
+    return 4 if p.torsional_friction > 0 else None
+
+
+def _physics_material_plans(model: AssetModel, root: str, looks: set[str]
+                            ) -> tuple[list[PhysicsMaterialPlan], dict[str, str]]:
+    """The asset's physics material, one more per link that declares its own contact properties,
+    and the material path of each link; ``looks``: names already used in Looks."""
+    base = _physics_spec(model)
+    plans = [PhysicsMaterialPlan(f"{root}/Looks/{PHYSICS_MATERIAL}", _properties(base))]
+    namer = _Namer((PHYSICS_MATERIAL, *sorted(looks)))
+    paths = {}
+    for lk in model.links:
+        if lk.contact is None:
+            paths[lk.name] = plans[0].path
+            continue
+        props = _properties(lk.contact.apply(base))
+        for k in ("static_friction", "dynamic_friction", "restitution", "torsional_friction", "rolling_friction"):
+            v = getattr(props, k)
+            if not (math.isfinite(v) and v >= 0):
+                raise PlanError(f"asset {model.name!r}, link {lk.name!r}: contact {k} must be finite and >= 0, got {v}")
+        plans.append(PhysicsMaterialPlan(f"{root}/Looks/{namer(f'{PHYSICS_MATERIAL}_{lk.name}')}", props))
+        paths[lk.name] = plans[-1].path
+    return plans, paths
 
 
 class _MeanRng:
@@ -393,21 +446,25 @@ class _MeanRng:
         return 0.5 * (low + high)
 
 
-def _link_plan(model: AssetModel, lk: Link, path: str, rigid: bool, mat_paths: dict[str, str]) -> BodyPlan:
+def _link_plan(model: AssetModel, lk: Link, path: str, rigid: bool, mat_paths: dict[str, str],
+               physics: PhysicsMaterialPlan) -> BodyPlan:
     vis_namer, col_namer = _Namer(), _Namer()
+    condim = contact_condim(physics.props)
     meshes = tuple(
         _mesh_plan(model.name, lk.name, f"{path}/visuals/{vis_namer(m.name)}", m,
                    mat_paths[m.material if m.material is not None else DEFAULT_MATERIAL], False)
         for m in lk.visuals)
     colliders = tuple(
-        _mesh_plan(model.name, lk.name, f"{path}/colliders/{col_namer(c.name or f'hull_{i}')}", c, None, True)
+        _mesh_plan(model.name, lk.name, f"{path}/colliders/{col_namer(c.name or f'hull_{i}')}", c, None, True,
+                   condim)
         for i, c in enumerate(lk.colliders))
     if rigid and lk.mass is not None and not (lk.mass.mass > 0 and np.isfinite(lk.mass.mass)):
         raise PlanError(f"asset {model.name!r}, link {lk.name!r}: mass must be positive, got {lk.mass.mass}")
     t, q = _pose_tuple(lk.pose.matrix())
     return BodyPlan(path=path, translate=t, orient=q, rigid=rigid, mass=lk.mass if rigid else None,
                     meshes=meshes, colliders=colliders,
-                    collider_approx=None if lk.collider_approx is None else str(lk.collider_approx))
+                    collider_approx=None if lk.collider_approx is None else str(lk.collider_approx),
+                    physics_material=physics.path)
 
 
 def _bbox(bodies: tuple[BodyPlan, ...]) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -438,7 +495,11 @@ def plan_package(model: AssetModel, pipeline_version: str) -> PackagePlan:
     link_namer = _Namer(RESERVED_CHILDREN)
     body_paths = {lk.name: f"{root}/{link_namer(lk.name)}" for lk in model.links}
     static = model.fixed_base and not model.is_articulated
-    bodies = tuple(_link_plan(model, lk, body_paths[lk.name], not static, mat_paths) for lk in model.links)
+    looks = {p.rsplit("/", 1)[1] for p in mat_paths.values()}
+    physics, physics_of_link = _physics_material_plans(model, root, looks)
+    by_path = {p.path: p for p in physics}
+    bodies = tuple(_link_plan(model, lk, body_paths[lk.name], not static, mat_paths,
+                              by_path[physics_of_link[lk.name]]) for lk in model.links)
     joint_namer = _Namer()
     joints = _joint_plans(model, body_paths, root, joint_namer)
     if model.fixed_base and model.is_articulated:
@@ -447,8 +508,8 @@ def plan_package(model: AssetModel, pipeline_version: str) -> PackagePlan:
     lo, hi = _bbox(bodies)
     return PackagePlan(asset_id=asset_id, root=root, annotation_attrs=_annotation_attrs(model, pipeline_version),
                        category=model.annotation.category, articulated=model.is_articulated, bodies=bodies,
-                       joints=tuple(joints), materials=tuple(materials), physics=_physics(model),
-                       texture_copies=tuple(copies), bbox_min=lo, bbox_max=hi)
+                       joints=tuple(joints), materials=tuple(materials), physics=physics[0].props,
+                       physics_materials=tuple(physics), texture_copies=tuple(copies), bbox_min=lo, bbox_max=hi)
 
 
 def _check_tree(model: AssetModel) -> None:

@@ -512,7 +512,11 @@ def _work_dir_lock(out: Path) -> Iterator[None]:
 
 @contextmanager
 def _job_logging(out: Path, level: int | str | None) -> Iterator[None]:
-    """Log to ``<out>/logs/job.log`` while the job runs (and lower the root level to ``level``)."""
+    """Log to ``<out>/logs/job.log`` while the job runs (and lower the root level to ``level``);
+    Python warnings become log records meanwhile, and job.log keeps each third-party message once
+    (``chatter.DedupFilter``)."""
+    from pipeline._src.chatter import DedupFilter
+
     lvl = logging.getLevelName(level.upper()) if isinstance(level, str) else level
     if lvl is not None and not isinstance(lvl, int):
         raise ValueError(f"unknown log level {level!r}")
@@ -524,11 +528,19 @@ def _job_logging(out: Path, level: int | str | None) -> Iterator[None]:
     old_level = root.level
     new_level = lvl if lvl is not None else min(old_level or logging.WARNING, logging.INFO)
     handler.setLevel(new_level)
+    dedup = DedupFilter()
+    handler.addFilter(dedup)
     root.addHandler(handler)
     root.setLevel(new_level)
+    captured = getattr(logging, "_warnings_showwarning", None) is not None
+    logging.captureWarnings(True)
     try:
         yield
     finally:
+        if not captured:
+            logging.captureWarnings(False)
+        if dedup.dropped:
+            log.debug("job.log: %d repeated third-party message(s) left out", dedup.dropped)
         root.removeHandler(handler)
         root.setLevel(old_level)
         handler.close()

@@ -82,14 +82,18 @@ def execute_item(fn: str, params_json: str, params_type: str, ctx: ItemContext) 
 
 
 def init_pool_worker(queue: Any, level: int, parent_pid: int) -> None:
-    """Process-pool initializer: die with the main process ``parent_pid`` (Linux), and send this
-    worker's log records to the main process's queue."""
+    """Process-pool initializer: die with the main process ``parent_pid`` (Linux), send this
+    worker's log records to the main process's queue, and turn what third-party code prints or
+    warns here into log records too (``chatter.capture_process_output``: job.log, not the console)."""
     _die_with_parent(parent_pid)
     from logging.handlers import QueueHandler
+
+    from pipeline._src.chatter import capture_process_output
 
     root = logging.getLogger()
     root.handlers[:] = [QueueHandler(queue)]
     root.setLevel(level)
+    capture_process_output()
 
 
 def _die_with_parent(parent_pid: int) -> None:

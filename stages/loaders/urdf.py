@@ -8,7 +8,10 @@ fixed joints with axis, limits (lower, upper, effort, velocity) and dynamics (da
 the extensions ``spring_stiffness``: a hinge spring towards joint value 0 [N m/rad or N/m], as
 Gazebo's ``spring_stiffness`` with ``spring_reference`` 0, and ``armature``: the mechanism's added
 inertia [kg m^2 or kg], as MuJoCo's joint armature).
-``mimic`` is ignored (logged); floating and planar joints are rejected.
+``mimic`` is ignored (logged); floating and planar joints are rejected. A link's ``<contact>`` (the
+common URDF extension of PyBullet and others) gives it its own contact properties (``Link.contact``):
+``lateral_friction`` [-], ``spinning_friction`` (torsional) [m], ``rolling_friction`` [m] and
+``restitution`` [-], each ``value="..."``, finite and >= 0; its other children are ignored (logged).
 
 Mesh filenames: ``package://<pkg>/<rest>`` is looked up in the URDF's folder and each ancestor (as
 ``<ancestor>/<pkg>/<rest>``, or ``<ancestor>/<rest>`` where the ancestor is itself named ``<pkg>``),
@@ -36,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from asset_catalog.annotations import AssetAnnotation
-from asset_catalog.asset_model import AssetModel, Joint, JointType, Link, MaterialSpec, MeshPart
+from asset_catalog.asset_model import AssetModel, ContactSpec, Joint, JointType, Link, MaterialSpec, MeshPart
 from pipeline.types import ItemError
 from stages.loaders import _geom as g
 
@@ -265,7 +268,31 @@ def _link(el: ET.Element, name: str, pose: np.ndarray, ctx: _Ctx) -> Link:
     mass, from_source = _inertial(el.find("inertial"), name, ctx.file)
     return Link(name=name, pose=g.pose_of(pose), visuals=tuple(visuals),
                 collision_source=tuple(collisions) if collisions else None, mass=mass,
-                mass_from_source=from_source)
+                mass_from_source=from_source, contact=_contact(el.find("contact"), name, ctx.file))
+
+
+_CONTACT_TAGS = {"lateral_friction": "friction", "spinning_friction": "torsional_friction",
+                 "rolling_friction": "rolling_friction", "restitution": "restitution"}
+
+
+def _contact(el: ET.Element | None, link: str, path: Path) -> ContactSpec | None:
+    """A link's ``<contact>`` (see the module docstring), or None if it has none we use."""
+    if el is None:
+        return None
+    what = f"link {link!r} contact"
+    values = {}
+    for child in el:
+        field_name = _CONTACT_TAGS.get(child.tag)
+        if field_name is None:
+            log.info("%s: %s: <%s> ignored", path, what, child.tag)
+            continue
+        v = _opt_float(child, "value", path, f"{what} {child.tag}")
+        if v is None:
+            raise ItemError(f"{path}: {what}: <{child.tag}> has no value")
+        if not (np.isfinite(v) and v >= 0):
+            raise ItemError(f"{path}: {what}: <{child.tag}> must be finite and >= 0, got {v}")
+        values[field_name] = v
+    return ContactSpec(**values) if values else None
 
 
 def _inertial(el: ET.Element | None, link: str, path: Path):

@@ -111,9 +111,71 @@ def test_catalog_list(tmp_path):
 def test_extra_subcommands_are_listed_and_dispatched(monkeypatch, capsys):
     import stages.commands
 
-    monkeypatch.setitem(stages.commands.COMMANDS, "echo-test", "stagefns:echo_command")
+    monkeypatch.setitem(stages.commands.COMMANDS, "echo-test", ("stagefns:echo_command", "print the arguments"))
     assert cli.main(["echo-test", "a", "b"]) == 2
     assert "echo: a b" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         cli.main(["--help"])
-    assert "echo-test" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "echo-test" in out and "print the arguments" in out
+
+
+def test_help_describes_every_command_once(capsys):
+    """Every command has a one-line description (not its Python location), and each is listed once:
+    ``catalog build-default`` has no second spelling (the old ``catalog-build-default`` still runs)."""
+    import stages.commands
+
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "(from " not in out and ":main" not in out and ":cli" not in out
+    assert "catalog-build-default" not in out and "build-default" in out
+    import re
+
+    listed = out.split("positional arguments:")[1].split("options:")[0].splitlines()
+    rows = [(i, m.group(1), m.group(2)) for i, ln in enumerate(listed)
+            if (m := re.match(r"^    ([a-z][\w-]*)(?:\s{2,}(\S.*))?$", ln))]
+    names = [name for _, name, _ in rows]
+    assert sorted(names) == sorted(["run", "ingest", "catalog", "status", *stages.commands.COMMANDS])
+    row_lines = {i for i, _, _ in rows}
+    for i, name, desc in rows:    # the description on the same line or, for long names, the next
+        if desc is None:
+            assert i + 1 not in row_lines, f"{name} has no description"
+            desc = listed[i + 1].strip()
+        assert len(desc) > 10, name
+    for ref, help_text in stages.commands.COMMANDS.values():
+        assert ":" in ref and len(help_text) > 20
+    with pytest.raises(SystemExit) as e:
+        cli.main(["catalog-build-default", "--help"])
+    assert e.value.code == 0 and "agentworld catalog build-default" in capsys.readouterr().out
+
+
+def test_console_shows_progress_and_summary_and_job_log_keeps_chatter_once(tmp_path):
+    """Items that print Warp's banner and module-load lines, warn, log through a library logger,
+    print and write to fd 2: the console has none of it (only the summary), logs/job.log has each
+    distinct line once (our own records every time)."""
+    job = tmp_path / "chatty.toml"
+    job.write_text('[job]\nname = "chatty"\nout = "out"\nexecutor = "local"\nworkers = 2\n\n'
+                   '[[step]]\nname = "chat"\nkind = "chattyfns:CHATTY_KIND"\n[step.config]\nn = 4\n')
+    r = _cli("run", str(job), "--no-progress", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    console = r.stdout + r.stderr
+    for needle in ("Warp ", "Module ", "Warning", "warning", "third-party", "native write"):
+        assert needle not in console, (needle, console)
+    assert "chat" in r.stdout and "done" in r.stdout     # the summary table
+    text = (tmp_path / "out" / "logs" / "job.log").read_text()
+    lines = text.splitlines()
+
+    def count(needle: str) -> int:
+        return sum(needle in ln for ln in lines)
+
+    assert count("initialized:") == 1 and count("Devices:") == 1      # Warp's banner, once
+    assert count("Warp CUDA warning") <= 1                            # on a machine without a GPU
+    modules = [ln.split("Module ", 1)[1].split(" load")[0] for ln in lines if "Module " in ln]
+    assert modules and len(modules) == len(set(modules))              # each kernel module once
+    assert count("ChattyWarning: a third-party warning") == 1
+    assert count("a third-party logger warning") == 1                 # numbers do not count
+    assert count("a third-party print from item") == 1
+    assert count("a native write to stderr") == 1
+    assert count("chatty item") == 4                                  # ours: every record

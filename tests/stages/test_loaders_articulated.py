@@ -292,6 +292,23 @@ def test_urdf_nan_origin(tmp_path):
     _expect(load_urdf, p, tmp_path, "non-finite", "'j'")
 
 
+def test_urdf_contact_extension(tmp_path):
+    """<contact> per link: friction, spinning (torsional) and rolling friction, restitution; links
+    without one keep None; a negative or missing value is a one-line error."""
+    contact = ('<contact><lateral_friction value="0.7"/><spinning_friction value="0.01"/>'
+               '<rolling_friction value="0.002"/><stiffness value="3e4"/></contact>')
+    a = _BOX_LINK.format(n="a").replace("</link>", contact + "</link>")
+    m = load_urdf(_urdf(tmp_path, a + _BOX_LINK.format(n="b") + _joint("j", "a", "b")), _ann("r.urdf"),
+                  catalog_dir=tmp_path)
+    c = m.link("a").contact
+    assert (c.friction, c.torsional_friction, c.rolling_friction, c.restitution) == (0.7, 0.01, 0.002, None)
+    assert m.link("b").contact is None
+    bad = _BOX_LINK.format(n="a").replace("</link>", '<contact><rolling_friction value="-1"/></contact></link>')
+    _expect(load_urdf, _urdf(tmp_path, bad), tmp_path, "link 'a' contact", "rolling_friction", ">= 0")
+    bad = _BOX_LINK.format(n="a").replace("</link>", "<contact><spinning_friction/></contact></link>")
+    _expect(load_urdf, _urdf(tmp_path, bad), tmp_path, "spinning_friction", "no value")
+
+
 def test_urdf_limits_axis_duplicates_roots(tmp_path):
     ab = _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
     _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", limit='lower="1" upper="-1"')), tmp_path,

@@ -130,7 +130,11 @@ def test_meshes_colliders_and_physics(written):
     assert pm.GetStaticFrictionAttr().Get() == pytest.approx(M.CERAMIC.static_friction)
     assert pm.GetRestitutionAttr().Get() == pytest.approx(M.CERAMIC.restitution)
     assert pm.GetDensityAttr().Get() == pytest.approx(M.CERAMIC.density)
+    assert phys_mat.GetAttribute("newton:torsionalFriction").Get() == pytest.approx(M.CERAMIC.torsional_friction)
+    assert phys_mat.GetAttribute("newton:rollingFriction").Get() == pytest.approx(M.CERAMIC.rolling_friction)
+    assert "NewtonMaterialAPI" in phys_mat.GetMetadata("apiSchemas").GetAddedOrExplicitItems()
     for c in cols:
+        assert c.GetAttribute("mjc:condim").Get() == 6   # rolling friction: MuJoCo needs 6 dimensions
         assert c.GetTypeName() == "Mesh" and c.GetParent().GetName() == "colliders"
         assert UsdPhysics.MeshCollisionAPI(c).GetApproximationAttr().Get() == "convexHull"
         assert UsdGeom.Imageable(c).ComputePurpose() == UsdGeom.Tokens.guide
