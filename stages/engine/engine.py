@@ -429,6 +429,8 @@ class BatchEngine:
         for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
             if b.rig is not None:
                 images[id(b)] = b.rig.render()
+        # depth [m] -> [mm] once per camera for all worlds of a Sim
+        depth_mm = {b: {name: depth_m_to_mm(fr.depth) for name, fr in frs.items()} for b, frs in images.items()}
         t1 = time.perf_counter()
         for w in worlds:
             rec, view, cmd = self.recs[w], self.views[w], self.cmds[w]
@@ -441,7 +443,7 @@ class BatchEngine:
                          mode=int(cmd.mode))
             frames = images.get(id(bank), {})
             rgb = {name: fr.rgb[i] for name, fr in frames.items()}
-            depth = {name: depth_m_to_mm(fr.depth[i]) for name, fr in frames.items()}
+            depth = {name: mm[i] for name, mm in depth_mm.get(id(bank), {}).items()}
             if rec.sink is not None:
                 rec.sink(Frame(**state, rgb=rgb, depth_mm=depth))
             rec.frames += 1

@@ -454,10 +454,11 @@ class CameraRig:
     def _frame(self, cam: CameraSpec, img: dict, m: np.ndarray) -> CameraFrame:
         rgb = depth = shape = None
         if img["color"] is not None:
-            packed = img["color"].numpy()
-            rgb = np.stack([(packed >> s) & 0xFF for s in (0, 8, 16)], axis=-1).astype(np.uint8)
+            packed = np.ascontiguousarray(img["color"].numpy(), dtype=np.uint32)
+            # bytes 0, 1, 2 of each little-endian RGBA word are R, G, B: a view, no arithmetic
+            rgb = np.ascontiguousarray(packed.view(np.uint8).reshape(*packed.shape, 4)[..., :3])
         if img["depth"] is not None:
-            depth = img["depth"].numpy().astype(np.float32)
+            depth = np.asarray(img["depth"].numpy(), dtype=np.float32)
             depth[~np.isfinite(depth)] = 0.0
         if img["shape"] is not None:
             raw = img["shape"].numpy().astype(np.int64)

@@ -61,7 +61,9 @@ def _sync(device: str) -> None:
     wp.synchronize_device(device)
 
 
-def bench_worlds(room, work: Path, n: int, args) -> dict:
+def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int = 0) -> dict:
+    """One engine of ``n`` worlds; with ``barrier`` (a process pool's), the timed run and the
+    standalone measurements start together with the other processes'."""
     from stages.demos.sampling import sample_instance
     from stages.demos.tasks import TASKS
     from stages.engine import BatchEngine, EngineConfig
@@ -77,7 +79,7 @@ def bench_worlds(room, work: Path, n: int, args) -> dict:
     def next_instance(w: int):
         k = counter[w]
         counter[w] += 1
-        return sample_instance(tasks[(w + k * 7) % len(tasks)], room, 1000 * w + k)
+        return sample_instance(tasks[(w + seed_base + k * 7) % len(tasks)], room, 1000 * (w + seed_base) + k)
 
     held = {"frames": 0}
 
@@ -99,6 +101,8 @@ def bench_worlds(room, work: Path, n: int, args) -> dict:
     held["frames"] = 0
     s0 = eng.stats.to_json()["timings"]
     steps = int(args.sim_seconds * eng.steps_per_second)
+    if barrier is not None:
+        barrier.wait()
     t0 = time.perf_counter()
     eng.run(next_instance, begin=begin, end=end, max_steps=steps)
     _sync(args.device)
@@ -112,6 +116,8 @@ def bench_worlds(room, work: Path, n: int, args) -> dict:
     bank = eng.banks[0]
     steps_per_frame = eng.steps_per_second / args.fps
     k = max(eng.sync_period, 50)
+    if barrier is not None:
+        barrier.wait()
     bank.sim.step(k)
     _sync(args.device)
     t = time.perf_counter()
@@ -127,6 +133,8 @@ def bench_worlds(room, work: Path, n: int, args) -> dict:
             bank.rig.render()
             reps.append(time.perf_counter() - t)
         render_only = n / statistics.median(reps)
+    if barrier is not None:
+        barrier.wait()
     maxima = {"simulation": round(sim_only, 1)}
     if render_only is not None:
         maxima["rendering"] = round(render_only, 1)
@@ -144,7 +152,61 @@ def bench_worlds(room, work: Path, n: int, args) -> dict:
         "successful_episodes_per_hour": round(sum(ok for _, ok, _, _ in done) / wall * 3600, 1),
         "failures": dict(sorted(_count(r for _, ok, _, r in done if not ok).items())),
         "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
+        "frames": frames, "lengths": {t: v for t, v in lengths.items()},
     }
+    print(json.dumps(res), flush=True)
+    return res
+
+
+def _child(args, n: int, k: int, barrier, queue) -> None:
+    """Process ``k`` of a pool: its own kitchen copy and an engine of ``n`` worlds."""
+    import usd_schemas  # noqa: F401
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
+
+    try:
+        work = args.work / f"proc{k:02d}"
+        lib = AssetLibrary.from_folder(args.catalog / "assets", args.catalog / "catalog" / "default" / "generated.json")
+        room = write_kitchen(work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
+        queue.put(bench_worlds(room, work, n, args, barrier=barrier, seed_base=k * n))
+    except BaseException as e:  # noqa: BLE001
+        barrier.abort()
+        queue.put({"error": repr(e)})
+
+
+def bench_pool(n: int, args) -> dict:
+    """``args.procs`` processes, each an engine of n / procs worlds on the same device, timed
+    together: the aggregate recorded timesteps/s is all frames over the longest wall time."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    k = args.procs
+    barrier, queue = ctx.Barrier(k), ctx.Queue()
+    procs = [ctx.Process(target=_child, args=(args, n // k, i, barrier, queue)) for i in range(k)]
+    for pr in procs:
+        pr.start()
+    parts = [queue.get() for _ in procs]
+    for pr in procs:
+        pr.join()
+    bad = [r["error"] for r in parts if "error" in r]
+    if bad:
+        raise RuntimeError(f"{len(bad)} of {k} processes failed: {bad[0]}")
+    wall = max(r["wall_seconds"] for r in parts)
+    frames = sum(r["frames"] for r in parts)
+    lengths: dict[str, list[int]] = defaultdict(list)
+    for r in parts:
+        for t, v in r["lengths"].items():
+            lengths[t] += v
+    maxima = {c: round(sum(r["standalone_timesteps_per_second"].get(c, 0.0) for r in parts), 1)
+              for c in parts[0]["standalone_timesteps_per_second"]}
+    e2e = frames / wall
+    res = {"worlds": n, "procs": k, "wall_seconds": round(wall, 2), "sim_seconds": args.sim_seconds,
+           "recorded_timesteps_per_second": round(e2e, 1), "standalone_timesteps_per_second": maxima,
+           "fraction_of_slowest_component": round(e2e / min(maxima.values()), 3),
+           "split_seconds_per_process": [r["split_seconds"] for r in parts],
+           "episodes_completed": sum(r["episodes_completed"] for r in parts),
+           "successes": sum(r["successes"] for r in parts),
+           "successful_episodes_per_hour": round(sum(r["successes"] for r in parts) / wall * 3600, 1),
+           "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())}}
     print(json.dumps(res), flush=True)
     return res
 
@@ -167,6 +229,7 @@ def main(argv=None) -> dict:
     p.add_argument("--no-images", action="store_true")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
+    p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
     p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
     args = p.parse_args(argv)
@@ -174,21 +237,23 @@ def main(argv=None) -> dict:
     from stages.demos.kitchen import AssetLibrary, write_kitchen
 
     args.work.mkdir(parents=True, exist_ok=True)
-    cat = args.catalog or _catalog(args.work)
+    cat = args.catalog = (args.catalog or _catalog(args.work)).resolve()
+    args.work = args.work.resolve()
+    args.panda_root = args.panda_root.resolve() if args.panda_root else None
     lib = AssetLibrary.from_folder(cat / "assets", cat / "catalog" / "default" / "generated.json")
     room = write_kitchen(args.work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
     results = []
     for n in args.worlds:
         try:
-            results.append(bench_worlds(room, args.work, n, args))
+            results.append(bench_pool(n, args) if args.procs > 1 else bench_worlds(room, args.work, n, args))
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
             results.append({"worlds": n, "error": repr(e)})
-    doc = {"device": args.device, "size": [args.height, args.width], "cameras": 3,
+    doc = {"device": args.device, "procs": args.procs, "size": [args.height, args.width], "cameras": 3,
            "images": not args.no_images, "results": results}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     prev = json.loads(args.out.read_text()) if args.out.is_file() else {}
-    prev[f"{args.device}_{args.height}x{args.width}{'_noimg' if args.no_images else ''}"] = doc
+    prev[f"{args.device}_{args.height}x{args.width}_p{args.procs}{'_noimg' if args.no_images else ''}"] = doc
     args.out.write_text(json.dumps(prev, indent=1))
     return doc
 
