@@ -39,10 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
-from stages.demos.experts import EXPERTS, Driver, ExpertFailure, timed_clik
-from stages.demos.record import Commands, EpisodeTimeout, Timings, arm_q, base_pose, pose7
+from stages.demos.experts import timed_clik
+from stages.demos.record import Timings, arm_q, base_pose, pose7
 from stages.engine.lockstep import Lockstep
-from stages.engine.view import Snapshot, WorldControl, WorldView, _WorldModel
+from stages.engine.programs import EpisodeResult, WorldSide
+from stages.engine.view import SimInfo, Snapshot, WorldControl, WorldView, _WorldModel
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +58,9 @@ class EngineConfig:
     layout: "batched" (one model of ``worlds`` worlds, MuJoCo-Warp: the GPU layout), "per_world"
     (one single-world model per world, the MuJoCo C library: on a CPU it is several times faster
     than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
-    max_seconds: episode time limit [s] (None: the task's)."""
+    max_seconds: episode time limit [s] (None: the task's); program_procs: run the worlds' programs
+    (experts: planning, IK) in this many worker processes (0: threads of the engine's process; the
+    batched layout only)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -73,12 +76,15 @@ class EngineConfig:
     cameras: tuple[str, ...] = CAMERAS
     layout: str = "auto"
     max_seconds: float | None = None
+    program_procs: int = 0
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
             raise ValueError(f"engine: layout must be auto, batched or per_world, got {self.layout!r}")
         if self.worlds < 1:
             raise ValueError(f"engine: worlds must be >= 1, got {self.worlds}")
+        if self.program_procs and self.resolved_layout() != "batched":
+            raise ValueError("engine: program_procs needs the batched layout (one model of all worlds)")
         bad = set(self.cameras) - set(CAMERAS)
         if bad:
             raise ValueError(f"engine: unknown cameras {sorted(bad)}; known {CAMERAS}")
@@ -92,28 +98,11 @@ class EngineConfig:
                                                        for c in cams))
 
 
-@dataclass
-class EpisodeResult:
-    """success; reason: failure category ("" on success); detail: message; frames recorded;
-    sim_seconds: simulated time of the episode [s]; wall_seconds: from its reset to its end [s]."""
-
-    success: bool
-    reason: str
-    detail: str
-    frames: int
-    sim_seconds: float
-    wall_seconds: float
-
-
 @dataclass(eq=False)
 class _WorldRec:
-    """A world's recording state (``fps`` is what a Driver reads as its recorder)."""
+    """A world's recording on the engine's side: its frame sink and the frames captured."""
 
-    fps: int
-    active: bool = False
-    next_frame: int = 0
     frames: int = 0
-    max_steps: int = 0
     sink: Callable | None = None
 
 
@@ -143,10 +132,12 @@ class EngineStats:
     renders: int = 0
     episodes: int = 0
     worlds: int = 0
+    startup_seconds: float = 0.0  # starting worker processes (program_procs)
 
     def to_json(self) -> dict:
         return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
-                "episodes": self.episodes, "worlds": self.worlds}
+                "episodes": self.episodes, "worlds": self.worlds,
+                "startup_seconds": round(self.startup_seconds, 3)}
 
 
 class BatchEngine:
@@ -168,10 +159,12 @@ class BatchEngine:
         self._where = [(b, i) for b in self.banks for i in range(b.count)]
         self.ik = timed_clik(desc)
         sim = self.banks[0].sim
-        self.views = [WorldView(self, w, b, i, b.model) for w, (b, i) in enumerate(self._where)]
-        self.controls = [WorldControl(b.ctl, i) for b, i in self._where]
-        self.cmds = [Commands() for _ in range(n)]
-        self.recs = [_WorldRec(fps=config.fps) for _ in range(n)]
+        self.info = SimInfo.of(sim)
+        # per-world arrays shared with the world programs (shared memory with program_procs)
+        self.steps = np.zeros(n, np.int64)  # physics steps since each world's episode started
+        self.rec_active = np.zeros(n, np.int8)
+        self.rec_max = np.zeros(n, np.int64)
+        self.recs = [_WorldRec() for _ in range(n)]
         self.lockstep = Lockstep(n)
         steps_per_s = 1.0 / sim.settings.dt
         if abs(steps_per_s - round(steps_per_s)) > 1e-6:
@@ -188,10 +181,12 @@ class BatchEngine:
                 b = sim.body_of_path(p.body())
                 self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
-        watched = [world.placed["microwave"].joint("button_joint")]
+        self.watched = [world.placed["microwave"].joint("button_joint")]
         for b in self.banks:
-            b.peaks = _Peaks(b.sim, watched, self._scene_coord)
-        self._pending_reset: dict[int, object] = {}
+            b.peaks = _Peaks(b.sim, self.watched, self._scene_coord)
+        self._pending_reset: dict[int, dict[int, float]] = {}
+        self._begin = self._end = None
+        self.side: WorldSide | None = None
         self.stats = EngineStats(worlds=n)
         self.build_seconds = time.perf_counter() - t0
 
@@ -234,10 +229,20 @@ class BatchEngine:
         may return ``(instance, max_seconds)`` to give that episode its own time limit [s].
         ``max_steps``: stop after this many physics steps (episodes in progress are abandoned:
         neither ``end`` nor a result; for benchmarks)."""
-        ls = self.lockstep
         stop_at = None if max_steps is None else self.global_step + max_steps
-        for w in range(self.config.worlds):
-            ls.start(w, self._program(w, next_instance, begin, end))
+        self._begin, self._end = begin, end
+        self.__dict__.pop("_views", None)
+        if self.config.program_procs:
+            from stages.engine.remote import RemotePrograms
+
+            t0 = time.perf_counter()
+            ls = self.lockstep = RemotePrograms(self, next_instance)
+            self.stats.startup_seconds += time.perf_counter() - t0
+        else:
+            ls = self.lockstep = Lockstep(self.config.worlds)
+            self.side = self._local_side(ls)
+            for w in range(self.config.worlds):
+                ls.start(w, self.side.program(w, next_instance))
         try:
             while ls.alive():
                 t0 = time.perf_counter()
@@ -256,6 +261,38 @@ class BatchEngine:
             ls.shutdown()
         return self.stats
 
+    def _local_side(self, ls) -> WorldSide:
+        """The world programs as threads of this process."""
+        n = self.config.worlds
+        views = {w: WorldView(None, w, b, i, b.model, self.steps) for w, (b, i) in enumerate(self._where)}
+        side = WorldSide(info=self.info, views=views,
+                         controls={w: WorldControl(b.ctl, i) for w, (b, i) in enumerate(self._where)},
+                         ik=self.ik, fps=self.config.fps, steps_per_second=self.steps_per_second,
+                         steps=self.steps, rec_active=self.rec_active, rec_max=self.rec_max, lockstep=ls,
+                         peaks=_LocalPeaks(self), emit=self.on_event, free=self._free,
+                         scene_coord=self._scene_coord, max_seconds=self.config.max_seconds)
+        for v in views.values():
+            v._engine = side
+        assert len(views) == n
+        return side
+
+    def on_event(self, kind: str, w: int, payload) -> None:
+        """An event of world ``w``'s program (see :mod:`stages.engine.programs`)."""
+        if kind == "reset":
+            self._pending_reset[w] = payload
+        elif kind == "begin":
+            self.recs[w].frames = 0
+            self.recs[w].sink = self._begin(w, payload) if self._begin is not None else None
+        elif kind == "end":
+            ticket, res = payload
+            res.frames = self.recs[w].frames
+            self.recs[w].sink = None
+            self.stats.episodes += 1
+            if self._end is not None:
+                self._end(w, ticket, res)
+        else:
+            raise ValueError(f"engine: unknown event {kind!r} from world {w}")
+
     def _advance(self, sync: list[int]) -> None:
         """Step every world by the largest count that meets no request, sync point or frame."""
         ls = self.lockstep
@@ -270,8 +307,7 @@ class BatchEngine:
         self.stats.timings.simulation += time.perf_counter() - t0
         self.stats.steps += k
         self.global_step += k
-        for v in self.views:
-            v.steps += k
+        self.steps += k
         ls.advance(k)
 
     def _next_frame_step(self) -> int:
@@ -284,76 +320,6 @@ class BatchEngine:
         s, f = self.steps_per_second, self.config.fps
         k = step * f // s  # the last frame at or before this step
         return -(-k * s // f) == step
-
-    # -- per-world programs -------------------------------------------------------------------
-    def request_steps(self, w: int, n: int) -> None:
-        """From world ``w``'s program: run ``n`` physics steps (episode time limit enforced)."""
-        rec = self.recs[w]
-        view = self.views[w]
-        n = max(1, int(n))
-        if rec.active:
-            left = rec.max_steps + 1 - view.steps
-            if left <= 0:
-                raise EpisodeTimeout(f"episode ran past {rec.max_steps / self.steps_per_second:.1f} s")
-            n = min(n, left)
-        self.lockstep.wait_steps(w, n)
-        if rec.active and view.steps > rec.max_steps:
-            raise EpisodeTimeout(f"episode ran past {rec.max_steps / self.steps_per_second:.1f} s")
-
-    def _program(self, w: int, next_instance, begin, end):
-        def main() -> None:
-            while True:
-                inst = next_instance(w)
-                if inst is None:
-                    return
-                limit = None
-                if isinstance(inst, tuple):
-                    inst, limit = inst
-                self._pending_reset[w] = inst
-                self.lockstep.wait_sync(w)  # the engine resets this world at a sync point
-                sink = begin(w, inst) if begin is not None else None
-                res = self._episode(w, inst, sink, limit)
-                if end is not None:
-                    end(w, inst, res)
-                self.stats.episodes += 1
-        return main
-
-    def _episode(self, w: int, inst, sink, limit: float | None = None) -> EpisodeResult:
-        from stages.demos.tasks import task
-        from stages.simulate.state import read_state
-
-        spec = task(inst.task)
-        view, rec, cmd, ctl = self.views[w], self.recs[w], self.cmds[w], self.controls[w]
-        drv = Driver(view, ctl, self.ik, cmd, rec, np.random.default_rng(inst.seed))
-        t0 = time.perf_counter()
-        rec.sink, rec.frames, rec.next_frame = sink, 0, 0
-        if limit is None:
-            limit = spec.max_seconds if self.config.max_seconds is None else self.config.max_seconds
-        rec.max_steps = int(math.floor(limit * self.steps_per_second + 1e-9))
-        rec.active = True
-        bank, local = self._where[w]
-        bank.peaks.start(local)
-        reason = detail = ""
-        try:
-            EXPERTS[inst.task](inst, drv)
-            drv.step(0.3)
-        except ExpertFailure as e:
-            reason, detail = e.reason, str(e)
-        except EpisodeTimeout as e:
-            reason, detail = "timeout", str(e)
-        finally:
-            rec.active = False
-            bank.peaks.stop(local)
-            ctl.set_base_velocity(0.0, 0.0, 0.0)
-        state = read_state(view)
-        if not reason:
-            ok, reason = spec.success(inst, state, peaks=bank.peaks.read(local))
-            detail = reason
-        res = EpisodeResult(success=not reason, reason=reason, detail=detail, frames=rec.frames,
-                            sim_seconds=view.time, wall_seconds=time.perf_counter() - t0)
-        log.info("world %d %s seed %d: %s %s (%d frames, %.1f s sim)", w, inst.task, inst.seed,
-                 "success" if res.success else "FAILED", detail, res.frames, res.sim_seconds)
-        return res
 
     # -- batched engine work ----------------------------------------------------------------
     def _reset_worlds(self, worlds: list[int]) -> None:
@@ -380,13 +346,10 @@ class BatchEngine:
         q = sim.state_0.joint_q.numpy()
         c = sim.coords_per_world
         for w, i in zip(worlds, local, strict=True):
-            inst = self._pending_reset.pop(w)
-            for k, v in self._instance_coords(inst).items():
+            for k, v in self._pending_reset.pop(w).items():
                 q[i * c + k] = v
             bank.ctl.reset_world(i)
-            self.views[w].steps = 0
-            self.cmds[w].base_velocity = np.zeros(3)
-            self.cmds[w].gripper, self.cmds[w].mode = 0.0, 0
+            self.steps[w] = 0
         q_wp = wp.array(q, dtype=wp.float32, device=dev)
         sim.state_0.joint_q.assign(q_wp)
         jmask = wp.array(np.isin(sim.model.joint_world.numpy(), local), dtype=wp.bool, device=dev)
@@ -394,32 +357,14 @@ class BatchEngine:
         sim.state_1.assign(sim.state_0)
         bank.snapshot.invalidate()
 
-    def _instance_coords(self, inst) -> dict[int, float]:
-        """World-local joint coordinates of an instance's start: base joints (relative to the
-        spawn pose), free objects (position, quaternion x, y, z, w) and scene joints."""
-        values: dict[int, float] = {}
-        sim = self.banks[0].sim
-        x0, y0, yaw0 = sim.spawn
-        bx, by, byaw = inst.start_base
-        cs, sn = math.cos(yaw0), math.sin(yaw0)
-        dx, dy = bx - x0, by - y0
-        local = (cs * dx + sn * dy, -sn * dx + cs * dy, byaw - yaw0)
-        for name, v in zip(sim.desc.base_joints, local, strict=True):
-            values[sim.robot.coord[name]] = v
-        for body, (x, y, z, yaw) in inst.objects.items():
-            vals = (x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-            values.update(dict(enumerate(vals, start=self._free[body])))
-        for path, v in inst.joints.items():
-            values[self._scene_coord[path]] = v
-        return values
-
     def _capture(self) -> None:
         """At a frame step: one render of every world, one state read, a frame per recording world."""
         step = self.global_step
         if step == self._captured_step or not self._is_frame_step(step):
             return
         self._captured_step = step
-        worlds = [w for w, r in enumerate(self.recs) if r.active and self.views[w].steps <= r.max_steps]
+        worlds = [w for w in range(self.config.worlds)
+                  if self.rec_active[w] and self.steps[w] <= self.rec_max[w]]
         if not worlds:
             return
         from stages.dataset import Frame, depth_m_to_mm
@@ -433,14 +378,15 @@ class BatchEngine:
         depth_mm = {b: {name: depth_m_to_mm(fr.depth) for name, fr in frs.items()} for b, frs in images.items()}
         t1 = time.perf_counter()
         for w in worlds:
-            rec, view, cmd = self.recs[w], self.views[w], self.cmds[w]
+            rec = self.recs[w]
             bank, i = self._where[w]
+            view = self._view(w)
             q = arm_q(view)
-            target = self.controls[w].arm_targets()
+            target = bank.ctl.arm_targets(i)
+            base_v, grip, mode = self.lockstep.commands(w) if self.config.program_procs else _cmd(self.side.cmds[w])
             state = dict(arm_joint_pos=q, ee_pose=self._ee_in_base(q), base_pose=base_pose(view),
                          arm_joint_target=target, ee_target=self._ee_in_base(target),
-                         base_velocity=np.asarray(cmd.base_velocity, float), gripper=float(cmd.gripper),
-                         mode=int(cmd.mode))
+                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
             frames = images.get(id(bank), {})
             rgb = {name: fr.rgb[i] for name, fr in frames.items()}
             depth = {name: mm[i] for name, mm in depth_mm.get(id(bank), {}).items()}
@@ -453,12 +399,43 @@ class BatchEngine:
         tm.frames += len(worlds)
         self.stats.renders += 1
 
+    def _view(self, w: int) -> WorldView:
+        """A view of world ``w`` for the engine's own reads (the snapshot of its Sim)."""
+        views = self.__dict__.setdefault("_views", {})
+        if w not in views:
+            b, i = self._where[w]
+            views[w] = WorldView(None, w, b, i, b.model, self.steps)
+        return views[w]
+
     def _ee_in_base(self, arm: np.ndarray) -> np.ndarray:
         """(7,) end-effector pose in the base frame for arm joint positions (7,)."""
         ik = self.ik
         if not hasattr(self, "_q_neutral"):
             self._q_neutral = ik.neutral()
         return pose7(ik.fk(ik.with_arm(self._q_neutral, arm)))
+
+
+def _cmd(c) -> tuple:
+    return c.base_velocity, c.gripper, c.mode
+
+
+class _LocalPeaks:
+    """Peaks of world programs running in the engine's process: the banks' device arrays."""
+
+    def __init__(self, engine: BatchEngine) -> None:
+        self.engine = engine
+
+    def start(self, w: int) -> None:
+        b, i = self.engine._where[w]
+        b.peaks.start(i)
+
+    def stop(self, w: int) -> None:
+        b, i = self.engine._where[w]
+        b.peaks.stop(i)
+
+    def read(self, w: int) -> dict[str, float]:
+        b, i = self.engine._where[w]
+        return b.peaks.read(i)
 
 
 class _Peaks:

@@ -11,6 +11,8 @@ buffers, uploaded in one copy before the next physics step.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -35,13 +37,14 @@ class Snapshot:
 
 
 class _Array:
-    """A host array with the ``.numpy()`` of a Warp array (a copy: callers may modify it)."""
+    """A host array with the ``.numpy()`` of a Warp array (a copy: callers may modify it);
+    ``src``: the array, or a function returning it."""
 
-    def __init__(self, fn) -> None:
-        self._fn = fn
+    def __init__(self, src) -> None:
+        self._src = src
 
     def numpy(self) -> np.ndarray:
-        return np.array(self._fn())
+        return np.array(self._src() if callable(self._src) else self._src)
 
 
 class _WorldState:
@@ -61,17 +64,43 @@ class _WorldModel:
         nj = m.joint_count // nw
         self.device = m.device
         self.world_count = 1
-        self.joint_q_start = _Array(_const(m.joint_q_start.numpy()[:nj]))
-        self.joint_qd_start = _Array(_const(m.joint_qd_start.numpy()[:nj]))
-        self.joint_child = _Array(_const(m.joint_child.numpy()[:nj]))
+        self.joint_q_start = _Array(m.joint_q_start.numpy()[:nj])
+        self.joint_qd_start = _Array(m.joint_qd_start.numpy()[:nj])
+        self.joint_child = _Array(m.joint_child.numpy()[:nj])
         self.joint_label = list(m.joint_label)[:nj]
         d = sim.dofs_per_world
-        self.joint_limit_lower = _Array(_const(m.joint_limit_lower.numpy()[:d]))
-        self.joint_limit_upper = _Array(_const(m.joint_limit_upper.numpy()[:d]))
+        self.joint_limit_lower = _Array(m.joint_limit_lower.numpy()[:d])
+        self.joint_limit_upper = _Array(m.joint_limit_upper.numpy()[:d])
+
+    def __getstate__(self) -> dict:
+        d = dict(self.__dict__)
+        d["device"] = str(d["device"])
+        return d
 
 
-def _const(a: np.ndarray):
-    return lambda: a
+@dataclass(frozen=True, eq=False)
+class SimInfo:
+    """What a world view needs of a Sim, without its device arrays (picklable: world programs
+    in other processes get it)."""
+
+    desc: object
+    robot: object
+    scene: object
+    spawn: tuple
+    settings: object
+    solver_settings: object
+    bodies_per_world: int
+    shapes_per_world: int
+    dofs_per_world: int
+    coords_per_world: int
+    shape_label: np.ndarray
+
+    @classmethod
+    def of(cls, sim) -> SimInfo:
+        return cls(desc=sim.desc, robot=sim.robot, scene=sim.scene, spawn=tuple(sim.spawn), settings=sim.settings,
+                   solver_settings=sim.solver_settings, bodies_per_world=sim.bodies_per_world,
+                   shapes_per_world=sim.shapes_per_world, dofs_per_world=sim.dofs_per_world,
+                   coords_per_world=sim.coords_per_world, shape_label=np.asarray(sim.shape_label))
 
 
 class WorldView:
@@ -79,9 +108,9 @@ class WorldView:
     and methods of a one-world :class:`~stages.simulate.world.Sim` that programs use (``world``
     arguments must be 0)."""
 
-    def __init__(self, engine, world: int, bank, local: int, model: _WorldModel) -> None:
+    def __init__(self, engine, world: int, bank, local: int, model: _WorldModel, steps: np.ndarray) -> None:
         sim = bank.sim
-        self._engine, self.world = engine, world
+        self._engine, self.world, self._steps = engine, world, steps
         self._snap: Snapshot = bank.snapshot
         self.desc, self.robot, self.scene, self.spawn = sim.desc, sim.robot, sim.scene, sim.spawn
         self.settings, self.solver_settings = sim.settings, sim.solver_settings
@@ -95,8 +124,12 @@ class WorldView:
         self.world_count = 1
         self.pipeline = self.contacts = None
         self.pre_step: list = []  # engine-side work is batched; per-world callbacks are not run
-        self.steps = 0  # physics steps since this world's episode started
         self._joint_coord = {p: int(model.joint_q_start.numpy()[j]) for j, p in sim.scene.joint_path.items()}
+
+    @property
+    def steps(self) -> int:
+        """Physics steps since this world's episode started."""
+        return int(self._steps[self.world])
 
     @property
     def time(self) -> float:
@@ -138,7 +171,8 @@ class WorldView:
 
 
 class WorldControl:
-    """World ``world``'s view of the engine's :class:`~stages.simulate.control.RobotControl`."""
+    """World ``world``'s view of the engine's command buffers
+    (:class:`~stages.simulate.control.CommandBuffers`, e.g. its ``RobotControl``)."""
 
     def __init__(self, ctl, world: int) -> None:
         self._ctl, self.world = ctl, world

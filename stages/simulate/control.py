@@ -55,50 +55,23 @@ def _base_kernel():
 _KERNEL = None
 
 
-class RobotControl:
-    """Commands for the robot in every world of a Sim; registers itself as a pre-step callback.
+class CommandBuffers:
+    """Host-side robot commands of every world: drive position targets (W*C,) in the model's
+    joint-coordinate layout and base commands (W, 3) [m/s, m/s, rad/s]. ``coord``: the robot's
+    world-0 coordinate index per joint name; ``coords_per_world``: C. The arrays may be shared
+    memory (the engine's world programs in other processes write them); ``dirty`` flags say what
+    changed since the last upload."""
 
-    Arrays: base commands (W, 3); arm and finger targets are written straight into
-    ``sim.control.joint_target_q``.
-    """
-
-    def __init__(self, sim) -> None:
-        import warp as wp
-
-        global _KERNEL
-        if _KERNEL is None:
-            _KERNEL = _base_kernel()
-        self.sim = sim
-        self.desc: RobotDescription = sim.desc
-        nw = sim.world_count
-        self._cmd_np = np.zeros((nw, 3), np.float32)
-        self._cmd = wp.zeros(nw, dtype=wp.vec3f, device=sim.model.device)
-        lo = sim.model.joint_limit_lower.numpy()
-        hi = sim.model.joint_limit_upper.numpy()
-        self.arm_lower = np.array([lo[sim.robot.dof[n]] for n in self.desc.arm_joints])
-        self.arm_upper = np.array([hi[sim.robot.dof[n]] for n in self.desc.arm_joints])
-        self._dirty = self._cmd_dirty = False
-        self._targets = sim.control.joint_target_q.numpy().copy()
-        self._default_targets = sim.model.joint_target_q.numpy().copy()
-        sim.pre_step.append(self._pre_step)
-
-    def reset(self) -> None:
-        """After ``sim.reset()``: zero base commands and take the drive targets from the sim."""
-        self._cmd_np[:] = 0.0
-        self._cmd.assign(self._cmd_np)
-        self._targets = self.sim.control.joint_target_q.numpy().copy()
+    def __init__(self, desc: RobotDescription, coord: dict[str, int], coords_per_world: int,
+                 arm_lower: np.ndarray, arm_upper: np.ndarray, targets: np.ndarray, cmd: np.ndarray) -> None:
+        self.desc, self.coord, self.coords_per_world = desc, dict(coord), coords_per_world
+        self.arm_lower, self.arm_upper = np.asarray(arm_lower, float), np.asarray(arm_upper, float)
+        self._targets, self._cmd_np = targets, cmd
         self._dirty = self._cmd_dirty = False
 
-    def reset_world(self, world: int) -> None:
-        """World ``world`` only: zero base command, drive targets back to the model's defaults
-        (uploaded with the next step, with every other world's targets unchanged)."""
-        c = self.sim.coords_per_world
-        sl = slice(world * c, (world + 1) * c)
-        self._targets[sl] = self._default_targets[sl]
-        self._cmd_np[world] = 0.0
-        self._dirty = self._cmd_dirty = True
+    def _c(self, name: str, world: int) -> int:
+        return self.coord[name] + world * self.coords_per_world
 
-    # -- commands -------------------------------------------------------------------------
     def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
         """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""
         sel = slice(None) if world is None else world
@@ -110,7 +83,7 @@ class RobotControl:
         q = np.clip(np.asarray(q, float), self.arm_lower, self.arm_upper)
         for w in self._worlds(world):
             for i, n in enumerate(self.desc.arm_joints):
-                self._targets[self.sim.world_coord(n, w)] = q[i]
+                self._targets[self._c(n, w)] = q[i]
         self._dirty = True
 
     def set_gripper(self, command: float, world: int | None = None) -> None:
@@ -122,14 +95,69 @@ class RobotControl:
         q = g.open_q + c * (g.closed_q - g.open_q) - c * g.squeeze * np.sign(g.open_q - g.closed_q)
         for w in self._worlds(world):
             for n in g.finger_joints:
-                self._targets[self.sim.world_coord(n, w)] = q
+                self._targets[self._c(n, w)] = q
         self._dirty = True
 
     def arm_targets(self, world: int = 0) -> np.ndarray:
-        return np.array([self._targets[self.sim.world_coord(n, world)] for n in self.desc.arm_joints])
+        return np.array([self._targets[self._c(n, world)] for n in self.desc.arm_joints])
 
     def _worlds(self, world):
-        return range(self.sim.world_count) if world is None else (world,)
+        return range(len(self._cmd_np)) if world is None else (world,)
+
+
+class RobotControl(CommandBuffers):
+    """Commands for the robot in every world of a Sim; registers itself as a pre-step callback
+    that uploads what changed and turns base commands into base joint velocity targets.
+
+    Arrays: base commands (W, 3); arm and finger targets (the model's joint-coordinate layout),
+    written into ``sim.control.joint_target_q`` before the next step.
+    """
+
+    def __init__(self, sim) -> None:
+        import warp as wp
+
+        global _KERNEL
+        if _KERNEL is None:
+            _KERNEL = _base_kernel()
+        self.sim = sim
+        nw = sim.world_count
+        self._cmd = wp.zeros(nw, dtype=wp.vec3f, device=sim.model.device)
+        lo = sim.model.joint_limit_lower.numpy()
+        hi = sim.model.joint_limit_upper.numpy()
+        desc = sim.desc
+        super().__init__(desc, sim.robot.coord, sim.coords_per_world,
+                         np.array([lo[sim.robot.dof[n]] for n in desc.arm_joints]),
+                         np.array([hi[sim.robot.dof[n]] for n in desc.arm_joints]),
+                         sim.control.joint_target_q.numpy().copy(), np.zeros((nw, 3), np.float32))
+        self._default_targets = sim.model.joint_target_q.numpy().copy()
+        sim.pre_step.append(self._pre_step)
+
+    def bind(self, targets: np.ndarray, cmd: np.ndarray) -> None:
+        """Use ``targets`` (W*C,) and ``cmd`` (W, 3) (e.g. shared memory) as the command buffers,
+        filled with the current commands."""
+        targets[:] = self._targets
+        cmd[:] = self._cmd_np
+        self._targets, self._cmd_np = targets, cmd
+
+    def mark_dirty(self) -> None:
+        """Upload targets and base commands before the next step (they were written elsewhere)."""
+        self._dirty = self._cmd_dirty = True
+
+    def reset(self) -> None:
+        """After ``sim.reset()``: zero base commands and take the drive targets from the sim."""
+        self._cmd_np[:] = 0.0
+        self._cmd.assign(self._cmd_np)
+        self._targets[:] = self.sim.control.joint_target_q.numpy()
+        self._dirty = self._cmd_dirty = False
+
+    def reset_world(self, world: int) -> None:
+        """World ``world`` only: zero base command, drive targets back to the model's defaults
+        (uploaded with the next step, with every other world's targets unchanged)."""
+        c = self.sim.coords_per_world
+        sl = slice(world * c, (world + 1) * c)
+        self._targets[sl] = self._default_targets[sl]
+        self._cmd_np[world] = 0.0
+        self._dirty = self._cmd_dirty = True
 
     # -- per-step --------------------------------------------------------------------------
     def _pre_step(self, sim) -> None:

@@ -67,19 +67,16 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     from stages.demos.sampling import sample_instance
     from stages.demos.tasks import TASKS
     from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import RoundRobin
 
     tasks = sorted(TASKS)
     t0 = time.perf_counter()
     eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
-                                          record_images=not args.no_images))
+                                          record_images=not args.no_images,
+                                          program_procs=args.program_procs))
     build = time.perf_counter() - t0
-    counter = defaultdict(int)
-
-    def next_instance(w: int):
-        k = counter[w]
-        counter[w] += 1
-        return sample_instance(tasks[(w + seed_base + k * 7) % len(tasks)], room, 1000 * (w + seed_base) + k)
+    next_instance = RoundRobin(room, tasks, seed_base)
 
     held = {"frames": 0}
 
@@ -100,13 +97,14 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     done.clear()
     held["frames"] = 0
     s0 = eng.stats.to_json()["timings"]
+    start0 = eng.stats.startup_seconds
     steps = int(args.sim_seconds * eng.steps_per_second)
     if barrier is not None:
         barrier.wait()
     t0 = time.perf_counter()
     eng.run(next_instance, begin=begin, end=end, max_steps=steps)
     _sync(args.device)
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
     s1 = eng.stats.to_json()["timings"]
     split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
     frames = held["frames"]
@@ -230,6 +228,8 @@ def main(argv=None) -> dict:
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
+    p.add_argument("--program-procs", type=int, default=0,
+                   help="worker processes for the world programs of each engine (0: threads)")
     p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
     args = p.parse_args(argv)
@@ -249,11 +249,12 @@ def main(argv=None) -> dict:
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
             results.append({"worlds": n, "error": repr(e)})
-    doc = {"device": args.device, "procs": args.procs, "size": [args.height, args.width], "cameras": 3,
+    doc = {"device": args.device, "procs": args.procs, "program_procs": args.program_procs, "size": [args.height, args.width], "cameras": 3,
            "images": not args.no_images, "results": results}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     prev = json.loads(args.out.read_text()) if args.out.is_file() else {}
-    prev[f"{args.device}_{args.height}x{args.width}_p{args.procs}{'_noimg' if args.no_images else ''}"] = doc
+    prev[f"{args.device}_{args.height}x{args.width}_p{args.procs}_w{args.program_procs}"
+         f"{'_noimg' if args.no_images else ''}"] = doc
     args.out.write_text(json.dumps(prev, indent=1))
     return doc
 

@@ -39,22 +39,16 @@ def room(tmp_path_factory):
     return write_kitchen(out.parent / "kitchen", lib, scene_id="k", rng=np.random.default_rng(5))
 
 
-def _run(room, work: Path, layout: str, queues: dict[int, list]) -> dict:
+def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: int = 0) -> dict:
     """Run an engine of len(queues) worlds; queues: world -> [(task, seed, max_seconds)].
     Returns (task, seed) -> dict(frames=[...], result=EpisodeResult, world=w)."""
-    from stages.demos.sampling import sample_instance
     from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
 
     eng = BatchEngine(room, panda_root=None, work_dir=work,
-                      config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout))
-    todo = {w: list(q) for w, q in queues.items()}
+                      config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout,
+                                          program_procs=program_procs))
     out: dict = {}
-
-    def next_instance(w):
-        if not todo[w]:
-            return None
-        task, seed, limit = todo[w].pop(0)
-        return sample_instance(task, room, seed), limit
 
     def begin(w, inst):
         rec = out[(inst.task, inst.seed)] = {"frames": [], "world": w}
@@ -63,7 +57,7 @@ def _run(room, work: Path, layout: str, queues: dict[int, list]) -> dict:
     def end(w, inst, res):
         out[(inst.task, inst.seed)]["result"] = res
 
-    stats = eng.run(next_instance, begin=begin, end=end)
+    stats = eng.run(Listed(room, queues), begin=begin, end=end)
     assert stats.episodes == sum(len(q) for q in queues.values())
     return out
 
@@ -128,6 +122,16 @@ def test_a_world_reset_mid_run_leaves_the_other_world_of_a_batched_model_untouch
                          exact_images=False)
     assert np.abs(batched[("press_button", 3)]["frames"][-1].state()
                   - batched[("press_button", 3)]["frames"][0].state()).max() > 0.01
+
+
+def test_world_programs_in_worker_processes_record_what_threads_record(room, tmp_path):
+    # the experts run in 2 worker processes (shared-memory state and commands); same episodes
+    queues = {0: [("press_button", 3, 0.3)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
+    threads = _run(room, tmp_path / "t", "batched", queues)
+    procs = _run(room, tmp_path / "p", "batched", queues, program_procs=2)
+    assert set(threads) == set(procs)
+    for key in threads:
+        _assert_same_episode(threads[key], procs[key], key)
 
 
 def test_lockstep_resumes_worlds_in_order_and_counts_steps():

@@ -1,0 +1,289 @@
+"""World programs in worker processes: the engine's planning and IK on every core.
+
+With ``EngineConfig(program_procs=K)`` the engine's process keeps the simulation, the cameras and
+the recording, and K worker processes run the worlds' programs (blocks of worlds each: a world's
+program always runs in the same process, its threads one at a time). They share, in shared memory:
+
+- the state snapshot (joint_q, joint_qd, body_q, the watched joints' peaks), written by the
+  engine once before every batch of resumes;
+- the command buffers (drive targets, base commands; the engine's ``RobotControl`` is bound to
+  them and uploads them after every batch) and the recorded commands (base velocity, gripper, mode);
+- per world: episode step counter, recording flag and time limit, pending steps, and flags
+  (waiting for a sync point, done, peaks on, peaks fresh).
+
+Per batch the engine sends every worker the list of its worlds whose requests are met; the workers
+resume them in parallel and answer with their programs' events (reset coordinates, episode begin
+and end), which the engine handles in world order. A world's program sees only its own world and
+its own commands, so which process runs it changes nothing: episodes equal those of the threaded
+engine.
+
+``next_instance`` must be picklable here (a module-level function or an object): each worker
+calls it for its worlds.
+"""
+
+from __future__ import annotations
+
+import logging
+from types import SimpleNamespace
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+SYNC, DONE, PEAKS_ON, PEAKS_FRESH = range(4)
+
+
+class _Shared:
+    """Named shared-memory numpy arrays: created by the engine (``specs``: name -> (shape,
+    dtype)), attached by the workers (``names``: name -> (shm name, shape, dtype))."""
+
+    def __init__(self, specs: dict | None = None, names: dict | None = None) -> None:
+        from multiprocessing import shared_memory
+
+        self.arrays: dict[str, np.ndarray] = {}
+        self._shm = []
+        self.owner = specs is not None
+        if specs is not None:
+            names = {}
+            for key, (shape, dtype) in specs.items():
+                size = max(1, int(np.prod(shape)) * np.dtype(dtype).itemsize)
+                shm = shared_memory.SharedMemory(create=True, size=size)
+                names[key] = (shm.name, tuple(shape), np.dtype(dtype).str)
+                self._shm.append(shm)
+                self.arrays[key] = np.ndarray(shape, dtype, buffer=shm.buf)
+                self.arrays[key][...] = 0
+        else:
+            for key, (name, shape, dtype) in names.items():
+                shm = shared_memory.SharedMemory(name=name)
+                self._shm.append(shm)
+                self.arrays[key] = np.ndarray(shape, np.dtype(dtype), buffer=shm.buf)
+        self.names = names
+
+    def close(self) -> None:
+        self.arrays.clear()
+        for shm in self._shm:
+            shm.close()
+            if self.owner:
+                shm.unlink()
+        self._shm.clear()
+
+
+class _SharedSnapshot:
+    """A :class:`~stages.engine.view.Snapshot` over shared arrays (the engine writes them)."""
+
+    def __init__(self, arrays: dict) -> None:
+        self.arrays = arrays
+
+    def get(self, name: str) -> np.ndarray:
+        return self.arrays[name]
+
+    def invalidate(self) -> None:
+        pass
+
+
+class _SharedPeaks:
+    """Peaks of a worker's worlds: flags for the engine, values from the snapshot."""
+
+    def __init__(self, arrays: dict, paths: list[str]) -> None:
+        self.a, self.paths = arrays, paths
+
+    def start(self, w: int) -> None:
+        self.a["flags"][w, PEAKS_ON] = 1
+        self.a["flags"][w, PEAKS_FRESH] = 1
+
+    def stop(self, w: int) -> None:
+        self.a["flags"][w, PEAKS_ON] = 0
+
+    def read(self, w: int) -> dict[str, float]:
+        return {p: float(self.a["peaks"][w, i]) for i, p in enumerate(self.paths)}
+
+
+def _worker(conn, init: dict) -> None:
+    """A worker process: the programs of ``init["worlds"]``, resumed on the engine's request."""
+    import usd_schemas  # noqa: F401  (the schema registry before pxr is used)
+    from stages.demos.experts import timed_clik
+    from stages.engine.lockstep import Lockstep
+    from stages.engine.programs import WorldSide
+    from stages.engine.view import WorldControl, WorldView
+    from stages.simulate.control import CommandBuffers
+
+    shared = _Shared(names=init["shm"])
+    a = shared.arrays
+    info, model, worlds = init["info"], init["model"], init["worlds"]
+    n = len(a["steps"])
+    cmdbuf = CommandBuffers(info.desc, info.robot.coord, info.coords_per_world, init["arm_lower"],
+                            init["arm_upper"], targets=a["targets"], cmd=a["cmd"])
+    bank = SimpleNamespace(sim=info, snapshot=_SharedSnapshot(a), model=model)
+    ls = Lockstep(n)
+    events: list = []
+    views = {w: WorldView(None, w, bank, w, model, a["steps"]) for w in worlds}
+    side = WorldSide(info=info, views=views, controls={w: WorldControl(cmdbuf, w) for w in worlds},
+                     ik=timed_clik(info.desc), fps=init["fps"], steps_per_second=init["steps_per_second"],
+                     steps=a["steps"], rec_active=a["rec_active"], rec_max=a["rec_max"], lockstep=ls,
+                     peaks=_SharedPeaks(a, init["paths"]), emit=lambda k, w, p: events.append((k, w, p)),
+                     free=init["free"], scene_coord=init["scene_coord"], max_seconds=init["max_seconds"])
+    for v in views.values():
+        v._engine = side
+    for w in worlds:
+        ls.start(w, side.program(w, init["next_instance"]))
+    conn.send(("ready", None))
+    try:
+        while True:
+            msg, arg = conn.recv()
+            if msg == "stop":
+                break
+            events.clear()
+            try:
+                for w in arg:
+                    ls.slots[w].sync, ls.slots[w].pending = False, 0  # the engine met its request
+                    ls._resume(w)
+            except RuntimeError as e:
+                conn.send(("error", str(e)))
+                continue
+            for w in arg:
+                s = ls.slots[w]
+                a["pending"][w] = s.pending
+                a["flags"][w, SYNC] = int(s.sync)
+                a["flags"][w, DONE] = int(s.done)
+                c = side.cmds[w]
+                a["cmdrec"][w, :3] = c.base_velocity
+                a["cmdrec"][w, 3], a["cmdrec"][w, 4] = c.gripper, c.mode
+            conn.send(("ok", list(events)))
+    finally:
+        ls.shutdown()
+        shared.close()
+
+
+class RemotePrograms:
+    """The engine's side of the worker processes, with :class:`~stages.engine.lockstep.Lockstep`'s
+    engine-facing methods."""
+
+    def __init__(self, engine, next_instance) -> None:
+        import multiprocessing as mp
+
+        self.engine = engine
+        bank = engine.banks[0]
+        sim = bank.sim
+        n = engine.config.worlds
+        k = max(1, min(engine.config.program_procs, n))
+        st = sim.state_0
+        specs = {
+            "joint_q": (st.joint_q.shape, np.float32), "joint_qd": (st.joint_qd.shape, np.float32),
+            "body_q": ((st.body_q.shape[0], 7), np.float32),
+            "peaks": ((n, max(1, len(bank.peaks.paths))), np.float32),
+            "targets": (bank.ctl._targets.shape, bank.ctl._targets.dtype), "cmd": ((n, 3), np.float32),
+            "cmdrec": ((n, 5), np.float64), "steps": ((n,), np.int64), "rec_active": ((n,), np.int8),
+            "rec_max": ((n,), np.int64), "pending": ((n,), np.int64), "flags": ((n, 4), np.int8),
+        }
+        self.shared = _Shared(specs=specs)
+        a = self.a = self.shared.arrays
+        for key in ("steps", "rec_active", "rec_max"):
+            a[key][:] = getattr(engine, key)
+            setattr(engine, key, a[key])
+        bank.ctl.bind(a["targets"], a["cmd"])
+        self.blocks = [list(range(i * n // k, (i + 1) * n // k)) for i in range(k)]
+        ctx = mp.get_context("spawn")
+        self.procs, self.conns = [], []
+        for worlds in self.blocks:
+            parent, child = ctx.Pipe()
+            init = dict(shm=self.shared.names, worlds=worlds, info=engine.info, model=bank.model,
+                        arm_lower=bank.ctl.arm_lower, arm_upper=bank.ctl.arm_upper, fps=engine.config.fps,
+                        steps_per_second=engine.steps_per_second, paths=list(bank.peaks.paths),
+                        free=engine._free, scene_coord=engine._scene_coord,
+                        max_seconds=engine.config.max_seconds, next_instance=next_instance)
+            p = ctx.Process(target=_worker, args=(child, init), name=f"engine-programs-{len(self.procs)}",
+                            daemon=True)
+            p.start()
+            self.procs.append(p)
+            self.conns.append(parent)
+        for c in self.conns:
+            self._reply(c)
+
+    def _reply(self, conn):
+        kind, payload = conn.recv()
+        if kind == "error":
+            raise RuntimeError(payload)
+        return payload
+
+    def _write_snapshot(self) -> None:
+        bank = self.engine.banks[0]
+        st = bank.sim.state_0
+        a = self.a
+        a["joint_q"][:] = st.joint_q.numpy()
+        a["joint_qd"][:] = st.joint_qd.numpy()
+        a["body_q"][:] = st.body_q.numpy()
+        if bank.peaks.paths:
+            a["peaks"][:] = bank.peaks._peak.numpy()
+
+    # -- Lockstep's engine-side interface --------------------------------------------------------
+    def resume_ready(self) -> int:
+        a = self.a
+        f = a["flags"]
+        ready = np.nonzero((f[:, DONE] == 0) & (f[:, SYNC] == 0) & (a["pending"] == 0))[0]
+        if len(ready) == 0:
+            return 0
+        self._write_snapshot()
+        rs = set(int(w) for w in ready)
+        sent = []
+        for conn, worlds in zip(self.conns, self.blocks, strict=True):
+            mine = [w for w in worlds if w in rs]
+            if mine:
+                conn.send(("resume", mine))
+                sent.append(conn)
+        events = []
+        for conn in sent:
+            events += self._reply(conn)
+        order = {id(e): i for i, e in enumerate(events)}
+        for kind, w, payload in sorted(events, key=lambda e: (e[1], order[id(e)])):
+            self.engine.on_event(kind, w, payload)
+        peaks = self.engine.banks[0].peaks
+        for w in rs:
+            if f[w, PEAKS_FRESH]:
+                peaks.start(w)
+                f[w, PEAKS_FRESH] = 0
+            elif not f[w, PEAKS_ON] and peaks._active_np[w]:
+                peaks.stop(w)
+        self.engine.banks[0].ctl.mark_dirty()
+        return len(rs)
+
+    def waiting_sync(self) -> list[int]:
+        f = self.a["flags"]
+        return [int(w) for w in np.nonzero((f[:, SYNC] == 1) & (f[:, DONE] == 0))[0]]
+
+    def release_sync(self, worlds) -> None:
+        for w in worlds:
+            self.a["flags"][w, SYNC] = 0
+
+    def min_pending(self) -> int | None:
+        a = self.a
+        m = (a["flags"][:, DONE] == 0) & (a["flags"][:, SYNC] == 0) & (a["pending"] > 0)
+        return int(a["pending"][m].min()) if m.any() else None
+
+    def advance(self, k: int) -> None:
+        p = self.a["pending"]
+        m = (self.a["flags"][:, DONE] == 0) & (p > 0)
+        p[m] = np.maximum(0, p[m] - k)
+
+    def alive(self) -> bool:
+        return bool((self.a["flags"][:, DONE] == 0).any())
+
+    def commands(self, w: int) -> tuple:
+        c = self.a["cmdrec"][w]
+        return c[:3].copy(), float(c[3]), int(c[4])
+
+    def shutdown(self) -> None:
+        e = self.engine
+        for key in ("steps", "rec_active", "rec_max"):
+            setattr(e, key, np.array(getattr(e, key)))
+        bank = e.banks[0]
+        bank.ctl._targets, bank.ctl._cmd_np = np.array(bank.ctl._targets), np.array(bank.ctl._cmd_np)
+        for conn in self.conns:
+            try:
+                conn.send(("stop", None))
+            except (BrokenPipeError, OSError):
+                pass
+        for p in self.procs:
+            p.join(timeout=10)
+            if p.is_alive():
+                p.terminate()
+        self.shared.close()
