@@ -12,6 +12,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     worlds = 1                  # worlds (kitchen variants) per task; one item per (task, kitchen)
     episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
     batch_worlds = 1            # engine worlds per item (simulated together, one shard each)
+    program_procs = 0           # worker processes for the experts of an item's engine (GPU)
     width = 128
     height = 96
     # panda_root = "..."        # the Panda description's root (default: pip example-robot-data)
@@ -58,7 +59,8 @@ class DemosConfig(_Strict):
     episodes per item; width, height: camera image size [px]; fps; device: "cpu" or "cuda";
     record_images: False writes state/action only (no camera is rendered: a fast success-rate
     run); batch_worlds: worlds of the batched engine per item (one model of that many worlds on
-    CUDA, one MuJoCo C model each on CPU); panda_root: the Panda description's root (None: the pip
+    CUDA, one MuJoCo C model each on CPU); program_procs: worker processes for the experts'
+    planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA); panda_root: the Panda description's root (None: the pip
     package example-robot-data)."""
 
     catalog_step: str = "catalog"
@@ -72,6 +74,7 @@ class DemosConfig(_Strict):
     device: str = "cpu"
     record_images: bool = True
     batch_worlds: int = Field(default=1, ge=1, le=4096)
+    program_procs: int = Field(default=0, ge=0, le=256)
     panda_root: Path | None = None
 
     @field_validator("tasks")
@@ -100,6 +103,7 @@ class ShardParams(_Strict):
     panda_root: str | None = None
     record_images: bool = True
     batch_worlds: int = 1
+    program_procs: int = 0
 
 
 class EpisodeRecord(_Strict):
@@ -182,7 +186,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
-                                 batch_worlds=config.batch_worlds,
+                                 batch_worlds=config.batch_worlds, program_procs=config.program_procs,
                                  generated=str(generated), packages=packages,
                                  panda_root=None if config.panda_root is None else str(config.panda_root))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
@@ -198,8 +202,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
 
     from stages.dataset import EpisodeInfo, open_shard
     from stages.demos.kitchen import AssetLibrary, write_kitchen
-    from stages.demos.sampling import sample_instance
     from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
 
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
@@ -208,7 +212,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           rng=np.random.default_rng(params.world_seed))
     n = min(params.batch_worlds, params.episodes)
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
-                          device=params.device, record_images=params.record_images)
+                          device=params.device, record_images=params.record_images,
+                          program_procs=params.program_procs if n > 1 else 0)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0
@@ -221,8 +226,7 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
         shards = [stack.enter_context(open_shard(ctx.out_dir, f"dataset_w{w:03d}", config.dataset_spec()))
                   for w in range(n)]
 
-        def next_instance(w: int):
-            return sample_instance(params.task, world, seeds[todo[w][0]]) if todo[w] else None
+        next_instance = Listed(world, {w: [(params.task, seeds[k], None) for k in todo[w]] for w in range(n)})
 
         def begin(w: int, inst):
             shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,

@@ -133,6 +133,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         render_only = n / statistics.median(reps)
     if barrier is not None:
         barrier.wait()
+    render_split = _render_split(eng, bank, args) if (bank.rig is not None and args.render_split) else None
     maxima = {"simulation": round(sim_only, 1)}
     if render_only is not None:
         maxima["rendering"] = round(render_only, 1)
@@ -151,6 +152,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "failures": dict(sorted(_count(r for _, ok, _, r in done if not ok).items())),
         "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
         "frames": frames, "lengths": {t: v for t, v in lengths.items()},
+        "render_split_seconds_per_frame": render_split,
     }
     print(json.dumps(res), flush=True)
     return res
@@ -209,6 +211,50 @@ def bench_pool(n: int, args) -> dict:
     return res
 
 
+def _render_split(eng, bank, args) -> dict:
+    """Seconds per frame (all worlds, 3 cameras) of the render's parts: BVH refit, camera poses,
+    ray tracing (device, synchronised), read-back and unpacking; and of whole renders without
+    shadows and without textures (other rigs on the same Sim)."""
+    import warp as wp
+
+    from stages.simulate.sensors import CameraRig
+
+    rig, dev = bank.rig, args.device
+
+    def timed(fn, reps=3):
+        fn()
+        wp.synchronize_device(dev)
+        out = []
+        for _ in range(reps):
+            t = time.perf_counter()
+            fn()
+            wp.synchronize_device(dev)
+            out.append(time.perf_counter() - t)
+        return round(statistics.median(out), 4)
+
+    state = bank.sim.state_0
+    poses = {c.name: rig._transforms(c) for c in rig.cameras}
+
+    def trace():
+        for c in rig.cameras:
+            img = rig._images[c.name]
+            rig._sensor.update(state, poses[c.name][0], rig._rays[c.name], color_image=img["color"],
+                               forward_depth_image=img["depth"], shape_index_image=img["shape"],
+                               world_indices=rig._world_ids)
+
+    def readback():
+        for c in rig.cameras:
+            rig._frame(c, rig._images[c.name], poses[c.name][1])
+
+    out = {"refit": timed(lambda: bank.sim.model.bvh_refit_shapes(state)),
+           "poses": timed(lambda: [rig._transforms(c) for c in rig.cameras]),
+           "trace": timed(trace), "readback_unpack": timed(readback), "whole": timed(rig.render)}
+    for name, kw in (("no_shadows", {"shadows": False}), ("no_textures", {"textures": False})):
+        other = CameraRig(bank.sim, rig.cameras, segmentation=False, **kw)
+        out[f"whole_{name}"] = timed(other.render)
+    return out
+
+
 def _count(it) -> dict:
     out: dict[str, int] = defaultdict(int)
     for x in it:
@@ -225,6 +271,7 @@ def main(argv=None) -> dict:
     p.add_argument("--fps", type=int, default=30)
     p.add_argument("--sim-seconds", type=float, default=2.0)
     p.add_argument("--no-images", action="store_true")
+    p.add_argument("--render-split", action="store_true", help="time the render's parts too")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
