@@ -367,15 +367,13 @@ class BatchEngine:
                   if self.rec_active[w] and self.steps[w] <= self.rec_max[w]]
         if not worlds:
             return
-        from stages.dataset import Frame, depth_m_to_mm
+        from stages.dataset import Frame
 
         t0 = time.perf_counter()
         images = {}
         for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
             if b.rig is not None:
-                images[id(b)] = b.rig.render()
-        # depth [m] -> [mm] once per camera for all worlds of a Sim
-        depth_mm = {b: {name: depth_m_to_mm(fr.depth) for name, fr in frs.items()} for b, frs in images.items()}
+                images[id(b)] = b.rig.render_compact()  # RGB uint8 and depth [mm] uint16, per camera
         t1 = time.perf_counter()
         for w in worlds:
             rec = self.recs[w]
@@ -388,8 +386,8 @@ class BatchEngine:
                          arm_joint_target=target, ee_target=self._ee_in_base(target),
                          base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
             frames = images.get(id(bank), {})
-            rgb = {name: fr.rgb[i] for name, fr in frames.items()}
-            depth = {name: mm[i] for name, mm in depth_mm.get(id(bank), {}).items()}
+            rgb = {name: im[0][i] for name, im in frames.items()}
+            depth = {name: im[1][i] for name, im in frames.items()}
             if rec.sink is not None:
                 rec.sink(Frame(**state, rgb=rgb, depth_mm=depth))
             rec.frames += 1

@@ -10,8 +10,9 @@ prints
 - the split of the wall time (simulation, rendering, control: the experts' programs and resets,
   encoding: frame assembly and sinks),
 - each component's standalone maximum in the same run, as recorded timesteps/s: simulation only
-  (N worlds stepped, 1 / (fps dt) steps per frame), rendering only (3 cameras rendered and read
-  back for all N worlds), and the end-to-end rate as a fraction of the slowest of them;
+  (N worlds stepped, 1 / (fps dt) steps per frame), rendering only (3 cameras rendered, converted
+  on the device and read back for all N worlds: ``CameraRig.render_compact``, what the engine
+  records), and the end-to-end rate as a fraction of the slowest of them;
 - completed episodes, successes per hour and the median episode length per task [frames].
 
 Writes ``bench_results/engine.json``. Run on the GPU machine::
@@ -124,11 +125,11 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     sim_only = n * (k / (time.perf_counter() - t)) / steps_per_frame
     render_only = None
     if bank.rig is not None:
-        bank.rig.render()
+        bank.rig.render_compact()
         reps = []
         for _ in range(3):
             t = time.perf_counter()
-            bank.rig.render()
+            bank.rig.render_compact()
             reps.append(time.perf_counter() - t)
         render_only = n / statistics.median(reps)
     if barrier is not None:
@@ -248,7 +249,8 @@ def _render_split(eng, bank, args) -> dict:
 
     out = {"refit": timed(lambda: bank.sim.model.bvh_refit_shapes(state)),
            "poses": timed(lambda: [rig._transforms(c) for c in rig.cameras]),
-           "trace": timed(trace), "readback_unpack": timed(readback), "whole": timed(rig.render)}
+           "trace": timed(trace), "readback_unpack": timed(readback), "whole": timed(rig.render),
+           "whole_compact": timed(rig.render_compact)}
     for name, kw in (("no_shadows", {"shadows": False}), ("no_textures", {"textures": False})):
         other = CameraRig(bank.sim, rig.cameras, segmentation=False, **kw)
         out[f"whole_{name}"] = timed(other.render)

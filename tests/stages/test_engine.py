@@ -134,6 +134,24 @@ def test_world_programs_in_worker_processes_record_what_threads_record(room, tmp
         _assert_same_episode(threads[key], procs[key], key)
 
 
+def test_compact_readback_equals_the_host_conversion(room, tmp_path):
+    # the engine records RGB and depth converted on the device; they equal render() + depth_m_to_mm
+    from stages.dataset import depth_m_to_mm
+    from stages.engine import BatchEngine, EngineConfig
+
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path,
+                      config=EngineConfig(worlds=2, width=64, height=48, layout="batched"))
+    rig = eng.banks[0].rig
+    full, compact = rig.render(), rig.render_compact()
+    assert set(full) == set(compact) == {"wrist", "head", "third_person"}
+    for name, fr in full.items():
+        rgb, mm = compact[name]
+        assert rgb.shape == (2, 48, 64, 3) and mm.shape == (2, 48, 64) and mm.dtype == np.uint16
+        np.testing.assert_array_equal(rgb, fr.rgb)
+        np.testing.assert_array_equal(mm, depth_m_to_mm(fr.depth))
+        assert (mm > 0).mean() > 0.5 and rgb.std() > 5  # real images, not blank
+
+
 def test_lockstep_resumes_worlds_in_order_and_counts_steps():
     from stages.engine import Lockstep
 
