@@ -60,7 +60,10 @@ class EngineConfig:
     than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
     max_seconds: episode time limit [s] (None: the task's); program_procs: run the worlds' programs
     (experts: planning, IK) in this many worker processes (0: threads of the engine's process; the
-    batched layout only)."""
+    batched layout only); program_wait: with program_procs, how long [s] the engine waits for a
+    batch of programs before it holds the worlds whose programs are still running
+    (:mod:`stages.engine.hold`: the others step on, a held world's episode is unchanged) — None
+    waits for every program (one planning world then stalls all)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -77,6 +80,7 @@ class EngineConfig:
     layout: str = "auto"
     max_seconds: float | None = None
     program_procs: int = 0
+    program_wait: float | None = None
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
@@ -85,6 +89,8 @@ class EngineConfig:
             raise ValueError(f"engine: worlds must be >= 1, got {self.worlds}")
         if self.program_procs and self.resolved_layout() != "batched":
             raise ValueError("engine: program_procs needs the batched layout (one model of all worlds)")
+        if self.program_wait is not None and (not self.program_procs or self.program_wait < 0):
+            raise ValueError("engine: program_wait needs program_procs and must be >= 0 [s]")
         bad = set(self.cameras) - set(CAMERAS)
         if bad:
             raise ValueError(f"engine: unknown cameras {sorted(bad)}; known {CAMERAS}")
@@ -119,6 +125,7 @@ class _Bank:
     count: int
     rig: object = None
     peaks: object = None
+    hold: object = None  # WorldHold (batched layout)
 
 
 @dataclass
@@ -133,11 +140,14 @@ class EngineStats:
     episodes: int = 0
     worlds: int = 0
     startup_seconds: float = 0.0  # starting worker processes (program_procs)
+    holds: int = 0  # worlds held while their programs ran (stages.engine.hold)
+    held_steps: int = 0  # global steps those worlds stood still, summed
 
     def to_json(self) -> dict:
         return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
                 "episodes": self.episodes, "worlds": self.worlds,
-                "startup_seconds": round(self.startup_seconds, 3)}
+                "startup_seconds": round(self.startup_seconds, 3), "holds": self.holds,
+                "held_steps": self.held_steps}
 
 
 class BatchEngine:
@@ -185,6 +195,19 @@ class BatchEngine:
         for b in self.banks:
             b.peaks = _Peaks(b.sim, self.watched, self._scene_coord)
         self._pending_reset: dict[int, dict[int, float]] = {}
+        # held worlds (stages.engine.hold): since which global step; the hold policy of the
+        # threaded engine (benchmarks, tests): hold_policy(world, resume_index) -> sync periods
+        self.held = np.zeros(n, bool)
+        self.held_at = np.zeros(n, np.int64)
+        self.hold_policy: Callable | None = None
+        self._release_at: dict[int, int] = {}
+        self._policy_done: set[int] = set()
+        self._resumes = np.zeros(n, np.int64)
+        if config.resolved_layout() == "batched":
+            from stages.engine.hold import WorldHold
+
+            for b in self.banks:
+                b.hold = WorldHold(b.sim)
         self._begin = self._end = None
         self.side: WorldSide | None = None
         self.stats = EngineStats(worlds=n)
@@ -246,11 +269,13 @@ class BatchEngine:
         try:
             while ls.alive():
                 t0 = time.perf_counter()
-                ls.resume_ready()
+                self._release_due()
+                self._apply_hold_policy()
+                ls.resume_ready(skip=self.held)
                 self.stats.timings.control += time.perf_counter() - t0
                 if not ls.alive() or (stop_at is not None and self.global_step >= stop_at):
                     break
-                sync = ls.waiting_sync()
+                sync = [w for w in ls.waiting_sync() if not self.held[w]]
                 if sync and self.global_step % self.sync_period == 0:
                     self._reset_worlds(sync)
                     ls.release_sync(sync)
@@ -294,21 +319,87 @@ class BatchEngine:
             raise ValueError(f"engine: unknown event {kind!r} from world {w}")
 
     def _advance(self, sync: list[int]) -> None:
-        """Step every world by the largest count that meets no request, sync point or frame."""
+        """Step every world by the largest count that meets no request, sync point, frame or
+        held world's release point; held worlds stand still."""
         ls = self.lockstep
-        k = ls.min_pending() or self.sync_period
+        held = self.held
+        P = self.sync_period
+        k = ls.min_pending(skip=held) or P
         if sync:
-            k = min(k, self.sync_period - self.global_step % self.sync_period)
+            k = min(k, P - self.global_step % P)
+        if held.any():
+            k = min(k, int((P - (self.global_step - self.held_at[held]) % P).min()))
         k = max(1, min(k, self._next_frame_step() - self.global_step))
         t0 = time.perf_counter()
         for b in self.banks:
+            if b.hold is None and held[b.first:b.first + b.count].all():
+                continue  # per-world layout: a held world's model simply does not step
             b.sim.step(k)
             b.snapshot.invalidate()
         self.stats.timings.simulation += time.perf_counter() - t0
         self.stats.steps += k
         self.global_step += k
-        self.steps += k
-        ls.advance(k)
+        self.steps[~held] += k
+        ls.advance(k, skip=held)
+
+    # -- holding worlds (stages.engine.hold) ------------------------------------------------
+    def hold(self, worlds) -> None:
+        """Hold ``worlds`` still from the current step (their programs are still running)."""
+        worlds = [int(w) for w in worlds if not self.held[int(w)]]
+        for b in self.banks:
+            mine = [self._where[w][1] for w in worlds if self._where[w][0] is b]
+            if mine and b.hold is not None:
+                b.hold.hold(mine)
+        self.held[worlds] = True
+        self.held_at[worlds] = self.global_step
+        self.stats.holds += len(worlds)
+
+    def _release(self, worlds: list[int]) -> None:
+        for b in self.banks:
+            mine = [self._where[w][1] for w in worlds if self._where[w][0] is b]
+            if mine and b.hold is not None:
+                b.hold.release(mine)
+            if mine:
+                b.ctl.mark_dirty()
+        self.held[worlds] = False
+        for w in worlds:
+            self.stats.held_steps += int(self.global_step - self.held_at[w])
+            if self._release_at.pop(w, None) is not None:
+                self._policy_done.add(w)  # its program runs now: no second policy decision
+
+    def _release_due(self) -> None:
+        """Release held worlds whose programs have answered, at whole sync periods of holding."""
+        if not self.held.any():
+            return
+        g, P = self.global_step, self.sync_period
+        due = []
+        for w in np.nonzero(self.held)[0]:
+            w = int(w)
+            since = g - int(self.held_at[w])
+            if since <= 0 or since % P:
+                continue
+            if w in self._release_at:
+                if g >= self._release_at[w]:
+                    due.append(w)
+            elif not self.lockstep.running(w):
+                due.append(w)
+        if due:
+            self._release(due)
+
+    def _apply_hold_policy(self) -> None:
+        """The threaded engine's hold policy: a world whose request falls due may be held for a
+        number of sync periods before its program runs (the program then sees the held state)."""
+        if self.hold_policy is None or self.config.program_procs:
+            return
+        for w in self.lockstep.ready(skip=self.held):
+            if w in self._policy_done:
+                self._policy_done.discard(w)
+                continue
+            self._resumes[w] += 1
+            m = int(self.hold_policy(w, int(self._resumes[w])))
+            if m > 0:
+                self.hold([w])
+                self._release_at[w] = self.global_step + m * self.sync_period
 
     def _next_frame_step(self) -> int:
         """The first global frame step after the current step (frames: ceil(K * S / fps))."""
@@ -364,7 +455,7 @@ class BatchEngine:
             return
         self._captured_step = step
         worlds = [w for w in range(self.config.worlds)
-                  if self.rec_active[w] and self.steps[w] <= self.rec_max[w]]
+                  if self.rec_active[w] and self.steps[w] <= self.rec_max[w] and not self.held[w]]
         if not worlds:
             return
         from stages.dataset import Frame

@@ -110,15 +110,24 @@ class Lockstep:
             err, s.error = s.error, None
             raise RuntimeError(f"world {w}: its program failed: {err!r}") from err
 
-    def resume_ready(self) -> int:
-        """Resume, in world order, every live world with no pending steps and no sync wait; each
-        runs until it blocks again or ends. Returns how many were resumed."""
-        n = 0
-        for w, s in enumerate(self.slots):
-            if not s.done and s.pending == 0 and not s.sync:
-                self._resume(w)
-                n += 1
-        return n
+    def ready(self, skip=None) -> list[int]:
+        """Live worlds with no pending steps and no sync wait (``skip[w]`` true: left out)."""
+        return [w for w, s in enumerate(self.slots)
+                if not s.done and s.pending == 0 and not s.sync and (skip is None or not skip[w])]
+
+    def resume_ready(self, skip=None) -> int:
+        """Resume, in world order, every live world with no pending steps and no sync wait
+        (``skip[w]`` true: a held world, left as it is); each runs until it blocks again or ends.
+        Returns how many were resumed."""
+        ws = self.ready(skip)
+        for w in ws:
+            self._resume(w)
+        return len(ws)
+
+    def running(self, world: int) -> bool:
+        """Whether world ``world``'s program is running now (never, seen from the engine: threads
+        run one at a time while the engine waits)."""
+        return False
 
     def waiting_sync(self) -> list[int]:
         return [w for w, s in enumerate(self.slots) if not s.done and s.sync]
@@ -129,15 +138,18 @@ class Lockstep:
         for w in worlds:
             self.slots[w].sync = False
 
-    def min_pending(self) -> int | None:
-        """Fewest pending steps over live worlds that wait for steps (None if none does)."""
-        p = [s.pending for s in self.slots if not s.done and not s.sync and s.pending > 0]
+    def min_pending(self, skip=None) -> int | None:
+        """Fewest pending steps over live worlds that wait for steps (None if none does;
+        ``skip[w]`` true: held, left out)."""
+        p = [s.pending for w, s in enumerate(self.slots)
+             if not s.done and not s.sync and s.pending > 0 and (skip is None or not skip[w])]
         return min(p) if p else None
 
-    def advance(self, k: int) -> None:
-        """``k`` physics steps ran for every world: count them off the pending requests."""
-        for s in self.slots:
-            if not s.done and s.pending > 0:
+    def advance(self, k: int, skip=None) -> None:
+        """``k`` physics steps ran for every world (but held ones, ``skip[w]`` true): count them
+        off the pending requests."""
+        for w, s in enumerate(self.slots):
+            if not s.done and s.pending > 0 and (skip is None or not skip[w]):
                 s.pending = max(0, s.pending - k)
 
     def pending(self, world: int) -> int:

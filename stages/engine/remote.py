@@ -12,10 +12,12 @@ program always runs in the same process, its threads one at a time). They share,
   (waiting for a sync point, done, peaks on, peaks fresh).
 
 Per batch the engine sends every worker the list of its worlds whose requests are met; the workers
-resume them in parallel and answer with their programs' events (reset coordinates, episode begin
-and end), which the engine handles in world order. A world's program sees only its own world and
-its own commands, so which process runs it changes nothing: episodes equal those of the threaded
-engine.
+resume them in parallel and answer, world by world, with the programs' events (reset coordinates,
+episode begin and end), which the engine handles in world order. A world's program sees only its
+own world and its own commands, so which process runs it changes nothing: episodes equal those of
+the threaded engine. With ``EngineConfig.program_wait`` the engine waits only that long for a
+batch: worlds whose programs are still running (planning) are held (:mod:`stages.engine.hold`)
+and the rest step on; a held world is released once its program has answered.
 
 ``next_instance`` must be picklable here (a module-level function or an object): each worker
 calls it for its worlds.
@@ -24,6 +26,7 @@ calls it for its worlds.
 from __future__ import annotations
 
 import logging
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -132,15 +135,14 @@ def _worker(conn, init: dict) -> None:
             msg, arg = conn.recv()
             if msg == "stop":
                 break
-            events.clear()
-            try:
-                for w in arg:
+            for w in arg:  # one answer per world, as soon as its program blocks again
+                events.clear()
+                try:
                     ls.slots[w].sync, ls.slots[w].pending = False, 0  # the engine met its request
                     ls._resume(w)
-            except RuntimeError as e:
-                conn.send(("error", str(e)))
-                continue
-            for w in arg:
+                except RuntimeError as e:
+                    conn.send(("error", w, str(e)))
+                    continue
                 s = ls.slots[w]
                 a["pending"][w] = s.pending
                 a["flags"][w, SYNC] = int(s.sync)
@@ -148,7 +150,7 @@ def _worker(conn, init: dict) -> None:
                 c = side.cmds[w]
                 a["cmdrec"][w, :3] = c.base_velocity
                 a["cmdrec"][w, 3], a["cmdrec"][w, 4] = c.gripper, c.mode
-            conn.send(("ok", list(events)))
+                conn.send(("ok", w, list(events)))
     finally:
         ls.shutdown()
         shared.close()
@@ -182,6 +184,7 @@ class RemotePrograms:
             setattr(engine, key, a[key])
         bank.ctl.bind(a["targets"], a["cmd"])
         self.blocks = [list(range(i * n // k, (i + 1) * n // k)) for i in range(k)]
+        self.in_flight = np.zeros(n, bool)  # sent to a worker, no answer yet
         ctx = mp.get_context("spawn")
         self.procs, self.conns = [], []
         for worlds in self.blocks:
@@ -205,6 +208,22 @@ class RemotePrograms:
             raise RuntimeError(payload)
         return payload
 
+    def _drain(self, timeout: float | None) -> list:
+        """Answers that arrived within ``timeout`` [s] (None: wait for at least one): (world,
+        events) each; their worlds are no longer in flight."""
+        from multiprocessing.connection import wait
+
+        out = []
+        for conn in wait(self.conns, timeout):
+            while conn.poll():
+                msg = conn.recv()
+                if msg[0] == "error":
+                    raise RuntimeError(msg[2])
+                _, w, events = msg
+                self.in_flight[w] = False
+                out.append((w, events))
+        return out
+
     def _write_snapshot(self) -> None:
         bank = self.engine.banks[0]
         st = bank.sim.state_0
@@ -216,35 +235,60 @@ class RemotePrograms:
             a["peaks"][:] = bank.peaks._peak.numpy()
 
     # -- Lockstep's engine-side interface --------------------------------------------------------
-    def resume_ready(self) -> int:
+    def ready(self, skip=None) -> list[int]:
         a = self.a
         f = a["flags"]
-        ready = np.nonzero((f[:, DONE] == 0) & (f[:, SYNC] == 0) & (a["pending"] == 0))[0]
-        if len(ready) == 0:
-            return 0
-        self._write_snapshot()
-        rs = set(int(w) for w in ready)
-        sent = []
-        for conn, worlds in zip(self.conns, self.blocks, strict=True):
-            mine = [w for w in worlds if w in rs]
-            if mine:
-                conn.send(("resume", mine))
-                sent.append(conn)
-        events = []
-        for conn in sent:
-            events += self._reply(conn)
-        order = {id(e): i for i, e in enumerate(events)}
-        for kind, w, payload in sorted(events, key=lambda e: (e[1], order[id(e)])):
-            self.engine.on_event(kind, w, payload)
+        m = (f[:, DONE] == 0) & (f[:, SYNC] == 0) & (a["pending"] == 0) & ~self.in_flight
+        if skip is not None:
+            m &= ~np.asarray(skip, bool)
+        return [int(w) for w in np.nonzero(m)[0]]
+
+    def running(self, world: int) -> bool:
+        return bool(self.in_flight[world])
+
+    def resume_ready(self, skip=None) -> int:
+        """Resume the ready worlds (not ``skip[w]``) in the workers; wait for their answers (at
+        most ``program_wait`` seconds, then hold the late ones); handle every answer that came,
+        in world order."""
+        replies = self._drain(0) if self.in_flight.any() else []
+        ready = self.ready(skip)
+        if ready:
+            self._write_snapshot()
+            rs = set(ready)
+            for conn, worlds in zip(self.conns, self.blocks, strict=True):
+                mine = [w for w in worlds if w in rs]
+                if mine:
+                    conn.send(("resume", mine))
+            self.in_flight[ready] = True
+            limit = self.engine.config.program_wait
+            t_end = None if limit is None else time.perf_counter() + limit
+            while self.in_flight[ready].any():
+                timeout = None if t_end is None else t_end - time.perf_counter()
+                if timeout is not None and timeout <= 0:
+                    break
+                replies += self._drain(timeout)
+            late = [int(w) for w in np.nonzero(self.in_flight)[0] if not self.engine.held[w]]
+            if late:
+                self.engine.hold(late)
+        live = self.a["flags"][:, DONE] == 0
+        if not replies and live.any() and (self.in_flight | ~live).all():
+            replies += self._drain(None)  # every live world is planning: wait for one (no spinning)
+        if not replies:
+            return len(ready)
+        f = self.a["flags"]
+        replies.sort(key=lambda r: r[0])
+        for w, events in replies:
+            for kind, ew, payload in events:
+                self.engine.on_event(kind, ew, payload)
         peaks = self.engine.banks[0].peaks
-        for w in rs:
+        for w, _ in replies:
             if f[w, PEAKS_FRESH]:
                 peaks.start(w)
                 f[w, PEAKS_FRESH] = 0
             elif not f[w, PEAKS_ON] and peaks._active_np[w]:
                 peaks.stop(w)
         self.engine.banks[0].ctl.mark_dirty()
-        return len(rs)
+        return len(ready)
 
     def waiting_sync(self) -> list[int]:
         f = self.a["flags"]
@@ -254,14 +298,18 @@ class RemotePrograms:
         for w in worlds:
             self.a["flags"][w, SYNC] = 0
 
-    def min_pending(self) -> int | None:
+    def min_pending(self, skip=None) -> int | None:
         a = self.a
-        m = (a["flags"][:, DONE] == 0) & (a["flags"][:, SYNC] == 0) & (a["pending"] > 0)
+        m = (a["flags"][:, DONE] == 0) & (a["flags"][:, SYNC] == 0) & (a["pending"] > 0) & ~self.in_flight
+        if skip is not None:
+            m &= ~np.asarray(skip, bool)
         return int(a["pending"][m].min()) if m.any() else None
 
-    def advance(self, k: int) -> None:
+    def advance(self, k: int, skip=None) -> None:
         p = self.a["pending"]
-        m = (self.a["flags"][:, DONE] == 0) & (p > 0)
+        m = (self.a["flags"][:, DONE] == 0) & (p > 0) & ~self.in_flight
+        if skip is not None:
+            m &= ~np.asarray(skip, bool)
         p[m] = np.maximum(0, p[m] - k)
 
     def alive(self) -> bool:

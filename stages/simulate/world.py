@@ -328,6 +328,7 @@ class Sim:
     time: float = 0.0
     steps: int = 0
     pre_step: list = field(default_factory=list)
+    post_step: list = field(default_factory=list)
     _graphs: dict = field(default_factory=dict, repr=False)  # (state_0 id, h) -> captured CUDA graph
     _graphs_warm: bool = field(default=False, repr=False)
     contact_monitor: object | None = field(default=None, repr=False)  # contacts.OverflowMonitor
@@ -338,7 +339,8 @@ class Sim:
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps of ``settings.dt`` [s]; callbacks in ``pre_step`` run
-        before each (the controllers use it to update drive targets)."""
+        before each (the controllers use it to update drive targets), those in ``post_step``
+        after each (the engine's world hold)."""
         s = self.settings
         h = s.dt / s.substeps
         graphs = self._use_graphs()
@@ -351,6 +353,8 @@ class Sim:
                 else:
                     self._substep(h)
                 self.state_0, self.state_1 = self.state_1, self.state_0
+            for cb in self.post_step:
+                cb(self)
             self.time += s.dt
             self.steps += 1
             every = self.solver_settings.contact_check_every

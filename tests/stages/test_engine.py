@@ -39,7 +39,8 @@ def room(tmp_path_factory):
     return write_kitchen(out.parent / "kitchen", lib, scene_id="k", rng=np.random.default_rng(5))
 
 
-def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: int = 0) -> dict:
+def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: int = 0, *,
+         program_wait: float | None = None, hold_policy=None, stats_out: list | None = None) -> dict:
     """Run an engine of len(queues) worlds; queues: world -> [(task, seed, max_seconds)].
     Returns (task, seed) -> dict(frames=[...], result=EpisodeResult, world=w)."""
     from stages.engine import BatchEngine, EngineConfig
@@ -47,7 +48,8 @@ def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: 
 
     eng = BatchEngine(room, panda_root=None, work_dir=work,
                       config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout,
-                                          program_procs=program_procs))
+                                          program_procs=program_procs, program_wait=program_wait))
+    eng.hold_policy = hold_policy
     out: dict = {}
 
     def begin(w, inst):
@@ -59,6 +61,8 @@ def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: 
 
     stats = eng.run(Listed(room, queues), begin=begin, end=end)
     assert stats.episodes == sum(len(q) for q in queues.values())
+    if stats_out is not None:
+        stats_out.append(stats)
     return out
 
 
@@ -132,6 +136,34 @@ def test_world_programs_in_worker_processes_record_what_threads_record(room, tmp
     assert set(threads) == set(procs)
     for key in threads:
         _assert_same_episode(threads[key], procs[key], key)
+
+
+@pytest.mark.parametrize("layout", ["per_world", "batched"])
+def test_held_worlds_record_what_unheld_worlds_record(room, tmp_path, layout):
+    # a world held while its program "plans" (here: held by a fixed policy for 1-3 sync periods at
+    # chosen requests) stands still while the other steps on; its episode is unchanged
+    queues = {0: [("press_button", 3, 0.4)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
+    plan = {(0, 2): 1, (0, 5): 3, (1, 3): 2}
+    stats: list = []
+    held = _run(room, tmp_path / "h", layout, queues, hold_policy=lambda w, k: plan.get((w, k), 0),
+                stats_out=stats)
+    free = _run(room, tmp_path / "f", layout, queues)
+    assert stats[0].holds == 3 and stats[0].held_steps >= 6 * 50  # 6 sync periods of 50 steps
+    assert set(held) == set(free)
+    for key in free:
+        _assert_same_episode(held[key], free[key], key, exact_images=layout == "per_world")
+
+
+def test_late_programs_in_worker_processes_are_held_and_record_what_threads_record(room, tmp_path):
+    # program_wait=0: every world whose program has not answered at once is held until it has
+    queues = {0: [("press_button", 3, 0.3)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
+    threads = _run(room, tmp_path / "t", "batched", queues)
+    stats: list = []
+    procs = _run(room, tmp_path / "p", "batched", queues, program_procs=2, program_wait=0.0, stats_out=stats)
+    assert stats[0].holds > 0
+    assert set(threads) == set(procs)
+    for key in threads:
+        _assert_same_episode(threads[key], procs[key], key, exact_images=False)
 
 
 def test_compact_readback_equals_the_host_conversion(room, tmp_path):
