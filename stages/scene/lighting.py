@@ -7,18 +7,20 @@ sky for a ``DomeLight`` (so the illuminance it gives a horizontal surface is ``p
 [lux]). ``inputs:exposure`` [stops] scales what a renderer emits by ``2^exposure``; every light of
 a scene carries the same exposure, :data:`SCENE_EXPOSURE`, the exposure of a camera for the lit
 interior baked into the lights, so that renderers that show an emitted radiance of 1 as white and
-apply no camera exposure of their own (Blender's Cycles and EEVEE, usdview's Storm) show the room
-exposed, and only the one common factor separates those values from the physical ones. Renderers
-with a camera exposure (Omniverse RTX, Karma with a physical camera) should add
-``-SCENE_EXPOSURE`` stops there (or use auto exposure). Our own camera (``stages.simulate.sensors``)
-exposes automatically for the indoor illuminance, so any factor common to all lights divides out
-and its images do not depend on ``SCENE_EXPOSURE``.
+apply no camera exposure of their own (Blender: measured with Cycles; usdview's Storm by default,
+not checked here) show the room exposed, and one common factor separates what they render from
+the physical values. Renderers with a camera exposure (Omniverse RTX, Karma with a physical
+camera) should add ``-SCENE_EXPOSURE`` stops there (or use auto exposure). Our own camera
+(``stages.simulate.sensors``) exposes automatically for the indoor illuminance, so any factor
+common to all lights divides out and its images do not depend on ``SCENE_EXPOSURE``.
 
 Ceiling light: a ``SphereLight`` of radius ``r`` hung ``h`` above the floor centre. Its luminous
 intensity straight down is ``I = L * pi * r^2`` [cd] for luminance ``L = intensity`` [nit], its
 luminous flux ``4 pi I`` [lm], and the illuminance on the floor right below it (direct light only)
 ``E = I / h^2`` [lux]. The stage samples the target ``E`` [lux] and the colour temperature [K]
-and solves ``intensity = E h^2 / (pi r^2)``. Daylight is a ``DistantLight`` (intensity: the sun's
+and solves ``intensity = E h^2 / (pi r^2)``. (The targets are direct light, for our camera that
+has no bounce light: 150-800 lux from 2.35 m is 10-55 klm, several home fixtures' worth; a path
+tracer adds bounce light on top.) Daylight is a ``DistantLight`` (intensity: the sun's
 illuminance [lux]) plus a dim ``DomeLight`` sky. Every chosen value is recorded on the light
 (``customData``) and returned in ``LightSpec``.
 

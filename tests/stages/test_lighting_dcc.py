@@ -6,7 +6,7 @@ Blender's reading is modelled here from its USD importer (5.0.1, ``usd_reader_li
 light becomes a point light of ``energy = pi * intensity`` [W] with ``exposure`` and ``normalize``
 carried over) and a Cycles render of a lit plane (an unnormalized point light emits ``energy *
 2^exposure * 4 pi r^2`` [W]); ``tests/benchmarks/bench_blender_lights.py`` checks the same figures
-in Blender itself. Main's lights read as 10-55 kW there and rendered white.
+in Blender itself. Main's ceiling lights read as 11-102 kW there and rendered white.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ def _blender_watts(prim) -> float:
 def _lights(stage) -> dict:
     from pxr import UsdLux
 
-    return {p.GetName(): p for p in stage.TraverseAll() if p.HasAPI(UsdLux.LightAPI)}  # lighting.usda: over World
+    # TraverseAll: lighting.usda alone holds its lights under an ``over`` of /World
+    return {p.GetName(): p for p in stage.TraverseAll() if p.HasAPI(UsdLux.LightAPI)}
 
 
 @pytest.mark.parametrize("ceiling", [2.3, 2.6, 3.5])
@@ -50,7 +51,8 @@ def test_scene_stage_ceiling_lights_read_as_lamps_in_blender(tmp_path, ceiling):
     poly = np.array([[0, 0], [4, 0], [4, 3], [0, 3]], dtype=float)
     watts = []
     for seed in range(20):
-        specs = plan_lights([("r", poly, 0.0, ceiling)], LightingConfig(daylight=1.0), np.random.default_rng(seed))
+        rng = np.random.default_rng(seed)
+        specs = plan_lights([("r", poly, 0.0, ceiling)], LightingConfig(daylight=1.0), rng)
         out = tmp_path / str(seed)
         out.mkdir()
         stage = Usd.Stage.Open(str(write_lighting(out, specs)))
@@ -59,7 +61,8 @@ def test_scene_stage_ceiling_lights_read_as_lamps_in_blender(tmp_path, ceiling):
         w = _blender_watts(lights["Ceiling_r"])
         watts.append(w)
         spec = next(s for s in specs if s.type == "SphereLight")
-        assert blender_power("SphereLight", spec.intensity, spec.exposure, radius=spec.radius) == pytest.approx(w)
+        modelled = blender_power("SphereLight", spec.intensity, spec.exposure, radius=spec.radius)
+        assert modelled == pytest.approx(w)
         # physical values: luminous flux [lm] = what Blender renders [W] / 2^exposure
         assert spec.luminous_flux() == pytest.approx(w / 2.0**SCENE_EXPOSURE, rel=1e-5)
         for p in lights.values():
@@ -85,7 +88,8 @@ def test_demo_room_lights_read_as_lamps_in_blender(tmp_path):
     sun = lights["Sun"]
     # Blender's sun strength [W/m^2] is 4 x intensity x 2^exposure; a white (albedo 1) wall facing
     # it shows strength / pi
-    strength = 4.0 * sun.GetAttribute("inputs:intensity").Get() * 2.0 ** sun.GetAttribute("inputs:exposure").Get()
+    intensity, exposure = (sun.GetAttribute(f"inputs:{a}").Get() for a in ("intensity", "exposure"))
+    strength = 4.0 * intensity * 2.0**exposure
     assert 0.3 <= strength / math.pi <= 1.0, strength
 
 
