@@ -1,9 +1,10 @@
 """Benchmark (Blender): generated scenes rendered in Blender with their UsdLux lights exactly as
 authored must be exposed, not white (issue 18, item 3).
 
-Three scenes are generated in-process: a bedroom and a kitchen of the scene stage (packages built
+Four scenes are generated in-process: a bedroom and a kitchen of the scene stage (packages built
 from the default catalog's generators, ``stages.scene.standin``; placement, materials, lighting,
-composition; no settle) and the demo room (``stages.simulate.demo_scene``). Each is imported into
+composition; no settle), the demo room (``stages.simulate.demo_scene``) and a demonstration
+kitchen with its look (``stages.demos.kitchen``, one ingested package per category). Each is imported into
 Blender (``bpy``) and rendered with Cycles on the CPU (160x120, 16 samples) by
 ``blender_exposure.py`` in a subprocess, so the project's venv needs no ``bpy``. Asserted per
 scene: under 5% of the pixels clipped (a linear channel >= 1, white under Blender's Standard view
@@ -83,6 +84,27 @@ def _scene(root: Path, room: str, categories: list[str], seed: int) -> Path:
     raise RuntimeError(f"no {room} scene in seeds {seed}-{seed + 4}: {errors[-1]}")
 
 
+def _demos_kitchen(root: Path, seed: int) -> Path:
+    """A demonstration kitchen (``stages.demos.kitchen``, its look and lights from ``seed``) on one
+    ingested package per kitchen category (as tests/stages/test_demos_looks.py builds them)."""
+    from pipeline import build_job, run_job
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
+
+    out = root / "demos_catalog"
+    cats = ["kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can"]
+    only = ["kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
+            "mug_04", "bowl_00", "can_00"]
+    job = {"job": {"name": "blender_kitchen", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog",
+                     "config": {"variants": 5, "categories": cats}},
+                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": only}}]}
+    summary = run_job(build_job(job, source="<bench>", base_dir=root), progress=False)
+    if any(s.failed for s in summary.steps):
+        raise RuntimeError(f"catalog for the demos kitchen failed: {summary}")
+    lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+    return write_kitchen(root / "demos_kitchen", lib, scene_id="k", rng=np.random.default_rng(seed)).usd
+
+
 def _render(py: str, usd: Path, out: Path, light_scale: float = 1.0) -> dict:
     cmd = [py, str(SCRIPT), str(usd), "--out", str(out), "--samples", "16", "--size", "160", "120",
            "--light-scale", repr(light_scale)]
@@ -106,6 +128,7 @@ def test_scenes_render_exposed_in_blender(tmp_path):
         "bedroom": _scene(tmp_path, "bedroom", BEDROOM, 7),
         "kitchen": _scene(tmp_path, "kitchen", KITCHEN, 3),
         "demo_room": write_demo_room(tmp_path / "demo_room" / "demo_room.usda").usd,
+        "demos_kitchen": _demos_kitchen(tmp_path, 5),
     }
     rows, problems = [], []
     for name, usd in scenes.items():
