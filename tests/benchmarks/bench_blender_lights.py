@@ -97,7 +97,8 @@ def _demos_kitchen(root: Path, seed: int) -> Path:
     job = {"job": {"name": "blender_kitchen", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
            "step": [{"name": "catalog", "kind": "default_catalog",
                      "config": {"variants": 5, "categories": cats}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": only}}]}
+                    {"name": "assets", "kind": "ingest",
+                     "config": {"catalog_step": "catalog", "only": only}}]}
     summary = run_job(build_job(job, source="<bench>", base_dir=root), progress=False)
     if any(s.failed for s in summary.steps):
         raise RuntimeError(f"catalog for the demos kitchen failed: {summary}")
