@@ -6,7 +6,9 @@ lights), illuminance [lux] on a surface facing it for a ``DistantLight``, lumina
 sky for a ``DomeLight`` (so the illuminance it gives a horizontal surface is ``pi * intensity``
 [lux]). ``inputs:exposure`` [stops] scales what a renderer emits by ``2^exposure``; every light of
 a scene carries the same exposure, :data:`SCENE_EXPOSURE`, the exposure of a camera for the lit
-interior baked into the lights, so that renderers that show an emitted radiance of 1 as white and
+interior baked into the lights (but the dome light, whose intensity holds it, ``2^SCENE_EXPOSURE``
+times the physical value, with exposure 0: Blender's importer ignores a dome light's exposure), so
+that renderers that show an emitted radiance of 1 as white and
 apply no camera exposure of their own (Blender: measured with Cycles; usdview's Storm by default,
 not checked here) show the room exposed, and one common factor separates what they render from
 the physical values. Renderers with a camera exposure (Omniverse RTX, Karma with a physical
@@ -28,8 +30,9 @@ Blender (5.0.1; ``usd_reader_light.cc`` and a Cycles render of a lit plane) read
 a point light of ``energy = pi * intensity`` [W] with Blender's own ``exposure`` and
 ``normalize`` (off: Cycles then emits ``energy * 2^exposure * 4 pi r^2`` [W], so the watts it
 renders are the UsdLux luminous flux in lumens times ``2^exposure``), a distant light as a sun of
-strength ``4 * intensity`` [W/m^2] (times ``2^exposure``), and ignores a dome light without a
-texture; :func:`blender_power` gives these figures. With ``SCENE_EXPOSURE`` -10 a ceiling light
+strength ``4 * intensity`` [W/m^2] (times ``2^exposure``), and a dome light as the world's
+background of strength ``intensity`` (its exposure ignored; the dome is skipped when the Blender
+scene has no world); :func:`blender_power` gives these figures. With ``SCENE_EXPOSURE`` -10 a ceiling light
 giving 150-800 lux below it from 2.35 m (the default 2.6 m ceiling) renders as 10-54 W in Blender
 (``tests/benchmarks/bench_blender_lights.py`` renders scenes there and checks their histograms).
 """
@@ -49,7 +52,8 @@ SCENE_EXPOSURE = -10.0  # [stops] inputs:exposure of every light of a scene (see
 
 class LightSpec(BaseModel):
     """One light: prim name, type (SphereLight | DistantLight | DomeLight), position [m] (3,),
-    radius [m], intensity [nit; lux for the distant light] (physical, before the exposure),
+    radius [m], intensity [nit; lux for the distant light] (physical, before the exposure; the
+    dome's times ``2^SCENE_EXPOSURE``, its exposure 0, see the module doc),
     exposure [stops], color temperature [K], target illuminance at the floor [lux] (physical,
     direct light), sun elevation and azimuth [deg] (distant light)."""
 
@@ -111,8 +115,9 @@ def plan_lights(rooms: list[tuple[str, np.ndarray, float, float]], cfg: Lighting
                              color_temperature=float(rng.uniform(5000.0, 6500.0)), target_lux=lux,
                              elevation=float(rng.uniform(20.0, 60.0)), azimuth=float(rng.uniform(0.0, 360.0))))
         sky = max(LUX_RANGE[0], lux * 0.05)
-        out.append(LightSpec(name="Sky", type="DomeLight", intensity=sky / math.pi, exposure=cfg.exposure,
-                             color_temperature=6500.0, target_lux=sky))
+        # the dome holds the exposure in its intensity (Blender ignores a dome's exposure)
+        out.append(LightSpec(name="Sky", type="DomeLight", intensity=sky / math.pi * 2.0 ** cfg.exposure,
+                             exposure=0.0, color_temperature=6500.0, target_lux=sky))
     return out
 
 
@@ -120,14 +125,14 @@ def blender_power(kind: str, intensity: float, exposure: float = 0.0, *, radius:
                   normalize: bool = False) -> float:
     """What Blender 5.0.1 renders for a UsdLux light (see the module doc): a ``SphereLight``'s
     power [W] (its radius [m] as authored, UsdLux's fallback 0.5), a ``DistantLight``'s sun
-    strength [W/m^2]; 0 for a ``DomeLight`` (not imported without a texture)."""
+    strength [W/m^2], a ``DomeLight``'s background strength (radiance; its exposure ignored)."""
     scale = intensity * 2.0 ** exposure
     if kind == "SphereLight":
         return math.pi * scale * (1.0 if normalize else 4.0 * math.pi * radius ** 2)
     if kind == "DistantLight":
         return 4.0 * scale
     if kind == "DomeLight":
-        return 0.0
+        return intensity
     raise ValueError(f"blender_power: {kind} lights are not modelled (SphereLight, DistantLight, DomeLight)")
 
 

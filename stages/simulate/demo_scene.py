@@ -427,8 +427,8 @@ def _add_lights(
     temperature ``ceiling_kelvin`` [K] at ``ceiling_xy`` (default: the room centre) [m], ``height``
     [m] above the floor, giving ``ceiling_lux`` on the floor below it, a weak sun of ``sun_lux``
     [lux] whose -Z axis is turned by ``sun_tilt`` (about world X, then Y) [deg], and a sky dome
-    giving ``dome_lux`` [lux] on a horizontal surface. Intensities are physical, each light's
-    exposure is the scene exposure (``stages.scene.lighting``'s units)."""
+    giving ``dome_lux`` [lux] on a horizontal surface. Intensities are physical with the scene
+    exposure on each light, the dome's folded into its intensity (``stages.scene.lighting``)."""
     from pxr import Gf, Sdf
     from scipy.spatial.transform import Rotation
 
@@ -469,8 +469,8 @@ def _add_lights(
         "/World/Lights/Sky",
         "DomeLight",
         attrs={
-            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(dome_lux) / np.pi),
-            "inputs:exposure": exposure,
+            # exposure folded in: Blender's importer ignores a dome light's exposure
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(dome_lux) / np.pi * 2.0**SCENE_EXPOSURE),
             "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
         },
     )

@@ -138,11 +138,12 @@ def test_scenes_render_exposed_in_blender(tmp_path):
         lamps = [lt["emitted_w"] for lt in rec["lights"] if lt["name"].startswith("Ceiling")]
         rows.append({"scene": name, "blender": rec["blender"], "clipped": rec["clipped"],
                      "median": rec["median"], "p05": rec["p05"], "p95": rec["p95"], "ceiling_w": lamps,
-                     "render_s": rec["render_s"], "lights": rec["lights"],
+                     "sky": rec["world_strength"], "render_s": rec["render_s"], "lights": rec["lights"],
                      "unexposed_clipped": old["clipped"], "unexposed_median": old["median"]})
         print(f"{name}: clipped {rec['clipped']:.3f} median {rec['median']:.3f} (p05 {rec['p05']:.3f}, "
-              f"p95 {rec['p95']:.3f}), ceiling {', '.join(f'{w:.0f} W' for w in lamps)}; without the scene "
-              f"exposure: clipped {old['clipped']:.3f} median {old['median']:.1f}", flush=True)
+              f"p95 {rec['p95']:.3f}), ceiling {', '.join(f'{w:.0f} W' for w in lamps)}, sky "
+              f"{rec['world_strength']}; without the scene exposure: clipped {old['clipped']:.3f} "
+              f"median {old['median']:.1f}", flush=True)
         if rec["clipped"] >= CLIPPED_MAX:
             problems.append(f"{name}: {rec['clipped']:.1%} clipped")
         if not MEDIAN_RANGE[0] <= rec["median"] <= MEDIAN_RANGE[1]:

@@ -16,7 +16,8 @@ linear (OpenEXR, ``DIR/<name>.exr``) and as ``DIR/<name>.png`` (Standard view tr
 is clipped there is white). Printed as one JSON line: Blender's version, each imported light's
 type, power [W] (``energy``), exposure [stops], normalize flag and its power as Blender emits it,
 ``energy * 2^exposure``, times the sphere's area ``4 pi r^2`` for an unnormalized point or
-spot light (measured: Cycles' unnormalized point light emits that much less or more) [W]; and the image's
+spot light (measured: Cycles' unnormalized point light emits that much less or more) [W], the
+world background's strength (the imported dome light); and the image's
 luminance statistics: ``clipped`` (fraction of pixels with a linear channel >= 1), ``median``,
 ``p05``, ``p95`` (linear Rec. 709 luminance).
 """
@@ -48,6 +49,16 @@ def _bounds():
     return lo, hi
 
 
+def _world_strength() -> float | None:
+    """Strength of the world's background shader (the imported dome light), or None."""
+    import bpy
+
+    w = bpy.context.scene.world
+    nodes = w.node_tree.nodes if w is not None and w.node_tree is not None else []
+    bg = [n for n in nodes if n.bl_idname == "ShaderNodeBackground"]
+    return float(bg[0].inputs["Strength"].default_value) if bg else None
+
+
 def light_records() -> list[dict]:
     """Every imported light: name, type, energy [W], exposure [stops], normalize, emitted [W]."""
     import bpy
@@ -73,6 +84,9 @@ def render(usd: Path, out: Path, samples: int, width: int, height: int, light_sc
     from mathutils import Vector
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    # a world, as Blender's default scene has: the importer turns the dome light into its background
+    # (and skips the dome without one)
+    bpy.context.scene.world = bpy.data.worlds.new("World")
     bpy.ops.wm.usd_import(filepath=str(usd), light_intensity_scale=light_scale)
     lo, hi = _bounds()
     centre = (lo + hi) / 2
@@ -113,6 +127,7 @@ def render(usd: Path, out: Path, samples: int, width: int, height: int, light_sc
         "scene": str(usd),
         "blender": bpy.app.version_string,
         "lights": light_records(),
+        "world_strength": _world_strength(),
         "light_scale": light_scale,
         "render_s": round(seconds, 2),
         "clipped": float((rgb.max(axis=1) >= 1.0).mean()),

@@ -81,6 +81,7 @@ def check(usd: Path, png: Path | None) -> dict:
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.world = bpy.data.worlds.new("World")  # the importer makes the dome light its background
     t0 = time.perf_counter()
     result = bpy.ops.wm.usd_import(filepath=str(usd), light_intensity_scale=LIGHT_SCALE)
     seconds = time.perf_counter() - t0

@@ -42,7 +42,8 @@ def _lights(stage) -> dict:
 @pytest.mark.parametrize("ceiling", [2.3, 2.6, 3.5])
 def test_scene_stage_ceiling_lights_read_as_lamps_in_blender(tmp_path, ceiling):
     """Every ceiling light the scene stage writes (sampled floor illuminance 150-800 lux, ceilings
-    2.3-3.5 m) renders as a 5-200 W lamp in Blender; every light carries the scene exposure."""
+    2.3-3.5 m) renders as a 5-200 W lamp in Blender; every light carries the scene exposure, the
+    dome in its intensity (Blender ignores a dome's exposure), so its sky is not white there."""
     from pxr import Usd
 
     from stages.scene.compose import write_lighting
@@ -65,8 +66,11 @@ def test_scene_stage_ceiling_lights_read_as_lamps_in_blender(tmp_path, ceiling):
         assert modelled == pytest.approx(w)
         # physical values: luminous flux [lm] = what Blender renders [W] / 2^exposure
         assert spec.luminous_flux() == pytest.approx(w / 2.0**SCENE_EXPOSURE, rel=1e-5)
-        for p in lights.values():
-            assert p.GetAttribute("inputs:exposure").Get() == SCENE_EXPOSURE
+        for name, p in lights.items():
+            exposure = p.GetAttribute("inputs:exposure").Get()
+            assert exposure == (0.0 if name == "Sky" else SCENE_EXPOSURE), name
+        sky = lights["Sky"].GetAttribute("inputs:intensity").Get()
+        assert 0.01 <= blender_power("DomeLight", sky) <= 0.5  # background radiance, white is 1
     assert BLENDER_LAMP_W[0] <= min(watts) and max(watts) <= BLENDER_LAMP_W[1], (min(watts), max(watts))
 
 
@@ -91,6 +95,9 @@ def test_demo_room_lights_read_as_lamps_in_blender(tmp_path):
     intensity, exposure = (sun.GetAttribute(f"inputs:{a}").Get() for a in ("intensity", "exposure"))
     strength = 4.0 * intensity * 2.0**exposure
     assert 0.3 <= strength / math.pi <= 1.0, strength
+    # the sky dome: Blender's background strength is its intensity, exposure ignored
+    assert not lights["Sky"].GetAttribute("inputs:exposure").HasAuthoredValue()
+    assert 0.01 <= lights["Sky"].GetAttribute("inputs:intensity").Get() <= 0.5
 
 
 def test_our_camera_maps_the_lights_as_before(tmp_path):
@@ -99,7 +106,7 @@ def test_our_camera_maps_the_lights_as_before(tmp_path):
     from pxr import Usd
 
     from stages.scene.compose import write_lighting
-    from stages.scene.lighting import LightingConfig, plan_lights
+    from stages.scene.lighting import SCENE_EXPOSURE, LightingConfig, plan_lights
     from stages.simulate.sensors import map_lights, read_usd_lights
 
     poly = np.array([[0, 0], [4, 0], [4, 3], [0, 3]], dtype=float)
@@ -109,8 +116,10 @@ def test_our_camera_maps_the_lights_as_before(tmp_path):
     stage.GetRootLayer().subLayerPaths.append(str(write_lighting(tmp_path, specs)))
     stage.DefinePrim("/World", "Xform")  # as scene.usda does over the lighting layer
     lights = read_usd_lights(stage)
-    assert len(lights) == 4 and all(lt.exposure == specs[0].exposure for lt in lights)
-    physical = [dataclasses.replace(lt, exposure=0.0) for lt in lights]
+    assert len(lights) == 4
+    # the same lights at their physical values (main's effective values): no exposure anywhere
+    physical = [dataclasses.replace(lt, intensity=lt.intensity * 2.0 ** (lt.exposure - SCENE_EXPOSURE),
+                                    exposure=0.0) for lt in lights]
     (got, sky), (want, sky0) = map_lights(lights), map_lights(physical)
     assert [m.source for m in got] == [m.source for m in want] and len(got) == 3 and sky is not None
     for a, b in zip(got, want, strict=True):
