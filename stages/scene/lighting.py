@@ -4,15 +4,15 @@ Units (UsdLux's physically based reading). A light's ``inputs:intensity`` is its
 luminance [nit = cd/m^2] of the emitter's surface for a ``SphereLight`` (and rect, disk, cylinder
 lights), illuminance [lux] on a surface facing it for a ``DistantLight``, luminance [nit] of the
 sky for a ``DomeLight`` (so the illuminance it gives a horizontal surface is ``pi * intensity``
-[lux]). ``inputs:exposure`` [stops] scales what a renderer emits by ``2^exposure``; every light of
-a scene carries the same exposure, :data:`SCENE_EXPOSURE`, the exposure of a camera for the lit
-interior baked into the lights (but the dome light, whose intensity holds it, ``2^SCENE_EXPOSURE``
-times the physical value, with exposure 0: Blender's importer ignores a dome light's exposure), so
-that renderers that show an emitted radiance of 1 as white and
-apply no camera exposure of their own (Blender: measured with Cycles; usdview's Storm by default,
-not checked here) show the room exposed, and one common factor separates what they render from
-the physical values. Renderers with a camera exposure (Omniverse RTX, Karma with a physical
-camera) should add ``-SCENE_EXPOSURE`` stops there (or use auto exposure). Our own camera
+[lux]). ``inputs:exposure`` [stops] scales what a renderer emits by ``2^exposure``. Every light
+of a scene carries the same exposure, :data:`SCENE_EXPOSURE`: the exposure of a camera for the
+lit interior, baked into the lights, so that renderers that show an emitted radiance of 1 as
+white and apply no camera exposure of their own (Blender: measured with Cycles; usdview's Storm by
+default, not checked here) show the room exposed, one common factor away from the physical
+values. The dome light is the exception: its intensity holds the exposure (``2^SCENE_EXPOSURE``
+times the physical value, exposure 0), because Blender's importer ignores a dome's exposure.
+Renderers with a camera exposure (Omniverse RTX, Karma with a physical camera) should add
+``-SCENE_EXPOSURE`` stops there (or use auto exposure). Our own camera
 (``stages.simulate.sensors``) exposes automatically for the indoor illuminance, so any factor
 common to all lights divides out and its images do not depend on ``SCENE_EXPOSURE``.
 
@@ -32,9 +32,10 @@ a point light of ``energy = pi * intensity`` [W] with Blender's own ``exposure``
 renders are the UsdLux luminous flux in lumens times ``2^exposure``), a distant light as a sun of
 strength ``4 * intensity`` [W/m^2] (times ``2^exposure``), and a dome light as the world's
 background of strength ``intensity`` (its exposure ignored; the dome is skipped when the Blender
-scene has no world); :func:`blender_power` gives these figures. With ``SCENE_EXPOSURE`` -10 a ceiling light
-giving 150-800 lux below it from 2.35 m (the default 2.6 m ceiling) renders as 10-54 W in Blender
-(``tests/benchmarks/bench_blender_lights.py`` renders scenes there and checks their histograms).
+scene has no world); :func:`blender_power` gives these figures. With ``SCENE_EXPOSURE`` -10 a
+ceiling light giving 150-800 lux below it from 2.35 m (the default 2.6 m ceiling) renders as
+10-54 W in Blender (``tests/benchmarks/bench_blender_lights.py`` renders scenes there and checks
+their histograms).
 """
 
 from __future__ import annotations

@@ -31,9 +31,9 @@ DomeLight           ambient sky colour, E = pi * intensity * 2^exposure [lux] (t
 ``inputs:normalize`` (on) divides a local light's luminance by its surface area (4 pi r^2 for a
 sphere, w h, pi r^2, 2 pi r length for rect, disk and cylinder lights), as UsdLux defines it (what
 Blender's exporter writes). The scene stage authors physical intensities and one common
-``inputs:exposure`` on every light (``stages.scene.lighting.SCENE_EXPOSURE``); the values here
-are UsdLux's, exposure included, so ``exposure_lux`` is in those units too, and the automatic
-exposure divides the common factor out.
+``inputs:exposure`` on every light (``stages.scene.lighting.SCENE_EXPOSURE``; the dome's is in
+its intensity); the values here are UsdLux's, exposure included, so ``exposure_lux`` is in those
+units too, and the automatic exposure divides the common factor out.
 
 Exposure: renderer value 1 is the illuminance ``exposure_lux``; by default (auto) the indoor
 illuminance, i.e. the sum of the local lights' E at ``REFERENCE_DISTANCE`` (I / d^2) and the dome's
