@@ -39,39 +39,56 @@ def _lights(stage) -> dict:
     return {p.GetName(): p for p in stage.TraverseAll() if p.HasAPI(UsdLux.LightAPI)}
 
 
-@pytest.mark.parametrize("ceiling", [2.3, 2.6, 3.5])
-def test_scene_stage_ceiling_lights_read_as_lamps_in_blender(tmp_path, ceiling):
-    """Every ceiling light the scene stage writes (sampled floor illuminance 150-800 lux, ceilings
-    2.3-3.5 m) renders as a 5-200 W lamp in Blender; every light carries the scene exposure, the
-    dome in its intensity (Blender ignores a dome's exposure), so its sky is not white there."""
+def _scene_stage_lights(tmp_path, ceiling: float, seeds=range(20)):
+    """(specs, light prims by name, stage) of the lighting layer the scene stage writes for a 4 m x
+    3 m room of ``ceiling`` [m] with daylight, per seed."""
     from pxr import Usd
 
     from stages.scene.compose import write_lighting
-    from stages.scene.lighting import SCENE_EXPOSURE, LightingConfig, blender_power, plan_lights
+    from stages.scene.lighting import LightingConfig, plan_lights
 
     poly = np.array([[0, 0], [4, 0], [4, 3], [0, 3]], dtype=float)
-    watts = []
-    for seed in range(20):
+    for seed in seeds:
         rng = np.random.default_rng(seed)
         specs = plan_lights([("r", poly, 0.0, ceiling)], LightingConfig(daylight=1.0), rng)
-        out = tmp_path / str(seed)
+        out = tmp_path / f"{ceiling}_{seed}"
         out.mkdir()
         stage = Usd.Stage.Open(str(write_lighting(out, specs)))
         lights = _lights(stage)
         assert set(lights) == {"Ceiling_r", "Sun", "Sky"}
+        yield specs, lights, stage
+
+
+@pytest.mark.parametrize("ceiling", [2.3, 2.6, 3.5])
+def test_scene_stage_lights_read_as_lamps_in_blender(tmp_path, ceiling):
+    """Every ceiling light the scene stage writes (sampled floor illuminance 150-800 lux, ceilings
+    2.3-3.5 m) renders as a 5-200 W lamp in Blender, and its sky dome as a background darker than
+    white (Blender's background strength is the dome's intensity, its exposure ignored)."""
+    watts, skies = [], []
+    for _, lights, _stage in _scene_stage_lights(tmp_path, ceiling):
+        watts.append(_blender_watts(lights["Ceiling_r"]))
+        skies.append(lights["Sky"].GetAttribute("inputs:intensity").Get())
+    assert BLENDER_LAMP_W[0] <= min(watts) and max(watts) <= BLENDER_LAMP_W[1], (min(watts), max(watts))
+    assert 0.01 <= min(skies) and max(skies) <= 0.5, (min(skies), max(skies))  # radiance; white is 1
+
+
+def test_scene_stage_lights_carry_the_scene_exposure(tmp_path):
+    """Physical intensities, the scene exposure on every light (the dome's in its intensity), and
+    ``blender_power`` agreeing with the reading above."""
+    from stages.scene.lighting import SCENE_EXPOSURE, blender_power
+
+    for specs, lights, _stage in _scene_stage_lights(tmp_path, 2.6, range(5)):
         w = _blender_watts(lights["Ceiling_r"])
-        watts.append(w)
         spec = next(s for s in specs if s.type == "SphereLight")
         modelled = blender_power("SphereLight", spec.intensity, spec.exposure, radius=spec.radius)
         assert modelled == pytest.approx(w)
         # physical values: luminous flux [lm] = what Blender renders [W] / 2^exposure
         assert spec.luminous_flux() == pytest.approx(w / 2.0**SCENE_EXPOSURE, rel=1e-5)
         for name, p in lights.items():
-            exposure = p.GetAttribute("inputs:exposure").Get()
-            assert exposure == (0.0 if name == "Sky" else SCENE_EXPOSURE), name
-        sky = lights["Sky"].GetAttribute("inputs:intensity").Get()
-        assert 0.01 <= blender_power("DomeLight", sky) <= 0.5  # background radiance, white is 1
-    assert BLENDER_LAMP_W[0] <= min(watts) and max(watts) <= BLENDER_LAMP_W[1], (min(watts), max(watts))
+            assert p.GetAttribute("inputs:exposure").Get() == (0.0 if name == "Sky" else SCENE_EXPOSURE), name
+        sky = next(s for s in specs if s.type == "DomeLight")
+        assert sky.intensity == pytest.approx(sky.target_lux / math.pi * 2.0**SCENE_EXPOSURE)
+        assert blender_power("DomeLight", sky.intensity, sky.exposure) == pytest.approx(sky.intensity)
 
 
 def test_demo_room_lights_read_as_lamps_in_blender(tmp_path):
