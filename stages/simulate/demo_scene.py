@@ -427,9 +427,14 @@ def _add_lights(
     temperature ``ceiling_kelvin`` [K] at ``ceiling_xy`` (default: the room centre) [m], ``height``
     [m] above the floor, giving ``ceiling_lux`` on the floor below it, a weak sun of ``sun_lux``
     [lux] whose -Z axis is turned by ``sun_tilt`` (about world X, then Y) [deg], and a sky dome
-    giving ``dome_lux`` [lux] on a horizontal surface."""
+    giving ``dome_lux`` [lux] on a horizontal surface. Intensities are physical with the scene
+    exposure on each light, the dome's folded into its intensity (``stages.scene.lighting``)."""
     from pxr import Gf, Sdf
     from scipy.spatial.transform import Rotation
+
+    from stages.scene.lighting import SCENE_EXPOSURE
+
+    exposure = (Sdf.ValueTypeNames.Float, SCENE_EXPOSURE)
 
     radius, lux = 0.08, float(ceiling_lux)
     cx, cy = (size[0] / 2, size[1] / 2) if ceiling_xy is None else ceiling_xy
@@ -440,6 +445,7 @@ def _add_lights(
         "DistantLight",
         attrs={
             "inputs:intensity": (Sdf.ValueTypeNames.Float, float(sun_lux)),
+            "inputs:exposure": exposure,
             "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1.0, 0.97, 0.92)),
             "xformOp:orient": (
                 Sdf.ValueTypeNames.Quatf,
@@ -452,6 +458,7 @@ def _add_lights(
         "SphereLight",
         attrs={
             "inputs:intensity": (Sdf.ValueTypeNames.Float, lux * height**2 / (np.pi * radius**2)),
+            "inputs:exposure": exposure,
             "inputs:radius": (Sdf.ValueTypeNames.Float, radius),
             "inputs:enableColorTemperature": (Sdf.ValueTypeNames.Bool, True),
             "inputs:colorTemperature": (Sdf.ValueTypeNames.Float, float(ceiling_kelvin)),
@@ -462,7 +469,8 @@ def _add_lights(
         "/World/Lights/Sky",
         "DomeLight",
         attrs={
-            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(dome_lux) / np.pi),
+            # exposure folded in: Blender's importer ignores a dome light's exposure
+            "inputs:intensity": (Sdf.ValueTypeNames.Float, float(dome_lux) / np.pi * 2.0**SCENE_EXPOSURE),
             "inputs:color": (Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0.8, 0.88, 1.0)),
         },
     )

@@ -28,6 +28,13 @@ CylinderLight       point light, I as for a sphere of the cylinder's radius
 DomeLight           ambient sky colour, E = pi * intensity * 2^exposure [lux] (textures ignored)
 ==================  =========================================================================
 
+``inputs:normalize`` (on) divides a local light's luminance by its surface area (4 pi r^2 for a
+sphere, w h, pi r^2, 2 pi r length for rect, disk and cylinder lights), as UsdLux defines it (what
+Blender's exporter writes). The scene stage authors physical intensities and one common
+``inputs:exposure`` on every light (``stages.scene.lighting.SCENE_EXPOSURE``; the dome's is in
+its intensity); the values here are UsdLux's, exposure included, so ``exposure_lux`` is in those
+units too, and the automatic exposure divides the common factor out.
+
 Exposure: renderer value 1 is the illuminance ``exposure_lux``; by default (auto) the indoor
 illuminance, i.e. the sum of the local lights' E at ``REFERENCE_DISTANCE`` (I / d^2) and the dome's
 E, or the distant lights' E when there is nothing else; sunlight through a window then saturates
@@ -73,7 +80,8 @@ class UsdLight:
     direction (3,) (the light's -Z axis, where it shines), color linear RGB (tinted by the colour
     temperature when enabled), intensity, exposure, area [m^2] of the emitter's projected area
     (pi r^2 for spheres, w h for rects; 1 for distant and dome lights), cone_angle [deg]
-    (ShapingAPI, or None), path."""
+    (ShapingAPI, or None), path, normalize_area [m^2]: the surface area its luminance is divided
+    by when ``inputs:normalize`` is on (None: off, or a distant or dome light)."""
 
     kind: str
     path: str
@@ -84,6 +92,7 @@ class UsdLight:
     exposure: float
     area: float
     cone_angle: float | None = None
+    normalize_area: float | None = None
 
     @property
     def is_local(self) -> bool:
@@ -94,6 +103,8 @@ class UsdLight:
         """E [lux]: on a surface facing a distant light; from a dome on a horizontal surface; from
         a local light at REFERENCE_DISTANCE (I / d^2 with I = L * area [cd])."""
         scale = self.intensity * 2.0**self.exposure
+        if self.normalize_area:
+            scale /= self.normalize_area
         if self.kind == "DistantLight":
             return scale
         if self.kind == "DomeLight":
@@ -116,19 +127,21 @@ def read_usd_lights(stage) -> tuple[UsdLight, ...]:
         d = -m[:3, 2]
         d = d / (np.linalg.norm(d) or 1.0)
         kind = prim.GetTypeName()
-        area = 1.0
+        area = surface = 1.0
         if kind == "SphereLight":
             r = UsdLux.SphereLight(prim).GetRadiusAttr().Get() or 0.5
-            area = np.pi * r * r
+            area, surface = np.pi * r * r, 4 * np.pi * r * r
         elif kind == "RectLight":
             lt = UsdLux.RectLight(prim)
-            area = (lt.GetWidthAttr().Get() or 1.0) * (lt.GetHeightAttr().Get() or 1.0)
+            area = surface = (lt.GetWidthAttr().Get() or 1.0) * (lt.GetHeightAttr().Get() or 1.0)
         elif kind == "DiskLight":
             r = UsdLux.DiskLight(prim).GetRadiusAttr().Get() or 0.5
-            area = np.pi * r * r
+            area = surface = np.pi * r * r
         elif kind == "CylinderLight":
             lt = UsdLux.CylinderLight(prim)
-            area = np.pi * (lt.GetRadiusAttr().Get() or 0.5) ** 2
+            r = lt.GetRadiusAttr().Get() or 0.5
+            area, surface = np.pi * r * r, 2 * np.pi * r * (lt.GetLengthAttr().Get() or 1.0)
+        normalize = bool(api.GetNormalizeAttr().Get()) and kind not in ("DistantLight", "DomeLight")
         cone = None
         if prim.HasAPI(UsdLux.ShapingAPI):
             cone = UsdLux.ShapingAPI(prim).GetShapingConeAngleAttr().Get()
@@ -146,6 +159,7 @@ def read_usd_lights(stage) -> tuple[UsdLight, ...]:
                 exposure=float(api.GetExposureAttr().Get() or 0.0),
                 area=float(area),
                 cone_angle=None if cone is None else float(cone),
+                normalize_area=float(surface) if normalize else None,
             )
         )
     return tuple(lights)

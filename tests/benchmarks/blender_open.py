@@ -14,8 +14,9 @@ For every scene: Blender's USD importer (``bpy.ops.wm.usd_import``, references a
 resolved) must finish, and the counts of imported objects, meshes, lights, materials and textures
 are recorded; the first ``--render`` scenes are also rendered with Cycles (CPU, 320x240, 16 samples)
 from a camera in a corner of the scene's bounding box looking at its centre, lit only by the
-scene's own UsdLux lights (imported with ``light_intensity_scale`` 0.001, env
-``BLENDER_LIGHT_SCALE``: Blender reads UsdLux intensity in its own units). Writes ``<out>/blender.json`` and ``<out>/<scene>.png``.
+scene's own UsdLux lights as authored (``light_intensity_scale`` 1, env ``BLENDER_LIGHT_SCALE``;
+the lights carry the scene exposure, see ``stages.scene.lighting``, and ``blender_exposure.py``
+checks the exposure). Writes ``<out>/blender.json`` and ``<out>/<scene>.png``.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-LIGHT_SCALE = float(os.environ.get("BLENDER_LIGHT_SCALE", "0.001"))
+LIGHT_SCALE = float(os.environ.get("BLENDER_LIGHT_SCALE", "1.0"))
 
 
 def _bounds():
@@ -80,6 +81,7 @@ def check(usd: Path, png: Path | None) -> dict:
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.world = bpy.data.worlds.new("World")  # the importer makes the dome light its background
     t0 = time.perf_counter()
     result = bpy.ops.wm.usd_import(filepath=str(usd), light_intensity_scale=LIGHT_SCALE)
     seconds = time.perf_counter() - t0

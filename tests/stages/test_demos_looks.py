@@ -135,6 +135,7 @@ def test_different_seeds_recolour_the_packages_in_the_newton_model(worlds):
 def test_the_camera_lights_follow_the_look(worlds):
     from pxr import Usd
 
+    from stages.scene.lighting import SCENE_EXPOSURE
     from stages.simulate.sensors import auto_exposure_lux, kelvin_to_rgb, read_usd_lights
 
     a, _, c = worlds
@@ -148,9 +149,10 @@ def test_the_camera_lights_follow_the_look(worlds):
         assert ceil.intensity * ceil.area / ceil.position[2] ** 2 == pytest.approx(lk.ceiling_lux, rel=1e-4)
         np.testing.assert_allclose(ceil.color, kelvin_to_rgb(lk.ceiling_kelvin), rtol=1e-5)
         np.testing.assert_allclose(ceil.position[:2], np.add(np.divide(w.size, 2), lk.ceiling_offset), atol=1e-5)
-        assert sun.illuminance == pytest.approx(lk.sun_lux, rel=1e-5)
+        # UsdLux's values include the scene exposure common to all lights
+        assert sun.illuminance == pytest.approx(lk.sun_lux * 2.0**SCENE_EXPOSURE, rel=1e-5)
         np.testing.assert_allclose(sun.direction, lk.sun_direction, atol=1e-5)
-        assert sky.illuminance == pytest.approx(lk.dome_lux, rel=1e-5)
+        assert sky.illuminance == pytest.approx(lk.dome_lux * 2.0**SCENE_EXPOSURE, rel=1e-5)
         read[w.usd] = (ceil, sun, sky, auto_exposure_lux(tuple(lights.values())))
     (ca, sa, ka, ea), (cc, sc, kc, ec) = read[a.usd], read[c.usd]
     assert abs(ca.intensity - cc.intensity) > 0.05 * ca.intensity

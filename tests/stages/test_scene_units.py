@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from stages.scene.collide import box_piece, convex_piece, find_penetrations, penetration_depth
 from stages.scene.geom import convex_hull_2d, convex_inside, convex_overlap, polygon_area, rot3, shrink_convex
-from stages.scene.lighting import KELVIN_RANGE, LightingConfig, plan_lights
+from stages.scene.lighting import KELVIN_RANGE, SCENE_EXPOSURE, LightingConfig, plan_lights
 from stages.scene.materials import FLOOR_KINDS, WALL_KINDS, planar_st, sample_looks, write_textures
 from stages.scene.rules import DEFAULT_RULES, RulesError, load_rules
 
@@ -111,7 +111,8 @@ def test_lights_hit_their_target_lux():
         assert lt.floor_lux(h) == pytest.approx(lt.target_lux, rel=1e-9)
     for lt in lights:
         assert 50 <= lt.target_lux <= 20000 and KELVIN_RANGE[0] <= lt.color_temperature <= KELVIN_RANGE[1]
-        assert -5 <= lt.exposure <= 5
+        # one exposure for every light of a scene; the dome's is in its intensity
+        assert lt.exposure == (0.0 if lt.type == "DomeLight" else SCENE_EXPOSURE)
 
 
 def test_textures_and_looks(tmp_path: Path):
