@@ -60,8 +60,10 @@ class DemosConfig(_Strict):
     record_images: False writes state/action only (no camera is rendered: a fast success-rate
     run); batch_worlds: worlds of the batched engine per item (one model of that many worlds on
     CUDA, one MuJoCo C model each on CPU); program_procs: worker processes for the experts'
-    planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA); panda_root: the Panda description's root (None: the pip
-    package example-robot-data)."""
+    planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA);
+    program_wait: with program_procs, seconds the engine waits for planning experts before it
+    holds their worlds and steps the others on (None: wait for all); panda_root: the Panda
+    description's root (None: the pip package example-robot-data)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -75,6 +77,7 @@ class DemosConfig(_Strict):
     record_images: bool = True
     batch_worlds: int = Field(default=1, ge=1, le=4096)
     program_procs: int = Field(default=0, ge=0, le=256)
+    program_wait: float | None = Field(default=None, ge=0.0, le=60.0)
     panda_root: Path | None = None
 
     @field_validator("tasks")
@@ -104,6 +107,7 @@ class ShardParams(_Strict):
     record_images: bool = True
     batch_worlds: int = 1
     program_procs: int = 0
+    program_wait: float | None = None
 
 
 class EpisodeRecord(_Strict):
@@ -187,6 +191,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
+                                 program_wait=config.program_wait,
                                  generated=str(generated), packages=packages,
                                  panda_root=None if config.panda_root is None else str(config.panda_root))
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
@@ -213,7 +218,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     n = min(params.batch_worlds, params.episodes)
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
                           device=params.device, record_images=params.record_images,
-                          program_procs=params.program_procs if n > 1 else 0)
+                          program_procs=params.program_procs if n > 1 else 0,
+                          program_wait=params.program_wait if n > 1 and params.program_procs else None)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0

@@ -12,8 +12,7 @@ Solvers: MuJoCo (``"mujoco"``, the default for articulated robots) runs MuJoCo-W
 the MuJoCo C library on CPU with a single world (``use_mujoco_cpu``; several CPU worlds use
 MuJoCo-Warp's CPU path). Featherstone, semi-implicit and XPBD need small steps (objects are
 launched at one step per 1/240 s): they run ``substeps`` steps of ``dt / substeps`` with Newton's
-collision pipeline. Every choice is written to :class:`SimSettings`.
-"""
+collision pipeline. Every choice is written to :class:`SimSettings`."""
 
 from __future__ import annotations
 
@@ -328,7 +327,7 @@ class Sim:
     time: float = 0.0
     steps: int = 0
     pre_step: list = field(default_factory=list)
-    post_step: list = field(default_factory=list)
+    post_step: list = field(default_factory=list)  # callbacks after each step
     _graphs: dict = field(default_factory=dict, repr=False)  # (state_0 id, h) -> captured CUDA graph
     _graphs_warm: bool = field(default=False, repr=False)
     contact_monitor: object | None = field(default=None, repr=False)  # contacts.OverflowMonitor
@@ -338,9 +337,8 @@ class Sim:
         return int(self.model.world_count)
 
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` physics steps of ``settings.dt`` [s]; callbacks in ``pre_step`` run
-        before each (the controllers use it to update drive targets), those in ``post_step``
-        after each (the engine's world hold)."""
+        """Advance ``n`` physics steps of ``settings.dt`` [s]; ``pre_step`` callbacks run before
+        each (controllers: drive targets), ``post_step`` ones after (the engine's world hold)."""
         s = self.settings
         h = s.dt / s.substeps
         graphs = self._use_graphs()
@@ -372,9 +370,8 @@ class Sim:
         if self.pipeline is not None:
             self.pipeline.collide(self.state_0, self.contacts)
         mon = self.contact_monitor
-        self.solver.step(self.state_0, self.state_1, self.control,
-                         None if self.pipeline is None else self.contacts, h,
-                         observables=None if mon is None else mon.observables)
+        self.solver.step(self.state_0, self.state_1, self.control, None if self.pipeline is None else self.contacts,
+                         h, observables=None if mon is None else mon.observables)
         if mon is not None:
             mon.after_step()
 

@@ -75,7 +75,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
                                           record_images=not args.no_images,
-                                          program_procs=args.program_procs))
+                                          program_procs=args.program_procs, program_wait=args.program_wait))
     build = time.perf_counter() - t0
     next_instance = RoundRobin(room, tasks, seed_base)
 
@@ -154,6 +154,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
         "frames": frames, "lengths": {t: v for t, v in lengths.items()},
         "render_split_seconds_per_frame": render_split,
+        "holds": eng.stats.holds, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
     }
     print(json.dumps(res), flush=True)
     return res
@@ -279,6 +280,8 @@ def main(argv=None) -> dict:
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
     p.add_argument("--program-procs", type=int, default=0,
                    help="worker processes for the world programs of each engine (0: threads)")
+    p.add_argument("--program-wait", type=float, default=None,
+                   help="seconds to wait for planning programs before holding their worlds (None: wait for all)")
     p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
     args = p.parse_args(argv)
