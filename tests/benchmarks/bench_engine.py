@@ -75,7 +75,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
                                           record_images=not args.no_images,
-                                          program_procs=args.program_procs, program_wait=args.program_wait))
+                                          program_procs=args.program_procs, program_wait=args.program_wait,
+                                          layout=args.layout))
     build = time.perf_counter() - t0
     next_instance = RoundRobin(room, tasks, seed_base)
 
@@ -280,6 +281,7 @@ def main(argv=None) -> dict:
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
     p.add_argument("--program-procs", type=int, default=0,
                    help="worker processes for the world programs of each engine (0: threads)")
+    p.add_argument("--layout", default="auto", choices=("auto", "batched", "per_world"))
     p.add_argument("--program-wait", type=float, default=None,
                    help="seconds to wait for planning programs before holding their worlds (None: wait for all)")
     p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
