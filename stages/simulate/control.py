@@ -212,6 +212,9 @@ class Clik:
     ``move_base``: also use the base x, y, yaw joints.
     """
 
+    #: iterations without 0.1% progress after which a solve gives up (0: run to max_iters)
+    stall_iters: int = 30
+
     def __init__(
         self, desc: RobotDescription, *, damping: float = 1e-3, max_step: float = 0.2, move_base: bool = False
     ) -> None:
@@ -295,11 +298,19 @@ class Clik:
         q = np.clip(np.asarray(q0, float).copy(), self.lower, self.upper)
         err = np.zeros(6)
         it = 0
+        best, best_it = np.inf, 0
         for it in range(1, max_iters + 1):  # noqa: B007 (the count is reported)
             pin.framesForwardKinematics(self.model, self.data, q)
             cur = self.data.oMf[self.frame]
             err = pin.log6(cur.actInv(goal)).vector
-            if np.linalg.norm(err[:3]) < pos_tol and np.linalg.norm(err[3:]) < rot_tol:
+            pe, re = np.linalg.norm(err[:3]), np.linalg.norm(err[3:])
+            if pe < pos_tol and re < rot_tol:
+                break
+            # stalled (a joint limit, an unreachable target): no 0.1% progress in STALL_ITERS
+            e = pe + 0.1 * re
+            if e < best * (1.0 - 1e-3):
+                best, best_it = e, it
+            elif self.stall_iters and it - best_it >= self.stall_iters:
                 break
             pin.computeJointJacobians(self.model, self.data, q)
             jac = pin.getFrameJacobian(self.model, self.data, self.frame, pin.LOCAL)[:, self.v_idx]
