@@ -27,7 +27,7 @@ from __future__ import annotations
 from stages.layout.build import LayoutOutput, generate_layout, plan_house
 from stages.layout.floorplan import FloorPlan, load_floor_plan
 from stages.layout.occupancy import OccupancyGrid
-from stages.layout.plan import HousePlan, LayoutError
+from stages.layout.model import HousePlan, LayoutError
 from stages.layout.spec import ROOM_RULES, LayoutSpec, RoomRule
 
 __all__ = [

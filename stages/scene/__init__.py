@@ -3,11 +3,11 @@
 Public surface (pxr/newton are imported inside the functions, never at import time):
 
     rules.load_rules(path=DEFAULT_RULES) -> PlacementRules          # rules/*.toml, data not code
-    solver.Library.from_index(catalog_sqlite) -> Library             # ingested assets by category
+    library.Library.from_index(catalog_sqlite) -> Library           # ingested assets by category
     solver.Populator(plan, layout_usd, library, rules, rng).populate_room(room) -> RoomReport
         # re-arranges the room (up to rules.defaults.room_attempts) when a required entry fails;
         # RoomReport.arrangements_rejected lists why
-    solver.verify(populator) -> CheckReport                          # exact collider + robot path checks
+    verify.verify(populator) -> CheckReport                          # exact collider + robot path checks
     collide.penetration_depth(a, b) -> float                         # convex pieces, exact SAT
     build.build_scene(plan_json, layout_usd, library, rules, rng, out_dir, final_dir, BuildOptions())
         -> SceneSummary                                              # one attempt; SceneRejected(reason)

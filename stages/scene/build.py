@@ -21,7 +21,10 @@ from pydantic import BaseModel, ConfigDict
 from stages.layout.floorplan import FloorPlan, load_floor_plan
 from stages.scene.lighting import LightingConfig, LightSpec, plan_lights
 from stages.scene.rules import PlacementRules
-from stages.scene.solver import Library, PlacementFailure, Populator, remove_instances, room_interior, verify
+from stages.scene.library import Library
+from stages.scene.room import room_interior
+from stages.scene.solver import PlacementFailure, Populator
+from stages.scene.verify import remove_instances, verify
 
 log = logging.getLogger(__name__)
 

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.scene.checkcache import CheckCache, content_hash
-from stages.scene.geom import convex_hull_2d, points_in_convex, polygon_area, rot2
+from stages.scene.geom import convex_hull_2d, polygon_area, rot2
 
 log = logging.getLogger(__name__)
 
