@@ -11,7 +11,11 @@ Public surface (pxr/newton are imported inside the functions, never at import ti
     collide.penetration_depth(a, b) -> float                         # convex pieces, exact SAT
     build.build_scene(plan_json, layout_usd, library, rules, rng, out_dir, final_dir, BuildOptions())
         -> SceneSummary                                              # one attempt; SceneRejected(reason)
-    settle.settle_check(scene_usd, seconds=2.0, tolerance=0.01, early_exit=StillExit()) -> SettleReport
+    rest.analytic_rest(populator, needs_package_check) -> RestProof  # rest proven by statics (COM in contact)
+    validation.validate_scene(scene_usd, packages, CheckCache) -> SceneValidation
+        # packages once per content hash (checkcache), per scene only what composition adds
+    settle_batch.settle_batch(scenes, device="cuda:0") -> BatchSettle   # many scenes, one MuJoCo-Warp model
+    settle.settle_check(scene_usd, seconds=2.0, tolerance=0.01, early_exit=StillExit(), instances=None)
         # Newton add_usd + MuJoCo; stops early only once every body is still (see StillExit) (None: full 2 s)
     render.contact_sheet(scene_usds, out_png) -> Path                # `agentworld render-scenes`
     job.SCENE_JOB                                                    # job kind "scene"
