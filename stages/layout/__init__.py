@@ -16,7 +16,8 @@ Public API::
     stages.layout.simcheck.roll_sphere_down_stairs(usd_path, plan)  # Newton physics check
 
 Job kind ``layout`` (``stages.layout.job``), command ``agentworld render-layout``. Modules: ``spec``
-(what to build, room rules), ``plan`` (sampling in integer cm), ``checks`` (validity), ``occupancy``
+(what to build, room rules), ``model`` (the plan's data in integer cm), ``openings`` (walls, doors,
+windows, stairs), ``plan`` (sampling), ``checks`` (validity), ``occupancy``
 (grids), ``floorplan`` (JSON model), ``geometry`` (manifold3d solids and box colliders), ``usd``
 (the layer, Sdf in a ChangeBlock), ``render``, ``simcheck``, ``build`` (end to end).
 Importing this package loads no pxr, warp or newton.
@@ -27,7 +28,7 @@ from __future__ import annotations
 from stages.layout.build import LayoutOutput, generate_layout, plan_house
 from stages.layout.floorplan import FloorPlan, load_floor_plan
 from stages.layout.occupancy import OccupancyGrid
-from stages.layout.plan import HousePlan, LayoutError
+from stages.layout.model import HousePlan, LayoutError
 from stages.layout.spec import ROOM_RULES, LayoutSpec, RoomRule
 
 __all__ = [

@@ -11,7 +11,8 @@ import numpy as np
 
 from stages.layout.floorplan import FloorPlan, to_floor_plan, write_floor_plan
 from stages.layout.occupancy import OccupancyGrid
-from stages.layout.plan import HousePlan, sample_plan_and_grids
+from stages.layout.model import HousePlan
+from stages.layout.plan import sample_plan_and_grids
 from stages.layout.spec import LayoutSpec
 
 log = logging.getLogger(__name__)

@@ -15,7 +15,7 @@ from collections import deque
 import numpy as np
 
 from stages.layout.geom2d import Rect
-from stages.layout.plan import DOOR_DEPTH, DOOR_MARGIN, FloorLayout, HousePlan, Opening, Wall, room_problems
+from stages.layout.model import DOOR_DEPTH, DOOR_MARGIN, FloorLayout, HousePlan, Opening, Wall, room_problems
 from stages.layout.spec import LayoutSpec
 
 PROBE = 30  # [cm] beyond the wall face where a door's sides are probed

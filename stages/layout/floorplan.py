@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, PrivateAttr
 
 from asset_catalog.annotations import RoomType
 from stages.layout.occupancy import OccupancyGrid
-from stages.layout.plan import HousePlan, Opening, Wall
+from stages.layout.model import HousePlan, Opening, Wall
 from stages.layout.spec import LayoutSpec
 
 FORMAT = "agentworld.floorplan/1"

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.layout.geom2d import Rect, rects_minus
-from stages.layout.plan import HousePlan, Stair, Wall
+from stages.layout.model import HousePlan, Stair, Wall
 
 COLORS: dict[str, tuple[float, float, float]] = {
     "wall": (0.86, 0.83, 0.76),
@@ -158,7 +158,7 @@ def _stair_elements(plan: HousePlan, s: Stair) -> list[Element]:
     steps = [_xy_box(r, z, z + n * s.rise) for r, n in s.treads]
     v, f = solid_mesh(steps)
     out = [Element(s.id, "Stairs", s.floor, "stairs", None, v, f, tuple(steps), COLORS["stairs"])]
-    from stages.layout.plan import RAIL_HEIGHT
+    from stages.layout.model import RAIL_HEIGHT
 
     bal = [_xy_box(r, z + n * s.rise, z + n * s.rise + RAIL_HEIGHT) for r, n in s.balustrades]
     if bal:

@@ -81,7 +81,7 @@ def plan_layouts(config: LayoutConfig, ctx: PlanContext) -> list[WorkItem | Plan
 def build_layout(params: LayoutParams, ctx: ItemContext) -> LayoutResult:
     """Stage function: sample, check and write one house."""
     from stages.layout.build import generate_layout
-    from stages.layout.plan import LayoutError
+    from stages.layout.model import LayoutError
 
     seed = params.seed if params.seed is not None else ctx.seed
     try:

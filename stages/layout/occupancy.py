@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.layout.geom2d import Rect, rects_minus
-from stages.layout.plan import HousePlan
+from stages.layout.model import HousePlan
 
 FREE, INFLATED, OCCUPIED = 255, 128, 0  # PNG encoding of the occupancy image
 

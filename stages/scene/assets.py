@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +41,10 @@ class AssetGeometry:
     if it belongs to a link moved by a joint; lo, hi (3,): bounds of all pieces [m];
     swings: 2-D convex regions (K, 2) swept by moving links over their joint ranges;
     surfaces: support surfaces of the fixed part; dynamic: has rigid bodies not fixed to the world;
-    n_bodies: rigid bodies in the package.
+    n_bodies: rigid bodies in the package; mass: total mass of its bodies [kg]; com (3,): their
+    center of mass, asset frame [m] (authored MassAPI values; pieces' centroid when none);
+    neutral_joints: gravity does no work on any joint (revolute axes vertical, prismatic axes
+    horizontal), so joints cannot start moving on their own.
     """
 
     usd_path: Path
@@ -53,6 +56,9 @@ class AssetGeometry:
     surfaces: tuple[Surface, ...]
     dynamic: bool
     n_bodies: int
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    neutral_joints: bool = True
 
     @functools.cached_property
     def footprint(self) -> np.ndarray:
@@ -110,7 +116,15 @@ def load_asset_geometry(usd_path: Path) -> AssetGeometry:
             colliders.append((prim.GetPath(), pts @ m[:3, :3] + m[3, :3]))
     if not colliders:
         raise ValueError(f"{usd_path}: asset has no collider meshes")
-    fixed_to_world, moving_bodies, sweeps = False, {}, []
+    masses = []
+    for b in bodies:
+        prim = stage.GetPrimAtPath(b)
+        mass_api = UsdPhysics.MassAPI(prim)
+        m_attr, c_attr = mass_api.GetMassAttr(), mass_api.GetCenterOfMassAttr()
+        if m_attr.HasAuthoredValue() and c_attr.HasAuthoredValue() and float(m_attr.Get()) > 0:
+            mb = np.asarray(cache.GetLocalToWorldTransform(prim), dtype=np.float64) @ root_inv
+            masses.append((float(m_attr.Get()), np.asarray(c_attr.Get(), dtype=np.float64) @ mb[:3, :3] + mb[3, :3]))
+    fixed_to_world, moving_bodies, sweeps, neutral = False, {}, [], True
     for j in joints:
         b0 = j.GetRelationship("physics:body0").GetTargets()
         b1 = j.GetRelationship("physics:body1").GetTargets()
@@ -118,7 +132,10 @@ def load_asset_geometry(usd_path: Path) -> AssetGeometry:
             fixed_to_world = True
         elif j.IsA(UsdPhysics.RevoluteJoint) or j.IsA(UsdPhysics.PrismaticJoint):
             if b1:
-                moving_bodies[b1[0]] = _joint_motion(j, b0[0] if b0 else None, cache, root_inv)
+                motion, axis = _joint_motion(j, b0[0] if b0 else None, cache, root_inv)
+                moving_bodies[b1[0]] = motion
+                vertical = abs(float(axis[2])) / max(float(np.linalg.norm(axis)), 1e-12)
+                neutral &= vertical > 0.999 if j.IsA(UsdPhysics.RevoluteJoint) else vertical < 1e-3
     pieces, moving = [], []
     for path, pts in colliders:
         body = next((b for b in bodies if path.HasPrefix(b)), None)
@@ -136,14 +153,20 @@ def load_asset_geometry(usd_path: Path) -> AssetGeometry:
     lo = np.min([p.lo for p in pieces], axis=0)
     hi = np.max([p.hi for p in pieces], axis=0)
     fixed_pieces = [p for p, mv in zip(pieces, moving) if not mv]
+    if masses and len(masses) == len(bodies):
+        mass = sum(m for m, _ in masses)
+        com = sum(m * c for m, c in masses) / mass
+    else:
+        mass, com = 0.0, np.mean([p.vertices.mean(axis=0) for p in pieces], axis=0)
     return AssetGeometry(usd_path=Path(usd_path), pieces=tuple(pieces), moving=tuple(moving), lo=lo, hi=hi,
                          swings=tuple(swings), surfaces=tuple(_surfaces(fixed_pieces, pieces, hi[0])),
-                         dynamic=bool(bodies) and not fixed_to_world, n_bodies=len(bodies))
+                         dynamic=bool(bodies) and not fixed_to_world, n_bodies=len(bodies), mass=mass, com=com,
+                         neutral_joints=neutral)
 
 
 def _joint_motion(joint, body0, cache, root_inv):
-    """A function (points (K, 3) in the asset frame, s in [0, 1]) -> points moved to the joint
-    position lower + s (upper - lower)."""
+    """(a function (points (K, 3) in the asset frame, s in [0, 1]) -> points moved to the joint
+    position lower + s (upper - lower), the joint axis (3,) in the asset frame)."""
     from pxr import Gf, UsdPhysics
     from scipy.spatial.transform import Rotation
 
@@ -171,7 +194,7 @@ def _joint_motion(joint, body0, cache, root_inv):
             return (pts - origin) @ rot.T + origin
         return pts + axis * v
 
-    return move
+    return move, axis
 
 
 def _surfaces(fixed: list[ConvexPiece], every: list[ConvexPiece], front_x: float) -> list[Surface]:

@@ -21,7 +21,10 @@ from pydantic import BaseModel, ConfigDict
 from stages.layout.floorplan import FloorPlan, load_floor_plan
 from stages.scene.lighting import LightingConfig, LightSpec, plan_lights
 from stages.scene.rules import PlacementRules
-from stages.scene.solver import Library, PlacementFailure, Populator, remove_instances, room_interior, verify
+from stages.scene.library import Library
+from stages.scene.room import room_interior
+from stages.scene.solver import PlacementFailure, Populator
+from stages.scene.verify import remove_instances, verify
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +63,7 @@ class SceneSummary(BaseModel):
     repairs: tuple[str, ...]
     settle_max_move: float
     settle_simulated: float = 0.0
+    settle_analytic: int = 0
     settle_bodies: int
     penetrations: int
     path_problems: int
@@ -76,7 +80,8 @@ class BuildOptions:
     and tolerance [m]; max_repairs: settle repairs (drop offenders) before rejecting; validate: run
     usd_schemas.validate_package on the scene; settle: run the Newton settle check;
     settle_early_exit: stop the settle simulation early once every body is still (see StillExit)
-    (``stages.scene.settle.StillExit``)."""
+    (``stages.scene.settle.StillExit``); cache_dir: where per-package check results (validation,
+    rest) are kept across processes (``stages.scene.checkcache``; None: in this process only)."""
 
     rooms: tuple[str, ...] = ()
     n_looks: int = 3
@@ -87,6 +92,7 @@ class BuildOptions:
     settle: bool = True
     settle_early_exit: bool = True
     lighting: LightingConfig = field(default_factory=LightingConfig)
+    cache_dir: Path | None = None
 
 
 def wall_rooms(plan: FloorPlan) -> dict[str, str]:
@@ -165,10 +171,20 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
 
     t = time.perf_counter()
     repairs: list[str] = []
-    max_move, bodies, simulated = 0.0, 0, 0.0
+    max_move, bodies, simulated, analytic = 0.0, 0, 0.0, 0
     if opts.settle:
+        from stages.scene.checkcache import process_cache
+        from stages.scene.rest import analytic_rest, to_simulate
+
+        cache = process_cache(opts.cache_dir)
         for attempt in range(opts.max_repairs + 1):
-            rep = _settle(scene, opts)
+            proof = analytic_rest(pop, lambda i: _package_unknown(i, cache, opts.settle_tolerance))
+            sim = to_simulate(pop, list(proof.unproven))
+            analytic = len(pop.insts) - len(sim)
+            if not sim:
+                max_move, bodies, simulated = 0.0, 0, 0.0
+                break
+            rep = _settle(scene, opts, sim)
             max_move, bodies = (max(rep.moved.values()) if rep.moved else 0.0), rep.bodies
             simulated = rep.simulated
             if rep.passed:
@@ -189,12 +205,14 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
     t = time.perf_counter()
     n_err = n_warn = 0
     if opts.validate:
-        from usd_schemas import validate_package
+        from stages.scene.checkcache import process_cache
+        from stages.scene.validation import validate_scene
 
-        vr = validate_package(scene)
-        n_err, n_warn = len(vr.errors), len(vr.warnings)
+        packages = sorted({library.usd(i.p.record) for i in pop.insts}) + [Path(layout_usd)]
+        vr = validate_scene(scene, packages, process_cache(opts.cache_dir))
+        n_err, n_warn = len(vr.errors), vr.warnings
         if n_err:
-            raise SceneRejected(f"validation: {n_err} errors: " + "; ".join(i.line() for i in vr.errors[:3])[:400])
+            raise SceneRejected(f"validation: {n_err} errors: " + "; ".join(vr.errors[:3])[:400])
     secs["validate"] = time.perf_counter() - t
     if Path(final_dir).resolve() != Path(out_dir).resolve():
         # stages the checks opened (Newton's USD loader, the validators) can sit in reference cycles
@@ -217,7 +235,7 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
         instances=records, rooms={r.id: str(r.type) for r in rooms},
         placed={rr.room: rr.placed for rr in pop.reports}, candidates_rejected=rejected,
         arrangements_rejected=arrangement_reasons(pop), repairs=tuple(repairs),
-        settle_max_move=max_move, settle_simulated=simulated, settle_bodies=bodies, penetrations=len(check.penetrations),
+        settle_max_move=max_move, settle_simulated=simulated, settle_analytic=analytic, settle_bodies=bodies, penetrations=len(check.penetrations),
         path_problems=len(check.path), validation_errors=n_err, validation_warnings=n_warn,
         looks=tuple(lk.name for lk in looks), lights=tuple(lights), seconds={k: round(v, 3) for k, v in secs.items()})
     (out_dir / SCENE_JSON).write_text(summary.model_dump_json(indent=1) + "\n", encoding="utf-8")
@@ -235,11 +253,24 @@ def arrangement_reasons(pop: Populator) -> dict[str, int]:
     return out
 
 
-def _settle(scene: Path, opts: BuildOptions):
+def _settle(scene: Path, opts: BuildOptions, instances: Sequence[str] | None = None):
     from stages.scene.settle import StillExit, settle_check
 
     return settle_check(scene, seconds=opts.settle_seconds, tolerance=opts.settle_tolerance,
-                        early_exit=StillExit() if opts.settle_early_exit else None)
+                        early_exit=StillExit() if opts.settle_early_exit else None, instances=instances)
+
+
+def _package_unknown(inst, cache, tolerance: float) -> str | None:
+    """Why an instance's package is not known to rest on a flat floor (None: it is): a dynamic
+    package of several bodies, or any package with joints gravity works on, must pass the package
+    rest check (``stages.scene.rest.package_rest``, cached per package content)."""
+    from stages.scene.rest import package_rest
+
+    geo = inst.geo
+    if not ((geo.dynamic and geo.n_bodies > 1) or not geo.neutral_joints):
+        return None
+    r = package_rest(geo.usd_path, geo, cache, tolerance=tolerance)
+    return None if r["passed"] else f"the package alone moves {r['moved'] * 100:.1f} cm on a flat floor"
 
 
 def populate_rooms(plan_path: Path, layout_usd: Path, library: Library, rules: PlacementRules,

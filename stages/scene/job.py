@@ -183,7 +183,8 @@ def build_scene_item(params: SceneParams, ctx: ItemContext) -> SceneResult:
     opts = BuildOptions(rooms=params.rooms, n_looks=params.looks, settle_seconds=params.settle_seconds,
                         settle_tolerance=params.settle_tolerance, max_repairs=params.max_repairs,
                         validate=params.validate_usd, settle=params.settle,
-                        settle_early_exit=params.settle_early_exit)
+                        settle_early_exit=params.settle_early_exit,
+                        cache_dir=ctx.work_dir / "cache" / "scene_checks")
     rejected: list[RejectedAttempt] = []
     for a in range(params.attempts):
         if ctx.out_dir.exists():

@@ -116,7 +116,7 @@ def room_cameras(plan_path: Path, rooms: Sequence[str]) -> list[tuple[str, np.nd
     """(room id, eye (3,), target (3,)) per room: eye 0.35 m inside the corner farthest from the
     room's first door, 1.9 m above the floor; target the room center at 0.5 m."""
     from stages.layout.floorplan import load_floor_plan
-    from stages.scene.solver import room_interior
+    from stages.scene.room import room_interior
 
     plan = load_floor_plan(plan_path)
     out = []

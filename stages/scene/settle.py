@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,8 +64,10 @@ def _instance_of(label: str) -> str | None:
     return label.split(OBJECTS_PREFIX, 1)[1].split("/", 1)[0]
 
 
-def load_scene_builder(scene_usd: Path, *, contact_ke: float = CONTACT_KE, contact_kd: float = CONTACT_KD):
-    """A ``newton.ModelBuilder`` holding the scene (layout colliders + every asset), via add_usd."""
+def load_scene_builder(scene_usd: Path, *, contact_ke: float = CONTACT_KE, contact_kd: float = CONTACT_KD,
+                       instances: Collection[str] | None = None):
+    """A ``newton.ModelBuilder`` holding the scene (layout colliders + every asset), via add_usd;
+    ``instances``: only these instances of /World/Objects (and the layout), None: all."""
     import newton
     from newton.solvers import SolverMuJoCo
 
@@ -74,7 +77,13 @@ def load_scene_builder(scene_usd: Path, *, contact_ke: float = CONTACT_KE, conta
     builder.default_shape_cfg.ke = contact_ke
     builder.default_shape_cfg.kd = contact_kd
     SolverMuJoCo.register_custom_attributes(builder)
-    builder.add_usd(str(scene_usd), load_visual_shapes=False, load_static_visual_shapes=False)
+    source: object = str(scene_usd)
+    if instances is not None:
+        from pxr import Usd
+
+        keep = ["/World/Layout", "/World/PhysicsScene", *(f"{OBJECTS_PREFIX}{n}" for n in sorted(instances))]
+        source = Usd.Stage.OpenMasked(str(scene_usd), Usd.StagePopulationMask(keep))
+    builder.add_usd(source, load_visual_shapes=False, load_static_visual_shapes=False)
     return builder
 
 
@@ -126,17 +135,19 @@ class _Tracker:
 
 
 def settle_check(scene_usd: Path, *, seconds: float = 2.0, tolerance: float = 0.01, device: str = "cpu",
-                 dt: float = 1.0 / 250.0, early_exit: StillExit | None = StillExit()) -> SettleReport:
+                 dt: float = 1.0 / 250.0, early_exit: StillExit | None = StillExit(),
+                 instances: Collection[str] | None = None) -> SettleReport:
     """Load ``scene_usd`` in Newton, simulate ``seconds`` [s] with no robot, and report per instance
     how far its colliders moved (see module docstring). On CPU the MuJoCo model Newton built is
     stepped directly (no per-step Newton state round trip), checking every ``early_exit.every``
-    seconds; ``early_exit=None`` always simulates the full time."""
+    seconds; ``early_exit=None`` always simulates the full time. ``instances``: simulate only these
+    instances (with the layout; see ``stages.scene.rest.to_simulate``), None: all."""
     import mujoco
     import newton
     import warp as wp
 
     t0 = time.perf_counter()
-    builder = load_scene_builder(Path(scene_usd))
+    builder = load_scene_builder(Path(scene_usd), instances=instances)
     with wp.ScopedDevice(device):
         model = builder.finalize(device=device)
         solver = newton.solvers.SolverMuJoCo(model, use_mujoco_cpu=wp.get_device(device).is_cpu, iterations=50,

@@ -17,30 +17,42 @@ candidate is kept only if
 Then objects are placed on support surfaces (tops, shelves, seats, beds) of the furniture named by
 their rule, resting 1 mm above it, collision-checked the same way, and kept only if reachable.
 Randomness comes only from the ``numpy.random.Generator`` passed in.
+
+Room geometry and the robot-path grid live in ``stages.scene.room``, the catalog view in
+``stages.scene.library``, the final checks in ``stages.scene.verify``.
 """
 
 from __future__ import annotations
 
-import logging
-import math
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+import logging
+import math
 
 import numpy as np
 
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
 from stages.scene.assets import AssetGeometry, load_asset_geometry
-from stages.scene.collide import ConvexPiece, box_piece, find_penetrations
+from stages.scene.collide import ConvexPiece, find_penetrations
 from stages.scene.geom import (
-    convex_hull_2d, convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3)
+    convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
+)
+from stages.scene.library import Library
+from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
 from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
+
 
 log = logging.getLogger(__name__)
 
+
 REST_GAP = 0.001          # [m] assets are placed this far above their support
+
+
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
+
+
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
 
@@ -95,246 +107,6 @@ class RoomReport:
 
     def reject(self, reason: str) -> None:
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
-
-
-@dataclass(frozen=True)
-class Library:
-    """The catalog as the solver sees it: ok records by category, and where their packages are."""
-
-    records: dict[str, tuple[CatalogRecord, ...]]
-    root: Path  # usd_path of a record is relative to this folder
-
-    @staticmethod
-    def from_index(index_path: Path) -> "Library":
-        from asset_catalog.index import query_index
-
-        by: dict[str, list[CatalogRecord]] = {}
-        for r in query_index(index_path):
-            if r.usd_path:
-                by.setdefault(r.category, []).append(r)
-        return Library({k: tuple(v) for k, v in by.items()}, Path(index_path).parent)
-
-    def usd(self, r: CatalogRecord) -> Path:
-        return (self.root / str(r.usd_path)).resolve()
-
-    def pick(self, category: str, room_type: str, rng: np.random.Generator,
-             keep=None) -> CatalogRecord | None:
-        """A random record of the category (preferring those annotated for the room type); ``keep``:
-        optional predicate on records."""
-        recs = [r for r in self.records.get(category, ()) if keep is None or keep(r)]
-        fit = [r for r in recs if room_type in r.room_types] or list(recs)
-        return fit[int(rng.integers(len(fit)))] if fit else None
-
-
-# ---------------------------------------------------------------------------------------------
-# room geometry
-
-
-def room_interior(plan: FloorPlan, room: RoomModel) -> np.ndarray:
-    """(K, 2) CCW interior outline of a rectilinear room: its polygon with each edge moved to the
-    face of the walls along it [m]."""
-    poly = np.asarray(room.polygon, dtype=np.float64)
-    walls = plan.floors[room.floor].walls
-    k = len(poly)
-    lines = []  # per edge: (axis 0 for vertical x = c, 1 for horizontal y = c, c)
-    for i in range(k):
-        a, b = poly[i], poly[(i + 1) % k]
-        d = b - a
-        n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12)  # inward for CCW
-        horizontal = abs(d[1]) < 1e-9
-        c = a[1] if horizontal else a[0]
-        lo, hi = sorted((a[0], b[0]) if horizontal else (a[1], b[1]))
-        face = c
-        for w in walls:
-            if (abs(w.start[1] - w.end[1]) < 1e-9) != horizontal:
-                continue
-            x0, y0, x1, y1 = w.box
-            across = (y0, y1) if horizontal else (x0, x1)
-            along = (x0, x1) if horizontal else (y0, y1)
-            if across[0] - 1e-6 <= c <= across[1] + 1e-6 and min(along[1], hi) - max(along[0], lo) > 0.05:
-                inward_face = across[1] if (n[1] if horizontal else n[0]) > 0 else across[0]
-                if (inward_face - c) * (n[1] if horizontal else n[0]) > (face - c) * (n[1] if horizontal else n[0]):
-                    face = inward_face
-        lines.append((1 if horizontal else 0, face))
-    out = []
-    for i in range(k):
-        (ax0, c0), (ax1, c1) = lines[i - 1], lines[i]
-        if ax0 == ax1:
-            continue
-        x = c0 if ax0 == 0 else c1
-        y = c0 if ax0 == 1 else c1
-        out.append((x, y))
-    return np.asarray(out, dtype=np.float64)
-
-
-def _edges(poly: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float, np.ndarray]]:
-    """(start, unit direction, length, inward normal) of each edge of a CCW polygon."""
-    out = []
-    for i in range(len(poly)):
-        a, b = poly[i], poly[(i + 1) % len(poly)]
-        d = b - a
-        L = float(np.linalg.norm(d))
-        if L > 1e-6:
-            t = d / L
-            out.append((a, t, L, np.array([-t[1], t[0]])))
-    return out
-
-
-def _rect(center: np.ndarray, along: np.ndarray, half_w: float, normal: np.ndarray, depth: float,
-          back: float = 0.0) -> np.ndarray:
-    """CCW rectangle: width 2 half_w along ``along``, from ``back`` behind to ``depth`` in front of
-    ``center`` along ``normal``."""
-    c = [center + along * s * half_w + normal * d for s, d in ((-1, -back), (1, -back), (1, depth), (-1, depth))]
-    return convex_hull_2d(np.array(c))
-
-
-def layout_pieces(layout_usd: Path, floor_z: tuple[float, float] | None = None) -> list[ConvexPiece]:
-    """Collider boxes of the layout layer (Cube prims with CollisionAPI, translate + scale) as pieces
-    (owner = prim path), optionally only those overlapping the height range floor_z [m]."""
-    from pxr import Sdf
-
-    layer = Sdf.Layer.FindOrOpen(str(layout_usd))
-    if layer is None:
-        raise ValueError(f"{layout_usd}: cannot open the layout layer")
-    out: list[ConvexPiece] = []
-
-    def visit(path):
-        spec = layer.GetPrimAtPath(path)
-        if spec is None:
-            return
-        if spec.typeName == "Cube" and "xformOp:translate" in spec.attributes:
-            t = np.asarray(spec.attributes["xformOp:translate"].default, dtype=np.float64)
-            s = np.asarray(spec.attributes["xformOp:scale"].default, dtype=np.float64)
-            lo, hi = t - s / 2, t + s / 2
-            if floor_z is None or (lo[2] < floor_z[1] and hi[2] > floor_z[0]):
-                out.append(box_piece(lo, hi, owner=str(path)))
-        for child in spec.nameChildren:
-            visit(child.path)
-
-    visit(Sdf.Path.absoluteRootPath)
-    return out
-
-
-# ---------------------------------------------------------------------------------------------
-# the robot path
-
-
-class PathGrid:
-    """Occupancy of one floor for the path check: the plan's occupied cells plus the footprints of
-    floor-standing assets. ``check`` says whether every door of a room and every reach zone stay
-    connected for a robot needing a ``path_width`` wide corridor."""
-
-    def __init__(self, plan: FloorPlan, floor: int, path_width: float):
-        g = plan.occupancy(floor)
-        self.origin = np.asarray(g.origin, dtype=np.float64)
-        self.cell = float(g.cell)
-        self.base = g.occupied.copy()
-        self.shape = self.base.shape
-        self.radius = path_width / 2
-        self.blocks: dict[str, np.ndarray] = {}
-
-    def raster(self, poly: np.ndarray) -> np.ndarray:
-        """(ny, nx) bool: cells whose center lies inside the convex polygon (world [m])."""
-        ny, nx = self.shape
-        lo = np.floor((poly.min(axis=0) - self.origin) / self.cell).astype(int) - 1
-        hi = np.ceil((poly.max(axis=0) - self.origin) / self.cell).astype(int) + 1
-        lo = np.clip(lo, 0, [nx, ny])
-        hi = np.clip(hi, 0, [nx, ny])
-        out = np.zeros(self.shape, dtype=bool)
-        if hi[0] <= lo[0] or hi[1] <= lo[1]:
-            return out
-        xs = self.origin[0] + (np.arange(lo[0], hi[0]) + 0.5) * self.cell
-        ys = self.origin[1] + (np.arange(lo[1], hi[1]) + 0.5) * self.cell
-        X, Y = np.meshgrid(xs, ys)
-        inside = points_in_convex(np.stack([X.ravel(), Y.ravel()], axis=1), poly, margin=-self.cell * 0.5)
-        out[lo[1]:hi[1], lo[0]:hi[0]] = inside.reshape(X.shape)
-        return out
-
-    def components(self, extra: np.ndarray | None = None) -> np.ndarray:
-        """Connected-component labels of the cells where the robot's center may be (0: none)."""
-        from scipy import ndimage
-
-        occ = self.base.copy()
-        for m in self.blocks.values():
-            occ |= m
-        if extra is not None:
-            occ |= extra
-        dist = ndimage.distance_transform_edt(~occ) * self.cell
-        free = dist >= self.radius + self.cell * 0.5
-        labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
-        return labels
-
-    def cell_label(self, labels: np.ndarray, xy: np.ndarray, within: float = 0.45) -> int:
-        """Label of the reachable cell nearest to xy within ``within`` [m] (0 if none)."""
-        ny, nx = self.shape
-        c = ((xy - self.origin) / self.cell).astype(int)
-        r = int(math.ceil(within / self.cell))
-        x0, x1 = max(c[0] - r, 0), min(c[0] + r + 1, nx)
-        y0, y1 = max(c[1] - r, 0), min(c[1] + r + 1, ny)
-        sub = labels[y0:y1, x0:x1]
-        if not sub.any():
-            return 0
-        iy, ix = np.nonzero(sub)
-        d = (ix + x0 - c[0]) ** 2 + (iy + y0 - c[1]) ** 2
-        k = int(np.argmin(d))
-        return int(sub[iy[k], ix[k]])
-
-    def reach_mask(self, footprint: np.ndarray, reach: float) -> np.ndarray:
-        from scipy import ndimage
-
-        m = self.raster(footprint)
-        if not m.any():
-            c = ((footprint.mean(axis=0) - self.origin) / self.cell).astype(int)
-            if 0 <= c[1] < self.shape[0] and 0 <= c[0] < self.shape[1]:
-                m[c[1], c[0]] = True
-        return ndimage.distance_transform_edt(~m) * self.cell <= reach
-
-
-# ---------------------------------------------------------------------------------------------
-# the solver
-
-
-@dataclass(frozen=True)
-class RoomContext:
-    """A room being populated: plan, room, its interior polygon, door points (inside the room, [m])
-    and door keep-out zones, window keep-outs with sill heights, floor elevation [m]."""
-
-    room: RoomModel
-    interior: np.ndarray
-    door_points: tuple[np.ndarray, ...]
-    door_zones: tuple[np.ndarray, ...]
-    windows: tuple[tuple[np.ndarray, float], ...]
-    elevation: float
-    height: float  # clear height of the room [m]
-
-
-def room_context(plan: FloorPlan, room: RoomModel, door_clearance: float) -> RoomContext:
-    interior = room_interior(plan, room)
-    fl = plan.floors[room.floor]
-    pts, zones = [], []
-    for d in fl.doors:
-        if room.id not in d.rooms:
-            continue
-        n = np.asarray(d.normal, dtype=np.float64)
-        n_in = -n if d.rooms[0] == room.id else n
-        c = np.asarray(d.position, dtype=np.float64)
-        along = np.array([-n[1], n[0]])
-        wall = next((w for w in fl.walls if w.id == d.wall), None)
-        half_t = (wall.thickness / 2) if wall else 0.1
-        pts.append(c + n_in * (half_t + 0.4))
-        zones.append(_rect(c, along, d.width / 2 + 0.1, n_in, half_t + door_clearance))
-    wins = []
-    for w in fl.windows:
-        if w.room != room.id:
-            continue
-        wall = next((x for x in fl.walls if x.id == w.wall), None)
-        c = np.asarray(w.position, dtype=np.float64)
-        cen = np.asarray(room.polygon, dtype=np.float64).mean(axis=0)
-        horizontal = wall is not None and abs(wall.start[1] - wall.end[1]) < 1e-9
-        n_in = np.array([0.0, np.sign(cen[1] - c[1]) or 1.0]) if horizontal else np.array([np.sign(cen[0] - c[0]) or 1.0, 0.0])
-        along = np.array([-n_in[1], n_in[0]])
-        wins.append((_rect(c, along, w.width / 2, n_in, 0.6), float(w.sill)))
-    return RoomContext(room, interior, tuple(pts), tuple(zones), tuple(wins), fl.elevation, fl.ceiling_height)
 
 
 class Populator:
@@ -776,71 +548,3 @@ class Populator:
                 return True
             rep.reject(f"{rule.category}: {why}")
         return False
-
-
-# ---------------------------------------------------------------------------------------------
-# final verification
-
-
-@dataclass(frozen=True)
-class CheckReport:
-    """Result of the final checks of a populated plan: penetrations (owner pairs, depth [m]) and
-    path problems (one line each)."""
-
-    penetrations: tuple[tuple[str, str, float], ...]
-    path: tuple[str, ...]
-
-    @property
-    def ok(self) -> bool:
-        return not self.penetrations and not self.path
-
-
-def verify(pop: Populator) -> CheckReport:
-    """Exact collider check of every instance against the layout and each other, and the path check
-    of every populated room (doors connected, every interactable reachable)."""
-    from stages.scene.collide import find_penetrations as fp
-
-    pens: dict[tuple[str, str], float] = {}
-    for i, inst in enumerate(pop.insts):
-        later = [p for o in pop.insts[i + 1:] for p in o.pieces]
-        for pen in fp(inst.pieces, pop.layout + later, exact=True):
-            key = (pen.owner_a, pen.owner_b)
-            pens[key] = max(pens.get(key, 0.0), pen.depth)
-    path: list[str] = []
-    for rep in pop.reports:
-        room = pop.plan.room(rep.room)
-        ctx = pop.room_ctx[room.id]
-        grid = pop.grids[room.floor]
-        labels = grid.components()
-        live = {grid.cell_label(labels, p) for p in ctx.door_points} - {0}
-        if len(live) > 1:
-            path.append(f"{room.id}: doors not connected by a {grid.radius * 2:.2f} m path")
-            continue
-        if not live:
-            if ctx.door_points:
-                path.append(f"{room.id}: no door reachable")
-            continue
-        lab = next(iter(live))
-        reach = pop.rules.setting(room.type, "reach")
-        for inst in pop.insts:
-            if inst.p.room == room.id and inst.p.record.interactable:
-                if not (grid.reach_mask(inst.footprint, reach) & (labels == lab)).any():
-                    path.append(f"{room.id}: {inst.p.inst} out of reach")
-    return CheckReport(tuple((a, b, d) for (a, b), d in sorted(pens.items())), tuple(path))
-
-
-def remove_instances(pop: Populator, ids: set[str]) -> None:
-    """Drop instances (and everything resting on them) from a populator (the settle repair)."""
-    drop = set(ids)
-    changed = True
-    while changed:
-        changed = False
-        for i in pop.insts:
-            if i.p.support in drop and i.p.inst not in drop:
-                drop.add(i.p.inst)
-                changed = True
-    pop.insts = [i for i in pop.insts if i.p.inst not in drop]
-    for g in pop.grids.values():
-        for k in list(g.blocks):
-            if k in drop:
-                del g.blocks[k]

@@ -12,7 +12,8 @@ import pytest
 
 from stages.scene.geom import convex_inside, convex_overlap
 from stages.scene.rules import load_rules
-from stages.scene.solver import Library, Populator, room_context, verify
+from stages.scene.solver import Library, Populator, room_context
+from stages.scene.verify import verify
 
 CATEGORIES = ["bed", "nightstand", "book", "alarm_clock", "dresser", "rug", "bookshelf", "pillow"]
 

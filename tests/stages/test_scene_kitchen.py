@@ -10,7 +10,8 @@ import pytest
 
 from stages.scene.geom import convex_overlap
 from stages.scene.rules import PlacementRules, load_rules
-from stages.scene.solver import Library, Populator, _edges, verify
+from stages.scene.solver import Library, Populator, _edges
+from stages.scene.verify import verify
 
 # layout seeds of jobs/scenes.toml's kitchen_003 (2.35 x 3.5 m, windows on three walls) and
 # kitchen_007 (2.8 x 3.3 m, windows on three walls, the door on the fourth)

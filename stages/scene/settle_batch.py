@@ -1,0 +1,177 @@
+"""Batched settle: many composed scenes in one Newton model, stepped together by MuJoCo-Warp
+(``SolverMuJoCo(use_mujoco_cpu=False)``) on a GPU (or, slowly, on the CPU).
+
+MuJoCo-Warp batches only identical worlds (same bodies and shapes), and no two populated scenes are
+identical; so the scenes lie side by side in one Newton world on a grid ``SPACING`` [m] apart
+(they cannot touch), one MuJoCo world whose bodies, contacts and constraints MuJoCo-Warp processes in
+parallel; the bodies of scene k are a contiguous range of the model's bodies.
+
+The per-scene CPU check (``stages.scene.rest`` + ``stages.scene.settle``) proves rest analytically
+and simulates only what it cannot prove; this module simulates every instance of every scene, for a
+GPU host that settles scenes in bulk. Building the model does not parse each scene's USD: each asset
+package and each layout layer is parsed once with ``newton.ModelBuilder.add_usd`` (kept per
+process), and a scene's world is assembled from them with ``add_builder`` at each instance's pose
+(from the scene's ``scene.json``); instance labels are ``/World/Objects/<instance>/...`` as in the
+scene, so reports name the same instances.
+
+Criterion as in ``settle_check``: every collider point of every dynamic body of an instance is
+compared between the first and the last state; an instance that moved more than ``tolerance``
+[m] fails. Contact settings, time step and solver options are ``settle_check``'s.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from stages.scene.settle import CONTACT_KD, CONTACT_KE, IMPRATIO, OBJECTS_PREFIX, _instance_of
+
+log = logging.getLogger(__name__)
+
+CONTACTS_PER_BODY = 24  # contact capacity per body (multi-CCD: up to 4 points per touching pair)
+ROWS_PER_CONTACT = 6    # constraint rows per contact (elliptic cone, condim 3) plus joint/limit rows
+SPACING = 40.0  # [m] between neighbouring scenes of a batch (a house is at most ~25 m across)
+_PARSED: dict[str, object] = {}  # usd path -> ModelBuilder of that package / layout (this process)
+
+
+@dataclass(frozen=True)
+class BatchSettle:
+    """Per scene: moved (instance -> largest collider point displacement [m]), offenders (over
+    tolerance), passed; timings [s]: build (assembling the model), finalize, simulate."""
+
+    scenes: tuple[Path, ...]
+    moved: tuple[dict[str, float], ...]
+    offenders: tuple[tuple[str, ...], ...]
+    passed: tuple[bool, ...]
+    bodies: int
+    shapes: int
+    simulated: float
+    seconds: dict[str, float]
+
+
+def _parsed(usd: Path):
+    import newton
+    from newton.solvers import SolverMuJoCo
+
+    import usd_schemas  # noqa: F401
+
+    key = str(Path(usd).resolve())
+    if key not in _PARSED:
+        b = newton.ModelBuilder()
+        b.default_shape_cfg.ke = CONTACT_KE
+        b.default_shape_cfg.kd = CONTACT_KD
+        SolverMuJoCo.register_custom_attributes(b)
+        b.add_usd(key, load_visual_shapes=False, load_static_visual_shapes=False)
+        _PARSED[key] = b
+    return _PARSED[key]
+
+
+def scene_layout(scene_usd: Path) -> Path:
+    """The layout layer the scene's /World/Layout references (absolute)."""
+    from pxr import Sdf
+
+    layer = Sdf.Layer.FindOrOpen(str(scene_usd))
+    spec = layer.GetPrimAtPath("/World/Layout") if layer else None
+    refs = list(spec.referenceList.GetAddedOrExplicitItems()) if spec else []
+    if not refs:
+        raise ValueError(f"{scene_usd}: /World/Layout references no layout layer")
+    return (Path(scene_usd).parent / refs[0].assetPath).resolve()
+
+
+def build_worlds(scenes: Sequence[Path]):
+    """(a ``newton.ModelBuilder`` holding every scene (layout + every instance of its scene.json),
+    scene k at ``offset(k)``, body index where each scene's bodies start (len(scenes) + 1,))."""
+    import newton
+    import warp as wp
+    from newton.solvers import SolverMuJoCo
+
+    main = newton.ModelBuilder()
+    main.default_shape_cfg.ke = CONTACT_KE
+    main.default_shape_cfg.kd = CONTACT_KD
+    SolverMuJoCo.register_custom_attributes(main)
+    side = max(1, math.ceil(math.sqrt(len(scenes))))
+    starts: list[int] = []
+    for k, scene in enumerate(scenes):
+        info = json.loads((Path(scene).parent / "scene.json").read_text(encoding="utf-8"))
+        ox, oy = offset(k, side)
+        starts.append(main.body_count)
+        main.add_builder(_parsed(scene_layout(scene)), xform=wp.transform(wp.vec3(ox, oy, 0.0), wp.quat_identity()),
+                         label_prefix="/World/Layout")
+        for inst in info["instances"]:
+            x, y, z = inst["position"]
+            half = float(inst["yaw"]) / 2
+            xf = wp.transform(wp.vec3(x + ox, y + oy, z), wp.quat(0.0, 0.0, math.sin(half), math.cos(half)))
+            main.add_builder(_parsed(Path(inst["usd"])), xform=xf, label_prefix=f"{OBJECTS_PREFIX}{inst['name']}")
+    starts.append(main.body_count)
+    return main, starts
+
+
+def offset(k: int, side: int) -> tuple[float, float]:
+    """(x, y) offset [m] of scene k on a grid of ``side`` columns, centred on the origin."""
+    r, c = divmod(k, side)
+    return (c - (side - 1) / 2) * SPACING, (r - (side - 1) / 2) * SPACING
+
+
+def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: float = 2.0, tolerance: float = 0.01,
+                 dt: float = 1.0 / 250.0, progress: bool = True) -> BatchSettle:
+    """Settle ``scenes`` together (one world each) for ``seconds`` [s] on ``device`` and report per
+    scene which instances moved more than ``tolerance`` [m] (see the module docstring)."""
+    import warp as wp
+    from newton.solvers import SolverMuJoCo
+    from tqdm import tqdm
+
+    from stages.physics_checks import _collider_points_in_bodies
+
+    secs: dict[str, float] = {}
+    t = time.perf_counter()
+    builder, starts = build_worlds(scenes)
+    secs["build"] = time.perf_counter() - t
+    labels = list(builder.body_label)
+    body_world = np.searchsorted(np.asarray(starts), np.arange(builder.body_count), side="right") - 1
+    pts: dict[int, list[np.ndarray]] = {}
+    for b, p in _collider_points_in_bodies(builder):
+        if b >= 0 and _instance_of(labels[b]) is not None:
+            pts.setdefault(b, []).append(p)
+    bodies = sorted(pts)
+    points = [np.vstack(pts[b]) for b in bodies]
+    with wp.ScopedDevice(device):
+        t = time.perf_counter()
+        model = builder.finalize(device=device)
+        solver = SolverMuJoCo(model, use_mujoco_cpu=False, iterations=50, ls_iterations=20, integrator="implicitfast",
+                              cone="elliptic", impratio=IMPRATIO, use_mujoco_contacts=True, enable_multiccd=True,
+                              separate_worlds=False, nconmax=CONTACTS_PER_BODY * model.body_count + 64,
+                              njmax=ROWS_PER_CONTACT * (CONTACTS_PER_BODY * model.body_count + 64))
+        s0, s1, control = model.state(), model.state(), model.control()
+        secs["finalize"] = time.perf_counter() - t
+        t = time.perf_counter()
+        q0 = s0.body_q.numpy().astype(np.float64)
+        steps = max(1, round(seconds / dt))
+        for _ in tqdm(range(steps), desc="settle worlds", unit="step", disable=not progress, leave=False):
+            solver.step(s0, s1, control, None, dt)
+            s0, s1 = s1, s0
+        q1 = s0.body_q.numpy().astype(np.float64)
+        secs["simulate"] = time.perf_counter() - t
+    moved: list[dict[str, float]] = [{} for _ in scenes]
+    for b, p in zip(bodies, points):
+        d = float(np.linalg.norm(_apply(q1[b], p) - _apply(q0[b], p), axis=1).max())
+        d = d if math.isfinite(d) else math.inf
+        w, inst = int(body_world[b]), _instance_of(labels[b])
+        moved[w][inst] = max(moved[w].get(inst, 0.0), d)
+    offenders = tuple(tuple(sorted(k for k, v in m.items() if v > tolerance)) for m in moved)
+    return BatchSettle(scenes=tuple(Path(s) for s in scenes), moved=tuple(moved), offenders=offenders,
+                       passed=tuple(not o for o in offenders), bodies=model.body_count, shapes=model.shape_count,
+                       simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
+
+
+def _apply(q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Points p (K, 3) in a body frame -> world by the Newton transform q (7,) = (pos, quat xyzw)."""
+    from scipy.spatial.transform import Rotation
+
+    return p @ Rotation.from_quat(q[3:]).as_matrix().T + q[:3]

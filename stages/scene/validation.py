@@ -1,0 +1,240 @@
+"""USD validation of a composed scene: each package once, per scene only what composition adds.
+
+A scene is the layout layer and many asset packages (shared by every scene that uses them) plus the
+scene's own layers (root, lighting, materials, placement). ``validate_scene``:
+
+1. validates every package the scene references, and the layout layer, with
+   ``usd_schemas.validate_package`` (composition, usd-core's validators, omniverse-asset-validator)
+   once per package content: the result is kept in a ``CheckCache`` (kind ``validation``) keyed by
+   the package folder's content hash, so an unchanged package is never validated twice;
+2. checks what the scene's layers add, on the scene stage composed without payloads (the packages'
+   geometry; its own opinions all compose): the composition errors (every sublayer, layout and
+   package reference resolves) and every usd-core validator (material bindings, shaders, physics,
+   stage metadata, ...) once per ``look`` variant;
+3. runs omniverse-asset-validator on the scene's own prims (materials, lights, physics scene) and its
+   layers, but only on the structures not seen before: each prim tree under /World/Looks,
+   /World/Lights, /World/PhysicsScene and the layer metadata get a signature (prim types, applied
+   schemas, properties, connections, token values, asset paths found or not, numbers by class:
+   finite, in [0, 1]); a signature is validated once (kind ``structure`` in the cache) and its
+   result reused, so a material differing only in its tint is not validated again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict
+
+from stages.scene.checkcache import CheckCache, content_hash
+
+log = logging.getLogger(__name__)
+
+OWN_ROOTS = ("/World/Looks", "/World/Lights")
+PHYSICS_SCENE = "/World/PhysicsScene"
+
+
+class SceneValidation(BaseModel):
+    """errors: one line each (packages' errors prefixed with the package file); warnings: count;
+    packages: packages (and layout) the scene uses; packages_validated: of those, validated now
+    (the others came from the cache); structures_validated: scene structures validated now."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    errors: tuple[str, ...]
+    warnings: int
+    packages: int
+    packages_validated: int
+    structures_validated: int
+
+
+def validate_package_cached(root_layer: Path, cache: CheckCache) -> tuple[dict, bool]:
+    """({"errors": [lines], "warnings": n}, validated now) of the package whose root layer is
+    ``root_layer``; the package is its folder."""
+    from usd_schemas import validate_package
+
+    key = content_hash(Path(root_layer).parent)
+    got = cache.get("validation", key)
+    if got is not None:
+        return got, False
+    rep = validate_package(Path(root_layer))
+    val = {"errors": [i.line() for i in rep.errors], "warnings": len(rep.warnings), "file": Path(root_layer).name}
+    cache.put("validation", key, val)
+    return val, True
+
+
+def validate_scene(scene_usd: Path, packages: Sequence[Path], cache: CheckCache) -> SceneValidation:
+    """See the module docstring. ``packages``: root layers of the asset packages and the layout
+    layer the scene references."""
+    from pxr import Usd
+
+    import usd_schemas  # noqa: F401  (schema registry)
+    from usd_schemas._validate import _composition_issues, _usd_validator_issues
+
+    errors: list[str] = []
+    warnings = 0
+    fresh = 0
+    uniq = sorted({Path(p).resolve() for p in packages})
+    for p in uniq:
+        val, now = validate_package_cached(p, cache)
+        fresh += now
+        errors += [f"{p.name}: {e}" for e in val["errors"]]
+        warnings += int(val["warnings"])
+
+    stage = Usd.Stage.Open(str(scene_usd), Usd.Stage.LoadNone)
+    errors += [i.line() for i in _composition_issues(stage)]
+    stage.SetEditTarget(stage.GetSessionLayer())  # variant switches stay out of the scene's layers
+    world = stage.GetDefaultPrim()
+    vset = world.GetVariantSet("look") if world and world.GetVariantSets().HasVariantSet("look") else None
+    for v in (vset.GetVariantNames() if vset else [None]):
+        if vset is not None:
+            vset.SetVariantSelection(v)
+        for i in _usd_validator_issues(stage):
+            if i.severity == "error":
+                errors.append(f"look {v}: {i.line()}" if v else i.line())
+            elif i.severity == "warning":
+                warnings += 1
+    if vset is not None:
+        stage.GetSessionLayer().Clear()
+
+    new: dict[str, str] = {}   # signature key -> representative prim path ("" for the layers)
+    sigs = _signatures(stage, Path(scene_usd))
+    results: list[dict] = []
+    for key, path in sigs.items():
+        got = cache.get("structure", key)
+        if got is None:
+            new.setdefault(key, path)
+        else:
+            results.append(got)
+    if new:
+        results += _omni_structures(Path(scene_usd), new, cache)
+    for r in results:
+        errors += r["errors"]
+        warnings += int(r["warnings"])
+    return SceneValidation(errors=tuple(errors), warnings=warnings, packages=len(uniq), packages_validated=fresh,
+                           structures_validated=len(new))
+
+
+def _omni_structures(scene_usd: Path, new: dict[str, str], cache: CheckCache) -> list[dict]:
+    """omniverse-asset-validator on the scene masked to the representatives of new signatures
+    (variants not expanded: bindings are checked per variant by usd-core's validators); the issues
+    are filed under the signature whose prim they are at (the rest under the layers' signature)."""
+    from pxr import Usd
+
+    from usd_schemas._validate import DISABLED_OMNI_RULES
+
+    from omni.asset_validator import IssueSeverity, ValidationEngine
+
+    paths = sorted({p for p in new.values() if p})
+    stage = Usd.Stage.OpenMasked(str(scene_usd), Usd.StagePopulationMask(paths or [PHYSICS_SCENE]),
+                                 Usd.Stage.LoadNone)
+    engine = _engine(ValidationEngine, DISABLED_OMNI_RULES)
+    out: dict[str, dict] = {k: {"errors": [], "warnings": 0} for k in new}
+    layers_key = next((k for k, p in new.items() if not p), None)
+    for issue in engine.validate(stage).issues():
+        if issue.severity in (IssueSeverity.NONE, IssueSeverity.INFO):
+            continue
+        at = "" if issue.at is None else str(getattr(issue.at, "path", None) or issue.at)
+        key = next((k for k, p in new.items() if p and (at == p or at.startswith(p + "/") or at.startswith(p + "."))),
+                   layers_key)
+        if key is None:
+            key = next(iter(new))
+        rule = issue.rule.__name__ if issue.rule is not None else "engine"
+        if issue.severity in (IssueSeverity.ERROR, IssueSeverity.FAILURE):
+            out[key]["errors"].append(f"[error] omni:{rule}{' at ' + at if at else ''}: {' '.join(str(issue.message).split())}")
+        else:
+            out[key]["warnings"] += 1
+    for k, v in out.items():
+        cache.put("structure", k, v)
+    return list(out.values())
+
+
+_ENGINES: list = []
+
+
+def _engine(cls, disabled):
+    if not _ENGINES:
+        e = cls(init_rules=True, variants=False)
+        for rule in list(e.enabled_rules):
+            if rule.__name__ in disabled:
+                e.disable_rule(rule)
+        _ENGINES.append(e)
+    return _ENGINES[0]
+
+
+def _signatures(stage, scene_usd: Path) -> dict[str, str]:
+    """{signature key: representative prim path} of the scene's own structures: each child of
+    OWN_ROOTS, the physics scene, and ("" path) the layers' metadata."""
+    out: dict[str, str] = {}
+    roots = []
+    for r in OWN_ROOTS:
+        prim = stage.GetPrimAtPath(r)
+        if prim:
+            roots += list(prim.GetChildren())
+    ps = stage.GetPrimAtPath(PHYSICS_SCENE)
+    if ps:
+        roots.append(ps)
+    for prim in roots:
+        sig = _prim_tree_signature(prim)
+        out.setdefault(_key(sig), str(prim.GetPath()))
+    layers = []
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        info = {k: _value_class(layer.pseudoRoot.GetInfo(k), layer) for k in layer.pseudoRoot.ListInfoKeys()
+                if k not in ("customLayerData", "documentation", "comment", "subLayerOffsets")}
+        layers.append([Path(layer.realPath or layer.identifier).name, layer.GetFileFormat().formatId, info])
+    out.setdefault(_key(["layers", layers]), "")
+    return out
+
+
+def _key(sig) -> str:
+    return hashlib.sha256(json.dumps(sig, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _prim_tree_signature(root) -> list:
+    from pxr import Usd
+
+    base = str(root.GetPath())
+    out = []
+    for prim in Usd.PrimRange(root):
+        rel = str(prim.GetPath())[len(base):]
+        props = []
+        for prop in prim.GetAuthoredProperties():
+            if isinstance(prop, Usd.Attribute):
+                conns = [str(c).replace(base, "~") for c in prop.GetConnections()]
+                v = prop.Get() if prop.HasAuthoredValue() else None
+                props.append([prop.GetName(), str(prop.GetTypeName()), str(prop.GetVariability()), conns,
+                              _value_class(v, None)])
+            else:
+                props.append([prop.GetName(), "rel", [str(t).replace(base, "~") for t in prop.GetTargets()]])
+        meta = {k: _value_class(v, None) for k, v in prim.GetAllAuthoredMetadata().items()
+                if k not in ("specifier", "customData", "typeName", "apiSchemas")}
+        out.append([rel, str(prim.GetTypeName()), [str(s) for s in prim.GetAppliedSchemas()], sorted(props), meta])
+    return out
+
+
+def _value_class(v, layer) -> object:
+    """A value as it matters to validation: numbers by class (finite, in [0, 1]), asset paths by
+    whether they resolve (and their extension), tokens and strings as they are."""
+    import math
+
+    from pxr import Sdf
+
+    if v is None or isinstance(v, (bool, str)):
+        return v
+    if isinstance(v, Sdf.AssetPath):
+        return ["asset", bool(v.resolvedPath), Path(v.path).suffix]
+    if isinstance(v, (int, float)):
+        return ["num", math.isfinite(v), 0.0 <= v <= 1.0]
+    if hasattr(v, "__iter__") and not hasattr(v, "GetReal"):
+        items = list(v) if not isinstance(v, dict) else []
+        if items and all(isinstance(x, str) for x in items):
+            return [str(x) for x in items]
+    try:
+        vals = [float(x) for x in (v if not hasattr(v, "GetReal") else [v.GetReal(), *v.GetImaginary()])]
+    except (TypeError, ValueError):
+        return type(v).__name__ if hasattr(v, "__len__") and not isinstance(v, dict) else str(v)
+    if len(vals) > 64:
+        return ["array", len(vals) > 0, all(math.isfinite(x) for x in vals)]
+    return ["vec", len(vals), all(math.isfinite(x) for x in vals), all(0.0 <= x <= 1.0 for x in vals)]

@@ -1,0 +1,147 @@
+"""Per-package checks done once (validation cache), rest proven without simulating (checked against
+the Newton simulation), and the batched settle of several scenes in one model (CPU)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stages.scene.rules import load_rules
+from stages.scene.solver import Library, Populator
+
+CATEGORIES = ["bed", "nightstand", "book", "alarm_clock", "dresser", "rug", "bookshelf", "pillow"]
+needs_newton_usd = pytest.mark.skipif(importlib.util.find_spec("newton_usd_schemas") is None,
+                                      reason="Newton's add_usd needs newton-usd-schemas")
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    from stages.layout.build import generate_layout
+    from stages.layout.spec import LayoutSpec
+    from stages.scene.standin import build_library
+
+    root = tmp_path_factory.mktemp("checks")
+    index = build_library(root / "lib", categories=CATEGORIES, variants=2, seed=0)
+    lay = generate_layout(LayoutSpec(rooms={"bedroom": 1}), 7, root / "layout")
+    return Library.from_index(index), lay.plan_json, lay.usd, root
+
+
+def _scene(world, seed: int, out: Path):
+    """A composed bedroom (no settle, no validation) and the Populator that placed it (same seed)."""
+    from stages.layout.floorplan import load_floor_plan
+    from stages.scene.build import BuildOptions, build_scene
+
+    lib, plan_json, usd, _ = world
+    s = build_scene(plan_json, usd, lib, load_rules(), np.random.default_rng(seed), out, out,
+                    BuildOptions(n_looks=2, settle=False, validate=False))
+    plan = load_floor_plan(plan_json)
+    pop = Populator(plan, usd, lib, load_rules(), np.random.default_rng(seed))
+    for r in plan.floors[0].rooms:
+        pop.populate_room(r)
+    assert [i.p.inst for i in pop.insts] == [i.name for i in s.instances]
+    return s, pop
+
+
+def _packages(lib, pop, usd) -> list[Path]:
+    return sorted({lib.usd(i.p.record) for i in pop.insts}) + [Path(usd)]
+
+
+def test_unchanged_packages_are_validated_once(world, tmp_path):
+    from stages.scene.checkcache import CheckCache
+    from stages.scene.validation import validate_scene
+
+    lib, _, usd, _ = world
+    _, pop_a = _scene(world, 5, tmp_path / "a")
+    _, pop_b = _scene(world, 6, tmp_path / "b")
+    cache = CheckCache(tmp_path / "cache")
+    va = validate_scene(tmp_path / "a" / "scene.usda", _packages(lib, pop_a, usd), cache)
+    assert va.errors == () and va.packages_validated == va.packages > 1 and va.structures_validated > 0
+    again = validate_scene(tmp_path / "a" / "scene.usda", _packages(lib, pop_a, usd), cache)
+    assert again.packages_validated == 0 and again.structures_validated == 0 and again.warnings == va.warnings
+    shared = set(_packages(lib, pop_a, usd)) & set(_packages(lib, pop_b, usd))
+    vb = validate_scene(tmp_path / "b" / "scene.usda", _packages(lib, pop_b, usd),
+                        CheckCache(tmp_path / "cache"))       # another process: read from disk
+    assert vb.errors == () and vb.packages_validated == vb.packages - len(shared)
+    # a package that changes is validated again, and a broken one is caught
+    pkg = sorted(p for p in shared if p.suffix == ".usda")[0]
+    text = pkg.read_text()
+    try:
+        pkg.write_text(text.replace("prepend payload = @./", "prepend payload = @./missing_"))
+        vc = validate_scene(tmp_path / "b" / "scene.usda", _packages(lib, pop_b, usd), CheckCache(tmp_path / "cache"))
+        assert vc.packages_validated == 1 and vc.errors
+    finally:
+        pkg.write_text(text)
+    vd = validate_scene(tmp_path / "b" / "scene.usda", _packages(lib, pop_b, usd), CheckCache(tmp_path / "cache"))
+    assert vd.packages_validated == 0 and vd.errors == ()
+
+
+@needs_newton_usd
+def test_proven_rest_agrees_with_the_simulation(world, tmp_path):
+    """Every instance proven at rest stays within 1 cm in the full Newton simulation; an object moved
+    so that its center of mass is 2 cm past its support's edge is not proven, and falls."""
+    from stages.scene import compose
+    from stages.scene.checkcache import CheckCache
+    from stages.scene.geom import rot2
+    from stages.scene.rest import analytic_rest, signed_inside, to_simulate
+    from stages.scene.settle import settle_check
+
+    lib, _, _, _ = world
+    out = tmp_path / "s"
+    _, pop = _scene(world, 5, out)
+    cache = CheckCache(None)
+    from stages.scene.build import _package_unknown
+
+    proof = analytic_rest(pop, lambda i: _package_unknown(i, cache, 0.01))
+    assert proof.unproven == {} and len(proof.proven) == len(pop.insts)
+    full = settle_check(out / "scene.usda", early_exit=None)
+    assert full.passed, full.offenders
+
+    k, obj = next((k, i) for k, i in enumerate(pop.insts) if i.p.support)
+    sup = next(i for i in pop.insts if i.p.inst == obj.p.support)
+    surf = max(sup.geo.surfaces, key=lambda s: -abs(sup.p.position[2] + s.z - (obj.p.position[2] + obj.geo.lo[2])))
+    poly = surf.polygon @ rot2(sup.p.yaw).T + np.asarray(sup.p.position[:2])
+    com = np.asarray(obj.p.position[:2]) + rot2(obj.p.yaw) @ obj.geo.com[:2]
+    d = com - poly.mean(axis=0)
+    d = d / np.linalg.norm(d) if np.linalg.norm(d) > 1e-6 else np.array([1.0, 0.0])
+    t = next(t for t in np.arange(0.0, 3.0, 0.005) if signed_inside(com + t * d, poly) < -0.02)
+    xy = np.asarray(obj.p.position[:2]) + t * d
+    ctx = pop.room_ctx[obj.p.room]
+    moved = pop._instance(obj.p.record, obj.geo, ctx, xy, obj.p.position[2], obj.p.yaw, obj.p.support, 0.0)
+    moved.on_floor = False
+    moved.p = replace(moved.p, inst=obj.p.inst)
+    pop.insts[k] = moved
+    proof = analytic_rest(pop, lambda i: _package_unknown(i, cache, 0.01))
+    assert obj.p.inst in proof.unproven and sup.p.inst in proof.proven
+    specs = [compose.InstanceSpec(name=i.p.inst, usd=lib.usd(i.p.record), position=i.p.position, yaw=i.p.yaw,
+                                  material=i.p.record.material, room=i.p.room, support=i.p.support or "",
+                                  category=i.p.record.category) for i in pop.insts]
+    compose.write_placement(out, out, specs)
+    sim = to_simulate(pop, list(proof.unproven))
+    assert obj.p.inst in sim and sup.p.inst in sim and len(sim) < len(pop.insts)
+    rep = settle_check(out / "scene.usda", instances=sim, early_exit=None)
+    assert obj.p.inst in rep.offenders and set(rep.moved) <= set(sim)
+
+
+@needs_newton_usd
+def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
+    from stages.scene.settle_batch import settle_batch
+
+    scenes = []
+    for seed in (5, 6):
+        _scene(world, seed, tmp_path / f"s{seed}")
+        scenes.append(tmp_path / f"s{seed}" / "scene.usda")
+    # one scene with an object lifted 5 cm: it must be the only one that moves more than 1 cm
+    info = json.loads((tmp_path / "s6" / "scene.json").read_text())
+    lifted = next(i for i in info["instances"] if i["support"])
+    lifted["position"][2] += 0.05
+    (tmp_path / "s6" / "scene.json").write_text(json.dumps(info))
+    res = settle_batch(scenes, device="cpu", seconds=0.3, progress=False)
+    assert res.passed[0] and not res.passed[1], res.moved
+    assert res.offenders[1] == (lifted["name"],)
+    n = [len(json.loads((s.parent / "scene.json").read_text())["instances"]) for s in scenes]
+    assert [len(m) for m in res.moved] == [sum(1 for _ in m) for m in res.moved] and sum(map(len, res.moved)) <= sum(n)
