@@ -5,14 +5,18 @@ kitchen runs the 15 basic tasks' scripted experts (round robin, seeds per world)
 (RGB + depth) at the given size for ``--sim-seconds`` of simulated time after a warm-up, and
 prints
 
-- recorded timesteps/s end to end (frames handed to the episode sinks per wall second; the sinks
-  keep the frames' arrays alive but do not encode: encoding is ``bench_encode.py``'s),
+- recorded timesteps/s end to end: frames handed to the episode sinks per wall second. With
+  ``--write`` the sinks are real dataset shards, one per world (the demos job's writer: RGB video
+  encoded as frames arrive, depth as 16-bit PNG), and the wall time includes flushing them;
+  without it the sinks keep the frames' arrays alive but do not encode,
 - the split of the wall time (simulation, rendering, control: the experts' programs and resets,
   encoding: frame assembly and sinks),
 - each component's standalone maximum in the same run, as recorded timesteps/s: simulation only
   (N worlds stepped, 1 / (fps dt) steps per frame), rendering only (3 cameras rendered, converted
   on the device and read back for all N worlds: ``CameraRig.render_compact``, what the engine
-  records), and the end-to-end rate as a fraction of the slowest of them;
+  records), encoding only (with ``--write``: the last recorded frame of every world written again
+  into fresh shards by the same writers, N at a time), and the end-to-end rate as a fraction of
+  the slowest of them;
 - completed episodes, successes per hour and the median episode length per task [frames].
 
 Writes ``bench_results/engine.json``. Run on the GPU machine::
@@ -82,20 +86,30 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
 
     held = {"frames": 0}
 
+    shards = _Shards(eng, work / f"shards_{n}") if args.write else None
+
     def begin(w, inst):
+        add = shards.begin(w, inst) if shards is not None else None
+
         def sink(frame):
             held["frames"] += 1
             held["last"] = frame  # keep one frame alive (its arrays are real copies)
+            if add is not None:
+                add(frame)
         return sink
 
     done: list[tuple[str, bool, int, str]] = []
 
     def end(w, inst, res):
         done.append((inst.task, res.success, res.frames, res.reason))
+        if shards is not None:
+            shards.end(w, res)
 
     # warm-up: compile kernels, capture the CUDA graphs, first resets
     eng.run(next_instance, begin=begin, end=end, max_steps=2 * eng.sync_period)
     _sync(args.device)
+    if shards is not None:
+        shards.stop(keep=False)
     done.clear()
     held["frames"] = 0
     s0 = eng.stats.to_json()["timings"]
@@ -106,6 +120,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     t0 = time.perf_counter()
     eng.run(next_instance, begin=begin, end=end, max_steps=steps)
     _sync(args.device)
+    if shards is not None:
+        shards.stop(keep=True)  # episodes cut by the window are written too: their encoding counts
     wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
     s1 = eng.stats.to_json()["timings"]
     split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
@@ -139,6 +155,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     maxima = {"simulation": round(sim_only, 1)}
     if render_only is not None:
         maxima["rendering"] = round(render_only, 1)
+    if shards is not None and "last" in held:
+        maxima["encoding"] = round(_encode_only(eng, work / f"encode_{n}", held["last"]), 1)
     slowest = min(maxima.values())
     lengths: dict[str, list[int]] = defaultdict(list)
     for task, ok, fr, _ in done:
@@ -159,6 +177,72 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     }
     print(json.dumps(res), flush=True)
     return res
+
+
+class _Shards:
+    """One dataset shard per engine world (the demos job's writer), recreated per window."""
+
+    def __init__(self, eng, root: Path) -> None:
+        import shutil
+
+        shutil.rmtree(root, ignore_errors=True)
+        self.eng, self.root, self.k = eng, root, 0
+        self.open()
+
+    def open(self) -> None:
+        from stages.dataset import open_shard
+
+        self.k += 1
+        spec = self.eng.config.dataset_spec()
+        self.w = [open_shard(self.root / f"r{self.k}", f"w{i:04d}", spec).__enter__()
+                  for i in range(self.eng.config.worlds)]
+        self.live = set()
+
+    def begin(self, w: int, inst):
+        from stages.dataset import EpisodeInfo
+
+        self.w[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id="kitchen_bench",
+                                            seed=inst.seed, asset_ids=inst.asset_ids))
+        self.live.add(w)
+        return self.w[w].add_frame
+
+    def end(self, w: int, res) -> None:
+        self.w[w].end_episode(success=res.success, reason=res.reason)
+        self.live.discard(w)
+
+    def stop(self, *, keep: bool) -> None:
+        """End the episodes the window cut (written when ``keep``, else dropped), close every shard."""
+        for w in sorted(self.live):
+            self.w[w].end_episode(success=keep, reason="" if keep else "benchmark_window")
+        for wr in self.w:
+            wr.close()
+        self.open()
+
+
+def _encode_only(eng, root: Path, frame, frames_per_world: int = 30) -> float:
+    """Encoding alone: ``frames_per_world`` copies of ``frame`` into one fresh shard per world,
+    all worlds in turn per frame (as the engine hands them over). Returns timesteps/s."""
+    import shutil
+
+    from stages.dataset import EpisodeInfo, open_shard
+
+    shutil.rmtree(root, ignore_errors=True)
+    spec = eng.config.dataset_spec()
+    n = eng.config.worlds
+    ws = [open_shard(root, f"w{i:04d}", spec).__enter__() for i in range(n)]
+    t = time.perf_counter()
+    for wr in ws:
+        wr.begin_episode(EpisodeInfo(task="encode", task_kind="press_button", scene_id="kitchen_bench", seed=0,
+                                     asset_ids=()))
+    for _ in range(frames_per_world):
+        for wr in ws:
+            wr.add_frame(frame)
+    for wr in ws:
+        wr.end_episode(success=True)
+        wr.close()
+    rate = n * frames_per_world / (time.perf_counter() - t)
+    shutil.rmtree(root, ignore_errors=True)
+    return rate
 
 
 def _child(args, n: int, k: int, barrier, queue) -> None:
@@ -276,6 +360,7 @@ def main(argv=None) -> dict:
     p.add_argument("--sim-seconds", type=float, default=2.0)
     p.add_argument("--no-images", action="store_true")
     p.add_argument("--render-split", action="store_true", help="time the render's parts too")
+    p.add_argument("--write", action="store_true", help="record into real dataset shards (encoding included)")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
