@@ -477,8 +477,8 @@ class BatchEngine:
                          arm_joint_target=target, ee_target=self._ee_in_base(target),
                          base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
             frames = images.get(id(bank), {})
-            rgb = {name: im[0][i] for name, im in frames.items()}
-            depth = {name: im[1][i] for name, im in frames.items()}
+            rgb = {name: im[0][i].copy() for name, im in frames.items()}  # the rig reuses its buffers
+            depth = {name: im[1][i].copy() for name, im in frames.items()}
             if rec.sink is not None:
                 rec.sink(Frame(**state, rgb=rgb, depth_mm=depth))
             rec.frames += 1

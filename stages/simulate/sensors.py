@@ -469,7 +469,9 @@ class CameraRig:
         """Render every camera in every world for ``sim.state_0`` and read back recording-ready
         images by camera name: RGB (W, H, Wd, 3) uint8 and depth (W, H, Wd) uint16 [mm] (rounded
         to nearest, 0 where no surface, at most 65,535: the dataset's depth encoding), converted
-        on the device so that the host only copies them (needs ``rgb`` and ``depth``)."""
+        on the device so that the host only copies them (needs ``rgb`` and ``depth``). On CUDA
+        they are views of pinned host buffers (one asynchronous copy per image, one wait for
+        all) that the next call overwrites: copy what you keep."""
         import warp as wp
 
         if not (self.rgb and self.depth):
@@ -492,10 +494,17 @@ class CameraRig:
             rgb, mm = bufs[cam.name]
             wp.launch(_compact_kernel(), dim=n, device=model.device,
                       inputs=[img["color"].flatten(), img["depth"].flatten(), rgb, mm])
-            # on the CPU .numpy() is a view of the buffer the next render overwrites: copy it
-            cpu = not str(model.device).startswith("cuda")
-            r, d = (a.numpy().copy() if cpu else a.numpy() for a in (rgb, mm))
+            if str(model.device).startswith("cuda"):
+                host = self.__dict__.setdefault("_pinned", {}).get(cam.name)
+                if host is None:
+                    host = self._pinned[cam.name] = tuple(wp.empty_like(a, device="cpu", pinned=True) for a in (rgb, mm))
+                for h, a in zip(host, (rgb, mm), strict=True):
+                    wp.copy(h, a)
+                r, d = (h.numpy() for h in host)
+            else:  # .numpy() is a view of the buffer the next render overwrites: copy it
+                r, d = (a.numpy().copy() for a in (rgb, mm))
             out[cam.name] = (r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width))
+        wp.synchronize_device(model.device)
         return out
 
     def _frame(self, cam: CameraSpec, img: dict, m: np.ndarray) -> CameraFrame:
