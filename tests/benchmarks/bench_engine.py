@@ -251,6 +251,8 @@ def _child(args, n: int, k: int, barrier, queue) -> None:
     from stages.demos.kitchen import AssetLibrary, write_kitchen
 
     try:
+        if args.devices:  # processes spread over the host's GPUs, round robin
+            args.device = args.devices[k % len(args.devices)]
         work = args.work / f"proc{k:02d}"
         lib = AssetLibrary.from_folder(args.catalog / "assets", args.catalog / "catalog" / "default" / "generated.json")
         room = write_kitchen(work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
@@ -364,6 +366,8 @@ def main(argv=None) -> dict:
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
+    p.add_argument("--devices", nargs="+", default=None,
+                   help="with --procs: spread the engine processes over these devices (e.g. cuda:0 cuda:1)")
     p.add_argument("--program-procs", type=int, default=0,
                    help="worker processes for the world programs of each engine (0: threads)")
     p.add_argument("--layout", default="auto", choices=("auto", "batched", "per_world"))
@@ -388,7 +392,7 @@ def main(argv=None) -> dict:
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
             results.append({"worlds": n, "error": repr(e)})
-    doc = {"device": args.device, "procs": args.procs, "program_procs": args.program_procs, "size": [args.height, args.width], "cameras": 3,
+    doc = {"device": args.device, "devices": args.devices, "procs": args.procs, "program_procs": args.program_procs, "size": [args.height, args.width], "cameras": 3,
            "images": not args.no_images, "results": results}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     prev = json.loads(args.out.read_text()) if args.out.is_file() else {}
