@@ -327,8 +327,11 @@ class BatchEngine:
         k = ls.min_pending(skip=held) or P
         if sync:
             k = min(k, P - self.global_step % P)
-        if held.any():
-            k = min(k, int((P - (self.global_step - self.held_at[held]) % P).min()))
+        # held worlds whose programs have answered release at whole periods of holding (those still
+        # planning do not cut the step count: one that answers mid-way waits for the next period)
+        ready = [w for w in np.nonzero(held)[0] if not ls.running(int(w))]
+        if ready:
+            k = min(k, int((P - (self.global_step - self.held_at[ready]) % P).min()))
         k = max(1, min(k, self._next_frame_step() - self.global_step))
         t0 = time.perf_counter()
         for b in self.banks:
