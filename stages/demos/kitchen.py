@@ -122,7 +122,7 @@ class AssetLibrary:
     def from_packages(usd_by_id: dict[str, Path], generated_json: Path,
                       categories: tuple[str, ...] = KITCHEN_CATEGORIES) -> AssetLibrary:
         """From package root layers by asset id and the catalog's ``generated.json``; only ``categories``."""
-        from stages.demos.articulated import load_generated_info
+        from stages.demos.parts import load_generated_info
 
         info = load_generated_info(generated_json)
         out = {}

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stages.demos.articulated import (
+from stages.demos.parts import (
     ArticulatedPart, JointFrame, load_generated_info, package_joint_frames, parts_of)
 
 CATEGORIES = ("microwave", "cabinet", "oven", "door", "fridge")
@@ -171,7 +171,7 @@ def test_microwave_door_opens(catalog: Path, tmp_path: Path):
                                              ("fridge_00", "open"), ("fridge_00", "close")])
 def test_catalog_parts_open_and_close(catalog: Path, tmp_path: Path, aid: str, action: str):
     """One episode per (asset, action) with the generic experts; the predicate holds at the end."""
-    from stages.demos.articulated import part_closed, part_opened
+    from stages.demos.parts import part_closed, part_opened
     from stages.simulate.state import read_state
 
     world, sess = _session(catalog, tmp_path, aid)
