@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from stages.demos.driver import APPROACH_TOL, ROBOT_RADIUS, ExpertFailure, stow
 from stages.demos.parts import ArticulatedPart, axis_angle
 
 log = logging.getLogger(__name__)
@@ -163,8 +164,6 @@ def choose_base(d, part: ArticulatedPart, grid, candidates,
     yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
     footprint is free on ``grid`` and from which ``targets_of(base, pitch)`` are all reachable;
     raises ExpertFailure("no_base_pose")."""
-    from stages.demos.experts import ROBOT_RADIUS, ExpertFailure
-
     n, lat = np.asarray(part.front, float), _lateral(part)
     h = np.asarray(part.handle, float)
     face, sgn = _heading(-n), _toward_hinge(part)
@@ -213,8 +212,6 @@ def _slide(d, distance: float, speed: float = 0.12) -> None:
 
 def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     """Grasp the drawer's bar at opening q0, move the base along the drawer axis to q1, release, tuck."""
-    from stages.demos.experts import APPROACH_TOL
-
     out = q0 - part.closed
 
     def targets(base, pitch):
@@ -349,8 +346,6 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> lis
     """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
     around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
     the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
-    from stages.demos.experts import ROBOT_RADIUS
-
     blocked = grid.inflate(ROBOT_RADIUS)
     h0 = part.handle_at(q0)
     mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
@@ -497,8 +492,6 @@ def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode
     bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
     large as found (all of them ends the search), and the arm solutions of approach + those
     waypoints."""
-    from stages.demos.experts import ExpertFailure
-
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
@@ -538,8 +531,6 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     off; the part stays where it was left (damped joint) and the next stage starts from there.
     ``mode="edge"``: pinch a bottom-hinged door's free edge instead of its handle. ``done_at``:
     the joint value that ends it (default: 80 % of the travel opening, 2.5 deg from closed closing)."""
-    from stages.demos.experts import ExpertFailure
-
     opening = q1 > q0
     push, edge = mode == "push", mode == "edge"
     if done_at is None:
@@ -655,7 +646,6 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
     """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
     by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
     travel, as far as the room allows (the leaf slides radially between the fingers)."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     q = d.sim.joint_q_of_path(part.joint_path)
@@ -680,10 +670,8 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
 
 
 def _stow(d) -> None:
-    """Tuck the hand above the base for driving (:func:`stages.demos.experts.stow`; home hangs the
+    """Tuck the hand above the base for driving (:func:`stages.demos.driver.stow`; home hangs the
     hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails."""
-    from stages.demos.experts import ExpertFailure, stow
-
     try:
         stow(d)
     except ExpertFailure as e:
@@ -694,7 +682,6 @@ def _stow(d) -> None:
 def _escape(d, grid, reach: float = 0.5) -> None:
     """When the base stands where the planner counts it blocked (the leaf it just moved now lies
     near it), move it straight to the nearest free spot within ``reach`` [m] first."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     blocked = grid.inflate(ROBOT_RADIUS)
@@ -720,7 +707,6 @@ def _drive(d, base: tuple[float, float, float], grid) -> None:
     """``Driver.drive_to`` ``base``; a timeout with the base within DRIVE_SLACK of the goal (a
     chassis corner grazing furniture) is accepted: the arm plans are re-solved from the actual
     base pose."""
-    from stages.demos.experts import ExpertFailure
     from stages.demos.record import base_pose
 
     try:
@@ -757,8 +743,6 @@ def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: 
     """Raise ExpertFailure("grasp_missed") when the hand is not on the handle (or ``point`` (3,),
     a link point at closed) after closing (``across_axis``: only the offset perpendicular to a
     drawer's axis counts)."""
-    from stages.demos.experts import ExpertFailure
-
     hand = _tcp_world(d)
     grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float) if point is None else point
     handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
@@ -791,15 +775,12 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
     along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
     edge (an arm wrapped round an opened door's edge would sweep it shut when tucked) as far as
     the room allows (up to 0.35 m)."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     if not push:  # a pushing fist stays closed: opening fingers catch the handle
         d.grip(0.0, 0.5)
     w = _ee_world(d)
     if edge:  # fingers straddle the leaf's edge: draw the hand straight off it first (4 cm clear it)
-        from stages.demos.experts import ExpertFailure
-
         for dist in (0.10, 0.07, 0.04):
             off = w.copy()
             off[:3, 3] -= dist * w[:3, 2]
@@ -844,7 +825,6 @@ def _move(d, target: np.ndarray, duration: float, *, segments: int = 1, settle: 
           tol: float = 0.005) -> None:
     """:meth:`Driver.move` without random IK restarts: a contact move must continue from the
     current arm configuration (a restart may flip the elbow and slam the part)."""
-    from stages.demos.experts import ExpertFailure
     from stages.simulate.control import move_ee
 
     d.cmd.mode = 1
@@ -868,10 +848,8 @@ def _ee_world(d) -> np.ndarray:
 def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> None:
     """Open ``part`` from closed to ``goal_fraction`` of its travel: drawers by backing the base
     away holding the bar, doors by carrying the handle along its arc. ``d``: a
-    :class:`~stages.demos.experts.Driver`; ``grid``: the room's NavGrid with the part closed.
+    :class:`~stages.demos.driver.Driver`; ``grid``: the room's NavGrid with the part closed.
     Raises ExpertFailure."""
-    from stages.demos.experts import ExpertFailure
-
     q1 = part.closed + goal_fraction * part.travel
     if part.kind == "prismatic":
         _drawer(part, d, grid, part.closed, q1)
@@ -894,8 +872,6 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
 
 def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     """Close ``part`` from joint value ``start`` (its opening at the episode start)."""
-    from stages.demos.experts import ExpertFailure
-
     if part.kind == "prismatic":
         _drawer(part, d, grid, start, part.closed)
         return
