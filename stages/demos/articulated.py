@@ -37,7 +37,17 @@ import math
 import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ROBOT_RADIUS, ExpertFailure, stow
-from stages.demos.parts import ArticulatedPart, axis_angle
+from stages.demos.part_grasps import (
+    GRASP_BACK,
+    PUSH_STANDOFF,
+    drawer_pitch,
+    edge_point,
+    gesture,
+    handle_pose,
+    lateral,
+)
+from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
+from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
 
@@ -45,148 +55,14 @@ log = logging.getLogger(__name__)
 # Experts
 # --------------------------------------------------------------------------------------------
 
-STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
-PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
-LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push further in [m]
-PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
-OVEN_GRIP_OFFSET = 0.12  # a bottom-hinged door's bar (70 % of the width) may be gripped off-centre [m]
-OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
-BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
-LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
-GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
-# pinching the free edge of a bottom-hinged (oven) door: catalog ovens have the bar's centre 5 cm
-# from the edge and a leaf about 4 cm thick; the tool centre sits 1.5 cm in from the edge
-EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
-EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
-LEAF_HALF_THICKNESS = 0.019  # [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
 EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
-EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
-EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
-
-
-def _heading(v) -> float:
-    return math.atan2(float(v[1]), float(v[0]))
-
-
-def _rz(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _ry(pitch: float) -> np.ndarray:
-    c, s = math.cos(pitch), math.sin(pitch)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-# tool frames with the approach (tool z) along +X: fingers closing vertically (horizontal bars) or
-# horizontally (vertical bars)
-_FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
-_FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
-
-
-def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False) -> np.ndarray:
-    """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
-    pitched ``pitch`` [rad] down, fingers closing across the bar (``push``: along it, so that the
-    hand's width runs parallel to the bar)."""
-    vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
-    base = _FINGERS_HORIZONTAL if vertical_bar != push else _FINGERS_VERTICAL
-    return _rz(_heading(-np.asarray(part.front))) @ _ry(pitch) @ base
-
-
-def handle_pose(part: ArticulatedPart, q: float, pitch: float, back: float = 0.0) -> np.ndarray:
-    """4x4 world pose of the gripper on the handle at joint value ``q`` (turning with the part),
-    ``back`` [m] behind it along the approach axis."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.handle_at(q) - back * rot[:, 2]
-    return m
-
-
-def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
-    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
-    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
-    x0, y0, yaw0 = d.sim.spawn
-    c, s = math.cos(yaw0), math.sin(yaw0)
-    dx, dy = base[0] - x0, base[1] - y0
-    local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
-    for name, v in zip(d.sim.desc.base_joints, local, strict=True):
-        q[d.ik.q_idx[name]] = v
-    return q
-
-
-def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
-    """Whether every world pose of ``targets`` (4x4 each, in order) is reached by CLIK from a
-    base at ``base`` (see :func:`reach`)."""
-    return len(reach(d, base, targets, tol=tol)) == len(targets)
-
-
-def _free(grid, blocked, x: float, y: float) -> bool:
-    iy, ix = grid.cell_of(x, y)
-    ny, nx = blocked.shape
-    return 0 <= iy < ny and 0 <= ix < nx and not blocked[iy, ix]
-
-
-def _lateral(part: ArticulatedPart) -> np.ndarray:
-    """Doors: unit vector from the hinge axis towards the handle, perpendicular to the axis and
-    the front (horizontal for vertical hinges, up for the oven's bottom hinge). Drawers: the
-    horizontal bar axis."""
-    n = np.asarray(part.front, float)
-    if part.kind == "revolute":
-        a = np.asarray(part.axis, float)
-        v = np.asarray(part.handle) - np.asarray(part.origin)
-        v = v - np.dot(v, a) * a
-    else:
-        v = np.asarray(part.bar_axis, float).copy()
-        v[2] = 0.0
-    v = v - np.dot(v, n) * n
-    return v / max(np.linalg.norm(v), 1e-9)
-
-
-def _toward_hinge(part: ArticulatedPart) -> float:
-    """+1 when turning the base counter-clockwise from facing the part turns it towards the hinge
-    side (away from the handle), else -1."""
-    face, lat = -np.asarray(part.front, float), _lateral(part)
-    return 1.0 if face[0] * (-lat[1]) - face[1] * (-lat[0]) > 0 else -1.0
-
-
-def choose_base(d, part: ArticulatedPart, grid, candidates,
-                targets_of) -> tuple[tuple[float, float, float], float]:
-    """The first (base pose, pitch) of ``candidates`` ((dn, dl, dyaw, pitch): metres out from the
-    handle along the front, metres along the lateral direction (from the hinge towards the handle),
-    yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
-    footprint is free on ``grid`` and from which ``targets_of(base, pitch)`` are all reachable;
-    raises ExpertFailure("no_base_pose")."""
-    n, lat = np.asarray(part.front, float), _lateral(part)
-    h = np.asarray(part.handle, float)
-    face, sgn = _heading(-n), _toward_hinge(part)
-    blocked = grid.inflate(ROBOT_RADIUS)
-    tried = 0
-    for dn, dl, dyaw, pitch in candidates:
-        p = h + dn * n + dl * lat
-        base = (float(p[0]), float(p[1]), face + sgn * dyaw)
-        if not _free(grid, blocked, base[0], base[1]):
-            continue
-        tried += 1
-        if reachable(d, base, targets_of(base, pitch)):
-            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
-                     dyaw, pitch)
-            return base, pitch
-    raise ExpertFailure("no_base_pose",
-                        f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
-
-
-def _drawer_pitch(z: float) -> float:
-    """Gripper pitch [rad] for a handle at height ``z`` [m]: level at shoulder height, pointing
-    further down for low handles."""
-    return math.radians(float(np.clip(20.0 + (0.75 - z) * 40.0, 0.0, 50.0)))
 
 
 def _slide(d, distance: float, speed: float = 0.12) -> None:
@@ -218,7 +94,7 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
         # the arm holds its pose in the base frame while the base slides: only the grasp matters
         return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
 
-    p0 = _drawer_pitch(float(part.handle[2]))
+    p0 = drawer_pitch(float(part.handle[2]))
     cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
              for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
              for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
@@ -241,73 +117,6 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
     _retreat_from_leaf(part, d, q1, grid, push=closing)
     d.home(1.0)
-
-
-def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: float = 0.06):
-    """A copy of ``grid`` with the cells the part's front sweeps between joint values q_lo and
-    q_hi marked occupied (the door leaf out to its handle plus ``margin`` [m]; a drawer's front
-    slides out by q_hi)."""
-    from stages.demos.planner import NavGrid
-
-    occ = grid.occupied.copy()
-    o = np.asarray(part.origin, float)
-    h = np.asarray(part.handle, float)
-    lat = _lateral(part)
-    n = np.asarray(part.front, float)
-    if part.kind == "revolute":
-        v = h - o
-        reach = float(np.linalg.norm(v - np.dot(v, part.axis) * np.asarray(part.axis))) + margin + 0.04
-        qs = np.linspace(q_lo, q_hi, max(2, int(abs(q_hi - q_lo) / math.radians(2.0)) + 2))
-        a = np.asarray(part.axis, float)
-        # a bottom-hinged (oven) door spans its width along the axis
-        widths = [0.0] if abs(a[2]) > 0.7 else np.linspace(-OVEN_HALF_WIDTH, OVEN_HALF_WIDTH, 17)
-        pts = []
-        for q in qs:
-            rot = part.rotation_at(q)
-            for t in np.linspace(0.0, 1.0, int(reach / (grid.cell / 2)) + 2):
-                for off in (0.0, 0.05):
-                    for wd in widths:
-                        pts.append(o + rot @ (t * reach * lat + off * n) + wd * a)
-    else:
-        width = 0.3
-        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20)
-               for b in np.linspace(-1, 1, 13)]
-    for p in pts:
-        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
-        if 0 <= iy < occ.shape[0] and 0 <= ix < occ.shape[1]:
-            occ[iy, ix] = True
-    return NavGrid(grid.origin, grid.cell, occ)
-
-
-def _door_pitch(z: float) -> float:
-    """Gripper pitch [rad] for a vertical bar at height ``z`` [m] (down for low handles, up for
-    high ones)."""
-    return math.radians(float(np.clip(35.0 - (z - 0.3) * 45.0, -25.0, 40.0)))
-
-
-def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> list[np.ndarray]:
-    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses, in order) that CLIK reaches
-    one after the other from a base at ``base`` (the first with random restarts, the others
-    warm-started from the previous solution, as the motion runs)."""
-    from stages.simulate.control import Clik
-
-    q = _base_q(d, base)
-    out = []
-    for k, t in enumerate(targets):
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
-                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
-            break
-        q = res.q
-        out.append(d.ik.arm_q(q))
-    return out
-
-
-def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
-    """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
-    (such a plan breaks when the base stops a centimetre off its goal)."""
-    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
-    return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
 def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -> int:
@@ -342,187 +151,6 @@ def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -
     return len(targets)
 
 
-def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
-    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
-    around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
-    the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
-    blocked = grid.inflate(ROBOT_RADIUS)
-    h0 = part.handle_at(q0)
-    mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
-    f = part.front_at(q0)
-    f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
-    out = []
-    for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
-        for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
-            c, s_ = math.cos(phi), math.sin(phi)
-            v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
-            xy = h0[:2] + rho * v
-            if not _free(grid, blocked, float(xy[0]), float(xy[1])):
-                continue
-            to_mid = _heading(mid[:2] - xy)
-            reach = float(np.linalg.norm(mid[:2] - xy))
-            for dyaw in (0.0, 0.4, -0.4):
-                yaw = to_mid + dyaw
-                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
-                if not _free(grid, blocked, float(stage[0]), float(stage[1])):
-                    continue
-                out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
-    out.sort(key=lambda t: t[0])
-    return [b for _, b in out]
-
-
-def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float = 0.0,
-             push: bool = False) -> np.ndarray:
-    """4x4 world gripper pose at the link point ``p_closed`` (3,) carried to joint value q, ``out``
-    [m] off the front face along its normal, turning with the part."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.point_at(p_closed, q) + out * part.front_at(q)
-    return m
-
-
-def _lerp_pose(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
-    """Pose between 4x4 ``a`` and ``b`` with the same rotation as ``b`` (positions interpolated)."""
-    m = b.copy()
-    m[:3, 3] = a[:3, 3] + t * (b[:3, 3] - a[:3, 3])
-    return m
-
-
-def _edge_gap(part: ArticulatedPart) -> float:
-    """Distance [m] from the handle's grip centre to the leaf's free edge (catalog generators:
-    bars 3-5 cm in, a lever's centre about 13 cm in)."""
-    return 0.14 if part.handle_kind == "lever" else 0.06
-
-
-def edge_point(part: ArticulatedPart, along: float = 0.0) -> np.ndarray:
-    """The tool centre (3,) [m] pinching a bottom-hinged door's free edge, at closed: mid-thickness,
-    EDGE_PINCH_IN in from the edge, above the bar's centre (``along`` [m] off it along the bar)."""
-    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
-    n = np.asarray(part.front, float)
-    face = h - (part.clearance + part.grip_width / 2) * n
-    return face + (EDGE_FROM_BAR - EDGE_PINCH_IN) * _lateral(part) - LEAF_HALF_THICKNESS * n
-
-
-def edge_rotation(part: ArticulatedPart, tilt: float, flip: bool = False) -> np.ndarray:
-    """(3, 3) gripper rotation pinching the free edge at closed: approach (tool z) from the edge
-    towards the hinge, turned ``tilt`` [rad] about the hinge axis, fingers closing across the
-    leaf's thickness (``flip``: the hand turned half a turn about its approach axis)."""
-    z = -_lateral(part)
-    y = np.asarray(part.front, float)
-    x = np.cross(y, z)
-    r = np.stack([x, y, z], axis=1)
-    if flip:
-        r = r @ np.diag([-1.0, -1.0, 1.0])
-    return axis_angle(np.asarray(part.axis, float), tilt) @ r
-
-
-def _edge_tool(part: ArticulatedPart, q: float, tilt: float, along: float, back: float = 0.0) -> np.ndarray:
-    """4x4 world gripper pose pinching the edge at joint value q (``back`` [m] out along the
-    approach axis); tilt > pi / 2 encodes the flipped hand (tilt - pi)."""
-    flip = tilt > math.pi / 2
-    rot = part.rotation_at(q) @ edge_rotation(part, tilt - math.pi if flip else tilt, flip)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.point_at(edge_point(part, along), q) - back * rot[:, 2]
-    return m
-
-
-def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mode: str = "grasp",
-             along: float = 0.0):
-    """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
-    round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
-    ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
-    face 7 cm inboard of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged
-    doors): pinching the leaf's free edge, ``pitch`` being the tilt about the hinge axis (see
-    :func:`_edge_tool`)."""
-    if mode == "edge":
-        contact = _edge_tool(part, q0, pitch, along)
-        pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)
-        approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
-        return approach, [_edge_tool(part, q, pitch, along) for q in qs]
-    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
-    front0 = np.asarray(part.front, float)
-    if mode == "push":
-        inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
-        face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * _lateral(part)
-        contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
-        arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
-        pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
-        around = inboard + _edge_gap(part) + 0.12
-    else:
-        contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
-        pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
-        around = _edge_gap(part) + 0.12
-    approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
-    if part.kind == "revolute" and q0 - part.closed > 0.15 * part.travel:
-        edge = pre.copy()
-        edge[:3, 3] += around * (part.rotation_at(q0) @ _lateral(part))
-        approach.insert(0, edge)
-    return approach, arc
-
-
-def _robust(d, base, part: ArticulatedPart, targets) -> bool:
-    """Whether ``targets`` stay reachable with the base stopped BASE_SLACK further from the handle
-    than planned (the drive ends within a centimetre or two of its goal)."""
-    away = np.asarray(base[:2]) - np.asarray(part.handle[:2])
-    away = away / max(np.linalg.norm(away), 1e-9) * BASE_SLACK
-    shifted = (base[0] + float(away[0]), base[1] + float(away[1]), base[2])
-    return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
-
-
-def _grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = False) -> list[tuple[float, float]]:
-    """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
-    door's long bar is also gripped OVEN_GRIP_OFFSET towards the base. ``edge``: tilts 0 and
-    +-20 deg, each also with the hand flipped (tilt + pi), at the bar's centre and offset."""
-    side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]), np.asarray(part.bar_axis)[:2]))
-    if edge:  # from beside the lying leaf: pinch its edge near the corner on the base's side
-        tilts = tuple(t + f for f in (0.0, math.pi) for t in (0.0, math.radians(-20), math.radians(20)))
-        return [(t, math.copysign(a, side)) for a in EDGE_ALONG for t in tilts]
-    pitches = (p0, p0 - math.radians(15), p0 + math.radians(15))
-    out = [(p, 0.0) for p in pitches]
-    if not vertical:
-        out += [(p, math.copysign(OVEN_GRIP_OFFSET, side)) for p in pitches]
-    return out
-
-
-def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
-                max_checks: int = 70):
-    """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
-    bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
-    large as found (all of them ends the search), and the arm solutions of approach + those
-    waypoints."""
-    z = float(part.handle_at(q0)[2])
-    vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
-    p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
-    best = (None, 0.0, -1, [], 0.0)
-    checks = 0
-    bases = _swing_bases(part, grid, q0, qs)
-    if mode == "edge":
-        # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
-        # rises): bases about EDGE_SIDE off the bar's centre along it first
-        bar = np.asarray(part.bar_axis, float)[:2]
-        bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
-        max_checks = 3 * max_checks
-    for base in bases:
-        for pitch, along in _grips(part, base, p0, vertical, edge=mode == "edge"):
-            approach, arc = _gesture(part, q0, qs, pitch, mode, along)
-            sols = reach(d, base, approach + arc)
-            n = len(sols) - len(approach)
-            checks += 1
-            if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)]):
-                best = (base, pitch, n, sols, along)
-                if n == len(qs):
-                    return best
-            if checks >= max_checks:
-                break
-        if checks >= max_checks:
-            break
-    if best[0] is None or best[2] < 0:
-        raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
-    return best
-
-
 def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 5,
            mode: str = "grasp", done_at: float | None = None) -> None:
     """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
@@ -548,7 +176,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, mode)
+        base, pitch, n, sols, along = plan_stage(d, part, plan, q, qs, mode)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
@@ -574,7 +202,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                      q, q_now)
             q = q_now
             continue
-        approach, arc = _gesture(part, q, qs, pitch, mode, along)
+        approach, arc = gesture(part, q, qs, pitch, mode, along)
         na = len(approach)
         from stages.demos.record import base_pose
 
@@ -660,7 +288,7 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
     x, y, _ = base_pose(d.sim)
     dist = 0.0
     for s_ in np.arange(0.02, want + 1e-9, 0.02):
-        if not _free(grid, blocked, x - s_ * n[0], y - s_ * n[1]):
+        if not is_free(grid, blocked, x - s_ * n[0], y - s_ * n[1]):
             break
         dist = float(s_)
     log.info("%s: edge at %.2f out of the arm's reach: base %.2f m of %.2f towards the front", part.joint_path,
@@ -686,13 +314,13 @@ def _escape(d, grid, reach: float = 0.5) -> None:
 
     blocked = grid.inflate(ROBOT_RADIUS)
     x, y, _ = base_pose(d.sim)
-    if _free(grid, blocked, x, y):
+    if is_free(grid, blocked, x, y):
         return
     best = None
     for r in np.arange(0.05, reach + 1e-9, 0.05):
         for a in np.radians(np.arange(0.0, 360.0, 15.0)):
             px, py = x + r * math.cos(a), y + r * math.sin(a)
-            if _free(grid, blocked, px, py):
+            if is_free(grid, blocked, px, py):
                 best = (px, py)
                 break
         if best:
@@ -792,12 +420,12 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
         w = _ee_world(d)
     _base_shift(d, -0.08 * w[:3, 2], speed=0.08)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
-        e = part.rotation_at(q) @ _lateral(part)
+        e = part.rotation_at(q) @ lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
         x, y, _ = base_pose(d.sim)
         dist = 0.0
         for s_ in np.arange(0.05, 0.351, 0.05):
-            if not _free(grid, blocked, x + s_ * e[0], y + s_ * e[1]):
+            if not is_free(grid, blocked, x + s_ * e[0], y + s_ * e[1]):
                 break
             dist = float(s_)
         _base_shift(d, dist * e)

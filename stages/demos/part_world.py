@@ -215,7 +215,7 @@ class PartSession:
                    q: float = 0.0) -> tuple[float, float, float]:
         """A base pose (x, y, yaw) whose footprint (0.5 m radius) is clear of every obstacle (and of
         ``part`` standing at joint value ``q``)."""
-        from stages.demos.articulated import swept_grid
+        from stages.demos.part_planning import swept_grid
 
         grid = self.world.grid()
         if part is not None:

@@ -1,4 +1,4 @@
-"""Articulated parts of default-catalog packages (stages.demos.articulated): frames from the ingested
+"""Articulated parts of default-catalog packages (stages.demos.parts, .articulated): frames from the ingested
 USD joints placed in a composed scene, and the generic open/close experts on the mobile Panda."""
 
 from __future__ import annotations
@@ -126,7 +126,7 @@ def test_parts_of_names_a_missing_joint():
 def test_handle_poses_turn_with_the_part(catalog: Path):
     """The gripper frame on the handle follows the joint: at every opening its approach axis (tool
     z) points into the front face and its centre is the handle centre carried by the joint."""
-    from stages.demos.articulated import handle_pose
+    from stages.demos.part_grasps import handle_pose
 
     info = load_generated_info(catalog / "catalog" / "default" / "generated.json")
     for aid in ("microwave_00", "oven_00", "cabinet_00"):
