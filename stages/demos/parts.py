@@ -238,6 +238,10 @@ def load_generated_info(path: Path) -> dict[str, dict]:
         raise ItemError(f"{path}: cannot read generated.json ({e})") from None
 
 
+# --------------------------------------------------------------------------------------------
+# Success predicates
+# --------------------------------------------------------------------------------------------
+
 def joint_value(part: ArticulatedPart, state) -> float:
     """The part's joint value [rad or m] in a :class:`~stages.simulate.state.StepState`."""
     try:
