@@ -42,7 +42,13 @@ from asset_catalog.asset_model import AssetModel, Link, MaterialSpec, MeshPart
 from asset_catalog.materials import MATERIAL_RULES, MaterialClass
 from pipeline.types import ItemError
 from stages.loaders._mesh_materials import (
-    _from_trimesh_material, _gltf_materials, _mtllib_names, _obj_materials, _parse_mtl, _uri_path)
+    _from_trimesh_material,
+    _gltf_materials,
+    _mtllib_names,
+    _obj_materials,
+    _parse_mtl,
+    _uri_path,
+)
 from stages.loaders._source import LoadLimits, _one_line, _sha256_file, check_source_file
 
 log = logging.getLogger(__name__)
