@@ -17,7 +17,7 @@ from manifold3d import Manifold
 from asset_catalog.annotations import AssetAnnotation, ColliderKind, PlacementKind, RoomType
 from asset_catalog.asset_model import (
     AssetModel, Joint, JointType, Link, MassProperties, MaterialSpec, MeshPart, Pose)
-from asset_catalog.generators import _geom
+import asset_catalog.generators._geom as _geom
 from asset_catalog.generators._mesh import box_uvs, corner_normals, manifold_arrays, split_corners
 from asset_catalog.materials import MaterialClass
 

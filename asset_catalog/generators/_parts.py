@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from asset_catalog.generators import _geom as g
+import asset_catalog.generators._geom as g
 from asset_catalog.generators._builder import AssetBuilder
 
 WOODS = [(0.55, 0.38, 0.22), (0.72, 0.55, 0.36), (0.36, 0.23, 0.13), (0.85, 0.74, 0.56), (0.93, 0.92, 0.89),

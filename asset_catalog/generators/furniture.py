@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from asset_catalog.generators import _geom as g
+import asset_catalog.generators._geom as g
 from asset_catalog.generators._builder import AssetBuilder
 from asset_catalog.generators._parts import (
     FABRICS, METALS, WOODS, carcass, drawer, hinged_door, legs, panel, pick_color)

@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from ._lerobot import import_lerobot
 from .schema import ACTION_KEY, STATE_KEY, DatasetSpec, Frame
-from .writer import import_lerobot
 
 logger = logging.getLogger(__name__)
 

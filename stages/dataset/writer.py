@@ -35,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from ._lerobot import import_lerobot
+from .direct import DirectBackend
 from .schema import (
     ACTION_KEY,
     STATE_KEY,
@@ -50,18 +52,6 @@ logger = logging.getLogger(__name__)
 
 SIDECAR_PATH = "meta/agentworld.json"
 """Per-dataset summary lerobot ignores: spec, counts, failure reasons (written last by close())."""
-
-
-def import_lerobot() -> Any:
-    """Import lerobot's dataset package offline (no hub access) and quiet libav's encoder chatter."""
-    os.environ.setdefault("HF_HUB_OFFLINE", "1")
-    import av
-    import datasets
-    import lerobot.datasets as lds
-
-    datasets.disable_progress_bars()
-    av.logging.set_libav_level(av.logging.ERROR)  # lerobot re-installs ffmpeg's terminal logger
-    return lds
 
 
 @dataclass(frozen=True)
@@ -233,8 +223,6 @@ class EpisodeWriter:
         if self.backend == "lerobot":
             backend_cls: type = _LerobotBackend
         else:
-            from .direct import DirectBackend
-
             backend_cls = DirectBackend
         impl = backend_cls(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
         impl.open()

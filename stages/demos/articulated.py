@@ -1,25 +1,13 @@
-"""Articulated parts of default-catalog assets placed in a scene, and generic open/close experts.
+"""Generic open/close experts for the doors and drawers of :mod:`stages.demos.parts`.
 
 Public surface (signatures are stable; the task world imports them)::
 
-    frames = package_joint_frames(package_usd)            # {joint name: JointFrame}, asset root frame
-    parts = parts_of(record, asset_id="microwave_00", prim_root="/World/Objects/microwave_0",
-                     pose=(x, y, z, yaw), joint_frames=frames)             # tuple[ArticulatedPart, ...]
-    parts = parts_of_package(record, asset_id=..., prim_root=..., pose=..., package_usd=...)
-    part.handle_at(q), part.front_at(q), part.rotation_at(q)   # handle (3,), front normal (3,), (3, 3)
-    open_part(part, d, grid, goal_fraction=0.9)      # d: stages.demos.experts.Driver; grid: NavGrid
+    open_part(part, d, grid, goal_fraction=0.9)      # d: stages.demos.driver.Driver; grid: NavGrid
     close_part(part, d, grid, start=q0)              # q0: the part's joint value at the start
-    part_opened(part, state, fraction=0.75) -> (ok, reason); part_closed(part, state, tol=None)
 
-``record`` is one asset's entry of the default catalog's ``generated.json`` (category, joints:
-name -> role, handles: link, kind, center, grip_width, clearance, bar_axis in the asset root frame
-at the zero configuration). The joint axis, its anchor and limits come from the ingested package's
-UsdPhysics joints (``/<id>/joints/<name>``: ``physics:axis`` in the joint frame, ``localRot0`` /
-``localPos0`` in body0, limits in degrees for revolute joints), which ingest writes from the URDF.
-A package referenced at ``prim_root`` (translate (x, y, z) then yaw about +Z, as
-``stages.scene.compose`` places instances) has its joints at ``<prim_root>/joints/<name>`` in the
-composed scene; Newton exposes them under those prim paths (``sim.scene.joint_path``,
-``read_state(sim).scene_joints``).
+Where the hand goes on a part is :mod:`stages.demos.part_grasps`; where the base stands and which
+arm solutions reach is :mod:`stages.demos.part_planning`; this module runs the phases (drive, take
+hold, carry, let go, back off) on the simulation.
 
 Experts (the robot drives with ``Driver.drive_to`` over ``grid``, the room with its parts closed;
 the experts add the part's swept area themselves):
@@ -37,404 +25,44 @@ the experts add the part's swept area themselves):
   front while holding when the arm runs out of reach) to below ~15 deg, where its counterbalanced
   hinge holds it, then presses it shut with the closed hand.
 
-They raise :class:`~stages.demos.experts.ExpertFailure` ("no_base_pose", "ik_unreachable",
+They raise :class:`~stages.demos.driver.ExpertFailure` ("no_base_pose", "ik_unreachable",
 "not_reached", "handle_faces_floor", and the Driver's "no_path", "drive_timeout").
-Conventions (catalog generators): the asset root frame has +X to the front; doors open with
-positive angles (towards +X), drawers slide along +X; the closed configuration is joint value 0.
-Frame of :class:`ArticulatedPart`: world, Z up, metres, radians.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from pipeline.types import ItemError
+from stages.demos.driver import APPROACH_TOL, ROBOT_RADIUS, ExpertFailure, stow
+from stages.demos.part_grasps import (
+    GRASP_BACK,
+    PUSH_STANDOFF,
+    drawer_pitch,
+    edge_point,
+    gesture,
+    handle_pose,
+    lateral,
+)
+from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
+from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
-
-ROLES = ("door", "drawer")
-_KINDS = {"PhysicsRevoluteJoint": "revolute", "PhysicsPrismaticJoint": "prismatic"}
-_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
-
-
-@dataclass(frozen=True, kw_only=True)
-class JointFrame:
-    """One joint of a package in its asset root frame. name: joint prim name; link: the moving
-    link (body1's prim name); kind: "revolute" | "prismatic"; axis (3,) unit (positive motion
-    opens); origin (3,) point on the axis [m]; lower / upper limits [rad or m]."""
-
-    name: str
-    link: str
-    kind: str
-    axis: tuple[float, float, float]
-    origin: tuple[float, float, float]
-    lower: float
-    upper: float
-
-
-@dataclass(frozen=True, kw_only=True)
-class ArticulatedPart:
-    """A door or drawer of a placed asset, world frame (metres, radians).
-
-    asset_id; category (catalog category); role: "door" | "drawer"; joint_path: USD prim path of
-    the joint in the composed scene; link: moving link name; kind: "revolute" | "prismatic";
-    axis (3,) unit: positive joint motion opens; origin (3,): point on the axis; lower / upper:
-    joint limits [rad or m]; closed: joint value when closed; handle (3,): grasp centre of the bar
-    at the closed configuration; bar_axis (3,) unit: the bar's long axis at closed; grip_width:
-    bar diameter [m]; clearance: free space between bar and panel [m]; front (3,): the asset's
-    +X (outward normal of the closed front) in the world; handle_kind: "bar" |
-    "lever"; back_handle (3,) or None: a second handle on the other face (room doors)."""
-
-    asset_id: str
-    category: str
-    role: str
-    joint_path: str
-    link: str
-    kind: str
-    axis: tuple[float, float, float]
-    origin: tuple[float, float, float]
-    lower: float
-    upper: float
-    closed: float
-    handle: tuple[float, float, float]
-    bar_axis: tuple[float, float, float]
-    grip_width: float
-    clearance: float
-    front: tuple[float, float, float] = (1.0, 0.0, 0.0)
-    handle_kind: str = "bar"
-    back_handle: tuple[float, float, float] | None = None
-
-    @property
-    def travel(self) -> float:
-        """Opening range from closed to the upper limit [rad or m]."""
-        return self.upper - self.closed
-
-    def rotation_at(self, q: float) -> np.ndarray:
-        """(3, 3) rotation of the moving link at joint value ``q`` relative to closed (identity for
-        prismatic joints)."""
-        if self.kind == "prismatic":
-            return np.eye(3)
-        return _axis_angle(np.asarray(self.axis), q - self.closed)
-
-    def point_at(self, p_closed, q: float) -> np.ndarray:
-        """Where a point ``p_closed`` (3,) [m] of the moving link is at joint value ``q``."""
-        p = np.asarray(p_closed, float)
-        if self.kind == "prismatic":
-            return p + (q - self.closed) * np.asarray(self.axis)
-        o = np.asarray(self.origin)
-        return o + self.rotation_at(q) @ (p - o)
-
-    def handle_at(self, q: float) -> np.ndarray:
-        """Handle centre (3,) [m] at joint value ``q``."""
-        return self.point_at(self.handle, q)
-
-    def front_at(self, q: float) -> np.ndarray:
-        """Outward normal (3,) of the part's front face (the handle side) at joint value ``q``:
-        the asset's +X turned with the link (the oven door tilts it down)."""
-        return self.rotation_at(q) @ np.asarray(self.front, float)
-
-
-def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
-    a = axis / np.linalg.norm(axis)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
-
-
-def _yaw_pose(pose: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-    """(R (3, 3), t (3,)) of a placement (x, y, z, yaw)."""
-    x, y, z, yaw = (float(v) for v in pose)
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, z])
-
-
-def package_joint_frames(package_usd: Path) -> dict[str, JointFrame]:
-    """Revolute and prismatic joints of an ingested package, in its asset root frame.
-
-    Reads the UsdPhysics joints: axis = R(body0 in root) R(localRot0) e_axis, origin = body0 in
-    root applied to localPos0; revolute limits converted from degrees to radians."""
-    from pxr import Gf, Usd, UsdGeom, UsdPhysics
-
-    package_usd = Path(package_usd)
-    stage = Usd.Stage.Open(str(package_usd))
-    if stage is None:
-        raise ItemError(f"{package_usd}: cannot open the package")
-    root = stage.GetDefaultPrim()
-    if not root:
-        raise ItemError(f"{package_usd}: no default prim")
-    xc = UsdGeom.XformCache()
-    root_inv = xc.GetLocalToWorldTransform(root).GetInverse()
-    out: dict[str, JointFrame] = {}
-    for prim in stage.Traverse():
-        kind = _KINDS.get(prim.GetTypeName())
-        if kind is None:
-            continue
-        j = UsdPhysics.Joint(prim)
-        b0, b1 = j.GetBody0Rel().GetTargets(), j.GetBody1Rel().GetTargets()
-        if not b1:
-            raise ItemError(f"{package_usd}: joint {prim.GetPath()} has no body1")
-        m0 = Gf.Matrix4d(1.0)
-        if b0:
-            m0 = xc.GetLocalToWorldTransform(stage.GetPrimAtPath(b0[0])) * root_inv
-        axis_tok = prim.GetAttribute("physics:axis").Get() or "X"
-        rot0 = Gf.Rotation(Gf.Quatd(j.GetLocalRot0Attr().Get() or Gf.Quatf(1, 0, 0, 0)))
-        ax_body = rot0.TransformDir(Gf.Vec3d(*_AXES[str(axis_tok)]))
-        ax = np.asarray(m0.TransformDir(ax_body), float)
-        org = np.asarray(m0.Transform(Gf.Vec3d(j.GetLocalPos0Attr().Get() or Gf.Vec3f(0, 0, 0))), float)
-        lo = prim.GetAttribute("physics:lowerLimit").Get()
-        hi = prim.GetAttribute("physics:upperLimit").Get()
-        scale = math.pi / 180.0 if kind == "revolute" else 1.0
-        out[prim.GetName()] = JointFrame(
-            name=prim.GetName(), link=b1[0].name, kind=kind,
-            axis=tuple(float(v) for v in ax / np.linalg.norm(ax)), origin=tuple(float(v) for v in org),
-            lower=float(lo if lo is not None else 0.0) * scale,
-            upper=float(hi if hi is not None else 0.0) * scale)
-    return out
-
-
-def _world(r: np.ndarray, t: np.ndarray, p) -> tuple[float, float, float]:
-    return tuple(float(v) for v in r @ np.asarray(p, float) + t)
-
-
-def _dir(r: np.ndarray, v) -> tuple[float, float, float]:
-    w = r @ np.asarray(v, float)
-    return tuple(float(x) for x in w / np.linalg.norm(w))
-
-
-def parts_of(record: Mapping, *, asset_id: str, prim_root: str, pose: Sequence[float],
-             joint_frames: Mapping[str, JointFrame],
-             roles: Sequence[str] = ROLES) -> tuple[ArticulatedPart, ...]:
-    """The doors and drawers (``roles``) of one placed asset, in the world frame.
-
-    record: the asset's ``generated.json`` entry; prim_root: the referencing prim in the scene
-    (e.g. ``/World/Objects/fridge_0``); pose: (x, y, z, yaw) [m, rad] of that prim;
-    joint_frames: :func:`package_joint_frames` of its package. Parts come in the record's joint
-    order; a part whose link has no handle raises ItemError."""
-    r, t = _yaw_pose(pose)
-    category = str(record.get("category", ""))
-    handles = list(record.get("handles", ()))
-    parts = []
-    for name, role in dict(record.get("joints", {})).items():
-        if role not in roles:
-            continue
-        jf = joint_frames.get(name)
-        if jf is None:
-            raise ItemError(f"{asset_id}: joint {name!r} of generated.json is not in the package "
-                            f"(has {sorted(joint_frames)})")
-        hs = [h for h in handles if h.get("link") == jf.link and h.get("kind") in ("bar", "lever")]
-        if not hs:
-            raise ItemError(f"{asset_id}: no bar or lever handle on link {jf.link!r} of joint {name!r}")
-        hs.sort(key=lambda h: -float(h["center"][0]))  # front face (+X) first
-        h = hs[0]
-        back = _world(r, t, hs[1]["center"]) if len(hs) > 1 and hs[1]["center"][0] < 0 else None
-        parts.append(ArticulatedPart(
-            asset_id=asset_id, category=category, role=str(role), joint_path=f"{prim_root}/joints/{name}",
-            link=jf.link, kind=jf.kind, axis=_dir(r, jf.axis), origin=_world(r, t, jf.origin),
-            lower=jf.lower, upper=jf.upper, closed=0.0, handle=_world(r, t, h["center"]),
-            bar_axis=_dir(r, h["bar_axis"]), grip_width=float(h["grip_width"]),
-            clearance=float(h["clearance"]), front=_dir(r, (1.0, 0.0, 0.0)), handle_kind=str(h["kind"]),
-            back_handle=back))
-    return tuple(parts)
-
-
-def parts_of_package(record: Mapping, *, asset_id: str, prim_root: str, pose: Sequence[float],
-                     package_usd: Path, roles: Sequence[str] = ROLES) -> tuple[ArticulatedPart, ...]:
-    """:func:`parts_of` with the joint frames read from ``package_usd`` (``<id>/<id>.usda``)."""
-    return parts_of(record, asset_id=asset_id, prim_root=prim_root, pose=pose,
-                    joint_frames=package_joint_frames(package_usd), roles=roles)
-
-
-def load_generated_info(path: Path) -> dict[str, dict]:
-    """The default catalog's ``generated.json`` (asset id -> record)."""
-    import json
-
-    path = Path(path)
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise ItemError(f"{path}: cannot read generated.json ({e})") from None
-
-
-# --------------------------------------------------------------------------------------------
-# Success predicates
-# --------------------------------------------------------------------------------------------
-
-def joint_value(part: ArticulatedPart, state) -> float:
-    """The part's joint value [rad or m] in a :class:`~stages.simulate.state.StepState`."""
-    try:
-        return float(state.scene_joints[part.joint_path])
-    except KeyError:
-        raise ItemError(f"joint {part.joint_path} is not in the simulated scene") from None
-
-
-def part_opened(part: ArticulatedPart, state, fraction: float = 0.75) -> tuple[bool, str]:
-    """Open: the joint is past ``fraction`` of its travel from closed."""
-    q = joint_value(part, state)
-    ok = q - part.closed >= fraction * part.travel
-    return (True, "") if ok else (False, f"{part.role}_not_open")
-
-
-def part_closed(part: ArticulatedPart, state, tol: float | None = None) -> tuple[bool, str]:
-    """Closed: within ``tol`` of closed (default 5 deg for doors, 2 cm for drawers)."""
-    if tol is None:
-        tol = math.radians(5.0) if part.kind == "revolute" else 0.02
-    q = joint_value(part, state)
-    return (True, "") if q - part.closed <= tol else (False, f"{part.role}_not_closed")
-
 
 # --------------------------------------------------------------------------------------------
 # Experts
 # --------------------------------------------------------------------------------------------
 
-STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
-PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
-LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push further in [m]
-PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
-OVEN_GRIP_OFFSET = 0.12  # a bottom-hinged door's bar (70 % of the width) may be gripped off-centre [m]
-OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
-BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
-LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
-GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
-# pinching the free edge of a bottom-hinged (oven) door: catalog ovens have the bar's centre 5 cm
-# from the edge and a leaf about 4 cm thick; the tool centre sits 1.5 cm in from the edge
-EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
-EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
-LEAF_HALF_THICKNESS = 0.019  # [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
 EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
-EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
-EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
-
-
-def _heading(v) -> float:
-    return math.atan2(float(v[1]), float(v[0]))
-
-
-def _rz(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _ry(pitch: float) -> np.ndarray:
-    c, s = math.cos(pitch), math.sin(pitch)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-# tool frames with the approach (tool z) along +X: fingers closing vertically (horizontal bars) or
-# horizontally (vertical bars)
-_FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(float)
-_FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
-
-
-def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False) -> np.ndarray:
-    """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
-    pitched ``pitch`` [rad] down, fingers closing across the bar (``push``: along it, so that the
-    hand's width runs parallel to the bar)."""
-    vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
-    base = _FINGERS_HORIZONTAL if vertical_bar != push else _FINGERS_VERTICAL
-    return _rz(_heading(-np.asarray(part.front))) @ _ry(pitch) @ base
-
-
-def handle_pose(part: ArticulatedPart, q: float, pitch: float, back: float = 0.0) -> np.ndarray:
-    """4x4 world pose of the gripper on the handle at joint value ``q`` (turning with the part),
-    ``back`` [m] behind it along the approach axis."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.handle_at(q) - back * rot[:, 2]
-    return m
-
-
-def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
-    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
-    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
-    x0, y0, yaw0 = d.sim.spawn
-    c, s = math.cos(yaw0), math.sin(yaw0)
-    dx, dy = base[0] - x0, base[1] - y0
-    local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
-    for name, v in zip(d.sim.desc.base_joints, local, strict=True):
-        q[d.ik.q_idx[name]] = v
-    return q
-
-
-def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
-    """Whether every world pose of ``targets`` (4x4 each, in order) is reached by CLIK from a
-    base at ``base`` (see :func:`reach`)."""
-    return len(reach(d, base, targets, tol=tol)) == len(targets)
-
-
-def _free(grid, blocked, x: float, y: float) -> bool:
-    iy, ix = grid.cell_of(x, y)
-    ny, nx = blocked.shape
-    return 0 <= iy < ny and 0 <= ix < nx and not blocked[iy, ix]
-
-
-def _lateral(part: ArticulatedPart) -> np.ndarray:
-    """Doors: unit vector from the hinge axis towards the handle, perpendicular to the axis and
-    the front (horizontal for vertical hinges, up for the oven's bottom hinge). Drawers: the
-    horizontal bar axis."""
-    n = np.asarray(part.front, float)
-    if part.kind == "revolute":
-        a = np.asarray(part.axis, float)
-        v = np.asarray(part.handle) - np.asarray(part.origin)
-        v = v - np.dot(v, a) * a
-    else:
-        v = np.asarray(part.bar_axis, float).copy()
-        v[2] = 0.0
-    v = v - np.dot(v, n) * n
-    return v / max(np.linalg.norm(v), 1e-9)
-
-
-def _toward_hinge(part: ArticulatedPart) -> float:
-    """+1 when turning the base counter-clockwise from facing the part turns it towards the hinge
-    side (away from the handle), else -1."""
-    face, lat = -np.asarray(part.front, float), _lateral(part)
-    return 1.0 if face[0] * (-lat[1]) - face[1] * (-lat[0]) > 0 else -1.0
-
-
-def choose_base(d, part: ArticulatedPart, grid, candidates,
-                targets_of) -> tuple[tuple[float, float, float], float]:
-    """The first (base pose, pitch) of ``candidates`` ((dn, dl, dyaw, pitch): metres out from the
-    handle along the front, metres along the lateral direction (from the hinge towards the handle),
-    yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
-    footprint is free on ``grid`` and from which ``targets_of(base, pitch)`` are all reachable;
-    raises ExpertFailure("no_base_pose")."""
-    from stages.demos.experts import ROBOT_RADIUS, ExpertFailure
-
-    n, lat = np.asarray(part.front, float), _lateral(part)
-    h = np.asarray(part.handle, float)
-    face, sgn = _heading(-n), _toward_hinge(part)
-    blocked = grid.inflate(ROBOT_RADIUS)
-    tried = 0
-    for dn, dl, dyaw, pitch in candidates:
-        p = h + dn * n + dl * lat
-        base = (float(p[0]), float(p[1]), face + sgn * dyaw)
-        if not _free(grid, blocked, base[0], base[1]):
-            continue
-        tried += 1
-        if reachable(d, base, targets_of(base, pitch)):
-            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
-                     dyaw, pitch)
-            return base, pitch
-    raise ExpertFailure("no_base_pose",
-                        f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
-
-
-def _drawer_pitch(z: float) -> float:
-    """Gripper pitch [rad] for a handle at height ``z`` [m]: level at shoulder height, pointing
-    further down for low handles."""
-    return math.radians(float(np.clip(20.0 + (0.75 - z) * 40.0, 0.0, 50.0)))
 
 
 def _slide(d, distance: float, speed: float = 0.12) -> None:
@@ -460,15 +88,13 @@ def _slide(d, distance: float, speed: float = 0.12) -> None:
 
 def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     """Grasp the drawer's bar at opening q0, move the base along the drawer axis to q1, release, tuck."""
-    from stages.demos.experts import APPROACH_TOL
-
     out = q0 - part.closed
 
     def targets(base, pitch):
         # the arm holds its pose in the base frame while the base slides: only the grasp matters
         return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
 
-    p0 = _drawer_pitch(float(part.handle[2]))
+    p0 = drawer_pitch(float(part.handle[2]))
     cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
              for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
              for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
@@ -491,73 +117,6 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
     _retreat_from_leaf(part, d, q1, grid, push=closing)
     d.home(1.0)
-
-
-def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: float = 0.06):
-    """A copy of ``grid`` with the cells the part's front sweeps between joint values q_lo and
-    q_hi marked occupied (the door leaf out to its handle plus ``margin`` [m]; a drawer's front
-    slides out by q_hi)."""
-    from stages.demos.planner import NavGrid
-
-    occ = grid.occupied.copy()
-    o = np.asarray(part.origin, float)
-    h = np.asarray(part.handle, float)
-    lat = _lateral(part)
-    n = np.asarray(part.front, float)
-    if part.kind == "revolute":
-        v = h - o
-        reach = float(np.linalg.norm(v - np.dot(v, part.axis) * np.asarray(part.axis))) + margin + 0.04
-        qs = np.linspace(q_lo, q_hi, max(2, int(abs(q_hi - q_lo) / math.radians(2.0)) + 2))
-        a = np.asarray(part.axis, float)
-        # a bottom-hinged (oven) door spans its width along the axis
-        widths = [0.0] if abs(a[2]) > 0.7 else np.linspace(-OVEN_HALF_WIDTH, OVEN_HALF_WIDTH, 17)
-        pts = []
-        for q in qs:
-            rot = part.rotation_at(q)
-            for t in np.linspace(0.0, 1.0, int(reach / (grid.cell / 2)) + 2):
-                for off in (0.0, 0.05):
-                    for wd in widths:
-                        pts.append(o + rot @ (t * reach * lat + off * n) + wd * a)
-    else:
-        width = 0.3
-        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20)
-               for b in np.linspace(-1, 1, 13)]
-    for p in pts:
-        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
-        if 0 <= iy < occ.shape[0] and 0 <= ix < occ.shape[1]:
-            occ[iy, ix] = True
-    return NavGrid(grid.origin, grid.cell, occ)
-
-
-def _door_pitch(z: float) -> float:
-    """Gripper pitch [rad] for a vertical bar at height ``z`` [m] (down for low handles, up for
-    high ones)."""
-    return math.radians(float(np.clip(35.0 - (z - 0.3) * 45.0, -25.0, 40.0)))
-
-
-def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> list[np.ndarray]:
-    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses, in order) that CLIK reaches
-    one after the other from a base at ``base`` (the first with random restarts, the others
-    warm-started from the previous solution, as the motion runs)."""
-    from stages.simulate.control import Clik
-
-    q = _base_q(d, base)
-    out = []
-    for k, t in enumerate(targets):
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
-                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
-            break
-        q = res.q
-        out.append(d.ik.arm_q(q))
-    return out
-
-
-def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
-    """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
-    (such a plan breaks when the base stops a centimetre off its goal)."""
-    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
-    return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
 def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -> int:
@@ -592,191 +151,6 @@ def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -
     return len(targets)
 
 
-def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
-    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
-    around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
-    the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
-    from stages.demos.experts import ROBOT_RADIUS
-
-    blocked = grid.inflate(ROBOT_RADIUS)
-    h0 = part.handle_at(q0)
-    mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
-    f = part.front_at(q0)
-    f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
-    out = []
-    for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
-        for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
-            c, s_ = math.cos(phi), math.sin(phi)
-            v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
-            xy = h0[:2] + rho * v
-            if not _free(grid, blocked, float(xy[0]), float(xy[1])):
-                continue
-            to_mid = _heading(mid[:2] - xy)
-            reach = float(np.linalg.norm(mid[:2] - xy))
-            for dyaw in (0.0, 0.4, -0.4):
-                yaw = to_mid + dyaw
-                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
-                if not _free(grid, blocked, float(stage[0]), float(stage[1])):
-                    continue
-                out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
-    out.sort(key=lambda t: t[0])
-    return [b for _, b in out]
-
-
-def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float = 0.0,
-             push: bool = False) -> np.ndarray:
-    """4x4 world gripper pose at the link point ``p_closed`` (3,) carried to joint value q, ``out``
-    [m] off the front face along its normal, turning with the part."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.point_at(p_closed, q) + out * part.front_at(q)
-    return m
-
-
-def _lerp_pose(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
-    """Pose between 4x4 ``a`` and ``b`` with the same rotation as ``b`` (positions interpolated)."""
-    m = b.copy()
-    m[:3, 3] = a[:3, 3] + t * (b[:3, 3] - a[:3, 3])
-    return m
-
-
-def _edge_gap(part: ArticulatedPart) -> float:
-    """Distance [m] from the handle's grip centre to the leaf's free edge (catalog generators:
-    bars 3-5 cm in, a lever's centre about 13 cm in)."""
-    return 0.14 if part.handle_kind == "lever" else 0.06
-
-
-def edge_point(part: ArticulatedPart, along: float = 0.0) -> np.ndarray:
-    """The tool centre (3,) [m] pinching a bottom-hinged door's free edge, at closed: mid-thickness,
-    EDGE_PINCH_IN in from the edge, above the bar's centre (``along`` [m] off it along the bar)."""
-    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
-    n = np.asarray(part.front, float)
-    face = h - (part.clearance + part.grip_width / 2) * n
-    return face + (EDGE_FROM_BAR - EDGE_PINCH_IN) * _lateral(part) - LEAF_HALF_THICKNESS * n
-
-
-def edge_rotation(part: ArticulatedPart, tilt: float, flip: bool = False) -> np.ndarray:
-    """(3, 3) gripper rotation pinching the free edge at closed: approach (tool z) from the edge
-    towards the hinge, turned ``tilt`` [rad] about the hinge axis, fingers closing across the
-    leaf's thickness (``flip``: the hand turned half a turn about its approach axis)."""
-    z = -_lateral(part)
-    y = np.asarray(part.front, float)
-    x = np.cross(y, z)
-    r = np.stack([x, y, z], axis=1)
-    if flip:
-        r = r @ np.diag([-1.0, -1.0, 1.0])
-    return _axis_angle(np.asarray(part.axis, float), tilt) @ r
-
-
-def _edge_tool(part: ArticulatedPart, q: float, tilt: float, along: float, back: float = 0.0) -> np.ndarray:
-    """4x4 world gripper pose pinching the edge at joint value q (``back`` [m] out along the
-    approach axis); tilt > pi / 2 encodes the flipped hand (tilt - pi)."""
-    flip = tilt > math.pi / 2
-    rot = part.rotation_at(q) @ edge_rotation(part, tilt - math.pi if flip else tilt, flip)
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = part.point_at(edge_point(part, along), q) - back * rot[:, 2]
-    return m
-
-
-def _gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mode: str = "grasp",
-             along: float = 0.0):
-    """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
-    round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
-    ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
-    face 7 cm inboard of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged
-    doors): pinching the leaf's free edge, ``pitch`` being the tilt about the hinge axis (see
-    :func:`_edge_tool`)."""
-    if mode == "edge":
-        contact = _edge_tool(part, q0, pitch, along)
-        pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)
-        approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
-        return approach, [_edge_tool(part, q, pitch, along) for q in qs]
-    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
-    front0 = np.asarray(part.front, float)
-    if mode == "push":
-        inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
-        face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * _lateral(part)
-        contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
-        arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
-        pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
-        around = inboard + _edge_gap(part) + 0.12
-    else:
-        contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
-        pre = _tool_at(part, h, q0, pitch, GRASP_BACK)
-        around = _edge_gap(part) + 0.12
-    approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
-    if part.kind == "revolute" and q0 - part.closed > 0.15 * part.travel:
-        edge = pre.copy()
-        edge[:3, 3] += around * (part.rotation_at(q0) @ _lateral(part))
-        approach.insert(0, edge)
-    return approach, arc
-
-
-def _robust(d, base, part: ArticulatedPart, targets) -> bool:
-    """Whether ``targets`` stay reachable with the base stopped BASE_SLACK further from the handle
-    than planned (the drive ends within a centimetre or two of its goal)."""
-    away = np.asarray(base[:2]) - np.asarray(part.handle[:2])
-    away = away / max(np.linalg.norm(away), 1e-9) * BASE_SLACK
-    shifted = (base[0] + float(away[0]), base[1] + float(away[1]), base[2])
-    return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
-
-
-def _grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = False) -> list[tuple[float, float]]:
-    """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
-    door's long bar is also gripped OVEN_GRIP_OFFSET towards the base. ``edge``: tilts 0 and
-    +-20 deg, each also with the hand flipped (tilt + pi), at the bar's centre and offset."""
-    side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]), np.asarray(part.bar_axis)[:2]))
-    if edge:  # from beside the lying leaf: pinch its edge near the corner on the base's side
-        tilts = tuple(t + f for f in (0.0, math.pi) for t in (0.0, math.radians(-20), math.radians(20)))
-        return [(t, math.copysign(a, side)) for a in EDGE_ALONG for t in tilts]
-    pitches = (p0, p0 - math.radians(15), p0 + math.radians(15))
-    out = [(p, 0.0) for p in pitches]
-    if not vertical:
-        out += [(p, math.copysign(OVEN_GRIP_OFFSET, side)) for p in pitches]
-    return out
-
-
-def _plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
-                max_checks: int = 70):
-    """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
-    bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
-    large as found (all of them ends the search), and the arm solutions of approach + those
-    waypoints."""
-    from stages.demos.experts import ExpertFailure
-
-    z = float(part.handle_at(q0)[2])
-    vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
-    p0 = _door_pitch(z) if vertical else _drawer_pitch(z)
-    best = (None, 0.0, -1, [], 0.0)
-    checks = 0
-    bases = _swing_bases(part, grid, q0, qs)
-    if mode == "edge":
-        # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
-        # rises): bases about EDGE_SIDE off the bar's centre along it first
-        bar = np.asarray(part.bar_axis, float)[:2]
-        bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
-        max_checks = 3 * max_checks
-    for base in bases:
-        for pitch, along in _grips(part, base, p0, vertical, edge=mode == "edge"):
-            approach, arc = _gesture(part, q0, qs, pitch, mode, along)
-            sols = reach(d, base, approach + arc)
-            n = len(sols) - len(approach)
-            checks += 1
-            if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)]):
-                best = (base, pitch, n, sols, along)
-                if n == len(qs):
-                    return best
-            if checks >= max_checks:
-                break
-        if checks >= max_checks:
-            break
-    if best[0] is None or best[2] < 0:
-        raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
-    return best
-
-
 def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float = 6.0, max_stages: int = 5,
            mode: str = "grasp", done_at: float | None = None) -> None:
     """Carry the part from q0 to q1 along its arc in ``step_deg`` steps, holding the handle (or,
@@ -785,8 +159,6 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     off; the part stays where it was left (damped joint) and the next stage starts from there.
     ``mode="edge"``: pinch a bottom-hinged door's free edge instead of its handle. ``done_at``:
     the joint value that ends it (default: 80 % of the travel opening, 2.5 deg from closed closing)."""
-    from stages.demos.experts import ExpertFailure
-
     opening = q1 > q0
     push, edge = mode == "push", mode == "edge"
     if done_at is None:
@@ -804,7 +176,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = _plan_stage(d, part, plan, q, qs, mode)
+        base, pitch, n, sols, along = plan_stage(d, part, plan, q, qs, mode)
         if n < 2 and not done(qs[max(n - 1, 0)]):
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
@@ -830,7 +202,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                      q, q_now)
             q = q_now
             continue
-        approach, arc = _gesture(part, q, qs, pitch, mode, along)
+        approach, arc = gesture(part, q, qs, pitch, mode, along)
         na = len(approach)
         from stages.demos.record import base_pose
 
@@ -902,7 +274,6 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
     """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
     by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
     travel, as far as the room allows (the leaf slides radially between the fingers)."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     q = d.sim.joint_q_of_path(part.joint_path)
@@ -917,7 +288,7 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
     x, y, _ = base_pose(d.sim)
     dist = 0.0
     for s_ in np.arange(0.02, want + 1e-9, 0.02):
-        if not _free(grid, blocked, x - s_ * n[0], y - s_ * n[1]):
+        if not is_free(grid, blocked, x - s_ * n[0], y - s_ * n[1]):
             break
         dist = float(s_)
     log.info("%s: edge at %.2f out of the arm's reach: base %.2f m of %.2f towards the front", part.joint_path,
@@ -927,10 +298,8 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
 
 
 def _stow(d) -> None:
-    """Tuck the hand above the base for driving (:func:`stages.demos.experts.stow`; home hangs the
+    """Tuck the hand above the base for driving (:func:`stages.demos.driver.stow`; home hangs the
     hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails."""
-    from stages.demos.experts import ExpertFailure, stow
-
     try:
         stow(d)
     except ExpertFailure as e:
@@ -941,18 +310,17 @@ def _stow(d) -> None:
 def _escape(d, grid, reach: float = 0.5) -> None:
     """When the base stands where the planner counts it blocked (the leaf it just moved now lies
     near it), move it straight to the nearest free spot within ``reach`` [m] first."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     blocked = grid.inflate(ROBOT_RADIUS)
     x, y, _ = base_pose(d.sim)
-    if _free(grid, blocked, x, y):
+    if is_free(grid, blocked, x, y):
         return
     best = None
     for r in np.arange(0.05, reach + 1e-9, 0.05):
         for a in np.radians(np.arange(0.0, 360.0, 15.0)):
             px, py = x + r * math.cos(a), y + r * math.sin(a)
-            if _free(grid, blocked, px, py):
+            if is_free(grid, blocked, px, py):
                 best = (px, py)
                 break
         if best:
@@ -967,7 +335,6 @@ def _drive(d, base: tuple[float, float, float], grid) -> None:
     """``Driver.drive_to`` ``base``; a timeout with the base within DRIVE_SLACK of the goal (a
     chassis corner grazing furniture) is accepted: the arm plans are re-solved from the actual
     base pose."""
-    from stages.demos.experts import ExpertFailure
     from stages.demos.record import base_pose
 
     try:
@@ -1004,8 +371,6 @@ def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: 
     """Raise ExpertFailure("grasp_missed") when the hand is not on the handle (or ``point`` (3,),
     a link point at closed) after closing (``across_axis``: only the offset perpendicular to a
     drawer's axis counts)."""
-    from stages.demos.experts import ExpertFailure
-
     hand = _tcp_world(d)
     grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float) if point is None else point
     handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
@@ -1038,15 +403,12 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
     along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
     edge (an arm wrapped round an opened door's edge would sweep it shut when tucked) as far as
     the room allows (up to 0.35 m)."""
-    from stages.demos.experts import ROBOT_RADIUS
     from stages.demos.record import base_pose
 
     if not push:  # a pushing fist stays closed: opening fingers catch the handle
         d.grip(0.0, 0.5)
     w = _ee_world(d)
     if edge:  # fingers straddle the leaf's edge: draw the hand straight off it first (4 cm clear it)
-        from stages.demos.experts import ExpertFailure
-
         for dist in (0.10, 0.07, 0.04):
             off = w.copy()
             off[:3, 3] -= dist * w[:3, 2]
@@ -1058,12 +420,12 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
         w = _ee_world(d)
     _base_shift(d, -0.08 * w[:3, 2], speed=0.08)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
-        e = part.rotation_at(q) @ _lateral(part)
+        e = part.rotation_at(q) @ lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
         x, y, _ = base_pose(d.sim)
         dist = 0.0
         for s_ in np.arange(0.05, 0.351, 0.05):
-            if not _free(grid, blocked, x + s_ * e[0], y + s_ * e[1]):
+            if not is_free(grid, blocked, x + s_ * e[0], y + s_ * e[1]):
                 break
             dist = float(s_)
         _base_shift(d, dist * e)
@@ -1091,7 +453,6 @@ def _move(d, target: np.ndarray, duration: float, *, segments: int = 1, settle: 
           tol: float = 0.005) -> None:
     """:meth:`Driver.move` without random IK restarts: a contact move must continue from the
     current arm configuration (a restart may flip the elbow and slam the part)."""
-    from stages.demos.experts import ExpertFailure
     from stages.simulate.control import move_ee
 
     d.cmd.mode = 1
@@ -1115,10 +476,8 @@ def _ee_world(d) -> np.ndarray:
 def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> None:
     """Open ``part`` from closed to ``goal_fraction`` of its travel: drawers by backing the base
     away holding the bar, doors by carrying the handle along its arc. ``d``: a
-    :class:`~stages.demos.experts.Driver`; ``grid``: the room's NavGrid with the part closed.
+    :class:`~stages.demos.driver.Driver`; ``grid``: the room's NavGrid with the part closed.
     Raises ExpertFailure."""
-    from stages.demos.experts import ExpertFailure
-
     q1 = part.closed + goal_fraction * part.travel
     if part.kind == "prismatic":
         _drawer(part, d, grid, part.closed, q1)
@@ -1141,8 +500,6 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
 
 def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
     """Close ``part`` from joint value ``start`` (its opening at the episode start)."""
-    from stages.demos.experts import ExpertFailure
-
     if part.kind == "prismatic":
         _drawer(part, d, grid, start, part.closed)
         return

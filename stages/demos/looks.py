@@ -55,7 +55,7 @@ import numpy as np
 from pipeline.types import ItemError
 
 if TYPE_CHECKING:
-    from stages.demos.kitchen import Placed
+    from stages.demos.packages import Placed
 
 log = logging.getLogger(__name__)
 

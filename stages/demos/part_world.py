@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.demos.articulated import ArticulatedPart, parts_of_package
+from stages.demos.parts import ArticulatedPart, part_closed, part_opened, parts_of_package
 
 log = logging.getLogger(__name__)
 
@@ -215,7 +215,7 @@ class PartSession:
                    q: float = 0.0) -> tuple[float, float, float]:
         """A base pose (x, y, yaw) whose footprint (0.5 m radius) is clear of every obstacle (and of
         ``part`` standing at joint value ``q``)."""
-        from stages.demos.articulated import swept_grid
+        from stages.demos.part_planning import swept_grid
 
         grid = self.world.grid()
         if part is not None:
@@ -242,7 +242,7 @@ class PartSession:
             max_seconds: float = 40.0) -> PartEpisode:
         """One episode: ``action`` "open" (from closed) or "close" (from ``start_fraction`` of the
         travel open); robot at a free random pose from ``seed``; expert then predicate."""
-        from stages.demos.articulated import close_part, open_part, part_closed, part_opened
+        from stages.demos.articulated import close_part, open_part
         from stages.demos.experts import Driver, ExpertFailure
         from stages.demos.record import EpisodeTimeout
         from stages.simulate.state import read_state

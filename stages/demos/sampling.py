@@ -19,6 +19,7 @@ import numpy as np
 
 from pipeline.types import ItemError
 from stages.demos.kitchen import KitchenWorld
+from stages.demos.parts import parts_of_package
 from stages.demos.tasks import ARTICULATED, task
 
 log = logging.getLogger(__name__)
@@ -130,11 +131,9 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
 
 
 def world_part(world: KitchenWorld, which: str):
-    """The :class:`~stages.demos.articulated.ArticulatedPart` of an open/close task target
+    """The :class:`~stages.demos.parts.ArticulatedPart` of an open/close task target
     (``ARTICULATED`` key): the microwave, oven or room door, the fridge door whose handle is
     nearest 1 m high, the counter's top drawer."""
-    from stages.demos.articulated import parts_of_package
-
     role, part_role, _ = ARTICULATED[which]
     p = world.placed[role]
     parts = [q for q in parts_of_package(p.info, asset_id=p.asset.asset_id, prim_root=p.prim,

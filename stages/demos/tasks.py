@@ -9,7 +9,7 @@ The world's facts (support heights, cavity, button) come from the instance's
 :class:`~stages.demos.kitchen.KitchenWorld`; prim paths from its placed packages.
 
 The open/close tasks of articulated parts (microwave, fridge and oven doors, a counter drawer, the
-room door) use the parts and predicates of :mod:`stages.demos.articulated` (the instance's
+room door) use the parts and predicates of :mod:`stages.demos.parts` (the instance's
 ``part``).
 """
 
@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
+
+from stages.demos.parts import part_closed, part_opened
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +154,7 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
 )}
 
 
-# -- open / close of articulated parts (stages.demos.articulated) -------------------------------
+# -- open / close of articulated parts (stages.demos.parts) ------------------------------------
 
 #: articulated task target -> (placed role in the world, part role, instruction noun)
 ARTICULATED = {"microwave": ("microwave", "door", "microwave"), "fridge": ("fridge", "door", "fridge"),
@@ -164,14 +166,10 @@ OPEN_CLOSE_SECONDS = 90.0
 
 
 def _opened(inst, state, peaks=None) -> tuple[bool, str]:
-    from stages.demos.articulated import part_opened
-
     return part_opened(inst.part, state, OPEN_FRACTION)
 
 
 def _closed(inst, state, peaks=None) -> tuple[bool, str]:
-    from stages.demos.articulated import part_closed
-
     return part_closed(inst.part, state)
 
 

@@ -67,6 +67,7 @@ from asset_catalog.annotations import AssetAnnotation
 from asset_catalog.asset_model import AssetModel, Joint, JointType, Link, MaterialSpec, MeshPart
 from pipeline.types import ItemError
 from stages.loaders import _geom as g
+from stages.loaders._inertia import combine_mass, judge_masses, mass_properties
 
 log = logging.getLogger(__name__)
 
@@ -96,7 +97,7 @@ def load_mjcf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
     mujoco.mj_kinematics(model, data)
     model_out = _Extractor(model, data, path, annotation).run()
     model_out = replace(model_out, source_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
-    return g.judge_masses(g.source_defines_collision(
+    return judge_masses(g.source_defines_collision(
         g.scale_and_up(model_out, annotation.meters_per_unit, annotation.up_axis)))
 
 
@@ -352,10 +353,10 @@ class _Extractor:
     def _link(self, acc: _LinkAcc, root_inv: np.ndarray) -> Link:
         mass, from_source = None, False
         if acc.masses:
-            total, com, tensor = g.combine_mass(acc.masses)         # world frame
+            total, com, tensor = combine_mass(acc.masses)         # world frame
             inv = g.inverse(acc.world)
             rot = inv[:3, :3]
-            mass = g.mass_properties(total, rot @ com + inv[:3, 3], rot @ tensor @ rot.T)
+            mass = mass_properties(total, rot @ com + inv[:3, 3], rot @ tensor @ rot.T)
             from_source = True
         return Link(name=acc.name, pose=g.pose_of(root_inv @ acc.world), visuals=tuple(acc.visuals),
                     collision_source=tuple(acc.collisions) if acc.collisions else None, mass=mass,

@@ -42,6 +42,8 @@ from asset_catalog.annotations import AssetAnnotation
 from asset_catalog.asset_model import AssetModel, ContactSpec, Joint, JointType, Link, MaterialSpec, MeshPart
 from pipeline.types import ItemError
 from stages.loaders import _geom as g
+from stages.loaders._inertia import judge_masses, mass_properties
+from stages.loaders._meshfiles import load_mesh_file
 
 log = logging.getLogger(__name__)
 
@@ -114,7 +116,7 @@ def load_urdf(path: Path, annotation: AssetAnnotation, *, catalog_dir: Path | No
                        joints=tuple(out_joints),
                        materials=dict(ctx.materials), fixed_base=bool(fixed_base),
                        source_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
-    return g.judge_masses(g.source_defines_collision(
+    return judge_masses(g.source_defines_collision(
         g.scale_and_up(model, annotation.meters_per_unit, annotation.up_axis)))
 
 
@@ -312,7 +314,7 @@ def _inertial(el: ET.Element | None, link: str, path: Path):
                        [vals["ixz"], vals["iyz"], vals["izz"]]])
     r = t[:3, :3]
     try:
-        mp = g.mass_properties(mass, t[:3, 3], r @ tensor @ r.T)
+        mp = mass_properties(mass, t[:3, 3], r @ tensor @ r.T)
     except np.linalg.LinAlgError:
         raise ItemError(f"{path}: {what}: inertia tensor cannot be decomposed") from None
     return mp, True   # judged against the geometry by _geom.judge_masses once units are final
@@ -383,7 +385,7 @@ def _mesh(el: ET.Element, ctx: _Ctx, what: str) -> list[g.RawMesh]:
         raise ItemError(f"{ctx.file}: {what} scale must be 1 or 3 non-zero numbers, got {el.get('scale')!r}")
     file = resolve_uri(uri, ctx.file, ctx.catalog_dir)
     if file not in ctx.mesh_cache:
-        ctx.mesh_cache[file] = g.load_mesh_file(file, source=ctx.file, catalog_dir=ctx.catalog_dir)
+        ctx.mesh_cache[file] = load_mesh_file(file, source=ctx.file, catalog_dir=ctx.catalog_dir)
     return [m.scaled(scale) for m in ctx.mesh_cache[file]]
 
 

@@ -20,7 +20,7 @@ neither warp nor newton)::
     frames = rig.render()                        # rgb, depth, shape index; labels via frames[n].labels(...)
     ik = Clik(desc); move_ee(sim, ctl, ik, pose(p, top_down()), duration=1.0)
 
-Modules: ``robot`` (the embodiment URDF and its loading into Newton and Pinocchio), ``world``
+Modules: ``robot`` (the embodiment URDF), ``robot_load`` (its loading into Newton and Pinocchio), ``world``
 (scene loading, free spawn, replication, solver, stepping), ``control`` (drives, CLIK),
 ``sensors`` (cameras, lights), ``state`` (typed per-step state), ``record`` (USD recording),
 ``demo_scene`` (a furnished room authored as USD, for tests and benchmarks).

@@ -220,7 +220,7 @@ class Clik:
     ) -> None:
         import pinocchio as pin
 
-        from stages.simulate.robot import build_pinocchio_model
+        from stages.simulate.robot_load import build_pinocchio_model
 
         self.desc = desc
         self.model = build_pinocchio_model(desc)

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.simulate.robot import DriveGains, RobotDescription, RobotIndices, add_robot
+from stages.simulate.robot import RobotDescription
+from stages.simulate.robot_load import DriveGains, RobotIndices, add_robot
 
 log = logging.getLogger(__name__)
 

@@ -41,8 +41,8 @@ def _catalog(out: Path, categories: list[str], variants: int) -> Path:
 
 @pytest.mark.benchmark
 def test_bench_demos_articulated(tmp_path: Path):
-    from stages.demos.articulated import load_generated_info
     from stages.demos.part_world import PartSession, write_part_world
+    from stages.demos.parts import load_generated_info
 
     pairs = [c.split(":") for c in os.environ.get("AW_ART_CATEGORIES", DEFAULT).split(",")]
     variants = int(os.environ.get("AW_ART_VARIANTS", "3"))

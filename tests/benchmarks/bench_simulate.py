@@ -106,7 +106,7 @@ def _bare(device: str, worlds: int, desc, n_free: int, solver_settings):
             xform=wp.transform((rng.uniform(0.5, 5.5), rng.uniform(1.8, 4.5), 0.1), wp.quat_identity())
         )
         b.add_shape_box(body=body, hx=0.06, hy=0.06, hz=0.06)
-    from stages.simulate.robot import add_robot
+    from stages.simulate.robot_load import add_robot
 
     add_robot(b, desc, spawn_xy_yaw=(1.0, 1.0, 0.0))  # the same drives and gravity compensation
     return _finalize_and_loop(b, device, worlds, solver_settings, ground=True)
@@ -121,7 +121,7 @@ def _direct(device: str, worlds: int, desc, scene: Path, spawn, solver_settings)
     newton.solvers.SolverMuJoCo.register_custom_attributes(b)
     b.default_shape_cfg.ke, b.default_shape_cfg.kd = 4.0e4, 400.0
     b.add_usd(str(scene), load_visual_shapes=True, hide_collision_shapes=True)
-    from stages.simulate.robot import add_robot
+    from stages.simulate.robot_load import add_robot
 
     add_robot(b, desc, spawn_xy_yaw=tuple(spawn))
     return _finalize_and_loop(b, device, worlds, solver_settings, ground=False)

@@ -1,4 +1,4 @@
-"""Articulated parts of default-catalog packages (stages.demos.articulated): frames from the ingested
+"""Articulated parts of default-catalog packages (stages.demos.parts, .articulated): frames from the ingested
 USD joints placed in a composed scene, and the generic open/close experts on the mobile Panda."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stages.demos.articulated import (
+from stages.demos.parts import (
     ArticulatedPart, JointFrame, load_generated_info, package_joint_frames, parts_of)
 
 CATEGORIES = ("microwave", "cabinet", "oven", "door", "fridge")
@@ -126,7 +126,7 @@ def test_parts_of_names_a_missing_joint():
 def test_handle_poses_turn_with_the_part(catalog: Path):
     """The gripper frame on the handle follows the joint: at every opening its approach axis (tool
     z) points into the front face and its centre is the handle centre carried by the joint."""
-    from stages.demos.articulated import handle_pose
+    from stages.demos.part_grasps import handle_pose
 
     info = load_generated_info(catalog / "catalog" / "default" / "generated.json")
     for aid in ("microwave_00", "oven_00", "cabinet_00"):
@@ -171,7 +171,7 @@ def test_microwave_door_opens(catalog: Path, tmp_path: Path):
                                              ("fridge_00", "open"), ("fridge_00", "close")])
 def test_catalog_parts_open_and_close(catalog: Path, tmp_path: Path, aid: str, action: str):
     """One episode per (asset, action) with the generic experts; the predicate holds at the end."""
-    from stages.demos.articulated import part_closed, part_opened
+    from stages.demos.parts import part_closed, part_opened
     from stages.simulate.state import read_state
 
     world, sess = _session(catalog, tmp_path, aid)

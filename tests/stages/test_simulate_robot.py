@@ -9,7 +9,8 @@ pytest.importorskip("newton")
 pytest.importorskip("pinocchio")
 
 from stages.simulate.control import Clik, pose, top_down  # noqa: E402
-from stages.simulate.robot import GripperKind, add_robot, build_pinocchio_model, write_robot_urdf  # noqa: E402
+from stages.simulate.robot import GripperKind, write_robot_urdf  # noqa: E402
+from stages.simulate.robot_load import add_robot, build_pinocchio_model  # noqa: E402
 
 PANDA = "robots/franka_panda__example_robot_data"
 ROBOTIQ = "robots/robotiq_2f85__menagerie"

@@ -1,0 +1,212 @@
+"""Planning for the articulated-part experts (:mod:`stages.demos.articulated`): base poses from
+which CLIK reaches a part's waypoints (:func:`choose_base`, :func:`plan_stage`), the arm solutions
+along them (:func:`reach`) and the occupancy grid with the area a part sweeps (:func:`swept_grid`).
+
+``d`` is a :class:`~stages.demos.driver.Driver`; plans are checked by IK only, the simulation does
+not step.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from stages.demos.driver import ROBOT_RADIUS, ExpertFailure
+from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips, heading, lateral, toward_hinge
+from stages.demos.parts import ArticulatedPart
+
+log = logging.getLogger(__name__)
+
+STAGING = 0.35      # Driver.drive_to's staging distance behind a base goal [m]
+OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base planning [m]
+BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
+LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
+EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
+
+
+def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
+    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
+    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+    x0, y0, yaw0 = d.sim.spawn
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    dx, dy = base[0] - x0, base[1] - y0
+    local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
+    for name, v in zip(d.sim.desc.base_joints, local, strict=True):
+        q[d.ik.q_idx[name]] = v
+    return q
+
+
+def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
+    """Whether every world pose of ``targets`` (4x4 each, in order) is reached by CLIK from a
+    base at ``base`` (see :func:`reach`)."""
+    return len(reach(d, base, targets, tol=tol)) == len(targets)
+
+
+def is_free(grid, blocked, x: float, y: float) -> bool:
+    iy, ix = grid.cell_of(x, y)
+    ny, nx = blocked.shape
+    return 0 <= iy < ny and 0 <= ix < nx and not blocked[iy, ix]
+
+
+def choose_base(d, part: ArticulatedPart, grid, candidates,
+                targets_of) -> tuple[tuple[float, float, float], float]:
+    """The first (base pose, pitch) of ``candidates`` ((dn, dl, dyaw, pitch): metres out from the
+    handle along the front, metres along the lateral direction (from the hinge towards the handle),
+    yaw offset [rad] from facing the part towards the hinge side, gripper pitch [rad]) whose
+    footprint is free on ``grid`` and from which ``targets_of(base, pitch)`` are all reachable;
+    raises ExpertFailure("no_base_pose")."""
+    n, lat = np.asarray(part.front, float), lateral(part)
+    h = np.asarray(part.handle, float)
+    face, sgn = heading(-n), toward_hinge(part)
+    blocked = grid.inflate(ROBOT_RADIUS)
+    tried = 0
+    for dn, dl, dyaw, pitch in candidates:
+        p = h + dn * n + dl * lat
+        base = (float(p[0]), float(p[1]), face + sgn * dyaw)
+        if not is_free(grid, blocked, base[0], base[1]):
+            continue
+        tried += 1
+        if reachable(d, base, targets_of(base, pitch)):
+            log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
+                     dyaw, pitch)
+            return base, pitch
+    raise ExpertFailure("no_base_pose",
+                        f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
+
+
+def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: float = 0.06):
+    """A copy of ``grid`` with the cells the part's front sweeps between joint values q_lo and
+    q_hi marked occupied (the door leaf out to its handle plus ``margin`` [m]; a drawer's front
+    slides out by q_hi)."""
+    from stages.demos.planner import NavGrid
+
+    occ = grid.occupied.copy()
+    o = np.asarray(part.origin, float)
+    h = np.asarray(part.handle, float)
+    lat = lateral(part)
+    n = np.asarray(part.front, float)
+    if part.kind == "revolute":
+        v = h - o
+        reach = float(np.linalg.norm(v - np.dot(v, part.axis) * np.asarray(part.axis))) + margin + 0.04
+        qs = np.linspace(q_lo, q_hi, max(2, int(abs(q_hi - q_lo) / math.radians(2.0)) + 2))
+        a = np.asarray(part.axis, float)
+        # a bottom-hinged (oven) door spans its width along the axis
+        widths = [0.0] if abs(a[2]) > 0.7 else np.linspace(-OVEN_HALF_WIDTH, OVEN_HALF_WIDTH, 17)
+        pts = []
+        for q in qs:
+            rot = part.rotation_at(q)
+            for t in np.linspace(0.0, 1.0, int(reach / (grid.cell / 2)) + 2):
+                for off in (0.0, 0.05):
+                    for wd in widths:
+                        pts.append(o + rot @ (t * reach * lat + off * n) + wd * a)
+    else:
+        width = 0.3
+        pts = [h + s * q_hi * n + b * width * lat for s in np.linspace(0, 1, 20)
+               for b in np.linspace(-1, 1, 13)]
+    for p in pts:
+        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
+        if 0 <= iy < occ.shape[0] and 0 <= ix < occ.shape[1]:
+            occ[iy, ix] = True
+    return NavGrid(grid.origin, grid.cell, occ)
+
+
+def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> list[np.ndarray]:
+    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses, in order) that CLIK reaches
+    one after the other from a base at ``base`` (the first with random restarts, the others
+    warm-started from the previous solution, as the motion runs)."""
+    from stages.simulate.control import Clik
+
+    q = _base_q(d, base)
+    out = []
+    for k, t in enumerate(targets):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
+                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
+        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
+            break
+        q = res.q
+        out.append(d.ik.arm_q(q))
+    return out
+
+
+def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
+    """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
+    (such a plan breaks when the base stops a centimetre off its goal)."""
+    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
+    return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
+
+
+def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
+    """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
+    around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
+    the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
+    blocked = grid.inflate(ROBOT_RADIUS)
+    h0 = part.handle_at(q0)
+    mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
+    f = part.front_at(q0)
+    f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
+    out = []
+    for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
+        for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
+            c, s_ = math.cos(phi), math.sin(phi)
+            v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
+            xy = h0[:2] + rho * v
+            if not is_free(grid, blocked, float(xy[0]), float(xy[1])):
+                continue
+            to_mid = heading(mid[:2] - xy)
+            reach = float(np.linalg.norm(mid[:2] - xy))
+            for dyaw in (0.0, 0.4, -0.4):
+                yaw = to_mid + dyaw
+                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
+                if not is_free(grid, blocked, float(stage[0]), float(stage[1])):
+                    continue
+                out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
+    out.sort(key=lambda t: t[0])
+    return [b for _, b in out]
+
+
+def _robust(d, base, part: ArticulatedPart, targets) -> bool:
+    """Whether ``targets`` stay reachable with the base stopped BASE_SLACK further from the handle
+    than planned (the drive ends within a centimetre or two of its goal)."""
+    away = np.asarray(base[:2]) - np.asarray(part.handle[:2])
+    away = away / max(np.linalg.norm(away), 1e-9) * BASE_SLACK
+    shifted = (base[0] + float(away[0]), base[1] + float(away[1]), base[2])
+    return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
+
+
+def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
+                max_checks: int = 70):
+    """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
+    bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
+    large as found (all of them ends the search), and the arm solutions of approach + those
+    waypoints."""
+    z = float(part.handle_at(q0)[2])
+    vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
+    p0 = door_pitch(z) if vertical else drawer_pitch(z)
+    best = (None, 0.0, -1, [], 0.0)
+    checks = 0
+    bases = _swing_bases(part, grid, q0, qs)
+    if mode == "edge":
+        # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
+        # rises): bases about EDGE_SIDE off the bar's centre along it first
+        bar = np.asarray(part.bar_axis, float)[:2]
+        bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
+        max_checks = 3 * max_checks
+    for base in bases:
+        for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge"):
+            approach, arc = gesture(part, q0, qs, pitch, mode, along)
+            sols = reach(d, base, approach + arc)
+            n = len(sols) - len(approach)
+            checks += 1
+            if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)]):
+                best = (base, pitch, n, sols, along)
+                if n == len(qs):
+                    return best
+            if checks >= max_checks:
+                break
+        if checks >= max_checks:
+            break
+    if best[0] is None or best[2] < 0:
+        raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
+    return best
