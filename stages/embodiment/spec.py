@@ -124,6 +124,13 @@ class DescriptionSpec(_Strict):
     assembly: str = Field(default="as_is", pattern="^(as_is|mobile_base)$")
     collider: str = Field(default="hull", pattern="^(auto|hull|coacd|none)$")
 
+    @field_validator("file")
+    @classmethod
+    def _relative(cls, v: str) -> str:
+        if Path(v).is_absolute() or ".." in Path(v).parts:
+            raise ValueError(f"description file {v!r} must be relative, without '..'")
+        return v
+
     @field_validator("package", "shared", mode="before")
     @classmethod
     def _empty_is_none(cls, v: str | None) -> str | None:
@@ -133,8 +140,6 @@ class DescriptionSpec(_Strict):
     def _somewhere(self) -> DescriptionSpec:
         if self.package is None and self.shared is None:
             raise ValueError("description needs a package or a shared folder")
-        if Path(self.file).is_absolute() or ".." in Path(self.file).parts:
-            raise ValueError(f"description file {self.file!r} must be relative, without '..'")
         return self
 
 
