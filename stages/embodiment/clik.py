@@ -8,8 +8,9 @@ Each iteration, for every world and arm still short of its target:
 - damped least squares on the arm's joints only: ``dq = J+ e + (I - J+ J) k (q_posture - q)``,
   ``J+ = J^T (J J^T + lambda I)^-1``: the secondary task pulls the arm towards its posture (the
   spec's default pose) in the null space of the end-effector task;
-- joint limits: joints at a limit whose step points outwards drop out of J for that step (they
-  would only be clipped back); every iterate is clipped to the limits; the step norm is capped.
+- joint limits: weighted least norm (a joint slows down as it nears a limit it moves towards);
+  joints at a limit whose step points outwards drop out of J for that step (they would only be
+  clipped back); every iterate is clipped to the limits; the step norm is capped.
 
 Every other joint (legs, waist, the other arm, fingers) keeps its value in ``q0``: with a legged
 base, the locomotion policy holds the legs and the waist, and the arms are solved in the pelvis
@@ -36,7 +37,13 @@ class ClikConfig:
     """damping: lambda of the damped least squares [m^2 ~ rad^2]; max_step: largest joint step per
     iteration (norm over the arm) [rad]; posture_gain: fraction of the posture error removed per
     iteration in the null space [-]; pos_tol [m] / rot_tol [rad]: convergence; max_iters;
-    restarts: further solves from random arm configurations for arms that did not converge."""
+    restarts: further solves from random arm configurations for arms that did not converge;
+    limit_weight: factor on |dH/dq| in the joint-limit weights (0: plain damped least squares).
+
+    Measured on the G1 (tests/stages/test_embodiment_clik.py's sampling, 10 seeds x 24 worlds x 2
+    arms, targets from random joint configurations 10 % inside the limits, start at the default
+    pose): 16 restarts reach 479/480 within 1 mm / 0.01 rad (the last within 1.4 mm), all within
+    1 cm / 5 deg; 8 restarts 473/480; plain clipping instead of the limit weights 476/480 with 8."""
 
     damping: float = 1e-4
     max_step: float = 0.3
@@ -45,6 +52,7 @@ class ClikConfig:
     rot_tol: float = 1e-2
     max_iters: int = 200
     restarts: int = 0
+    limit_weight: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -195,25 +203,34 @@ class UpperBodyClik:
         return q, pe, re, it
 
     def _step(self, arm: _Arm, qa: np.ndarray, jac: np.ndarray, err: np.ndarray, post: np.ndarray) -> np.ndarray:
-        """One damped-least-squares step for R worlds: qa (R, n), jac (R, m, n), err (R, m)."""
+        """One damped-least-squares step for R worlds: qa (R, n), jac (R, m, n), err (R, m).
+
+        Weighted least norm (Chan and Dubey 1995): a joint moving towards its nearer limit is
+        weighted by 1 + |dH/dq| with H = sum (u - l)^2 / (4 (u - q)(q - l)), so it slows down as
+        it approaches the limit instead of sticking there; a joint at a limit that the step pushes
+        outwards is dropped from the step."""
         cfg = self.config
         n = qa.shape[1]
-        free = np.ones_like(qa, bool)
+        lo, hi = arm.lower, arm.upper
+        grad = (hi - lo) ** 2 * (2 * qa - hi - lo) / (4 * np.maximum((hi - qa) * (qa - lo), 1e-12) ** 2)
+        scale = np.ones_like(qa)     # 1 / sqrt(weight); 0: the joint does not move this step
         dq = np.zeros_like(qa)
-        for _ in range(2):      # second pass without the joints the first pass pushed into a limit
-            j = jac * free[:, None, :]
+        for _ in range(3):
+            j = jac * scale[:, None, :]
             a = j @ np.swapaxes(j, 1, 2) + cfg.damping * np.eye(j.shape[1])
-            jp = np.swapaxes(j, 1, 2) @ np.linalg.inv(a)                   # (R, n, m)
-            null = np.eye(n) - jp @ j                                      # (R, n, n)
+            jp = scale[:, :, None] * (np.swapaxes(j, 1, 2) @ np.linalg.inv(a))   # (R, n, m)
+            null = np.eye(n) - jp @ jac                                          # (R, n, n)
             dq = (jp @ err[..., None])[..., 0] + cfg.posture_gain * (null @ (post - qa)[..., None])[..., 0]
-            dq *= free
-            pushing = ((qa <= arm.lower + 1e-9) & (dq < 0)) | ((qa >= arm.upper - 1e-9) & (dq > 0))
-            if not pushing.any():
+            dq *= scale > 0
+            towards = np.sign(dq) == np.sign(grad)
+            pushing = ((qa <= lo + 1e-9) & (dq < 0)) | ((qa >= hi - 1e-9) & (dq > 0))
+            new = np.where(pushing, 0.0, np.where(towards, 1.0 / np.sqrt(1.0 + cfg.limit_weight * np.abs(grad)), scale))
+            if np.allclose(new, scale):
                 break
-            free &= ~pushing
+            scale = np.minimum(scale, new)
         norm = np.linalg.norm(dq, axis=1, keepdims=True)
         dq *= np.minimum(1.0, cfg.max_step / np.maximum(norm, 1e-12))
-        return np.clip(qa + dq, arm.lower, arm.upper)
+        return np.clip(qa + dq, lo, hi)
 
 
 def sample_reachable_targets(clik: UpperBodyClik, arm: str, count: int, rng: np.random.Generator, *,
