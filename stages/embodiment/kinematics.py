@@ -1,8 +1,8 @@
 """The kinematic model of an embodiment (Pinocchio): frames, arm chains, and checks of a spec
 against its description.
 
-:func:`build_model` loads a URDF (``pin.buildModelFromUrdf``) or an MJCF and adds the spec's end-effector frames and link-camera frames as operational
-frames. An MJCF is compiled by MuJoCo (as the MJCF loader does) and its kinematic tree written as
+:func:`build_model` loads a URDF (``pin.buildModelFromUrdf``) or an MJCF and adds the spec's
+end-effector frames and link-camera frames as operational frames. An MJCF is compiled by MuJoCo (as the MJCF loader does) and its kinematic tree written as
 a URDF for Pinocchio: Pinocchio 4.1's own MJCF parser builds newton-assets' G1 twice (88 joints for
 44). A free joint at the root is dropped (the root link is fixed where the file puts it); bodies
 without joints are welded to their parent with a fixed joint; a joint's anchor (``pos``) becomes its
