@@ -77,23 +77,40 @@ def resolve_description(desc: DescriptionSpec, *, shared_assets: Path | None = N
     raise ItemError(f"{desc.file}: robot description not found; tried {'; '.join(tried)}")
 
 
+def robot_annotation(spec: EmbodimentSpec):
+    """The catalog annotation of a spec's description: id = the spec's name, category ``robot``,
+    the spec's collider kind; an arm mounted on the project's base (assembly ``mobile_base``) or a
+    fixed base is fixed, a legged or holonomic robot keeps a movable root."""
+    from asset_catalog.annotations import AssetAnnotation
+
+    fixed = spec.base.kind == BaseKind.FIXED or spec.description.assembly == "mobile_base"
+    return AssetAnnotation(id=spec.name, source=spec.description.file, category="robot", material="metal",
+                           collider=spec.description.collider, fixed_base=fixed)
+
+
+def ingest_params(spec: EmbodimentSpec, *, shared_assets: Path | None = None,
+                  pipeline_version: str = "embodiment"):
+    """The ingest stage's ``IngestParams`` for the spec's description (the resolved root is the
+    catalog folder). Raises ItemError when the description is not found."""
+    from stages.ingest import IngestParams
+
+    res = resolve_description(spec.description, shared_assets=shared_assets)
+    return IngestParams(annotation=robot_annotation(spec), catalog_dir=res.root, source=res.path,
+                        pipeline_version=pipeline_version)
+
+
 def ingest_embodiment(spec: EmbodimentSpec, out_dir: Path, *, shared_assets: Path | None = None,
                       seed: int = 0, pipeline_version: str = "embodiment"):
     """Ingest the spec's description into a USD asset package in ``out_dir`` (created) with the
-    ingest stage's function; returns its ``IngestResult`` (``usd_path`` relative to
-    ``out_dir.parent``). The package's id is the spec's name. Raises ItemError naming the file."""
-    from asset_catalog.annotations import AssetAnnotation
+    ingest stage's function, outside a job (the ``robots`` job kind does the same per spec);
+    returns its ``IngestResult`` (``usd_path`` relative to ``out_dir.parent``). Raises ItemError
+    naming the file."""
     from pipeline.types import ItemContext
-    from stages.ingest import IngestParams, ingest_asset
+    from stages.ingest import ingest_asset
 
-    res = resolve_description(spec.description, shared_assets=shared_assets)
-    # an arm mounted on the project's base is a fixed-base arm on its own
-    fixed = spec.base.kind == BaseKind.FIXED or spec.description.assembly == "mobile_base"
-    ann = AssetAnnotation(id=spec.name, source=spec.description.file, category="robot", material="metal",
-                          collider=spec.description.collider, fixed_base=fixed)
+    params = ingest_params(spec, shared_assets=shared_assets, pipeline_version=pipeline_version)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     ctx = ItemContext(item_id=spec.name, stage="ingest", seed=seed, out_dir=out_dir, final_dir=out_dir,
                       work_dir=out_dir.parent)
-    params = IngestParams(annotation=ann, catalog_dir=res.root, source=res.path, pipeline_version=pipeline_version)
     return ingest_asset(params, ctx)

@@ -359,9 +359,8 @@ def shipped_specs() -> dict[str, Path]:
     return {p.stem: p for p in sorted(SPECS_DIR.glob("*.toml"))}
 
 
-def load_spec(source: str | Path) -> EmbodimentSpec:
-    """Load a spec: a TOML path, or the name of a shipped spec (``"g1_29dof"``). Raises
-    EmbodimentError naming the file with every problem of it."""
+def spec_path(source: str | Path) -> Path:
+    """The TOML file of ``source``: a path, or the name of a shipped spec."""
     path = Path(source)
     if not path.suffix and path.name == str(source):
         shipped = shipped_specs()
@@ -369,6 +368,26 @@ def load_spec(source: str | Path) -> EmbodimentSpec:
             raise EmbodimentError(f"{SPECS_DIR}: no shipped embodiment spec {source!r}; "
                                   f"there are {sorted(shipped)}")
         path = shipped[str(source)]
+    return path
+
+
+def spec_files(source: str | Path) -> tuple[Path, ...]:
+    """The spec's TOML file and every file it ``extends`` (for cache keys)."""
+    out, path = [], spec_path(source)
+    while path is not None and len(out) < 6:
+        out.append(path)
+        try:
+            parent = tomllib.loads(path.read_text(encoding="utf-8")).get("extends")
+        except (OSError, tomllib.TOMLDecodeError):
+            break
+        path = None if parent is None else path.parent / parent
+    return tuple(out)
+
+
+def load_spec(source: str | Path) -> EmbodimentSpec:
+    """Load a spec: a TOML path, or the name of a shipped spec (``"g1_29dof"``). Raises
+    EmbodimentError naming the file with every problem of it."""
+    path = spec_path(source)
     data = _read(path, depth=0)
     try:
         return EmbodimentSpec.model_validate(data)

@@ -45,7 +45,19 @@ def _ingest(name: str, out: Path, shared: Path | None = None):
 
 @pytest.fixture(scope="module")
 def g1_package(tmp_path_factory):
-    return _ingest("g1_29dof", tmp_path_factory.mktemp("g1"))
+    """The G1 through the ``robots`` job kind (runner, cache, the ingest stage's function)."""
+    from pipeline import build_job, load_results, run_job
+
+    out = tmp_path_factory.mktemp("robots") / "out"
+    data = {"job": {"name": "robots", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+            "step": [{"name": "robots", "kind": "robots",
+                      "config": {"specs": ["g1_29dof", "no_such_spec.toml"]}}]}
+    summary = run_job(build_job(data, source="<test>", base_dir=out.parent), progress=False)
+    (step,) = summary.steps
+    assert step.done == 1 and step.failed == 1, step.failures
+    assert "no_such_spec.toml: cannot read the embodiment spec" in str(step.failures)
+    result = load_results(out, "robots")["g1_29dof"]
+    return load_spec("g1_29dof"), result, out / result.usd_path
 
 
 def _limit_check(spec, usd: Path, joints):

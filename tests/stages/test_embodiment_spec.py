@@ -220,3 +220,11 @@ def test_missing_description_names_what_was_tried(tmp_path):
 
     with pytest.raises(ItemError, match="robot description not found; tried .*nowhere/robots/unitree_h1"):
         resolve_description(spec.description, shared_assets=tmp_path / "nowhere")
+
+
+def test_robots_job_file_is_valid():
+    from pipeline import load_job
+
+    job = load_job(Path(__file__).resolve().parents[2] / "jobs" / "robots.toml")
+    (step,) = job.steps
+    assert step.kind == "robots" and set(step.config.specs) <= set(shipped_specs())
