@@ -228,3 +228,19 @@ def test_robots_job_file_is_valid():
     job = load_job(Path(__file__).resolve().parents[2] / "jobs" / "robots.toml")
     (step,) = job.steps
     assert step.kind == "robots" and set(step.config.specs) <= set(shipped_specs())
+
+
+def test_state_and_action_layout_per_embodiment():
+    """The mobile Panda's layout is DatasetSpec's; the G1's has both arms, both hands' poses."""
+    from stages.dataset.schema import DatasetSpec
+    from stages.embodiment.layout import action_names, state_names
+
+    d = DatasetSpec()
+    assert state_names(load_spec("mobile_panda")) == d.state_names()
+    assert action_names(load_spec("mobile_panda")) == d.action_names()
+    g1 = load_spec("g1_29dof")
+    s, a = state_names(g1), action_names(g1)
+    assert len(s) == 14 + 2 * 7 + 3 and s[:2] == ["left_q0", "left_q1"] and "right_ee_qz" in s
+    assert len(a) == 14 + 2 * 7 + 3 + 1 and "left_gripper" not in a and a[-1] == "mode"  # fixed hands
+    assert {"left_gripper", "right_gripper"} <= set(action_names(load_spec("g1_29dof_dex3")))
+    assert len(set(s)) == len(s) and len(set(a)) == len(a)
