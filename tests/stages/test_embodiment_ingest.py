@@ -98,6 +98,44 @@ def test_g1_package_every_joint_reaches_its_limits_in_newton(g1_package):
         assert j.reached_upper - j.reached_lower > 0.9 * (j.upper - j.lower), j
 
 
+def _hold_default_pose(spec, usd: Path, seconds: float = 2.0) -> dict[str, float]:
+    """Joint name -> |deviation| [rad] from the default pose after ``seconds`` with the spec's
+    drives, the root fixed, gravity on (MuJoCo C, implicitfast, 2 ms)."""
+    import newton
+
+    import usd_schemas  # noqa: F401
+    from stages.embodiment.drives import apply_drives
+
+    b = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(b)
+    b.add_usd(str(usd), floating=False, load_visual_shapes=False, enable_self_collisions=False)
+    joints = apply_drives(b, spec)
+    for name, d in joints.dof.items():
+        drive = spec.drive_for(name)
+        assert (b.joint_target_ke[d], b.joint_target_kd[d]) == (drive.kp, drive.kd), name
+    model = b.finalize(device="cpu")
+    solver = newton.solvers.SolverMuJoCo(model, use_mujoco_cpu=True, iterations=50, ls_iterations=20,
+                                         integrator="implicitfast")
+    s0, s1, ctl = model.state(), model.state(), model.control()
+    newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
+    q0 = model.joint_q.numpy().copy()
+    for _ in range(round(seconds / 0.002)):
+        s0.clear_forces()
+        solver.step(s0, s1, ctl, None, 0.002)
+        s0, s1 = s1, s0
+    q = s0.joint_q.numpy()
+    return {n: abs(float(q[c] - q0[c])) for n, c in joints.coord.items()}
+
+
+def test_g1_spec_drives_hold_the_default_pose(g1_package):
+    """Fixed pelvis, 2 s: the motor-derived gains hold every joint within 0.05 rad (legs in the
+    air carry their own weight; arms gravity-compensated as the spec says)."""
+    spec, _, usd = g1_package
+    dev = _hold_default_pose(spec, usd)
+    assert len(dev) == 29 and max(dev.values()) < 0.05, sorted(dev.items(), key=lambda kv: -kv[1])[:4]
+    assert max(dev[j] for j in spec.arm_joints) < 0.02
+
+
 def test_h1_package_keeps_the_mjcf_armature_damping_and_motor_limits(shared_assets, tmp_path):
     spec, result, usd = _ingest("h1", tmp_path, shared_assets)
     assert result.validation_errors == 0 and 45.0 < result.mass < 60.0
@@ -111,6 +149,8 @@ def test_h1_package_keeps_the_mjcf_armature_damping_and_motor_limits(shared_asse
     assert got["left_elbow_joint"]["lower"] == pytest.approx(-1.25, abs=1e-5)     # USD: float degrees
     assert got["left_elbow_joint"]["upper"] == pytest.approx(2.61, abs=1e-5)
     _limit_check(spec, usd, list(got))
+    dev = _hold_default_pose(spec, usd)        # unitree_rl_gym's gains, no gravity compensation
+    assert max(dev.values()) < 0.05, sorted(dev.items(), key=lambda kv: -kv[1])[:4]
 
 
 @pytest.mark.slow

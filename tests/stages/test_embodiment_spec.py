@@ -244,3 +244,30 @@ def test_state_and_action_layout_per_embodiment():
     assert len(a) == 14 + 2 * 7 + 3 + 1 and "left_gripper" not in a and a[-1] == "mode"  # fixed hands
     assert {"left_gripper", "right_gripper"} <= set(action_names(load_spec("g1_29dof_dex3")))
     assert len(set(s)) == len(s) and len(set(a)) == len(a)
+
+
+def test_panda_spec_drives_equal_robot_py_drives(tmp_path):
+    """Newton builders of the same URDF: robot.add_robot's drives vs the spec's apply_drives."""
+    import newton
+
+    from stages.embodiment.drives import apply_drives
+    from stages.simulate.robot import add_robot, write_robot_urdf
+
+    desc = write_robot_urdf(tmp_path)
+    ref = newton.ModelBuilder()
+    idx = add_robot(ref, desc)
+    ours = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(ours)
+    ours.add_urdf(str(desc.urdf), floating=False, enable_self_collisions=False, joint_ordering="dfs",
+                  collapse_fixed_joints=False)
+    joints = apply_drives(ours, load_spec("mobile_panda"))
+    assert joints.dof == {n: idx.dof[n] for n in joints.dof} and set(joints.dof) == set(desc.joints)
+    for name, d in joints.dof.items():
+        for attr in ("joint_target_ke", "joint_target_kd", "joint_target_mode", "joint_armature",
+                     "joint_effort_limit"):
+            assert getattr(ours, attr)[d] == pytest.approx(getattr(ref, attr)[d]), (name, attr)
+        c = joints.coord[name]
+        assert ours.joint_q[c] == pytest.approx(ref.joint_q[c]) and ours.joint_target_q[c] == ref.joint_target_q[c]
+    gc_ref = {b for b, v in ref.custom_attributes["mujoco:gravcomp"].values.items() if v}
+    gc_ours = {b for b, v in ours.custom_attributes["mujoco:gravcomp"].values.items() if v}
+    assert gc_ours == gc_ref and idx.body["panda_hand"] in gc_ours and idx.body["base_link"] not in gc_ours
