@@ -74,6 +74,7 @@ against the robot's kinematic model (joints and links exist, chains are chains) 
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from enum import StrEnum
@@ -242,6 +243,22 @@ class CameraMountSpec(_Strict):
     @property
     def fixed(self) -> bool:
         return self.parent == "world"
+
+    @property
+    def vertical_fov(self) -> float:
+        """[rad]"""
+        return math.radians(self.vertical_fov_deg)
+
+    def intrinsics(self) -> tuple[float, float, float, float]:
+        """Pinhole (fx, fy, cx, cy) [px], square pixels, principal point at the image centre
+        (pixel-edge origin), as stages.simulate.sensors renders."""
+        f = 0.5 * self.height / math.tan(0.5 * self.vertical_fov)
+        return f, f, self.width / 2.0, self.height / 2.0
+
+    def look_at(self, scene_size: tuple[float, float]) -> tuple[Vec3, Vec3]:
+        """A fixed camera's eye and target [m] in a scene of ``scene_size`` (x, y) [m]."""
+        fx, fy, z = self.target_scene_fraction
+        return self.eye, (fx * scene_size[0], fy * scene_size[1], z)
 
     @model_validator(mode="after")
     def _complete(self) -> CameraMountSpec:

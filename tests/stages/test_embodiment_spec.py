@@ -81,7 +81,14 @@ def test_panda_spec_describes_what_robot_py_builds(tmp_path, gripper, spec_name)
         pose = camera_mount_pose(spec, name)
         np.testing.assert_allclose(pose[:3, 3], mount.xyz, atol=1e-12)
         np.testing.assert_allclose(pose[:3, :3], Rotation.from_euler("xyz", mount.rpy).as_matrix(), atol=1e-9)
-    assert spec.cameras["third_person"].fixed
+    from stages.simulate.sensors import CameraSpec
+
+    k = CameraSpec(name="head", width=128, height=128, vertical_fov=desc.cameras["head"].vertical_fov).intrinsics
+    assert spec.cameras["head"].intrinsics() == pytest.approx((k.fx, k.fy, k.cx, k.cy))
+    # third person: stages/engine/engine.py's eye (0.3, 0.3, 2.3), target (0.6 sx, 0.6 sy, 0.6), 1 rad
+    third = spec.cameras["third_person"]
+    assert third.fixed and third.look_at((5.0, 4.0)) == ((0.3, 0.3, 2.3), (3.0, 2.4, 0.6))
+    assert third.vertical_fov == pytest.approx(1.0)
     # drive gains: robot.DriveGains
     g = DriveGains()
     assert spec.drive_for("base_x").kd == g.base_kd and spec.drive_for("base_x").mode == "velocity"
