@@ -471,8 +471,8 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
     """Drive every revolute/prismatic joint first to its lower, then to its upper limit,
     ``seconds_per_limit`` [s] each, with the base fixed, and check where it ends.
 
-    The drive is a position drive per joint. Its stiffness is the larger of subtree inertia x
-    ``natural_frequency``^2 and what holds 2x the joint's static load (joint friction plus the
+    The drive is a position drive per joint. Its stiffness is the larger of (subtree inertia + the
+    joint's armature) x ``natural_frequency``^2 and what holds 2x the joint's static load (joint friction plus the
     worst gravity torque/force on the subtree) at half the tolerance; damping is critical; armature
     is added where the stiffness would make the joint too fast for the time step. The target moves
     at ``angular_speed`` [rad/s] / ``linear_speed`` [m/s] (faster if needed to arrive within 60 %
@@ -507,8 +507,9 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
     for j in movable:
         d = dofs[j]
         load = _joint_load(builder, j, any_axis=joints is not None)
-        ke = max(load.inertia * natural_frequency**2, 4.0 * load.static_load / tolerance[j])
-        inertia = max(load.inertia + float(builder.joint_armature[d]), ke / max_omega**2)
+        moved = load.inertia + float(builder.joint_armature[d])     # the source's armature moves too
+        ke = max(moved * natural_frequency**2, 4.0 * load.static_load / tolerance[j])
+        inertia = max(moved, ke / max_omega**2)
         builder.joint_armature[d] = inertia - load.inertia
         builder.joint_target_ke[d] = ke
         builder.joint_target_kd[d] = 2.0 * math.sqrt(ke * inertia)
