@@ -9,4 +9,5 @@ JOB_KINDS: dict[str, str] = {
     "layout": "stages.layout.job:LAYOUT_JOB",
     "scene": "stages.scene.job:SCENE_JOB",
     "demos": "stages.demos.job:DEMOS_JOB",
+    "robots": "stages.embodiment.job:ROBOTS_JOB",
 }

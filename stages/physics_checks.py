@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -236,9 +237,11 @@ def _lowest_point(body_q: np.ndarray, shapes: list[tuple[int, np.ndarray]]) -> f
     return float(min(zs)) if zs else math.nan
 
 
-def _load(source, *, floating: bool | None, z_offset: float = 0.0, mujoco_attributes: bool = False):
+def _load(source, *, floating: bool | None, z_offset: float = 0.0, mujoco_attributes: bool = False,
+          self_collisions: bool = True):
     """A ModelBuilder with the asset (a path or an open Usd.Stage), raised by ``z_offset`` [m];
-    ``mujoco_attributes``: register SolverMuJoCo's custom attributes first (``model.mujoco.*``)."""
+    ``mujoco_attributes``: register SolverMuJoCo's custom attributes first (``model.mujoco.*``);
+    ``self_collisions``: collisions between the asset's own links."""
     import newton
     import warp as wp
 
@@ -249,7 +252,7 @@ def _load(source, *, floating: bool | None, z_offset: float = 0.0, mujoco_attrib
         newton.solvers.SolverMuJoCo.register_custom_attributes(builder)
     builder.add_usd(source if not isinstance(source, Path) else str(source),
                     xform=wp.transform((0.0, 0.0, z_offset), wp.quat_identity()), floating=floating,
-                    load_visual_shapes=False)
+                    load_visual_shapes=False, enable_self_collisions=self_collisions)
     return builder
 
 
@@ -398,7 +401,7 @@ class _JointLoad:
     static_load: float
 
 
-def _joint_load(builder, joint: int, gravity: float = 9.81) -> _JointLoad:
+def _joint_load(builder, joint: int, gravity: float = 9.81, any_axis: bool = False) -> _JointLoad:
     import newton
 
     children: dict[int, list[int]] = {}
@@ -421,7 +424,9 @@ def _joint_load(builder, joint: int, gravity: float = 9.81) -> _JointLoad:
     axis = _quat_rotate(_quat_mul(x_wp[3:7], x_pj[3:7]), np.asarray(builder.joint_axis[dof], dtype=np.float64)[None])[0]
     if builder.joint_type[joint] == newton.JointType.PRISMATIC:
         return _JointLoad(inertia=max(mass, 1e-3), static_load=friction + mass * gravity * abs(axis[2]))
-    inertia, moment = 0.0, np.zeros(3)
+    inertia, moment, reach_moment = 0.0, np.zeros(3), 0.0
+    parent_joint = {builder.joint_child[j]: j for j in range(builder.joint_count)}
+    reach: dict[int, float] = {}     # body -> bound on its joint anchor's distance from ``anchor``
     for b, m in zip(bodies, masses):
         bq = np.asarray(builder.body_q[b], dtype=np.float64)
         com = _transform_points(bq, np.asarray(builder.body_com[b], dtype=np.float64)[None])[0]
@@ -431,9 +436,24 @@ def _joint_load(builder, joint: int, gravity: float = 9.81) -> _JointLoad:
         ib = np.asarray(builder.body_inertia[b], dtype=np.float64).reshape(3, 3)
         a_body = _quat_rotate(bq[3:7] * np.array([-1, -1, -1, 1.0]), axis[None])[0]
         inertia += float(a_body @ ib @ a_body) + m * float(r_perp @ r_perp)
-    # gravity torque about the axis is |moment x g . axis| <= |moment| g |axis x z|, whatever the angle
-    lever = float(np.linalg.norm(moment)) * float(np.linalg.norm(np.cross(axis, (0.0, 0.0, 1.0))))
+        if any_axis:    # distances along the chain of anchors do not change with the joints
+            own = _anchor(builder, parent_joint[b])
+            up = builder.joint_parent[parent_joint[b]]
+            reach[b] = 0.0 if up not in reach else reach[up] + float(np.linalg.norm(own - _anchor(builder, parent_joint[up])))
+            reach_moment += m * (reach[b] + float(np.linalg.norm(com - own)))
+    # gravity torque about the axis is |moment x g . axis| <= |moment| g |axis x z|, whatever the angle;
+    # any_axis (other joints move too, changing the axis and the subtree's shape): the bound over all
+    # configurations, sum of mass x (distance along the anchors to its centre of mass)
+    lever = reach_moment if any_axis else float(np.linalg.norm(moment)) * float(
+        np.linalg.norm(np.cross(axis, (0.0, 0.0, 1.0))))
     return _JointLoad(inertia=max(inertia, 1e-5), static_load=friction + gravity * lever)
+
+
+def _anchor(builder, joint: int) -> np.ndarray:
+    """World position (3,) of ``joint``'s frame at the initial configuration."""
+    parent = builder.joint_parent[joint]
+    x_wp = np.asarray(builder.body_q[parent], dtype=np.float64) if parent >= 0 else np.array([0, 0, 0, 0, 0, 0, 1.0])
+    return _transform_points(x_wp, np.asarray(builder.joint_X_p[joint], dtype=np.float64)[None, :3])[0]
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -446,12 +466,13 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit: float = 1.5,
                       angular_tolerance: float = math.radians(3.0), linear_tolerance: float = 0.01,
                       natural_frequency: float = 10.0, angular_speed: float = 1.5,
-                      linear_speed: float = 0.3) -> JointLimitReport:
+                      linear_speed: float = 0.3, self_collisions: bool = True,
+                      joints: Sequence[str] | None = None) -> JointLimitReport:
     """Drive every revolute/prismatic joint first to its lower, then to its upper limit,
     ``seconds_per_limit`` [s] each, with the base fixed, and check where it ends.
 
-    The drive is a position drive per joint. Its stiffness is the larger of subtree inertia x
-    ``natural_frequency``^2 and what holds 2x the joint's static load (joint friction plus the
+    The drive is a position drive per joint. Its stiffness is the larger of (subtree inertia + the
+    joint's armature) x ``natural_frequency``^2 and what holds 2x the joint's static load (joint friction plus the
     worst gravity torque/force on the subtree) at half the tolerance; damping is critical; armature
     is added where the stiffness would make the joint too fast for the time step. The target moves
     at ``angular_speed`` [rad/s] / ``linear_speed`` [m/s] (faster if needed to arrive within 60 %
@@ -459,13 +480,19 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
 
     A joint passes if it ends within the tolerance ([rad] / [m]) of each limit and never goes
     further than the tolerance outside its range. Joints without both limits are reported failed.
+    ``self_collisions=False``: the asset's links pass through each other (a robot, whose joints all
+    at their limits at once put limbs into each other; robots are simulated that way here).
+    ``joints``: drive only these joints (names), holding every other one where it starts (a robot
+    checked limb by limb); the report lists the driven joints. Several joints of one chain move
+    together then, so each one's static load is bounded over every configuration (the subtree's
+    mass times its reach along the joint anchors), not only over its own travel.
     """
     import newton
     import warp as wp
 
     usd_path = Path(usd_path)
     settings = _settings(device)
-    builder = _load(usd_path, floating=False)
+    builder = _load(usd_path, floating=False, self_collisions=self_collisions)
     movable = [j for j in range(builder.joint_count)
                if builder.joint_type[j] in (newton.JointType.REVOLUTE, newton.JointType.PRISMATIC)]
     if not movable:
@@ -479,9 +506,10 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
     gains = {}
     for j in movable:
         d = dofs[j]
-        load = _joint_load(builder, j)
-        ke = max(load.inertia * natural_frequency**2, 4.0 * load.static_load / tolerance[j])
-        inertia = max(load.inertia + float(builder.joint_armature[d]), ke / max_omega**2)
+        load = _joint_load(builder, j, any_axis=joints is not None)
+        moved = load.inertia + float(builder.joint_armature[d])     # the source's armature moves too
+        ke = max(moved * natural_frequency**2, 4.0 * load.static_load / tolerance[j])
+        inertia = max(moved, ke / max_omega**2)
         builder.joint_armature[d] = inertia - load.inertia
         builder.joint_target_ke[d] = ke
         builder.joint_target_kd[d] = 2.0 * math.sqrt(ke * inertia)
@@ -489,6 +517,15 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
         builder.joint_effort_limit[d] = 1e9
         gains[j] = ke
     lims = {j: (float(builder.joint_limit_lower[dofs[j]]), float(builder.joint_limit_upper[dofs[j]])) for j in movable}
+    driven = movable
+    if joints is not None:
+        by_name = {builder.joint_label[j].rsplit("/", 1)[-1]: j for j in movable}
+        unknown = sorted(set(joints) - set(by_name))
+        if unknown:
+            return JointLimitReport(usd_path=usd_path, passed=False, joints=(), solver=settings,
+                                    reasons=(f"no revolute or prismatic joints {unknown}",),
+                                    seconds_per_limit=seconds_per_limit)
+        driven = [by_name[n] for n in joints]
     reached: dict[int, list[float]] = {j: [] for j in movable}
     excursion = {j: 0.0 for j in movable}
     with wp.ScopedDevice(device):
@@ -503,6 +540,8 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
             for j in movable:
                 lo, hi = lims[j]
                 goal[j] = lo - 0.5 * tolerance[j] if side == 0 else hi + 0.5 * tolerance[j]
+                if j not in driven:
+                    goal[j] = q_start[coords[j]]
                 revolute = builder.joint_type[j] == newton.JointType.REVOLUTE
                 dist = abs(goal[j] - q_start[coords[j]])
                 speed[j] = max(angular_speed if revolute else linear_speed, dist / (0.6 * seconds_per_limit))
@@ -524,7 +563,7 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
             q = s0.joint_q.numpy()
             for j in movable:
                 reached[j].append(float(q[coords[j]]))
-    return _limit_report(usd_path, builder, movable, lims, reached, excursion, tolerance, gains,
+    return _limit_report(usd_path, builder, driven, lims, reached, excursion, tolerance, gains,
                          seconds_per_limit, settings)
 
 

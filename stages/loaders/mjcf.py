@@ -18,7 +18,7 @@ Bodies and joints:
 - a body with one hinge or slide joint becomes a link with a revolute / prismatic joint whose frame is
   the body frame moved to the joint's anchor (``pos``); limits are ``range`` relative to ``qpos0``
   (None where not ``limited``); ``damping``, ``frictionloss`` and ``stiffness`` (a passive spring towards
-  the reference position, kept as drive stiffness with target 0) carry over; ``armature`` is ignored;
+  the reference position, kept as drive stiffness with target 0) and ``armature`` carry over;
   the joint's ``actuatorfrcrange``, else the ``forcerange`` x gear of the actuators on it, gives the
   effort limit (actuator gains are not carried);
 - a body without joints is welded to its parent: its geoms and inertia merge into the parent's link;
@@ -292,8 +292,6 @@ class _Extractor:
         ignored = {k: int(v) for k, v in ignored.items() if v}
         if ignored:
             log.info("%s: ignored %s", self.path, ", ".join(f"{v} {k}" for k, v in ignored.items()))
-        if m.njnt and float(np.abs(m.dof_armature).max(initial=0.0)) > 0:
-            log.debug("%s: joint armature ignored", self.path)
 
     # -- joints and masses
 
@@ -326,7 +324,8 @@ class _Extractor:
                      frame=g.pose_of(g.inverse(parent.world) @ child.world),
                      axis=tuple(float(a) for a in axis / n),
                      lower=lower, upper=upper, max_effort=effort, friction=float(m.dof_frictionloss[dof]),
-                     damping=float(m.dof_damping[dof]), stiffness=float(m.jnt_stiffness[j]))
+                     damping=float(m.dof_damping[dof]), stiffness=float(m.jnt_stiffness[j]),
+                     armature=float(m.dof_armature[dof]))
 
     def _actuator_force(self, a: int) -> float | None:
         """Largest joint force/torque [N] / [N m] actuator ``a`` can apply: its force range, or for a

@@ -1,0 +1,1 @@
+"""Embodiment specs shipped with the project (TOML; format in ``stages.embodiment.spec``)."""
