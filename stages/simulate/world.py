@@ -28,7 +28,6 @@ from stages.simulate.robot import RobotDescription
 from stages.simulate.robot_load import DriveGains, RobotIndices, add_robot
 
 log = logging.getLogger(__name__)
-
 ROBOT_LABEL = "robot"
 MAX_EXPLICIT_STEP = 1.0 / 960.0  # [s] longest substep for Featherstone / semi-implicit / XPBD
 
