@@ -46,7 +46,8 @@ def test_every_shipped_spec_loads():
 def test_panda_spec_describes_what_robot_py_builds(tmp_path, gripper, spec_name):
     """Joint names and order, gripper, base geometry, camera mounts, home pose and drive gains of
     the spec equal robot.py's; and the spec checks clean against the URDF robot.py writes."""
-    from stages.simulate.robot import ARM_HOME, BaseGeometry, DriveGains, write_robot_urdf
+    from stages.simulate.robot import ARM_HOME, BaseGeometry, write_robot_urdf
+    from stages.simulate.robot_load import DriveGains
 
     robotiq = None
     if gripper == "robotiq_2f85":
@@ -258,7 +259,8 @@ def test_panda_spec_drives_equal_robot_py_drives(tmp_path):
     import newton
 
     from stages.embodiment.drives import apply_drives
-    from stages.simulate.robot import add_robot, write_robot_urdf
+    from stages.simulate.robot import write_robot_urdf
+    from stages.simulate.robot_load import add_robot
 
     desc = write_robot_urdf(tmp_path)
     ref = newton.ModelBuilder()
