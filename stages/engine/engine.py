@@ -40,8 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from stages.demos.experts import timed_clik
-from stages.demos.record import Timings, arm_q, base_pose, pose7
+from stages.demos.record import Timings
+from stages.simulate.batch_fk import pose7_batch
 from stages.engine.lockstep import Lockstep
+from stages.engine.peaks import LocalPeaks, Peaks
 from stages.engine.programs import EpisodeResult, WorldSide
 from stages.engine.view import SimInfo, Snapshot, WorldControl, WorldView, _WorldModel
 
@@ -193,7 +195,7 @@ class BatchEngine:
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
         self.watched = [world.placed["microwave"].joint("button_joint")]
         for b in self.banks:
-            b.peaks = _Peaks(b.sim, self.watched, self._scene_coord)
+            b.peaks = Peaks(b.sim, self.watched, self._scene_coord)
         self._pending_reset: dict[int, dict[int, float]] = {}
         # held worlds (stages.engine.hold): since which global step; the hold policy of the
         # threaded engine (benchmarks, tests): hold_policy(world, resume_index) -> sync periods
@@ -294,7 +296,7 @@ class BatchEngine:
                          controls={w: WorldControl(b.ctl, i) for w, (b, i) in enumerate(self._where)},
                          ik=self.ik, fps=self.config.fps, steps_per_second=self.steps_per_second,
                          steps=self.steps, rec_active=self.rec_active, rec_max=self.rec_max, lockstep=ls,
-                         peaks=_LocalPeaks(self), emit=self.on_event, free=self._free,
+                         peaks=LocalPeaks(self), emit=self.on_event, free=self._free,
                          scene_coord=self._scene_coord, max_seconds=self.config.max_seconds)
         for v in views.values():
             v._engine = side
@@ -469,15 +471,15 @@ class BatchEngine:
             if b.rig is not None:
                 images[id(b)] = b.rig.render_compact()  # RGB uint8 and depth [mm] uint16, per camera
         t1 = time.perf_counter()
-        for w in worlds:
+        q_all, t_all, base_all = self._robot_state(worlds)
+        ee_all = pose7_batch(self.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
+        k = len(worlds)
+        for j, w in enumerate(worlds):
             rec = self.recs[w]
             bank, i = self._where[w]
-            view = self._view(w)
-            q = arm_q(view)
-            target = bank.ctl.arm_targets(i)
             base_v, grip, mode = self.lockstep.commands(w) if self.config.program_procs else _cmd(self.side.cmds[w])
-            state = dict(arm_joint_pos=q, ee_pose=self._ee_in_base(q), base_pose=base_pose(view),
-                         arm_joint_target=target, ee_target=self._ee_in_base(target),
+            state = dict(arm_joint_pos=q_all[j], ee_pose=ee_all[j], base_pose=base_all[j],
+                         arm_joint_target=t_all[j], ee_target=ee_all[k + j],
                          base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
             frames = images.get(id(bank), {})
             rgb = {name: im[0][i].copy() for name, im in frames.items()}  # the rig reuses its buffers
@@ -491,105 +493,36 @@ class BatchEngine:
         tm.frames += len(worlds)
         self.stats.renders += 1
 
-    def _view(self, w: int) -> WorldView:
-        """A view of world ``w`` for the engine's own reads (the snapshot of its Sim)."""
-        views = self.__dict__.setdefault("_views", {})
-        if w not in views:
-            b, i = self._where[w]
-            views[w] = WorldView(None, w, b, i, b.model, self.steps)
-        return views[w]
+    def _robot_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Arm joint positions (K, 7), arm joint targets (K, 7) and base poses (K, 3) (x, y, theta
+        in the world [m, rad], as ``record.base_pose``) of ``worlds``, from one state read per Sim."""
+        sim = self.banks[0].sim
+        desc, c = sim.desc, sim.coords_per_world
+        arm = np.array([sim.robot.coord[n] for n in desc.arm_joints])
+        base = np.array([sim.robot.coord[n] for n in desc.base_joints])
+        q, t, b = [], [], []
+        for w in worlds:
+            bank, i = self._where[w]
+            jq = bank.snapshot.get("joint_q")
+            q.append(jq[i * c + arm])
+            t.append(bank.ctl._targets[i * c + arm])
+            b.append(jq[i * c + base])
+        x0, y0, yaw0 = sim.spawn
+        cs, sn = math.cos(yaw0), math.sin(yaw0)
+        lb = np.asarray(b, float).reshape(-1, 3)
+        th = (yaw0 + lb[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
+        return np.asarray(q), np.asarray(t), poses
 
-    def _ee_in_base(self, arm: np.ndarray) -> np.ndarray:
-        """(7,) end-effector pose in the base frame for arm joint positions (7,)."""
-        ik = self.ik
-        if not hasattr(self, "_q_neutral"):
-            self._q_neutral = ik.neutral()
-        return pose7(ik.fk(ik.with_arm(self._q_neutral, arm)))
+    @property
+    def arm_fk(self):
+        """Batched end-effector FK in the base frame (other joints at the IK's neutral pose)."""
+        if "_arm_fk" not in self.__dict__:
+            from stages.simulate.batch_fk import ArmFK
+
+            self._arm_fk = ArmFK(self.ik)
+        return self._arm_fk
 
 
 def _cmd(c) -> tuple:
     return c.base_velocity, c.gripper, c.mode
-
-
-class _LocalPeaks:
-    """Peaks of world programs running in the engine's process: the banks' device arrays."""
-
-    def __init__(self, engine: BatchEngine) -> None:
-        self.engine = engine
-
-    def start(self, w: int) -> None:
-        b, i = self.engine._where[w]
-        b.peaks.start(i)
-
-    def stop(self, w: int) -> None:
-        b, i = self.engine._where[w]
-        b.peaks.stop(i)
-
-    def read(self, w: int) -> dict[str, float]:
-        b, i = self.engine._where[w]
-        return b.peaks.read(i)
-
-
-class _Peaks:
-    """The largest value [m or rad] each watched scene joint reached during a world's episode,
-    tracked on the device before every physics step (a momentary event: a pressed button)."""
-
-    def __init__(self, sim, paths, scene_coord: dict[str, int]) -> None:
-        import warp as wp
-
-        self.paths = [p for p in paths if p in scene_coord]
-        self.sim = sim
-        n, dev = sim.world_count, sim.model.device
-        self._coords = wp.array(np.array([scene_coord[p] for p in self.paths] or [0], np.int32), device=dev)
-        self._peak = wp.full((n, max(1, len(self.paths))), -1e9, dtype=wp.float32, device=dev)
-        self._active_np = np.zeros(n, np.int32)
-        self._active = wp.zeros(n, dtype=wp.int32, device=dev)
-        self._dirty = False
-        self._kernel = _peaks_kernel()
-        sim.pre_step.append(self._pre_step)
-
-    def start(self, w: int) -> None:
-        self._active_np[w] = 1
-        self._dirty = True
-        self._peak[w].fill_(-1e9)
-
-    def stop(self, w: int) -> None:
-        self._active_np[w] = 0
-        self._dirty = True
-
-    def read(self, w: int) -> dict[str, float]:
-        row = self._peak.numpy()[w]
-        return {p: float(row[i]) for i, p in enumerate(self.paths)}
-
-    def _pre_step(self, sim) -> None:
-        import warp as wp
-
-        if not self.paths:
-            return
-        if self._dirty:
-            self._active.assign(self._active_np)
-            self._dirty = False
-        wp.launch(self._kernel, dim=(sim.world_count, len(self.paths)), device=sim.model.device,
-                  inputs=[sim.state_0.joint_q, self._coords, self._active, sim.coords_per_world, self._peak])
-
-
-_PEAKS_KERNEL = None
-
-
-def _peaks_kernel():
-    global _PEAKS_KERNEL
-    if _PEAKS_KERNEL is None:
-        import warp as wp
-
-        @wp.kernel
-        def track_peaks(joint_q: wp.array[wp.float32], coords: wp.array[wp.int32], active: wp.array[wp.int32],
-                        coords_per_world: int, peak: wp.array2d[wp.float32]):
-            w, j = wp.tid()
-            if active[w] == 0:
-                return
-            v = joint_q[w * coords_per_world + coords[j]]
-            if v > peak[w, j]:
-                peak[w, j] = v
-
-        _PEAKS_KERNEL = track_peaks
-    return _PEAKS_KERNEL
