@@ -125,7 +125,7 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
     cpu: dict[str, float] = {}
     t, c = time.perf_counter(), time.process_time()
     plan = load_floor_plan(plan_path)
-    pop = Populator(plan, layout_usd, library, rules, rng)
+    pop = Populator(plan, layout_usd, library, rules, rng, shape_cache=opts.cache_dir)
     rooms = [r for f in plan.floors for r in f.rooms if not opts.rooms or str(r.type) in opts.rooms]
     if not rooms:
         raise SceneRejected(f"{plan_path}: no room of type {', '.join(opts.rooms)}")
