@@ -145,3 +145,60 @@ def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
     assert res.offenders[1] == (lifted["name"],)
     n = [len(json.loads((s.parent / "scene.json").read_text())["instances"]) for s in scenes]
     assert [len(m) for m in res.moved] == [sum(1 for _ in m) for m in res.moved] and sum(map(len, res.moved)) <= sum(n)
+
+
+def _scene_sigs(tmp_path, name: str, *, mpu: float = 1.0, scale: str = "(2, 2, 2, 1)", tint: str = "(0.5, 0.4, 0.3)",
+                light: float = 800.0) -> set[str]:
+    from pxr import Usd
+
+    from stages.scene.validation import _signatures
+
+    p = tmp_path / name / "scene.usda"
+    p.parent.mkdir()
+    p.write_text(f"""#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = {mpu}
+    upAxis = "Z"
+)
+def Xform "World"
+{{
+    def Scope "Looks"
+    {{
+        def Material "M"
+        {{
+            def Shader "surface"
+            {{
+                uniform token info:id = "UsdPreviewSurface"
+                color3f inputs:diffuseColor = {tint}
+            }}
+            def Shader "normal"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                float4 inputs:scale = {scale}
+                float4 inputs:bias = (-1, -1, -1, 0)
+            }}
+        }}
+    }}
+    def Scope "Lights"
+    {{
+        def SphereLight "L"
+        {{
+            float inputs:intensity = {light}
+            double3 xformOp:translate = (1.5, 2.5, 2.4)
+            uniform token[] xformOpOrder = ["xformOp:translate"]
+        }}
+    }}
+}}
+""", encoding="utf-8")
+    return set(_signatures(Usd.Stage.Open(str(p)), p))
+
+
+def test_structure_signature_keeps_checked_values_exact(tmp_path) -> None:
+    """The omniverse validator runs once per scene structure signature: values it checks (a normal
+    map's scale and bias, the layer's metersPerUnit) must enter exactly, so a wrong one is validated
+    instead of reusing a verdict; tints and light intensities (vary per scene) still share one."""
+    base = _scene_sigs(tmp_path, "a")
+    assert _scene_sigs(tmp_path, "b", tint="(0.2, 0.9, 0.1)", light=1200.0) == base
+    assert _scene_sigs(tmp_path, "c", scale="(3, 3, 3, 1)") != base
+    assert _scene_sigs(tmp_path, "d", mpu=0.01) != base
