@@ -127,6 +127,25 @@ def test_proven_rest_agrees_with_the_simulation(world, tmp_path):
     assert obj.p.inst in rep.offenders and set(rep.moved) <= set(sim)
 
 
+def test_rest_is_not_proven_without_authored_mass(world, tmp_path):
+    """A dynamic package without authored mass properties (the simulator derives them from the
+    collider volumes) has no known center of mass: it and the stack it belongs to are simulated."""
+    from dataclasses import replace as dc_replace
+
+    from stages.scene.build import _package_unknown
+    from stages.scene.checkcache import CheckCache
+    from stages.scene.rest import analytic_rest
+
+    _, pop = _scene(world, 5, tmp_path / "s")
+    cache = CheckCache(None)
+    obj = next(i for i in pop.insts if i.p.support and i.geo.dynamic)
+    obj.geo = dc_replace(obj.geo, mass=0.0)
+    proof = analytic_rest(pop, lambda i: _package_unknown(i, cache, 0.01))
+    sup = next(i for i in pop.insts if i.p.inst == obj.p.support)
+    assert obj.p.inst in proof.unproven and (obj.p.support in proof.unproven) == sup.geo.dynamic
+    assert "mass" in proof.unproven[obj.p.inst]
+
+
 @needs_newton_usd
 def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
     from stages.scene.settle_batch import settle_batch
