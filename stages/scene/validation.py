@@ -16,8 +16,8 @@ scene's own layers (root, lighting, materials, placement). ``validate_scene``:
    /World/Lights, /World/PhysicsScene and the layer metadata get a signature (prim types, applied
    schemas, properties, connections, token values, asset paths found or not, every number exactly
    except those of the attributes that vary from scene to scene by design (``VARYING``: placement
-   transforms, light intensity, exposure, color temperature and size, material tints), which enter
-   by class: finite, in [0, 1]); a signature is validated once (kind ``structure`` in the
+   transforms, light intensity, exposure, color temperature and size, material tints, the scale and
+   bias of texture readers other than normal maps), which enter by class: finite, in [0, 1]); a signature is validated once (kind ``structure`` in the
    cache, keyed also by the validator's version) and its result reused, so a material differing
    only in its tint is not validated again. The layer metadata (metersPerUnit, upAxis, ...) and
    the values the validator checks (a normal map's scale and bias, masses) enter exactly.
@@ -40,7 +40,8 @@ log = logging.getLogger(__name__)
 OWN_ROOTS = ("/World/Looks", "/World/Lights")
 PHYSICS_SCENE = "/World/PhysicsScene"
 # attributes whose numbers enter a structure's signature by class only (see the module docstring);
-# omniverse-asset-validator checks none of their values beyond finiteness
+# omniverse-asset-validator checks none of their values beyond finiteness (the scale and bias of a
+# texture reader too, unless it feeds a normal input: NormalMapTextureChecker checks those)
 VARYING = frozenset({"inputs:intensity", "inputs:exposure", "inputs:colorTemperature", "inputs:radius",
                      "inputs:angle", "inputs:width", "inputs:height", "inputs:length", "inputs:color",
                      "inputs:diffuseColor", "inputs:emissiveColor", "inputs:roughness", "inputs:metallic",
@@ -237,15 +238,22 @@ def _prim_tree_signature(root) -> list:
 
     base = str(root.GetPath())
     out = []
+    normal_maps = set()  # texture readers feeding a normal input: their scale and bias are checked
+    for prim in Usd.PrimRange(root):
+        a = prim.GetAttribute("inputs:normal")
+        if a:
+            normal_maps.update(str(c.GetPrimPath()) for c in a.GetConnections())
     for prim in Usd.PrimRange(root):
         rel = str(prim.GetPath())[len(base):]
+        tint_ok = str(prim.GetPath()) not in normal_maps
         props = []
         for prop in prim.GetAuthoredProperties():
             if isinstance(prop, Usd.Attribute):
                 conns = [str(c).replace(base, "~") for c in prop.GetConnections()]
                 v = prop.Get() if prop.HasAuthoredValue() else None
                 name = prop.GetName()
-                vary = name in VARYING or name.startswith("xformOp:")
+                vary = (name in VARYING or name.startswith("xformOp:")
+                        or (tint_ok and name in ("inputs:scale", "inputs:bias")))
                 props.append([name, str(prop.GetTypeName()), str(prop.GetVariability()), conns,
                               _value_class(v, None) if vary else _exact(v)])
             else:

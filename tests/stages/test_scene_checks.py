@@ -166,7 +166,7 @@ def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
     assert [len(m) for m in res.moved] == [sum(1 for _ in m) for m in res.moved] and sum(map(len, res.moved)) <= sum(n)
 
 
-def _scene_sigs(tmp_path, name: str, *, mpu: float = 1.0, scale: str = "(2, 2, 2, 1)", tint: str = "(0.5, 0.4, 0.3)",
+def _scene_sigs(tmp_path, name: str, *, mpu: float = 1.0, scale: str = "(2, 2, 2, 1)", tint: str = "(0.5, 0.4, 0.3, 1)",
                 light: float = 800.0) -> set[str]:
     from pxr import Usd
 
@@ -189,13 +189,21 @@ def Xform "World"
             def Shader "surface"
             {{
                 uniform token info:id = "UsdPreviewSurface"
-                color3f inputs:diffuseColor = {tint}
+                color3f inputs:diffuseColor.connect = </World/Looks/M/base.outputs:rgb>
+                normal3f inputs:normal.connect = </World/Looks/M/normal.outputs:rgb>
+            }}
+            def Shader "base"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                float4 inputs:scale = {tint}
+                float3 outputs:rgb
             }}
             def Shader "normal"
             {{
                 uniform token info:id = "UsdUVTexture"
                 float4 inputs:scale = {scale}
                 float4 inputs:bias = (-1, -1, -1, 0)
+                float3 outputs:rgb
             }}
         }}
     }}
@@ -216,8 +224,8 @@ def Xform "World"
 def test_structure_signature_keeps_checked_values_exact(tmp_path) -> None:
     """The omniverse validator runs once per scene structure signature: values it checks (a normal
     map's scale and bias, the layer's metersPerUnit) must enter exactly, so a wrong one is validated
-    instead of reusing a verdict; tints and light intensities (vary per scene) still share one."""
+    instead of reusing a verdict; tints (a base color reader's scale) and light intensities (vary per scene) still share one."""
     base = _scene_sigs(tmp_path, "a")
-    assert _scene_sigs(tmp_path, "b", tint="(0.2, 0.9, 0.1)", light=1200.0) == base
+    assert _scene_sigs(tmp_path, "b", tint="(0.2, 0.9, 0.1, 1)", light=1200.0) == base
     assert _scene_sigs(tmp_path, "c", scale="(3, 3, 3, 1)") != base
     assert _scene_sigs(tmp_path, "d", mpu=0.01) != base
