@@ -72,6 +72,7 @@ class SceneSummary(BaseModel):
     looks: tuple[str, ...]
     lights: tuple[LightSpec, ...]
     seconds: dict[str, float]
+    cpu_seconds: dict[str, float] = {}
 
 
 @dataclass
@@ -121,9 +122,10 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
     from stages.scene.materials import ASSET_KINDS, FLOOR_KINDS, WALL_KINDS, sample_looks, write_textures
 
     secs: dict[str, float] = {}
-    t = time.perf_counter()
+    cpu: dict[str, float] = {}
+    t, c = time.perf_counter(), time.process_time()
     plan = load_floor_plan(plan_path)
-    pop = Populator(plan, layout_usd, library, rules, rng)
+    pop = Populator(plan, layout_usd, library, rules, rng, shape_cache=opts.cache_dir)
     rooms = [r for f in plan.floors for r in f.rooms if not opts.rooms or str(r.type) in opts.rooms]
     if not rooms:
         raise SceneRejected(f"{plan_path}: no room of type {', '.join(opts.rooms)}")
@@ -136,9 +138,9 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
     if not check.ok:
         raise SceneRejected("checks: " + "; ".join([f"{a} penetrates {b} {d * 1000:.1f} mm" for a, b, d in
                                                     check.penetrations] + list(check.path))[:300])
-    secs["place"] = time.perf_counter() - t
+    secs["place"], cpu["place"] = time.perf_counter() - t, time.process_time() - c
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     out_dir.mkdir(parents=True, exist_ok=True)
     classes = sorted({i.p.record.material for i in pop.insts if i.p.record.material})
     textures = write_textures([*FLOOR_KINDS, *WALL_KINDS, *[f"asset_{c}" for c in classes if f"asset_{c}" in ASSET_KINDS]],
@@ -166,10 +168,10 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
         compose.write_materials(out_dir, looks, textures, specs, layout_usd, walls)
 
     write_instances()
-    secs["compose"] = time.perf_counter() - t
+    secs["compose"], cpu["compose"] = time.perf_counter() - t, time.process_time() - c
     scene = out_dir / compose.SCENE_NAME
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     repairs: list[str] = []
     max_move, bodies, simulated, analytic = 0.0, 0, 0.0, 0
     if opts.settle:
@@ -200,9 +202,9 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
             if not check.ok:
                 raise SceneRejected("checks after repair: " + "; ".join(check.path)[:300])
             write_instances()
-    secs["settle"] = time.perf_counter() - t
+    secs["settle"], cpu["settle"] = time.perf_counter() - t, time.process_time() - c
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     n_err = n_warn = 0
     if opts.validate:
         from stages.scene.checkcache import process_cache
@@ -213,7 +215,8 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
         n_err, n_warn = len(vr.errors), vr.warnings
         if n_err:
             raise SceneRejected(f"validation: {n_err} errors: " + "; ".join(vr.errors[:3])[:400])
-    secs["validate"] = time.perf_counter() - t
+    secs["validate"], cpu["validate"] = time.perf_counter() - t, time.process_time() - c
+    t, c = time.perf_counter(), time.process_time()
     if Path(final_dir).resolve() != Path(out_dir).resolve():
         # stages the checks opened (Newton's USD loader, the validators) can sit in reference cycles
         # until the garbage collector runs; a stage still alive would recompose when its layers are
@@ -221,6 +224,7 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
         gc.collect()
         compose.write_root(out_dir, layout_usd, layout_final, final_dir, meta)
         compose.write_placement(out_dir, final_dir, instance_specs())
+    secs["finalize"], cpu["finalize"] = time.perf_counter() - t, time.process_time() - c
 
     records = tuple(InstanceRecord(name=i.p.inst, asset_id=i.p.record.id, category=i.p.record.category, room=i.p.room,
                                    floor=i.p.floor, position=i.p.position, yaw=i.p.yaw, support=i.p.support,
@@ -237,7 +241,8 @@ def build_scene(plan_path: Path, layout_usd: Path, library: Library, rules: Plac
         arrangements_rejected=arrangement_reasons(pop), repairs=tuple(repairs),
         settle_max_move=max_move, settle_simulated=simulated, settle_analytic=analytic, settle_bodies=bodies, penetrations=len(check.penetrations),
         path_problems=len(check.path), validation_errors=n_err, validation_warnings=n_warn,
-        looks=tuple(lk.name for lk in looks), lights=tuple(lights), seconds={k: round(v, 3) for k, v in secs.items()})
+        looks=tuple(lk.name for lk in looks), lights=tuple(lights), seconds={k: round(v, 3) for k, v in secs.items()},
+        cpu_seconds={k: round(v, 3) for k, v in cpu.items()})
     (out_dir / SCENE_JSON).write_text(summary.model_dump_json(indent=1) + "\n", encoding="utf-8")
     return summary
 

@@ -29,7 +29,12 @@ class Library:
         return Library({k: tuple(v) for k, v in by.items()}, Path(index_path).parent)
 
     def usd(self, r: CatalogRecord) -> Path:
-        return (self.root / str(r.usd_path)).resolve()
+        """The record's package root layer, resolved (memoised per library: the solver asks often)."""
+        memo = self.__dict__.setdefault("_usd_memo", {})
+        got = memo.get(r.id)
+        if got is None:
+            got = memo[r.id] = (self.root / str(r.usd_path)).resolve()
+        return got
 
     def pick(self, category: str, room_type: str, rng: np.random.Generator,
              keep=None) -> CatalogRecord | None:

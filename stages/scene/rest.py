@@ -13,7 +13,10 @@ must lie inside its contact region. ``analytic_rest`` proves that per instance:
 - contact region: the convex hull of the lowest collider points (within ``BASE_TOL``) of the fixed
   part (a moving part at the bottom, e.g. a door touching the floor, is not proven), clipped to the
   support surface's polygon (the floor: unbounded); it must sit ``REST_GAP`` above the support;
-- the combined center of mass must lie ``margin`` inside that region (5 mm by default);
+- the combined center of mass must lie ``margin`` inside that region (5 mm by default); it is known
+  only when every dynamic instance in the stack has authored mass properties (``MassAPI`` mass and
+  center of mass on each body): otherwise the simulator derives them from collider volumes, which
+  the pieces' centroid does not stand for, so such a stack is simulated;
 - a dynamic package with several bodies or with joints gravity works on (an oven's door) must also
   pass ``package_rest``: the package alone on a flat floor, simulated once in Newton + MuJoCo as the
   scene settle check does, result kept per package content (``CheckCache`` kind ``rest``);
@@ -108,6 +111,11 @@ def analytic_rest(pop, needs_package_check, *, margin: float = REST_MARGIN) -> R
             m, c = m + mk, c + ck * mk
         return m, c / m
 
+    def unknown_mass(name: str) -> bool:
+        """Whether a dynamic instance in the stack rooted at ``name`` has no authored mass."""
+        i = insts[name]
+        return (i.geo.dynamic and not i.geo.mass > 0) or any(unknown_mass(k) for k in children.get(name, ()))
+
     unproven: dict[str, str] = {}
     margins: dict[str, float] = {}
     for name, i in insts.items():
@@ -148,6 +156,9 @@ def analytic_rest(pop, needs_package_check, *, margin: float = REST_MARGIN) -> R
             continue
         if len(region) < 3 or polygon_area(region) < 1e-8:
             unproven[name] = "no contact area"
+            continue
+        if unknown_mass(name):
+            unproven[name] = "mass properties not authored on every body of the stack (center of mass unknown)"
             continue
         _, com = load(name)
         d = signed_inside(com[:2], region)

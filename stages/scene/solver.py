@@ -34,7 +34,7 @@ import numpy as np
 
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
-from stages.scene.assets import AssetGeometry, load_asset_geometry
+from stages.scene.assets import AssetGeometry
 from stages.scene.collide import ConvexPiece, find_penetrations
 from stages.scene.geom import (
     convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
@@ -113,8 +113,9 @@ class Populator:
     """Places assets into the rooms of one floor plan; holds every placed instance (all floors)."""
 
     def __init__(self, plan: FloorPlan, layout_usd: Path, library: Library, rules: PlacementRules,
-                 rng: np.random.Generator):
+                 rng: np.random.Generator, shape_cache: Path | None = None):
         self.plan, self.library, self.rules, self.rng = plan, library, rules, rng
+        self.shape_cache = shape_cache  # where package shapes are kept across processes (None: this one)
         self.layout = layout_pieces(layout_usd)
         self.insts: list[_Inst] = []
         self.grids: dict[int, PathGrid] = {}
@@ -124,6 +125,11 @@ class Populator:
         self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
 
     # -- public ---------------------------------------------------------------------------------
+
+    def _geo(self, rec: CatalogRecord) -> AssetGeometry:
+        from stages.scene.shapecache import geometry
+
+        return geometry(self.library.usd(rec), self.shape_cache)
 
     def populate_room(self, room: RoomModel) -> RoomReport:
         """Place furniture then objects in ``room``. When a required entry cannot be placed, the room
@@ -190,7 +196,7 @@ class Populator:
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
         keep = (self._compact_keep(rule.category, self._compact) if self._compact else None) if furniture else (
-            lambda r: load_asset_geometry(self.library.usd(r)).rests_flat)
+            lambda r: self._geo(r).rests_flat)
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
             if rec is None:
@@ -213,7 +219,7 @@ class Populator:
         """Predicate on records: the variant is among the ``fraction`` (at least one) of the
         category's variants that are narrowest along their back."""
         widths = {r.id: float(g.hi[1] - g.lo[1]) for r in self.library.records.get(category, ())
-                  for g in (load_asset_geometry(self.library.usd(r)),)}
+                  for g in (self._geo(r),)}
         if not widths:
             return None
         order = sorted(widths.values())
@@ -250,16 +256,16 @@ class Populator:
         width = geo.hi[1] - geo.lo[1]
 
         def narrower(r: CatalogRecord) -> bool:
-            g = load_asset_geometry(self.library.usd(r))
+            g = self._geo(r)
             return r.id != rec.id and g.hi[1] - g.lo[1] < width - 1e-6
 
         new = (self.library.pick(rule.category, str(ctx.room.type), self.rng, narrower)
                or self.library.pick(rule.category, str(ctx.room.type), self.rng) or rec)
-        return new, load_asset_geometry(self.library.usd(new))
+        return new, self._geo(new)
 
     def _place_furniture(self, rule: FurnitureRule, rec: CatalogRecord, ctx: RoomContext, grid: PathGrid,
                          rep: RoomReport) -> bool:
-        geo = load_asset_geometry(self.library.usd(rec))
+        geo = self._geo(rec)
         tries = self.rules.defaults.max_tries
         no_room = False
         for k in range(tries):
@@ -499,7 +505,7 @@ class Populator:
 
     def _place_object(self, rule: ObjectRule, rec: CatalogRecord, ctx: RoomContext, grid: PathGrid,
                       rep: RoomReport) -> bool:
-        geo = load_asset_geometry(self.library.usd(rec))
+        geo = self._geo(rec)
         if not geo.rests_flat:
             rep.reject(f"{rule.category}: no flat base (would roll off its support)")
             return False

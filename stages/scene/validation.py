@@ -14,9 +14,13 @@ scene's own layers (root, lighting, materials, placement). ``validate_scene``:
 3. runs omniverse-asset-validator on the scene's own prims (materials, lights, physics scene) and its
    layers, but only on the structures not seen before: each prim tree under /World/Looks,
    /World/Lights, /World/PhysicsScene and the layer metadata get a signature (prim types, applied
-   schemas, properties, connections, token values, asset paths found or not, numbers by class:
-   finite, in [0, 1]); a signature is validated once (kind ``structure`` in the cache) and its
-   result reused, so a material differing only in its tint is not validated again.
+   schemas, properties, connections, token values, asset paths found or not, every number exactly
+   except those of the attributes that vary from scene to scene by design (``VARYING``: placement
+   transforms, light intensity, exposure, color temperature and size, material tints, the scale and
+   bias of texture readers other than normal maps), which enter by class: finite, in [0, 1]); a signature is validated once (kind ``structure`` in the
+   cache, keyed also by the validator's version) and its result reused, so a material differing
+   only in its tint is not validated again. The layer metadata (metersPerUnit, upAxis, ...) and
+   the values the validator checks (a normal map's scale and bias, masses) enter exactly.
 """
 
 from __future__ import annotations
@@ -35,6 +39,13 @@ log = logging.getLogger(__name__)
 
 OWN_ROOTS = ("/World/Looks", "/World/Lights")
 PHYSICS_SCENE = "/World/PhysicsScene"
+# attributes whose numbers enter a structure's signature by class only (see the module docstring);
+# omniverse-asset-validator checks none of their values beyond finiteness (the scale and bias of a
+# texture reader too, unless it feeds a normal input: NormalMapTextureChecker checks those)
+VARYING = frozenset({"inputs:intensity", "inputs:exposure", "inputs:colorTemperature", "inputs:radius",
+                     "inputs:angle", "inputs:width", "inputs:height", "inputs:length", "inputs:color",
+                     "inputs:diffuseColor", "inputs:emissiveColor", "inputs:roughness", "inputs:metallic",
+                     "inputs:opacity", "inputs:specularColor", "inputs:clearcoat", "inputs:clearcoatRoughness"})
 
 
 class SceneValidation(BaseModel):
@@ -181,7 +192,7 @@ def _signatures(stage, scene_usd: Path) -> dict[str, str]:
         out.setdefault(_key(sig), str(prim.GetPath()))
     layers = []
     for layer in stage.GetLayerStack(includeSessionLayers=False):
-        info = {k: _value_class(layer.pseudoRoot.GetInfo(k), layer) for k in layer.pseudoRoot.ListInfoKeys()
+        info = {k: _exact(layer.pseudoRoot.GetInfo(k)) for k in layer.pseudoRoot.ListInfoKeys()
                 if k not in ("customLayerData", "documentation", "comment", "subLayerOffsets")}
         layers.append([Path(layer.realPath or layer.identifier).name, layer.GetFileFormat().formatId, info])
     out.setdefault(_key(["layers", layers]), "")
@@ -189,7 +200,37 @@ def _signatures(stage, scene_usd: Path) -> dict[str, str]:
 
 
 def _key(sig) -> str:
-    return hashlib.sha256(json.dumps(sig, sort_keys=True, default=str).encode()).hexdigest()
+    return hashlib.sha256(json.dumps([_validator_version(), sig], sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _validator_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("omniverse-asset-validator")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def _exact(v) -> object:
+    """A value as it is (asset paths by whether they resolve and their extension: a scene's
+    folder differs from scene to scene)."""
+    from pxr import Sdf
+
+    if v is None or isinstance(v, (bool, str, int, float)):
+        return v
+    if isinstance(v, Sdf.AssetPath):
+        return ["asset", bool(v.resolvedPath), Path(v.path).suffix]
+    if isinstance(v, dict):
+        return {str(k): _exact(x) for k, x in v.items()}
+    if hasattr(v, "GetReal"):
+        return ["quat", float(v.GetReal()), *(float(x) for x in v.GetImaginary())]
+    if hasattr(v, "__iter__"):
+        try:
+            return [_exact(x) for x in v]
+        except TypeError:
+            pass
+    return str(v)
 
 
 def _prim_tree_signature(root) -> list:
@@ -197,18 +238,27 @@ def _prim_tree_signature(root) -> list:
 
     base = str(root.GetPath())
     out = []
+    normal_maps = set()  # texture readers feeding a normal input: their scale and bias are checked
+    for prim in Usd.PrimRange(root):
+        a = prim.GetAttribute("inputs:normal")
+        if a:
+            normal_maps.update(str(c.GetPrimPath()) for c in a.GetConnections())
     for prim in Usd.PrimRange(root):
         rel = str(prim.GetPath())[len(base):]
+        tint_ok = str(prim.GetPath()) not in normal_maps
         props = []
         for prop in prim.GetAuthoredProperties():
             if isinstance(prop, Usd.Attribute):
                 conns = [str(c).replace(base, "~") for c in prop.GetConnections()]
                 v = prop.Get() if prop.HasAuthoredValue() else None
-                props.append([prop.GetName(), str(prop.GetTypeName()), str(prop.GetVariability()), conns,
-                              _value_class(v, None)])
+                name = prop.GetName()
+                vary = (name in VARYING or name.startswith("xformOp:")
+                        or (tint_ok and name in ("inputs:scale", "inputs:bias")))
+                props.append([name, str(prop.GetTypeName()), str(prop.GetVariability()), conns,
+                              _value_class(v, None) if vary else _exact(v)])
             else:
                 props.append([prop.GetName(), "rel", [str(t).replace(base, "~") for t in prop.GetTargets()]])
-        meta = {k: _value_class(v, None) for k, v in prim.GetAllAuthoredMetadata().items()
+        meta = {k: _exact(v) for k, v in prim.GetAllAuthoredMetadata().items()
                 if k not in ("specifier", "customData", "typeName", "apiSchemas")}
         out.append([rel, str(prim.GetTypeName()), [str(s) for s in prim.GetAppliedSchemas()], sorted(props), meta])
     return out

@@ -77,8 +77,8 @@ def _build(lib, rules, lay, seed: int, out: Path, tries: int = 4, cache: Path | 
             continue
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         if label:
-            split = ", ".join(f"{k} {v:.3f}" for k, v in s.seconds.items())
-            print(f"{label}: {wall:.3f} s wall, {cpu:.3f} s cpu, {len(s.instances)} objects ({split}); "
+            split = ", ".join(f"{k} {v:.3f}" for k, v in s.cpu_seconds.items())
+            print(f"{label}: {wall:.3f} s wall, {cpu:.3f} s cpu, {len(s.instances)} objects (cpu s: {split}); "
                   f"settle: {s.settle_analytic} proven at rest, {len(s.instances) - s.settle_analytic} simulated")
         return s, wall, cpu, out / f"{seed}_{a}" / "scene.usda"
     return None, float("nan"), float("nan"), None
@@ -124,7 +124,7 @@ def test_bench_scene(tmp_path: Path) -> None:
 
     s, wall, cpu, scene = _build(lib, rules, house, 2, tmp_path / "house_cold", cache=cache, label="3-room house, cold cache")
     cold = {"seconds": round(wall, 3), "cpu_seconds": round(cpu, 3), "objects": len(s.instances) if s else 0,
-            "phases": s.seconds if s else {}}
+            "phases": s.seconds if s else {}, "cpu_phases": s.cpu_seconds if s else {}}
     # the rest of the library's packages once: validation, package rest (a job's work dir keeps these
     # across all its scenes)
     from stages.scene.checkcache import process_cache
@@ -148,22 +148,26 @@ def test_bench_scene(tmp_path: Path) -> None:
         s, wall, cpu, scene = _build(lib, rules, lay, 1, tmp_path / f"room_{rt}", cache=cache, label=rt)
         per_room[rt] = {"seconds": round(wall, 3), "cpu_seconds": round(cpu, 3),
                         "objects": len(s.instances) if s else 0, "phases": s.seconds if s else {},
-                        "settle_proven": s.settle_analytic if s else 0}
+                        "cpu_phases": s.cpu_seconds if s else {}, "settle_proven": s.settle_analytic if s else 0}
     houses = []
     for seed in (2, 3, 4):
         s, wall, cpu, scene = _build(lib, rules, house, seed, tmp_path / "house_out", cache=cache,
                                      label=f"3-room house seed {seed}")
         if s:
             houses.append({"seed": seed, "seconds": round(wall, 3), "cpu_seconds": round(cpu, 3),
-                           "objects": len(s.instances), "phases": s.seconds, "settle_proven": s.settle_analytic})
+                           "objects": len(s.instances), "phases": s.seconds, "cpu_phases": s.cpu_seconds,
+                           "settle_proven": s.settle_analytic})
             last_house = scene
     per_house = {"seconds": round(float(np.median([h["seconds"] for h in houses])), 3),
                  "cpu_seconds": round(float(np.median([h["cpu_seconds"] for h in houses])), 3),
                  "objects": int(np.median([h["objects"] for h in houses])),
                  "phases": {k: round(float(np.median([h["phases"].get(k, 0.0) for h in houses])), 3)
-                            for k in houses[0]["phases"]}, "houses": houses, "cold_cache": cold}
+                            for k in houses[0]["phases"]},
+                 "cpu_phases": {k: round(float(np.median([h["cpu_phases"].get(k, 0.0) for h in houses])), 3)
+                                for k in houses[0]["cpu_phases"]}, "houses": houses, "cold_cache": cold}
     print(f"3-room house, warm cache, median of {len(houses)}: {per_house['seconds']} s wall, "
-          f"{per_house['cpu_seconds']} s cpu; phases {per_house['phases']}")
+          f"{per_house['cpu_seconds']} s cpu; cpu per phase {per_house['cpu_phases']}, "
+          f"wall per phase {per_house['phases']}")
     settle["3_room_house_full_simulation"] = _settle_timing(last_house, reps=1)
 
     scale = {}
@@ -175,6 +179,7 @@ def test_bench_scene(tmp_path: Path) -> None:
         s, wall, cpu, scene = _build(lib, r, big, 3, tmp_path / f"scale_{n}", cache=cache, label=f"{n} objects asked")
         scale[str(n)] = {"requested": n, "placed": len(s.instances) if s else 0, "seconds": round(wall, 2),
                          "cpu_seconds": round(cpu, 2), "phases": s.seconds if s else {},
+                         "cpu_phases": s.cpu_seconds if s else {},
                          "settle_proven": s.settle_analytic if s else 0}
 
     room_secs = [v["seconds"] for v in per_room.values() if v["objects"]]

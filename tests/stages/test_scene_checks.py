@@ -127,6 +127,25 @@ def test_proven_rest_agrees_with_the_simulation(world, tmp_path):
     assert obj.p.inst in rep.offenders and set(rep.moved) <= set(sim)
 
 
+def test_rest_is_not_proven_without_authored_mass(world, tmp_path):
+    """A dynamic package without authored mass properties (the simulator derives them from the
+    collider volumes) has no known center of mass: it and the stack it belongs to are simulated."""
+    from dataclasses import replace as dc_replace
+
+    from stages.scene.build import _package_unknown
+    from stages.scene.checkcache import CheckCache
+    from stages.scene.rest import analytic_rest
+
+    _, pop = _scene(world, 5, tmp_path / "s")
+    cache = CheckCache(None)
+    obj = next(i for i in pop.insts if i.p.support and i.geo.dynamic)
+    obj.geo = dc_replace(obj.geo, mass=0.0)
+    proof = analytic_rest(pop, lambda i: _package_unknown(i, cache, 0.01))
+    sup = next(i for i in pop.insts if i.p.inst == obj.p.support)
+    assert obj.p.inst in proof.unproven and (obj.p.support in proof.unproven) == sup.geo.dynamic
+    assert "mass" in proof.unproven[obj.p.inst]
+
+
 @needs_newton_usd
 def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
     from stages.scene.settle_batch import settle_batch
@@ -145,3 +164,68 @@ def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
     assert res.offenders[1] == (lifted["name"],)
     n = [len(json.loads((s.parent / "scene.json").read_text())["instances"]) for s in scenes]
     assert [len(m) for m in res.moved] == [sum(1 for _ in m) for m in res.moved] and sum(map(len, res.moved)) <= sum(n)
+
+
+def _scene_sigs(tmp_path, name: str, *, mpu: float = 1.0, scale: str = "(2, 2, 2, 1)", tint: str = "(0.5, 0.4, 0.3, 1)",
+                light: float = 800.0) -> set[str]:
+    from pxr import Usd
+
+    from stages.scene.validation import _signatures
+
+    p = tmp_path / name / "scene.usda"
+    p.parent.mkdir()
+    p.write_text(f"""#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = {mpu}
+    upAxis = "Z"
+)
+def Xform "World"
+{{
+    def Scope "Looks"
+    {{
+        def Material "M"
+        {{
+            def Shader "surface"
+            {{
+                uniform token info:id = "UsdPreviewSurface"
+                color3f inputs:diffuseColor.connect = </World/Looks/M/base.outputs:rgb>
+                normal3f inputs:normal.connect = </World/Looks/M/normal.outputs:rgb>
+            }}
+            def Shader "base"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                float4 inputs:scale = {tint}
+                float3 outputs:rgb
+            }}
+            def Shader "normal"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                float4 inputs:scale = {scale}
+                float4 inputs:bias = (-1, -1, -1, 0)
+                float3 outputs:rgb
+            }}
+        }}
+    }}
+    def Scope "Lights"
+    {{
+        def SphereLight "L"
+        {{
+            float inputs:intensity = {light}
+            double3 xformOp:translate = (1.5, 2.5, 2.4)
+            uniform token[] xformOpOrder = ["xformOp:translate"]
+        }}
+    }}
+}}
+""", encoding="utf-8")
+    return set(_signatures(Usd.Stage.Open(str(p)), p))
+
+
+def test_structure_signature_keeps_checked_values_exact(tmp_path) -> None:
+    """The omniverse validator runs once per scene structure signature: values it checks (a normal
+    map's scale and bias, the layer's metersPerUnit) must enter exactly, so a wrong one is validated
+    instead of reusing a verdict; tints (a base color reader's scale) and light intensities (vary per scene) still share one."""
+    base = _scene_sigs(tmp_path, "a")
+    assert _scene_sigs(tmp_path, "b", tint="(0.2, 0.9, 0.1, 1)", light=1200.0) == base
+    assert _scene_sigs(tmp_path, "c", scale="(3, 3, 3, 1)") != base
+    assert _scene_sigs(tmp_path, "d", mpu=0.01) != base
