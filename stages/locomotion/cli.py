@@ -61,7 +61,12 @@ def train_main(argv: list[str]) -> int:
                   f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  std {row['action_std']:.3f}",
                   flush=True)
 
-    summary = train(cfg, progress=progress)
+    import signal
+
+    stopping: list[int] = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda signum, frame: stopping.append(signum))
+    summary = train(cfg, progress=progress, stop=lambda: bool(stopping))
     print(json.dumps(summary), flush=True)
     return 0
 

@@ -96,6 +96,12 @@ class G1VelocityEnv:
         self.fixed_commands = False
         """when set, commands are never resampled (evaluation sets them)"""
         self.metrics = R.RewardMetrics(n, dev)
+        self._down = torch.tensor([0.0, 0.0, -1.0], device=dev)
+        nj = len(self.joint_names)
+        self._noise_widths = torch.cat([
+            torch.full((3,), OBS_NOISE["lin_vel"]), torch.full((3,), OBS_NOISE["ang_vel"]),
+            torch.full((3,), OBS_NOISE["gravity"]), torch.zeros(3), torch.full((nj,), OBS_NOISE["joint_pos"]),
+            torch.full((nj,), OBS_NOISE["joint_vel"]), torch.zeros(self.num_actions)]).to(dev)
         self._graph: Any = None
         self.reset_worlds(torch.arange(n, device=dev))
         self._simulate()  # compiles the kernels before any capture
@@ -198,7 +204,7 @@ class G1VelocityEnv:
         quat = self.q[:, 3:7]
         lin_b = quat_rotate_inverse(quat, self.qd[:, 0:3])
         ang_b = quat_rotate_inverse(quat, self.qd[:, 3:6])
-        grav = quat_rotate_inverse(quat, torch.tensor([0.0, 0.0, -1.0], device=self.device).expand_as(lin_b))
+        grav = quat_rotate_inverse(quat, self._down.expand_as(lin_b))
         return lin_b, ang_b, grav
 
     def _observations(self) -> tuple[torch.Tensor, torch.Tensor]:
@@ -208,12 +214,7 @@ class G1VelocityEnv:
         clean = torch.cat([lin_b, ang_b, grav, self.commands, jpos, jvel, self.actions], dim=1)
         if not self.cfg.randomization.obs_noise:
             return clean, clean
-        widths = torch.cat([
-            torch.full((3,), OBS_NOISE["lin_vel"]), torch.full((3,), OBS_NOISE["ang_vel"]),
-            torch.full((3,), OBS_NOISE["gravity"]), torch.zeros(3),
-            torch.full((jpos.shape[1],), OBS_NOISE["joint_pos"]), torch.full((jvel.shape[1],), OBS_NOISE["joint_vel"]),
-            torch.zeros(self.num_actions)]).to(self.device)
-        noise = (2.0 * torch.rand(clean.shape, generator=self.gen, device=self.device) - 1.0) * widths
+        noise = (2.0 * torch.rand(clean.shape, generator=self.gen, device=self.device) - 1.0) * self._noise_widths
         return clean + noise, clean
 
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,

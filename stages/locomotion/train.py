@@ -108,20 +108,18 @@ def _save(runner: Any, cfg: TrainConfig, directory: Path, iteration: int) -> Pat
     runner.current_learning_iteration = iteration
     runner.save(str(tmp), infos={"config": to_dict(cfg)})
     tmp.replace(path)
-    for old in directory.glob("model_*.pt"):  # keep the newest two
-        m = re.fullmatch(r"model_(\d+)\.pt", old.name)
-        if m and int(m.group(1)) < iteration and old != path:
-            others = sorted(int(re.fullmatch(r"model_(\d+)\.pt", p.name).group(1))  # type: ignore[union-attr]
-                            for p in directory.glob("model_*.pt"))
-            if len(others) > 2 and int(m.group(1)) == others[0]:
-                old.unlink()
+    older = sorted((int(m.group(1)), p) for p in directory.glob("model_*.pt")
+                   if (m := re.fullmatch(r"model_(\d+)\.pt", p.name)) and int(m.group(1)) < iteration)
+    for _, stale in older[:-1]:  # keep this checkpoint and the one before it
+        stale.unlink()
     return path
 
 
-def train(cfg: TrainConfig, *, progress: Any = None) -> dict[str, Any]:
+def train(cfg: TrainConfig, *, progress: Any = None, stop: Any = None) -> dict[str, Any]:
     """Run ``cfg.iterations`` PPO iterations (or until ``cfg.max_wall_s``); returns a summary dict.
 
-    ``progress(row)`` is called with each curve row (a dict of CURVE_FIELDS) when given.
+    ``progress(row)`` is called with each curve row (a dict of CURVE_FIELDS) when given; ``stop()``
+    returning True ends the run after the current iteration (a checkpoint is written either way).
     """
     directory = Path(cfg.checkpoint_dir)
     directory.mkdir(parents=True, exist_ok=True)
@@ -155,7 +153,7 @@ def train(cfg: TrainConfig, *, progress: Any = None) -> dict[str, Any]:
             writer.writeheader()
         first = True
         while it < start_it + cfg.iterations:
-            if cfg.max_wall_s and time.time() - t0 > cfg.max_wall_s:
+            if (cfg.max_wall_s and time.time() - t0 > cfg.max_wall_s) or (stop is not None and stop()):
                 break
             t_it = time.time()
             runner.current_learning_iteration = it
