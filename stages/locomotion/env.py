@@ -104,7 +104,7 @@ class G1VelocityEnv:
             torch.full((nj,), OBS_NOISE["joint_vel"]), torch.zeros(self.num_actions)]).to(dev)
         self._graph: Any = None
         self.reset_worlds(torch.arange(n, device=dev))
-        self._simulate()  # compiles the kernels before any capture
+        self._physics()  # compiles the kernels before any capture
         self.reset_worlds(torch.arange(n, device=dev))
         if cfg.cuda_graph and self.wp_device.is_cuda:
             with wp.ScopedCapture(device=self.wp_device) as capture:
