@@ -80,3 +80,21 @@ def test_evaluation_reports_errors_and_falls(trained, tmp_path):
                                  settle_s=0.1))
     assert result["rollouts"] == 2 and 0 <= result["falls"] <= 2
     assert result["lin_vel_error_mps"] >= 0.0 and result["yaw_rate_error_radps"] >= 0.0
+
+
+def test_committed_policy_loads_and_acts_on_the_cpu():
+    from pathlib import Path
+
+    from stages.locomotion.policy import PolicyRuntime
+
+    folder = Path(__file__).resolve().parents[2] / "stages/locomotion/policies/g1_velocity"
+    runtime = PolicyRuntime.load(folder)
+    meta = runtime.meta
+    assert meta["num_obs"] == 85 and meta["num_actions"] == 15 and meta["iteration"] > 0
+    obs = torch.zeros(4, 85)
+    obs[:, 8] = -1.0  # upright: gravity along -z in the base frame
+    actions = runtime.act(obs)
+    assert actions.shape == (4, 15) and torch.isfinite(actions).all()
+    assert torch.equal(actions[0], actions[3])  # deterministic, batched
+    rows = (folder / "curve.csv").read_text().splitlines()
+    assert len(rows) == meta["iteration"] + 1
