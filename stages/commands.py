@@ -7,6 +7,12 @@ One entry per command; the built-in names (run, ingest, catalog, status) cannot 
 """
 
 COMMANDS: dict[str, tuple[str, str]] = {
+    "loco-eval": ("stages.locomotion.cli:eval_main",
+                  "evaluate a G1 velocity policy: tracking error [m/s, rad/s] and falls over R rollouts"),
+    "loco-export": ("stages.locomotion.cli:export_main",
+                    "export a G1 velocity checkpoint as TorchScript with its config and reward curve"),
+    "loco-train": ("stages.locomotion.cli:train_main",
+                   "train the G1 velocity-tracking policy with PPO on N Newton worlds; resumes from checkpoints"),
     "render-assets": ("stages.render_assets:main",
                       "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
     "render-dataset": ("stages.dataset.render:cli",

@@ -1,0 +1,8 @@
+"""Locomotion for legged robots: the Unitree G1 velocity-tracking task, its PPO trainer and policy runtime.
+
+Public surface (heavy packages are imported lazily by the submodules, never by this file):
+- ``config``: ``EnvConfig``, ``TrainConfig``, ``PPOConfig`` ... (typed dataclasses)
+- ``env.G1VelocityEnv``: N G1 worlds in one Newton model (SolverMuJoCo), torch tensors on the device
+- ``train.train`` / ``evaluate.evaluate`` / ``policy.export_policy`` and ``policy.PolicyRuntime``
+- ``cli``: the ``agentworld loco-train`` / ``loco-eval`` / ``loco-export`` subcommands
+"""

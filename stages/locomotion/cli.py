@@ -1,0 +1,112 @@
+"""``agentworld loco-train`` / ``loco-eval`` / ``loco-export``: the G1 velocity policy's commands.
+
+Each ``*_main(argv) -> int`` parses its own arguments (registered in ``stages.commands``). Logs go to
+``<checkpoint dir>/locomotion.log``; the console gets one line per progress report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from stages.locomotion.config import EnvConfig, PPOConfig, TrainConfig
+
+DEFAULT_DIR = "out/locomotion/g1_velocity"
+
+
+def _quiet_logs(directory: Path) -> None:
+    directory.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(directory / "locomotion.log")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.INFO)
+    import warnings
+    warnings.filterwarnings("ignore", category=UserWarning)
+
+
+def _env_args(p: argparse.ArgumentParser, *, worlds: int) -> None:
+    p.add_argument("--num-worlds", type=int, default=worlds)
+    p.add_argument("--device", default="cuda:0", help="cuda:0 or cpu")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-graph", action="store_true", help="no CUDA graph capture of the physics step")
+
+
+def train_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="agentworld loco-train",
+                                description="train the G1 velocity-tracking policy with PPO; resumes from the "
+                                            "latest checkpoint in --checkpoint-dir")
+    _env_args(p, worlds=4096)
+    p.add_argument("--iterations", type=int, default=1000, help="PPO iterations to add in this run")
+    p.add_argument("--max-wall-s", type=float, default=0.0, help="stop after this many seconds (0: no limit)")
+    p.add_argument("--save-every", type=int, default=100)
+    p.add_argument("--checkpoint-dir", default=DEFAULT_DIR)
+    p.add_argument("--no-resume", action="store_true")
+    p.add_argument("--print-every", type=int, default=25)
+    a = p.parse_args(argv)
+    cfg = TrainConfig(env=EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph),
+                      ppo=PPOConfig(), iterations=a.iterations, max_wall_s=a.max_wall_s, save_every=a.save_every,
+                      checkpoint_dir=a.checkpoint_dir, resume=not a.no_resume)
+    _quiet_logs(Path(a.checkpoint_dir))
+    from stages.locomotion.train import train
+
+    def progress(row: dict) -> None:
+        if row["iteration"] % a.print_every == 0:
+            print(f"it {row['iteration']:5d}  {row['iter_s']:.3f} s/it  reward/step {row['reward_per_step']:+.4f}  "
+                  f"return {row['episode_return']}  len {row['episode_length']}  falls {row['falls']:.0f}  "
+                  f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  std {row['action_std']:.3f}",
+                  flush=True)
+
+    import signal
+
+    stopping: list[int] = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda signum, frame: stopping.append(signum))
+    summary = train(cfg, progress=progress, stop=lambda: bool(stopping))
+    print(json.dumps(summary), flush=True)
+    return 0
+
+
+def eval_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="agentworld loco-eval",
+                                description="evaluate a G1 velocity policy: tracking error and falls over R rollouts")
+    _env_args(p, worlds=100)
+    p.add_argument("--policy", required=True, help="exported TorchScript policy (.pt) or a training checkpoint")
+    p.add_argument("--seconds", type=float, default=20.0, help="length of each rollout [s]")
+    p.add_argument("--json", default="", help="also write the result here")
+    a = p.parse_args(argv)
+    from stages.locomotion.evaluate import EvalConfig, evaluate
+
+    env = EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph)
+    t0 = time.time()
+    result = evaluate(EvalConfig(env=env, policy=a.policy, seconds=a.seconds))
+    result["wall_s"] = round(time.time() - t0, 1)
+    text = json.dumps(result, indent=2)
+    print(text)
+    if a.json:
+        Path(a.json).write_text(text + "\n")
+    return 0
+
+
+def export_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="agentworld loco-export",
+                                description="export a training checkpoint's policy as TorchScript with its metadata, "
+                                            "training config, reward curve CSV and PNG")
+    p.add_argument("--checkpoint-dir", default=DEFAULT_DIR)
+    p.add_argument("--out", default="stages/locomotion/policies/g1_velocity")
+    a = p.parse_args(argv)
+    from stages.locomotion.policy import export_from_checkpoint_dir
+
+    written = export_from_checkpoint_dir(Path(a.checkpoint_dir), Path(a.out))
+    for path in written:
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    commands = {"train": train_main, "eval": eval_main, "export": export_main}
+    sys.exit(commands[sys.argv[1]](sys.argv[2:]))

@@ -1,0 +1,180 @@
+"""Typed configuration of the G1 velocity-tracking task and its PPO training.
+
+Plain frozen dataclasses (no heavy imports): the CLI builds them from arguments, the trainer
+writes them as JSON beside each checkpoint, and ``from_dict`` reads them back. Units are in the
+field docstrings; ranges are ``(low, high)`` tuples sampled uniformly.
+
+The task follows mjlab's ``Unitree-G1-Flat`` velocity task (rewards, observation noise, action
+scale 0.25 * effort / stiffness, PD gains from armature at 10 Hz / damping ratio 2, 200 Hz physics,
+50 Hz control) with this project's command ranges, and the paper's arm perturbation: the arms'
+joint targets are redrawn every 150 control steps and held by PD, not by the policy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True, kw_only=True)
+class CommandRanges:
+    """Velocity commands in the base's heading frame."""
+
+    vx: tuple[float, float] = (-0.5, 1.0)
+    """forward velocity [m/s]"""
+    vy: tuple[float, float] = (-0.5, 0.5)
+    """lateral velocity [m/s]"""
+    yaw_rate: tuple[float, float] = (-1.0, 1.0)
+    """yaw rate [rad/s]"""
+    resample_s: tuple[float, float] = (3.0, 8.0)
+    """time between command draws [s]"""
+    standing_fraction: float = 0.1
+    """share of draws that command zero velocity"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RewardWeights:
+    """Weights of the reward terms; each term is also multiplied by the control period (mjlab)."""
+
+    track_lin_vel: float = 1.0
+    track_ang_vel: float = 1.0
+    tracking_std: float = 0.5
+    """std of the exponential tracking kernels [m/s, rad/s]"""
+    posture: float = 1.0
+    joint_limits: float = -1.0
+    action_rate: float = -0.1
+    lin_vel_z: float = 0.0
+    ang_vel_xy: float = 0.0
+    termination: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Randomization:
+    """Domain randomization: drawn per world at start-up (friction, mass) or during episodes."""
+
+    foot_friction: tuple[float, float] = (0.3, 1.2)
+    """sliding friction coefficient of the feet (the floor's is the lower bound)"""
+    base_mass_offset: tuple[float, float] = (-1.0, 3.0)
+    """mass added to the pelvis [kg]"""
+    push_interval_s: tuple[float, float] = (1.0, 3.0)
+    """time between pushes [s]"""
+    push_velocity: float = 0.5
+    """largest planar base velocity change of a push [m/s]; 0 disables pushes"""
+    arm_resample_steps: int = 150
+    """control steps between arm target draws (the paper's 150 frames)"""
+    arm_range: float = 0.6
+    """half-width of the arm targets' draw around the default pose [rad], clipped to limits"""
+    obs_noise: bool = True
+    """add mjlab's uniform observation noise to the policy's observations (not the critic's)"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class EnvConfig:
+    """One batched G1 environment: N worlds in one Newton model, stepped together."""
+
+    num_worlds: int = 4096
+    device: str = "cuda:0"
+    seed: int = 0
+    sim_dt: float = 0.005
+    """physics step [s]"""
+    decimation: int = 4
+    """physics steps per control step (50 Hz control at 200 Hz physics)"""
+    episode_length_s: float = 20.0
+    """timeout [s]"""
+    solver_iterations: int = 10
+    ls_iterations: int = 20
+    fall_height: float = 0.3
+    """base height under which a world has fallen [m]"""
+    fall_tilt_deg: float = 70.0
+    """base tilt over which a world has fallen [deg]"""
+    use_waist: bool = True
+    """the policy also drives the 3 waist joints (else they are held at the default pose)"""
+    cuda_graph: bool = True
+    commands: CommandRanges = field(default_factory=CommandRanges)
+    rewards: RewardWeights = field(default_factory=RewardWeights)
+    randomization: Randomization = field(default_factory=Randomization)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.num_worlds < 1:
+            problems.append(f"num_worlds must be positive, got {self.num_worlds}")
+        if self.decimation < 1 or self.decimation % 2:
+            problems.append(f"decimation must be a positive even number (state swaps), got {self.decimation}")
+        if self.sim_dt <= 0.0:
+            problems.append(f"sim_dt must be positive, got {self.sim_dt}")
+        if problems:
+            raise ValueError("; ".join(problems))
+
+    @property
+    def control_dt(self) -> float:
+        """control period [s]"""
+        return self.sim_dt * self.decimation
+
+
+@dataclass(frozen=True, kw_only=True)
+class PPOConfig:
+    """rsl-rl PPO hyper-parameters (mjlab's G1 velocity runner)."""
+
+    num_steps_per_env: int = 24
+    hidden_dims: tuple[int, ...] = (512, 256, 128)
+    init_noise_std: float = 1.0
+    learning_rate: float = 1.0e-3
+    num_learning_epochs: int = 5
+    num_mini_batches: int = 4
+    clip_param: float = 0.2
+    entropy_coef: float = 0.01
+    gamma: float = 0.99
+    lam: float = 0.95
+    desired_kl: float = 0.01
+    max_grad_norm: float = 1.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """A training run: resumes from the latest checkpoint in ``checkpoint_dir`` unless ``resume`` is off."""
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    iterations: int = 1000
+    """PPO iterations to run in this call (added to those already done)"""
+    max_wall_s: float = 0.0
+    """stop after this wall time [s] (0: no limit); a checkpoint is written at the stop"""
+    save_every: int = 100
+    """iterations between checkpoints"""
+    checkpoint_dir: str = "out/locomotion/g1_velocity"
+    resume: bool = True
+
+    def __post_init__(self) -> None:
+        if self.iterations < 0:
+            raise ValueError(f"iterations must be >= 0, got {self.iterations}")
+
+
+def to_dict(cfg: Any) -> dict[str, Any]:
+    """JSON-ready dict of a config dataclass (tuples become lists)."""
+    return dataclasses.asdict(cfg)
+
+
+def _build(cls: type, data: dict[str, Any]) -> Any:
+    kwargs: dict[str, Any] = {}
+    hints = {f.name: f for f in dataclasses.fields(cls)}
+    for key, value in data.items():
+        if key not in hints:
+            continue  # forward-compatible: unknown keys from newer files are ignored
+        default = getattr(cls(), key)
+        if dataclasses.is_dataclass(default) and isinstance(value, dict):
+            value = _build(type(default), value)
+        elif isinstance(default, tuple) and isinstance(value, list):
+            value = tuple(value)
+        kwargs[key] = value
+    return cls(**kwargs)
+
+
+def train_config_from_dict(data: dict[str, Any]) -> TrainConfig:
+    """Inverse of ``to_dict`` for ``TrainConfig``."""
+    return _build(TrainConfig, data)
+
+
+def env_config_from_dict(data: dict[str, Any]) -> EnvConfig:
+    """Inverse of ``to_dict`` for ``EnvConfig``."""
+    return _build(EnvConfig, data)
