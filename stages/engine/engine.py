@@ -128,6 +128,7 @@ class _Bank:
     rig: object = None
     peaks: object = None
     hold: object = None  # WorldHold (batched layout)
+    joint_world: np.ndarray | None = None  # model.joint_world on the host (read once)
 
 
 @dataclass
@@ -184,7 +185,9 @@ class BatchEngine:
         self.steps_per_second = int(round(steps_per_s))
         self.sync_period = self.steps_per_second // math.gcd(self.steps_per_second, config.fps)
         self.global_step = 0
-        self._captured_step = -1
+        self._captured_step = self._launched_step = -1
+        self._renders: dict[int, object] = {}  # renders in flight by bank (stages.simulate.compact)
+        self._stale: set[int] = set()  # worlds reset after the render of this step was launched
         self._free = {}
         qs = self.banks[0].model.joint_q_start.numpy()
         child = self.banks[0].model.joint_child.numpy()
@@ -277,16 +280,31 @@ class BatchEngine:
                 self.stats.timings.control += time.perf_counter() - t0
                 if not ls.alive() or (stop_at is not None and self.global_step >= stop_at):
                     break
-                sync = [w for w in ls.waiting_sync() if not self.held[w]]
-                if sync and self.global_step % self.sync_period == 0:
-                    self._reset_worlds(sync)
-                    ls.release_sync(sync)
+                if self._reset_due():
                     continue
-                self._capture()
-                self._advance(sync)
+                self._finish_capture()
+                self._advance([w for w in ls.waiting_sync() if not self.held[w]])
+                self._reset_due()  # before the render, so that reset worlds record this frame
+                self._launch_capture()  # the GPU renders while the programs run
         finally:
+            self._finish_capture(deliver=False)
             ls.shutdown()
         return self.stats
+
+    def _reset_due(self) -> bool:
+        """At a sync point, reset the worlds waiting for it (not held) and let their programs go
+        on. Not once this step's render is in flight (every step but the first launches one before
+        the programs run): a world that asks then is reset at the next sync point, before its
+        render, so that every episode records its first frame."""
+        ls = self.lockstep
+        if self._launched_step == self.global_step:
+            return False
+        sync = [w for w in ls.waiting_sync() if not self.held[w]]
+        if not sync or self.global_step % self.sync_period:
+            return False
+        self._reset_worlds(sync)
+        ls.release_sync(sync)
+        return True
 
     def _local_side(self, ls) -> WorldSide:
         """The world programs as threads of this process."""
@@ -439,37 +457,78 @@ class BatchEngine:
         mask[local] = True
         dev = sim.model.device
         sim.solver.reset(sim.state_0, world_mask=wp.array(mask, dtype=wp.bool, device=dev))
-        q = sim.state_0.joint_q.numpy()
+        # the state read of this step (no read that waits for a render in flight)
+        q = bank.snapshot.get("joint_q").copy()
         c = sim.coords_per_world
         for w, i in zip(worlds, local, strict=True):
             for k, v in self._pending_reset.pop(w).items():
                 q[i * c + k] = v
             bank.ctl.reset_world(i)
             self.steps[w] = 0
+            if self._launched_step == self.global_step:
+                self._stale.add(w)
         q_wp = wp.array(q, dtype=wp.float32, device=dev)
         sim.state_0.joint_q.assign(q_wp)
-        jmask = wp.array(np.isin(sim.model.joint_world.numpy(), local), dtype=wp.bool, device=dev)
+        if bank.joint_world is None:
+            bank.joint_world = sim.model.joint_world.numpy()
+        jmask = wp.array(np.isin(bank.joint_world, local), dtype=wp.bool, device=dev)
         newton.eval_fk(sim.model, q_wp, sim.state_0.joint_qd, sim.state_0, joint_mask=jmask)
         sim.state_1.assign(sim.state_0)
         bank.snapshot.invalidate()
 
-    def _capture(self) -> None:
-        """At a frame step: one render of every world, one state read, a frame per recording world."""
+    def _recording(self) -> list[int]:
+        """Worlds that record a frame at this step: recording, within their limit, not held, and
+        not reset after this step's render was launched (its images show the state before)."""
+        return [w for w in range(self.config.worlds) if self.rec_active[w] and self.steps[w] <= self.rec_max[w]
+                and not self.held[w] and w not in self._stale]
+
+    def _launch_capture(self) -> None:
+        """At a frame step, before the programs run: read the state (one read per Sim), then
+        enqueue one render of every world of each Sim with a recording world; the frames are
+        assembled by :meth:`_finish_capture` once the programs have answered (their commands are
+        the frame's action). Only a reset changes the state in between; worlds reset after the
+        launch do not record at that step."""
+        step = self.global_step
+        if step == self._launched_step or not self._is_frame_step(step):
+            return
+        self._launched_step = step
+        self._stale.clear()
+        t0 = time.perf_counter()
+        banks = {id(self._where[w][0]): self._where[w][0] for w in self._recording()}
+        for b in banks.values():
+            b.snapshot.prefetch()
+            if b.peaks.paths:
+                b.peaks.host()
+            if b.rig is not None:
+                self._renders[id(b)] = b.rig.render_compact_async()
+        self.stats.timings.rendering += time.perf_counter() - t0
+
+    def _finish_capture(self, deliver: bool = True) -> None:
+        """At a frame step, after the programs: one frame per recording world (images of the
+        render launched at this step, rendered now for Sims that had no recording world then)."""
         step = self.global_step
         if step == self._captured_step or not self._is_frame_step(step):
             return
         self._captured_step = step
-        worlds = [w for w in range(self.config.worlds)
-                  if self.rec_active[w] and self.steps[w] <= self.rec_max[w] and not self.held[w]]
+        worlds = self._recording() if deliver else []
         if not worlds:
+            for r in self._renders.values():
+                r.wait()
+            self._renders.clear()
             return
         from stages.dataset import Frame
 
         t0 = time.perf_counter()
         images = {}
         for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
-            if b.rig is not None:
-                images[id(b)] = b.rig.render_compact()  # RGB uint8 and depth [mm] uint16, per camera
+            r = self._renders.pop(id(b), None)
+            if r is None and b.rig is not None:
+                r = b.rig.render_compact_async()
+            if r is not None:
+                images[id(b)] = r.wait()  # RGB uint8 and depth [mm] uint16, per camera
+        for r in self._renders.values():
+            r.wait()
+        self._renders.clear()
         t1 = time.perf_counter()
         q_all, t_all, base_all = self._robot_state(worlds)
         ee_all = pose7_batch(self.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets

@@ -40,6 +40,7 @@ class Peaks:
         self._active_np = np.zeros(n, np.int32)
         self._active = wp.zeros(n, dtype=wp.int32, device=dev)
         self._dirty = False
+        self._host: np.ndarray | None = None  # host copy of _peak, read at most once per step
         self._kernel = _peaks_kernel()
         sim.pre_step.append(self._pre_step)
 
@@ -47,13 +48,20 @@ class Peaks:
         self._active_np[w] = 1
         self._dirty = True
         self._peak[w].fill_(-1e9)
+        self._host = None
 
     def stop(self, w: int) -> None:
         self._active_np[w] = 0
         self._dirty = True
 
+    def host(self) -> np.ndarray:
+        """(W, P) peaks [m or rad] on the host, read once after each physics step."""
+        if self._host is None:
+            self._host = self._peak.numpy()
+        return self._host
+
     def read(self, w: int) -> dict[str, float]:
-        row = self._peak.numpy()[w]
+        row = self.host()[w]
         return {p: float(row[i]) for i, p in enumerate(self.paths)}
 
     def _pre_step(self, sim) -> None:
@@ -61,6 +69,7 @@ class Peaks:
 
         if not self.paths:
             return
+        self._host = None
         if self._dirty:
             self._active.assign(self._active_np)
             self._dirty = False

@@ -226,13 +226,12 @@ class RemotePrograms:
 
     def _write_snapshot(self) -> None:
         bank = self.engine.banks[0]
-        st = bank.sim.state_0
+        snap = bank.snapshot  # read once per step (before a render is enqueued at frame steps)
         a = self.a
-        a["joint_q"][:] = st.joint_q.numpy()
-        a["joint_qd"][:] = st.joint_qd.numpy()
-        a["body_q"][:] = st.body_q.numpy()
+        for name in ("joint_q", "joint_qd", "body_q"):
+            a[name][:] = snap.get(name).reshape(a[name].shape)
         if bank.peaks.paths:
-            a["peaks"][:] = bank.peaks._peak.numpy()
+            a["peaks"][:] = bank.peaks.host()
 
     # -- Lockstep's engine-side interface --------------------------------------------------------
     def ready(self, skip=None) -> list[int]:

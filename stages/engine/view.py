@@ -28,6 +28,11 @@ class Snapshot:
     def invalidate(self) -> None:
         self._cache.clear()
 
+    def prefetch(self) -> None:
+        """Read every array now (before work is enqueued that a later read would wait for)."""
+        for name in ("joint_q", "joint_qd", "body_q"):
+            self.get(name)
+
     def get(self, name: str) -> np.ndarray:
         a = self._cache.get(name)
         if a is None:

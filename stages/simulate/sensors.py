@@ -470,42 +470,16 @@ class CameraRig:
         images by camera name: RGB (W, H, Wd, 3) uint8 and depth (W, H, Wd) uint16 [mm] (rounded
         to nearest, 0 where no surface, at most 65,535: the dataset's depth encoding), converted
         on the device so that the host only copies them (needs ``rgb`` and ``depth``). On CUDA
-        they are views of pinned host buffers (one asynchronous copy per image, one wait for
-        all) that the next call overwrites: copy what you keep."""
-        import warp as wp
+        they are views of pinned host buffers that the next call overwrites: copy what you keep.
+        :meth:`render_compact_async` returns before the GPU has rendered."""
+        return self.render_compact_async().wait()
 
-        if not (self.rgb and self.depth):
-            raise ValueError("render_compact needs RGB and depth images")
-        model, state = self.sim.model, self.sim.state_0
-        model.bvh_refit_shapes(state)
-        out = {}
-        nw = self.sim.world_count
-        for cam in self.cameras:
-            tfs, _ = self._transforms(cam)
-            img = self._images[cam.name]
-            self._sensor.update(state, tfs, self._rays[cam.name], color_image=img["color"],
-                                forward_depth_image=img["depth"], shape_index_image=img["shape"],
-                                world_indices=self._world_ids)
-            n = nw * cam.height * cam.width
-            bufs = self.__dict__.setdefault("_compact", {})
-            if cam.name not in bufs:
-                bufs[cam.name] = (wp.zeros(3 * n, dtype=wp.uint8, device=model.device),
-                                  wp.zeros(n, dtype=wp.uint16, device=model.device))
-            rgb, mm = bufs[cam.name]
-            wp.launch(_compact_kernel(), dim=n, device=model.device,
-                      inputs=[img["color"].flatten(), img["depth"].flatten(), rgb, mm])
-            if str(model.device).startswith("cuda"):
-                host = self.__dict__.setdefault("_pinned", {}).get(cam.name)
-                if host is None:
-                    host = self._pinned[cam.name] = tuple(wp.empty_like(a, device="cpu", pinned=True) for a in (rgb, mm))
-                for h, a in zip(host, (rgb, mm), strict=True):
-                    wp.copy(h, a)
-                r, d = (h.numpy() for h in host)
-            else:  # .numpy() is a view of the buffer the next render overwrites: copy it
-                r, d = (a.numpy().copy() for a in (rgb, mm))
-            out[cam.name] = (r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width))
-        wp.synchronize_device(model.device)
-        return out
+    def render_compact_async(self):
+        """:meth:`render_compact` enqueued: a :class:`~stages.simulate.compact.CompactRender`
+        whose ``wait()`` returns the images."""
+        from stages.simulate.compact import launch_compact
+
+        return launch_compact(self)
 
     def _frame(self, cam: CameraSpec, img: dict, m: np.ndarray) -> CameraFrame:
         rgb = depth = shape = None
@@ -530,34 +504,6 @@ class CameraRig:
             extrinsics=m,
             worlds=np.arange(self.sim.world_count),
         )
-
-
-_COMPACT = None
-
-
-def _compact_kernel():
-    """Packed RGBA words -> RGB bytes; depth [m] -> uint16 [mm] as ``depth_m_to_mm`` does it
-    (float64, round half to even, non-finite or <= 0 -> 0, clipped at 65,535)."""
-    global _COMPACT
-    if _COMPACT is None:
-        import warp as wp
-
-        @wp.kernel
-        def compact(color: wp.array[wp.uint32], depth: wp.array[wp.float32], rgb: wp.array[wp.uint8],
-                    mm: wp.array[wp.uint16]):
-            i = wp.tid()
-            p = color[i]
-            rgb[3 * i] = wp.uint8(p & wp.uint32(255))
-            rgb[3 * i + 1] = wp.uint8((p >> wp.uint32(8)) & wp.uint32(255))
-            rgb[3 * i + 2] = wp.uint8((p >> wp.uint32(16)) & wp.uint32(255))
-            d = wp.float64(depth[i])
-            v = wp.float64(0.0)
-            if wp.isfinite(d) and d > wp.float64(0.0):
-                v = wp.min(wp.rint(d * wp.float64(1000.0)), wp.float64(65535.0))
-            mm[i] = wp.uint16(v)
-
-        _COMPACT = compact
-    return _COMPACT
 
 
 LABEL_COLORS = {

@@ -1,0 +1,106 @@
+"""Recording-ready images rendered on the device (RGB bytes, depth in millimetres), read back
+asynchronously so that the host can work while the GPU renders.
+
+:func:`launch_compact` enqueues the render of every camera in every world of a
+:class:`~stages.simulate.sensors.CameraRig`, the conversion kernel and the copies into pinned host
+buffers, and returns at once with a :class:`CompactRender`; its :meth:`CompactRender.wait` blocks
+until the images are on the host. The state must not change between the launch and the wait
+except through work enqueued after the launch on the same stream (the render reads ``state_0``
+when the GPU reaches it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class CompactRender:
+    """A render in flight: :meth:`wait` returns, by camera name, RGB (W, H, Wd, 3) uint8 and depth
+    (W, H, Wd) uint16 [mm] (0 where no surface, at most 65,535). On CUDA the arrays are views of
+    pinned buffers that the rig's next launch overwrites: copy what you keep."""
+
+    def __init__(self, out: dict[str, tuple[np.ndarray, np.ndarray]], event) -> None:
+        self._out = out
+        self._event = event
+
+    @property
+    def done(self) -> bool:
+        return self._event is None
+
+    def wait(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        if self._event is not None:
+            import warp as wp
+
+            wp.synchronize_event(self._event)
+            self._event = None
+        return self._out
+
+
+def launch_compact(rig) -> CompactRender:
+    """Enqueue one render of every camera of ``rig`` (needs RGB and depth) for ``rig.sim.state_0``
+    with its device-side conversion and read-back; on the CPU the render runs now."""
+    import warp as wp
+
+    if not (rig.rgb and rig.depth):
+        raise ValueError("render_compact needs RGB and depth images")
+    model, state = rig.sim.model, rig.sim.state_0
+    cuda = str(model.device).startswith("cuda")
+    # the camera poses are read from the host before anything is enqueued (a read waits for the stream)
+    tfs = {cam.name: rig._transforms(cam)[0] for cam in rig.cameras}
+    model.bvh_refit_shapes(state)
+    nw = rig.sim.world_count
+    bufs = rig.__dict__.setdefault("_compact", {})
+    pinned = rig.__dict__.setdefault("_pinned", {})
+    out = {}
+    for cam in rig.cameras:
+        img = rig._images[cam.name]
+        rig._sensor.update(state, tfs[cam.name], rig._rays[cam.name], color_image=img["color"],
+                           forward_depth_image=img["depth"], shape_index_image=img["shape"],
+                           world_indices=rig._world_ids)
+        n = nw * cam.height * cam.width
+        if cam.name not in bufs:
+            bufs[cam.name] = (wp.zeros(3 * n, dtype=wp.uint8, device=model.device),
+                              wp.zeros(n, dtype=wp.uint16, device=model.device))
+        rgb, mm = bufs[cam.name]
+        wp.launch(_compact_kernel(), dim=n, device=model.device,
+                  inputs=[img["color"].flatten(), img["depth"].flatten(), rgb, mm])
+        if cuda:
+            host = pinned.get(cam.name)
+            if host is None:
+                host = pinned[cam.name] = tuple(wp.empty_like(a, device="cpu", pinned=True) for a in (rgb, mm))
+            for h, a in zip(host, (rgb, mm), strict=True):
+                wp.copy(h, a)
+            r, d = (h.numpy() for h in host)
+        else:  # .numpy() is a view of the buffer the next render overwrites: copy it
+            r, d = (a.numpy().copy() for a in (rgb, mm))
+        out[cam.name] = (r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width))
+    event = wp.get_device(model.device).stream.record_event() if cuda else None
+    return CompactRender(out, event)
+
+
+_COMPACT = None
+
+
+def _compact_kernel():
+    """Packed RGBA words -> RGB bytes; depth [m] -> uint16 [mm] as ``depth_m_to_mm`` does it
+    (float64, round half to even, non-finite or <= 0 -> 0, clipped at 65,535)."""
+    global _COMPACT
+    if _COMPACT is None:
+        import warp as wp
+
+        @wp.kernel
+        def compact(color: wp.array[wp.uint32], depth: wp.array[wp.float32], rgb: wp.array[wp.uint8],
+                    mm: wp.array[wp.uint16]):
+            i = wp.tid()
+            p = color[i]
+            rgb[3 * i] = wp.uint8(p & wp.uint32(255))
+            rgb[3 * i + 1] = wp.uint8((p >> wp.uint32(8)) & wp.uint32(255))
+            rgb[3 * i + 2] = wp.uint8((p >> wp.uint32(16)) & wp.uint32(255))
+            d = wp.float64(depth[i])
+            v = wp.float64(0.0)
+            if wp.isfinite(d) and d > wp.float64(0.0):
+                v = wp.min(wp.rint(d * wp.float64(1000.0)), wp.float64(65535.0))
+            mm[i] = wp.uint16(v)
+
+        _COMPACT = compact
+    return _COMPACT
