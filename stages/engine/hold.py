@@ -87,6 +87,11 @@ class WorldHold:
         self._saved.update({name: wp.zeros(len(wmap), dtype=wp.float32, device=dev)
                             for name, wmap in self._solver_fields})
         self._views: dict[tuple[int, str], object] = {}
+        # holds and releases are applied on the device before the next step: an upload now would
+        # wait for a render in flight (a copy from pageable memory waits for the stream)
+        self._to_save = np.zeros(n, np.int32)
+        self._dirty = False
+        sim.pre_step.append(self._pre_step)
         sim.post_step.append(self._post_step)
 
     @property
@@ -117,16 +122,14 @@ class WorldHold:
             wp.launch(k, dim=saved.shape[0], inputs=[dst, src, self._maps[name], mask], device=self.device)
 
     def hold(self, worlds) -> None:
-        """Save ``worlds`` (local indices) as they are now and keep them so from now on."""
+        """Save ``worlds`` (local indices) as they are now and keep them so from now on (the
+        copy is taken before the next step: only a step changes a held world's state)."""
         worlds = [int(w) for w in worlds if not self.held_np[int(w)]]
         if not worlds:
             return
-        new = np.zeros_like(self.held_np)
-        new[worlds] = 1
-        self._new.assign(new)
-        self._copy(True, self._new)
+        self._to_save[worlds] = 1
         self.held_np[worlds] = 1
-        self._held.assign(self.held_np)
+        self._dirty = True
 
     def release(self, worlds) -> None:
         """Let ``worlds`` (local indices) step again from where they were held."""
@@ -134,7 +137,17 @@ class WorldHold:
         if not worlds:
             return
         self.held_np[worlds] = 0
+        self._dirty = True
+
+    def _pre_step(self, sim) -> None:
+        if not self._dirty:
+            return
+        if self._to_save.any():
+            self._new.assign(self._to_save)
+            self._copy(True, self._new)
+            self._to_save[:] = 0
         self._held.assign(self.held_np)
+        self._dirty = False
 
     def _post_step(self, sim) -> None:
         if self.held_np.any():

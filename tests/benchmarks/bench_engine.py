@@ -339,6 +339,23 @@ def _render_split(eng, bank, args) -> dict:
            "poses": timed(lambda: [rig._transforms(c) for c in rig.cameras]),
            "trace": timed(trace), "readback_unpack": timed(readback), "whole": timed(rig.render),
            "whole_compact": timed(rig.render_compact)}
+    # how long the host is held by launching a compact render (the engine runs the programs after it)
+    launch, wait = [], []
+    for _ in range(3):
+        wp.synchronize_device(dev)
+        t = time.perf_counter()
+        r = rig.render_compact_async()
+        launch.append(time.perf_counter() - t)
+        r.wait()
+        wait.append(time.perf_counter() - t - launch[-1])
+    out["compact_launch"] = round(statistics.median(launch), 4)
+    out["compact_wait"] = round(statistics.median(wait), 4)
+    for name, fn in (("refit_only_host", lambda: bank.sim.model.bvh_refit_shapes(state)), ("trace_host", trace)):
+        wp.synchronize_device(dev)
+        t = time.perf_counter()
+        fn()
+        out[name] = round(time.perf_counter() - t, 4)  # host time of the call, no synchronisation
+        wp.synchronize_device(dev)
     for name, kw in (("no_shadows", {"shadows": False}), ("no_textures", {"textures": False})):
         other = CameraRig(bank.sim, rig.cameras, segmentation=False, **kw)
         out[f"whole_{name}"] = timed(other.render)
