@@ -303,7 +303,7 @@ def bench_pool(n: int, args) -> dict:
 def _render_split(eng, bank, args) -> dict:
     """Seconds per frame (all worlds, 3 cameras) of the render's parts: BVH refit, camera poses,
     ray tracing (device, synchronised), read-back and unpacking; and of whole renders without
-    shadows and without textures (other rigs on the same Sim)."""
+    shadows and without textures (other rigs on the same Sim, with --render-variants)."""
     import warp as wp
 
     from stages.simulate.sensors import CameraRig
@@ -356,7 +356,8 @@ def _render_split(eng, bank, args) -> dict:
         fn()
         out[name] = round(time.perf_counter() - t, 4)  # host time of the call, no synchronisation
         wp.synchronize_device(dev)
-    for name, kw in (("no_shadows", {"shadows": False}), ("no_textures", {"textures": False})):
+    for name, kw in ((("no_shadows", {"shadows": False}), ("no_textures", {"textures": False}))
+                     if args.render_variants else ()):
         other = CameraRig(bank.sim, rig.cameras, segmentation=False, **kw)
         out[f"whole_{name}"] = timed(other.render)
     return out
@@ -379,6 +380,9 @@ def main(argv=None) -> dict:
     p.add_argument("--sim-seconds", type=float, default=2.0)
     p.add_argument("--no-images", action="store_true")
     p.add_argument("--render-split", action="store_true", help="time the render's parts too")
+    p.add_argument("--render-variants", action="store_true",
+                   help="with --render-split: whole renders without shadows and without textures too "
+                        "(two more rigs: minutes of kernel compilation on a fresh machine)")
     p.add_argument("--write", action="store_true", help="record into real dataset shards (encoding included)")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
