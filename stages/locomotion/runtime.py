@@ -203,7 +203,9 @@ class LeggedPolicyRuntime:
         self._arm_cols = {a: np.array([self.joint_names.index(j) for j in self.spec.arm(a).joints])
                           for a in self.arm_names}
         self.ee_targets = {a: np.tile(np.eye(4), (n, 1, 1)) for a in self.arm_names}
-        """per arm: end-effector target poses (N, 4, 4) in the world frame [m]"""
+        """per arm: end-effector target poses (N, 4, 4) [m], world or base frame (``ee_in_base``)"""
+        self.ee_in_base = {a: np.zeros(n, bool) for a in self.arm_names}
+        """per arm: (N,) whether the world's target is in the base frame (else the world frame)"""
         self.ee_active = {a: np.zeros(n, bool) for a in self.arm_names}
         """per arm: (N,) whether the world's arm follows its target (else it holds the default pose)"""
         self.arm_q = np.tile(self.default_q.cpu().numpy().astype(float), (n, 1))
@@ -229,11 +231,16 @@ class LeggedPolicyRuntime:
         sel = slice(None) if worlds is None else torch.as_tensor(worlds, dtype=torch.long, device=self.device)
         self.mode[sel] = torch.as_tensor(np.asarray(mode, np.int64), device=self.device)
 
-    def set_ee_target(self, arm: str, poses: np.ndarray, worlds: Any = None) -> None:
-        """End-effector target poses of ``arm``, (K, 4, 4) or (4, 4), world frame [m], for worlds
-        (K,) (default: all); those worlds' arm then follows it."""
+    def set_ee_target(self, arm: str, poses: np.ndarray, worlds: Any = None, *, frame: str = "world") -> None:
+        """End-effector target poses of ``arm``, (K, 4, 4) or (4, 4) [m], for worlds (K,) (default:
+        all); those worlds' arm then follows it. ``frame``: "world" (a fixed place: re-expressed in
+        the measured base frame every control step) or "base" (relative to the base's root link:
+        carried along while walking)."""
+        if frame not in ("world", "base"):
+            raise ValueError(f"frame must be 'world' or 'base', got {frame!r}")
         sel = np.arange(self.num_worlds) if worlds is None else np.asarray(worlds, int)
         self.ee_targets[arm][sel] = np.asarray(poses, float)
+        self.ee_in_base[arm][sel] = frame == "base"
         self.ee_active[arm][sel] = True
 
     def release_arm(self, arm: str, worlds: Any = None) -> None:
@@ -352,7 +359,8 @@ class LeggedPolicyRuntime:
         inv_root = np.linalg.inv(root[rows])
         for a in active:
             sub = np.flatnonzero(self.ee_active[a][rows])
-            goal = inv_root[sub] @ self.ee_targets[a][rows[sub]]
+            target = self.ee_targets[a][rows[sub]]
+            goal = np.where(self.ee_in_base[a][rows[sub]][:, None, None], target, inv_root[sub] @ target)
             res = self.clik.solve({a: goal}, q0[sub])
             self.last_clik[a] = res
             cols = self._arm_cols[a]
@@ -396,7 +404,6 @@ class HumanoidWorlds:
 
         from stages.locomotion.robot import build_g1_model
 
-        wp.config.quiet = True
         self.cfg = cfg = cfg or HumanoidWorldsConfig()
         rt_cfg = cfg.runtime if cfg.runtime.device == cfg.device else _with_device(cfg.runtime, cfg.device)
         self.model, self.layout = build_g1_model(cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
