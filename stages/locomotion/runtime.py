@@ -9,10 +9,12 @@ Per control step (``policy.json``'s ``control_dt``, 0.02 s: every ``decimation``
    velocities (29 joints in ``policy.json``'s order) and the last actions;
 2. the policy's actions (N, A) -> PD position targets of its joints: ``default + scale * action``
    [rad] (legs and waist);
-3. the arms: for each world and arm with an end-effector target, ``UpperBodyClik`` solves from the
-   measured configuration (legs and waist as simulated, arms warm-started from the last solution)
-   in the pelvis frame, the world-frame target being moved into the measured pelvis frame every
-   step; the solution becomes the arm joints' PD targets. Arms without a target hold the policy's
+3. the arms: for each world and arm with an end-effector target (world or base frame), the CLIK
+   goal moves from the hand's pose towards the target at most ``ee_speed`` / ``ee_turn_rate``
+   (a jump of the arm pushes the body: the policy steps); ``UpperBodyClik`` solves for it from the
+   measured configuration (legs and waist as simulated, extrapolated ``clik_lookahead_s``; arms
+   warm-started from the last solution) in the pelvis frame, a world-frame goal being moved into
+   the measured pelvis frame every step; the solution becomes the arm joints' PD targets. Arms without a target hold the policy's
    default pose. Optional gravity feed-forward (``Control.joint_f``) on the arm joints: the
    Pinocchio gravity torques of the arms for the measured pelvis orientation, so that the PD
    targets are reached without sag.
@@ -23,8 +25,11 @@ The base interface is the wheeled base's: a command (vx, vy, v_theta) per world 
 holds the legs' posture while the arms reach.
 
 Shapes: N worlds, J = 29 joints, A = 15 policy actions, O = 12 + 2 J + A observations.
-:class:`HumanoidWorlds` wires the runtime to a model of N G1 worlds built as in training
-(``robot.build_g1_model``) with its solver and states: the loop the tests and the demo run.
+:class:`HumanoidWorlds` wires the runtime to a model of N G1 worlds (by default built as in
+training, ``robot.build_g1_model``; ``scene.build_humanoid_scene`` puts them in a scene USD) with
+its solver and states: the loop the tests, ``runtime_eval`` and the kitchen reach run.
+The policy was trained with arm targets within 0.6 rad of the default pose; reaches far outside
+that (the hand at chest height) make it step while standing (measured: 20 cm).
 """
 
 from __future__ import annotations
@@ -66,11 +71,15 @@ class LeggedRuntimeConfig:
     """the floating base's body (its free joint's child)"""
     clik: ClikConfig = field(default_factory=lambda: ClikConfig(max_iters=30))
     """CLIK per control step (warm-started: a few iterations track a moving target)"""
+    ee_speed: float = 0.3
+    """largest speed of the CLIK goal towards an end-effector target [m/s]"""
+    ee_turn_rate: float = 1.0
+    """largest turn rate of the CLIK goal towards an end-effector target [rad/s]"""
     clik_lookahead_s: float = 0.08
     """CLIK solves for the base pose and leg/waist joints extrapolated this far ahead [s] at their
     measured velocities: the arms' PD (10 Hz, damping ratio 2) lags its targets by about 60 ms and
-    the policy sways the standing body by about a centimetre (measured, G1 standing: mean hand
-    error 8.8 / 12.3 mm with 0, 4.1 / 10.0 mm with 0.08 s)"""
+    the policy sways the standing body by about a centimetre (measured, G1 standing, two worlds:
+    mean hand error 8.8 / 12.3 mm with 0, 4.1 / 10.0 mm with 0.08 s)"""
     arm_gravity_feedforward: bool = True
     """add the arms' gravity torques [N m] to ``Control.joint_f`` (else the PD sags under the arms' weight)"""
     clip_commands: bool = True
@@ -207,6 +216,10 @@ class LeggedPolicyRuntime:
         self.ee_in_base = {a: np.zeros(n, bool) for a in self.arm_names}
         """per arm: (N,) whether the world's target is in the base frame (else the world frame)"""
         self.ee_active = {a: np.zeros(n, bool) for a in self.arm_names}
+        self.ee_goals = {a: np.tile(np.eye(4), (n, 1, 1)) for a in self.arm_names}
+        """per arm: the poses (N, 4, 4) CLIK solves for, in the target's frame: they move from the hand's
+        pose when the target was set towards the target at ``ee_speed`` / ``ee_turn_rate``"""
+        self._ee_fresh = {a: np.zeros(n, bool) for a in self.arm_names}
         """per arm: (N,) whether the world's arm follows its target (else it holds the default pose)"""
         self.arm_q = np.tile(self.default_q.cpu().numpy().astype(float), (n, 1))
         """arm joint targets (N, J) [rad] in sim order (only the arms' columns are used)"""
@@ -242,6 +255,7 @@ class LeggedPolicyRuntime:
         self.ee_targets[arm][sel] = np.asarray(poses, float)
         self.ee_in_base[arm][sel] = frame == "base"
         self.ee_active[arm][sel] = True
+        self._ee_fresh[arm][sel] = True
 
     def release_arm(self, arm: str, worlds: Any = None) -> None:
         """Stop following ``arm``'s target in worlds (K,) (default: all): back to the default pose."""
@@ -359,12 +373,37 @@ class LeggedPolicyRuntime:
         inv_root = np.linalg.inv(root[rows])
         for a in active:
             sub = np.flatnonzero(self.ee_active[a][rows])
-            target = self.ee_targets[a][rows[sub]]
-            goal = np.where(self.ee_in_base[a][rows[sub]][:, None, None], target, inv_root[sub] @ target)
+            in_base = self.ee_in_base[a][rows[sub]][:, None, None]
+            self._advance_goals(a, rows[sub], root[rows[sub]], q[rows[sub]])
+            goal_frame = self.ee_goals[a][rows[sub]]
+            goal = np.where(in_base, goal_frame, inv_root[sub] @ goal_frame)
             res = self.clik.solve({a: goal}, q0[sub])
             self.last_clik[a] = res
             cols = self._arm_cols[a]
             self.arm_q[np.ix_(rows[sub], cols)] = res.q[:, self._pin_cols[cols]]
+
+    def _advance_goals(self, arm: str, rows: np.ndarray, root: np.ndarray, q: np.ndarray) -> None:
+        """Move the CLIK goals of ``arm`` in worlds ``rows`` one control step towards their targets
+        (rate-limited: a target far from the hand does not make the arm jump and push the body)."""
+        from scipy.spatial.transform import Rotation
+
+        fresh = self._ee_fresh[arm][rows]
+        if fresh.any():                                   # start from the hand's measured pose
+            hand_b = self.clik.ee_pose(q[fresh], arm)
+            in_base = self.ee_in_base[arm][rows[fresh]][:, None, None]
+            self.ee_goals[arm][rows[fresh]] = np.where(in_base, hand_b, root[fresh] @ hand_b)
+            self._ee_fresh[arm][rows[fresh]] = False
+        goal, target = self.ee_goals[arm][rows], self.ee_targets[arm][rows]
+        dp = target[:, :3, 3] - goal[:, :3, 3]
+        dist = np.linalg.norm(dp, axis=1, keepdims=True)
+        step = self.cfg.ee_speed * self.control_dt
+        goal[:, :3, 3] += dp * np.minimum(1.0, step / np.maximum(dist, 1e-12))
+        rel = Rotation.from_matrix(np.swapaxes(goal[:, :3, :3], 1, 2) @ target[:, :3, :3]).as_rotvec()
+        angle = np.linalg.norm(rel, axis=1, keepdims=True)
+        turn = self.cfg.ee_turn_rate * self.control_dt
+        rel *= np.minimum(1.0, turn / np.maximum(angle, 1e-12))
+        goal[:, :3, :3] = goal[:, :3, :3] @ Rotation.from_rotvec(rel).as_matrix()
+        self.ee_goals[arm][rows] = goal
 
     def arm_gravity(self, root: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Gravity torques [N m] (N, 2 x 7) of the arm joints (all arms' joints in arm order) for
@@ -391,14 +430,20 @@ class HumanoidWorldsConfig:
     ls_iterations: int = 20
     foot_mu: float = 0.6
     """feet's friction coefficient (training randomizes 0.3-1.2)"""
+    use_mujoco_cpu: bool | None = None
+    """MuJoCo C instead of MuJoCo-Warp; None: on a CPU with one world (measured in a task kitchen:
+    1.5 s per simulated second against 19 s for MuJoCo-Warp's CPU path, same trajectory to 1 mm)"""
 
 
 class HumanoidWorlds:
-    """A model of N G1 worlds (``robot.build_g1_model``: the training robot), its SolverMuJoCo, states
-    and a :class:`LeggedPolicyRuntime`. ``step()`` runs one control step: the runtime, then
-    ``decimation`` physics steps. ``state`` is the current state."""
+    """N G1 worlds, their SolverMuJoCo, states and a :class:`LeggedPolicyRuntime`. By default the
+    model is ``robot.build_g1_model`` (the training robot on a flat floor); ``model`` gives another
+    one holding one G1 per world (e.g. ``scene.build_humanoid_scene``: a G1 in a task kitchen) and
+    ``solver_options`` its SolverMuJoCo options (contact buffers). ``step()`` runs one control
+    step: the runtime, then ``decimation`` physics steps. ``state`` is the current state."""
 
-    def __init__(self, cfg: HumanoidWorldsConfig | None = None) -> None:
+    def __init__(self, cfg: HumanoidWorldsConfig | None = None, *, model: Any = None,
+                 solver_options: dict[str, Any] | None = None) -> None:
         import newton
         import warp as wp
 
@@ -406,14 +451,23 @@ class HumanoidWorlds:
 
         self.cfg = cfg = cfg or HumanoidWorldsConfig()
         rt_cfg = cfg.runtime if cfg.runtime.device == cfg.device else _with_device(cfg.runtime, cfg.device)
-        self.model, self.layout = build_g1_model(cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
+        if model is None:
+            model, _ = build_g1_model(cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
+        self.model = model
         self.runtime = LeggedPolicyRuntime(self.model, rt_cfg)
         meta = self.runtime.policy.meta
         self.sim_dt, self.decimation = float(meta["sim_dt"]), int(meta["decimation"])
-        self.solver = newton.solvers.SolverMuJoCo(self.model, iterations=cfg.solver_iterations,
-                                                  ls_iterations=cfg.ls_iterations, nconmax=24, njmax=160)
+        cpu = cfg.use_mujoco_cpu if cfg.use_mujoco_cpu is not None else (
+            not model.device.is_cuda and model.world_count == 1)
+        options = dict(iterations=cfg.solver_iterations, ls_iterations=cfg.ls_iterations, nconmax=24, njmax=160,
+                       use_mujoco_cpu=cpu)
+        options.update(solver_options or {})
+        self.solver = newton.solvers.SolverMuJoCo(self.model, **options)
         self.state, self._next = self.model.state(), self.model.state()
         self.control = self.model.control()
+        q = wp.to_torch(self.state.joint_q)
+        self.home = q[self.runtime.index.root_q[:, None] + torch.arange(7, device=self.runtime.device)].clone()
+        """each world's initial base pose (N, 7): position [m], quaternion xyzw"""
         self.time = 0.0
         """simulated time [s]"""
 
@@ -432,21 +486,21 @@ class HumanoidWorlds:
         return actions
 
     def reset(self, worlds: Any = None, *, xy: Any = None, yaw: Any = None) -> None:
-        """Put worlds (K,) (default: all) back standing in the default pose at base position
-        ``xy`` (K, 2) [m] (default 0) with heading ``yaw`` (K,) [rad] (default 0), at rest; their
-        commands, modes and arm targets are cleared."""
+        """Put worlds (K,) (default: all) back standing in the default pose, at rest, at their
+        initial base pose (``home``) or at base position ``xy`` (K, 2) [m] with heading ``yaw`` (K,)
+        [rad]; their commands, modes and arm targets are cleared."""
         import warp as wp
-
-        from stages.locomotion.robot import DEFAULT_BASE_HEIGHT
 
         rt = self.runtime
         ids = np.arange(rt.num_worlds) if worlds is None else np.asarray(worlds, int)
         k = len(ids)
-        xy = np.zeros((k, 2)) if xy is None else np.broadcast_to(np.asarray(xy, float), (k, 2))
-        yaw = np.zeros(k) if yaw is None else np.broadcast_to(np.asarray(yaw, float), (k,))
-        root = np.zeros((k, 7))
-        root[:, :2], root[:, 2] = xy, DEFAULT_BASE_HEIGHT
-        root[:, 5], root[:, 6] = np.sin(yaw / 2), np.cos(yaw / 2)
+        root = self.home[torch.as_tensor(ids, device=rt.device)].cpu().double().numpy()
+        if xy is not None:
+            root[:, :2] = np.broadcast_to(np.asarray(xy, float), (k, 2))
+        if yaw is not None:
+            yaw = np.broadcast_to(np.asarray(yaw, float), (k,))
+            root[:, 3:7] = 0.0
+            root[:, 5], root[:, 6] = np.sin(yaw / 2), np.cos(yaw / 2)
         dev = rt.device
         t_ids = torch.as_tensor(ids, device=dev)
         ix = rt.index

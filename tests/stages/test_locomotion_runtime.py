@@ -14,6 +14,7 @@ pytest.importorskip("newton")
 pytest.importorskip("pinocchio")
 torch = pytest.importorskip("torch")
 
+from stages.locomotion.robot import ARM_JOINTS, LEG_JOINTS, WAIST_JOINTS  # noqa: E402
 from stages.locomotion.runtime import (DEFAULT_POLICY, HumanoidWorlds, HumanoidWorldsConfig,  # noqa: E402
                                        LeggedRuntimeConfig, Mode, index_worlds, quat_rotate_inverse)
 
@@ -58,7 +59,8 @@ def test_index_finds_each_worlds_joints(worlds):
     with pytest.raises(ValueError, match="missing"):
         index_worlds(worlds.model, ("no_such_joint",))
     meta = json.loads((DEFAULT_POLICY / "policy.json").read_text())
-    assert tuple(meta["default_pos"]) == worlds.layout.joint_names     # observation order = model order
+    assert tuple(meta["default_pos"]) == LEG_JOINTS + WAIST_JOINTS + ARM_JOINTS
+    assert (ix.joint_q[0, 1:] > ix.joint_q[0, :-1]).all()             # observation order = model order
 
 
 def test_two_worlds_walk_on_their_own_commands(worlds):
@@ -96,12 +98,12 @@ def test_manipulation_mode_stands_while_clik_reaches(worlds):
     world 0 goes 10 cm forward and 10 cm up, world 1's 5 cm forward, 8 cm inward, 5 cm up, world
     frame; 3 s.
 
-    Measured (CPU): in the last 1.5 s the hands are 4.1 / 10.0 mm from their targets on average,
-    at most 6.3 / 17.4 mm (no bias: the policy's in-place sway moves the shoulder by about a
-    centimetre and the arms' PD lags the re-solved targets; without the CLIK's 0.08 s look-ahead
-    8.8 / 12.3 mm, at most 15.6 / 21.7 mm); without the arms' gravity feed-forward the hands sag
-    55-70 mm short.
-    The base moves 7-12 mm; the pelvis stays at 0.76 m. About 17 s of wall time."""
+    Measured (CPU): in the last 1.5 s the hands are 4.0 / 9.8 mm from their targets on average,
+    at most 5.9 / 15.3 mm (no bias: the policy's in-place sway moves the shoulder by about a
+    centimetre and the arms' PD lags the re-solved targets; before the CLIK goal's rate limit,
+    without the 0.08 s look-ahead: 8.8 / 12.3 mm mean, 15.6 / 21.7 mm at most); without the arms'
+    gravity feed-forward the hands sag 55-70 mm short. The base moves 5-13 mm; the pelvis stays at
+    0.76 m. About 17 s of wall time."""
     rt = worlds.runtime
     worlds.reset()
     rt.set_command([0.5, 0.0, 0.0])
@@ -134,8 +136,8 @@ def test_manipulation_mode_stands_while_clik_reaches(worlds):
 
 def test_runtime_evaluation_walks_with_moving_hands(worlds):
     """``agentworld loco-runtime``'s evaluation on the two worlds: random commands, both hands to
-    random base-frame targets, 3 s. Measured (seed 0): no falls, planar speed error 0.088 m/s,
-    yaw-rate error 0.13 rad/s, hand error 17 mm mean (35 mm p95, targets redrawn while walking)."""
+    random base-frame targets, 3 s. Measured (seed 0): no falls, planar speed error 0.087 m/s,
+    yaw-rate error 0.11 rad/s, hand error 17 mm mean (35 mm p95, targets redrawn while walking)."""
     from stages.locomotion.runtime_eval import RuntimeEvalConfig, _hand_targets, evaluate_runtime
 
     result = evaluate_runtime(RuntimeEvalConfig(num_worlds=2, seconds=3.0, seed=0, worlds=worlds))
