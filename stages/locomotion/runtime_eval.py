@@ -42,8 +42,9 @@ class RuntimeEvalConfig:
     """time between hand target draws [s] (training: 150 control steps)"""
     arm_range: float = 0.6
     """half-width of the arm joints' draw around the default pose [rad] (training's)"""
-    hand_settle_s: float = 1.0
-    """time after a draw before the hand error is measured [s]"""
+    hand_settle_s: float = 1.5
+    """time after a draw before the hand error is measured [s] (the CLIK goal travels at the
+    runtime's ``ee_speed``, 0.3 m/s: a new target can be 0.4 m away)"""
     fall_height: float = 0.3
     """[m]"""
     fall_tilt_deg: float = 70.0

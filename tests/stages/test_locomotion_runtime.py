@@ -137,7 +137,8 @@ def test_manipulation_mode_stands_while_clik_reaches(worlds):
 def test_runtime_evaluation_walks_with_moving_hands(worlds):
     """``agentworld loco-runtime``'s evaluation on the two worlds: random commands, both hands to
     random base-frame targets, 3 s. Measured (seed 0): no falls, planar speed error 0.087 m/s,
-    yaw-rate error 0.11 rad/s, hand error 17 mm mean (35 mm p95, targets redrawn while walking)."""
+    yaw-rate error 0.11 rad/s, hand error 16 mm mean (30 mm p95, targets redrawn while walking);
+    a second run on the same worlds gives the same figures."""
     from stages.locomotion.runtime_eval import RuntimeEvalConfig, _hand_targets, evaluate_runtime
 
     result = evaluate_runtime(RuntimeEvalConfig(num_worlds=2, seconds=3.0, seed=0, worlds=worlds))
@@ -150,3 +151,43 @@ def test_runtime_evaluation_walks_with_moving_hands(worlds):
     b = _hand_targets(rt, "left", 3, np.random.default_rng(5), 0.6)
     np.testing.assert_array_equal(a, b)                              # targets come from the seed
     assert not np.allclose(a[0], a[1])
+
+
+def test_spec_names_the_policy_and_frames_follow_the_dataset_layout(worlds):
+    """The g1_29dof spec's legged base names the shipped policy; a world's frame (state, action)
+    has the spec's layout and the simulation's values."""
+    from stages.embodiment import EmbodimentError, load_spec
+    from stages.embodiment.layout import action_names, state_names
+    from stages.locomotion.embodiment import frame_vectors, runtime_config_for
+
+    spec = load_spec("g1_29dof")
+    cfg = runtime_config_for(spec, device="cpu")
+    assert cfg.policy == str(DEFAULT_POLICY) and cfg.spec == "g1_29dof" and cfg.root_body == "pelvis"
+    for other, why in (("h1", "no locomotion policy is shipped"), ("mobile_panda", "has no locomotion policy")):
+        with pytest.raises(EmbodimentError, match=why):
+            runtime_config_for(load_spec(other))
+
+    rt = worlds.runtime
+    worlds.reset()
+    rt.set_command([[0.3, 0.0, 0.2], [0.5, 0.1, 0.0]])
+    rt.set_mode([Mode.LOCOMOTION, Mode.MANIPULATION])
+    worlds.run(0.2)
+    state, action = frame_vectors(rt, worlds.state)
+    s_names, a_names = state_names(spec), action_names(spec)
+    assert state.shape == (2, len(s_names)) and action.shape == (2, len(a_names))
+    s, a = dict(zip(s_names, state.T, strict=True)), dict(zip(a_names, action.T, strict=True))
+    pos, quat, _, _ = rt.base_state(worlds.state)
+    np.testing.assert_allclose(s["base_x"], pos[:, 0].numpy(), atol=1e-6)
+    np.testing.assert_allclose(s["base_theta"], _yaw(quat), atol=1e-5)
+    jq, _ = rt.joint_state(worlds.state)
+    left = [rt.joint_names.index(j) for j in spec.arm("left").joints]
+    np.testing.assert_allclose(np.stack([s[f"left_q{i}"] for i in range(7)], 1), jq[:, left].numpy(), atol=1e-6)
+    quat_norm = np.linalg.norm(np.stack([s[f"right_ee_{c}"] for c in ("qw", "qx", "qy", "qz")], 1), axis=1)
+    np.testing.assert_allclose(quat_norm, 1.0, atol=1e-9)
+    assert a["mode"].tolist() == [0.0, 1.0]
+    np.testing.assert_allclose(np.stack([a["base_vx"], a["base_vy"], a["base_vtheta"]], 1),
+                               [[0.3, 0.0, 0.2], [0.0, 0.0, 0.0]], atol=1e-6)  # manipulation: zero
+    # arms at rest: the commanded joints are the default pose, the measured ones within 0.05 rad
+    default = rt.default_q.numpy()[left]
+    np.testing.assert_allclose(np.stack([a[f"left_q{i}_target"] for i in range(7)], 1), [default] * 2, atol=1e-6)
+    assert np.abs(jq[:, left].numpy() - default).max() < 0.05
