@@ -191,3 +191,30 @@ def test_spec_names_the_policy_and_frames_follow_the_dataset_layout(worlds):
     default = rt.default_q.numpy()[left]
     np.testing.assert_allclose(np.stack([a[f"left_q{i}_target"] for i in range(7)], 1), [default] * 2, atol=1e-6)
     assert np.abs(jq[:, left].numpy() - default).max() < 0.05
+
+
+def test_index_finds_the_g1_behind_other_bodies_of_a_world():
+    """A world whose model arrays start with another free body (a box, as scene objects come
+    first in a kitchen): the runtime still reads the G1's base and joints."""
+    import newton
+    import warp as wp
+
+    from stages.locomotion.robot import DEFAULT_POSE, g1_builder
+
+    world = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(world)
+    box = world.add_body(xform=wp.transform((2.0, 0.0, 0.5), wp.quat_identity()), label="box")
+    world.add_shape_box(box, hx=0.1, hy=0.1, hz=0.1)
+    robot, _ = g1_builder(base_pose=(1.0, -0.5, 0.3))
+    world.add_builder(robot)
+    main = newton.ModelBuilder()
+    main.replicate(world, 2)
+    model = main.finalize(device="cpu")
+    ix = index_worlds(model, LEG_JOINTS + WAIST_JOINTS + ARM_JOINTS)
+    assert ix.root_q.tolist() == [7, 7 + 43] and ix.joint_q[0, 0] == 14
+    worlds = HumanoidWorlds(HumanoidWorldsConfig(num_worlds=2), model=model)
+    pos, quat, _, _ = worlds.runtime.base_state(worlds.state)
+    np.testing.assert_allclose(pos[:, :2].numpy(), [[1.0, -0.5]] * 2, atol=1e-6)
+    np.testing.assert_allclose(_yaw(quat), [0.3, 0.3], atol=1e-6)
+    jq, _ = worlds.runtime.joint_state(worlds.state)
+    assert jq[:, LEG_JOINTS.index("left_knee_joint")].tolist() == pytest.approx([DEFAULT_POSE["left_knee_joint"]] * 2)
