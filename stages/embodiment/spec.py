@@ -20,7 +20,7 @@ Format (every length [m], angle [rad] unless the name says ``_deg``; gains in SI
     root_link = "pelvis"
     joints = []                        # holonomic: the x, y, yaw joints driven by (vx, vy, v_theta)
     height = 0.78                      # nominal root height above the floor when standing
-    policy = ""                        # legged_policy: the locomotion policy file (when shipped)
+    policy = "g1_velocity"             # legged_policy: a policy folder of stages/locomotion/policies, or a path
 
     [[arms]]                           # one per arm, in control order
     name = "left"
@@ -161,7 +161,8 @@ class BaseSpec(_Strict):
     """kind; root_link: the description's root link; joints: holonomic base joints (x, y, yaw);
     height: nominal root height above the floor [m] (legged); max_force [N] / max_torque [N m]:
     holonomic base joint force limits; velocity_kd: their velocity gain [N s/m];
-    policy: the locomotion policy file (legged_policy; empty until one is shipped)."""
+    policy: the locomotion policy (legged_policy): a folder name in stages/locomotion/policies or
+    a path (stages.locomotion.embodiment.policy_folder); empty where none is shipped."""
 
     kind: BaseKind
     root_link: str

@@ -92,6 +92,35 @@ def eval_main(argv: list[str]) -> int:
     return 0
 
 
+def runtime_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="agentworld loco-runtime",
+                                description="N G1 worlds walking on random commands through the humanoid runtime "
+                                            "(trained policy, CLIK hands to random targets, gravity feed-forward): "
+                                            "velocity tracking error, hand error and falls")
+    p.add_argument("--num-worlds", type=int, default=8)
+    p.add_argument("--device", default="cpu", help="cpu or cuda:0")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seconds", type=float, default=20.0, help="length of each rollout [s]")
+    p.add_argument("--no-arms", action="store_true", help="hands hold the default pose")
+    p.add_argument("--json", default="", help="also write the result here")
+    a = p.parse_args(argv)
+    import warnings
+
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
+    from stages.locomotion.runtime_eval import RuntimeEvalConfig, evaluate_runtime
+
+    result = evaluate_runtime(RuntimeEvalConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed,
+                                                seconds=a.seconds, arms=not a.no_arms))
+    text = json.dumps(result, indent=2)
+    print(text)
+    if a.json:
+        Path(a.json).write_text(text + "\n")
+    return 0
+
+
 def export_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-export",
                                 description="export a training checkpoint's policy as TorchScript with its metadata, "
@@ -108,5 +137,5 @@ def export_main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    commands = {"train": train_main, "eval": eval_main, "export": export_main}
+    commands = {"train": train_main, "eval": eval_main, "export": export_main, "runtime": runtime_main}
     sys.exit(commands[sys.argv[1]](sys.argv[2:]))

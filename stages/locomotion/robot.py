@@ -151,22 +151,22 @@ class G1Layout:
         return [self.joint_names.index(n) for n in names]
 
 
-def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_mu: float = 0.3
-                   ) -> tuple[Any, G1Layout]:
-    """One Newton model holding ``num_worlds`` G1s on a shared ground plane, one world each.
-
-    Returns ``(model, layout)``. Joint targets are in position mode with mjlab's gains; the default
-    pose is the model's initial state.
-    """
+def g1_builder(*, foot_mu: float = 0.6, base_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+               ) -> tuple[Any, G1Layout]:
+    """A Newton builder holding one G1 as trained: inertials of the URDF, sole spheres as the only
+    collision shapes, position drives with mjlab's gains, the default pose standing with its base
+    at ``base_pose`` = (x [m], y [m], yaw [rad]), ``DEFAULT_BASE_HEIGHT`` above z = 0. Returns
+    ``(builder, layout)``; add it to a scene with ``ModelBuilder.add_builder`` or ``replicate``."""
     import newton
     import warp as wp
 
+    x, y, yaw = base_pose
     robot = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(robot)
     robot.default_shape_cfg.mu = foot_mu
+    rot = wp.quat(0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
     robot.add_urdf(_urdf_without_geometry(g1_urdf_path()), floating=True, collapse_fixed_joints=True,
-                   enable_self_collisions=False, xform=wp.transform((0.0, 0.0, DEFAULT_BASE_HEIGHT),
-                                                                      wp.quat_identity()))
+                   enable_self_collisions=False, xform=wp.transform((x, y, DEFAULT_BASE_HEIGHT), rot))
     body_names = [label.rsplit("/", 1)[-1] for label in robot.body_label]
     joint_names = tuple(label.rsplit("/", 1)[-1] for label in robot.joint_label[1:])
     if len(joint_names) != 29 or robot.joint_coord_count != 36:
@@ -191,7 +191,19 @@ def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_
                       dofs_per_world=robot.joint_dof_count, bodies_per_world=robot.body_count,
                       shapes_per_world=robot.shape_count, base_body=body_names.index(BASE_BODY),
                       foot_shapes=tuple(foot_shapes))
+    return robot, layout
 
+
+def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_mu: float = 0.3
+                   ) -> tuple[Any, G1Layout]:
+    """One Newton model holding ``num_worlds`` G1s on a shared ground plane, one world each.
+
+    Returns ``(model, layout)``. Joint targets are in position mode with mjlab's gains; the default
+    pose is the model's initial state.
+    """
+    import newton
+
+    robot, layout = g1_builder(foot_mu=foot_mu)
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
     scene.replicate(robot, num_worlds)
