@@ -13,6 +13,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                     "export a G1 velocity checkpoint as TorchScript with its config and reward curve"),
     "loco-train": ("stages.locomotion.cli:train_main",
                    "train the G1 velocity-tracking policy with PPO on N Newton worlds; resumes from checkpoints"),
+    "teleop": ("stages.teleop.cli:main",
+               "teleoperate a task world from a browser (keyboard) and record episodes; --replay a session"),
     "render-assets": ("stages.render_assets:main",
                       "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
     "render-dataset": ("stages.dataset.render:cli",

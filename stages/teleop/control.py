@@ -36,7 +36,9 @@ class TeleopConfig:
     episode [s] (then it is discarded as "timeout"); realtime: pace the simulation to the wall
     clock (False: as fast as it runs, for replays); device: "cpu" or "cuda[:n]"; seed: seed of
     the first episode's task instance (episode k: seed + k); jpeg_quality: streamed JPEG quality
-    (1-95); input_device: what drives the session ("keyboard", "webxr", "replay"), recorded."""
+    (1-95); input_device: what drives the session ("keyboard", "webxr", "replay"), recorded;
+    command_timeout: controls older than this [s] count as released (axes to zero; the page repeats
+    its controls every 0.1 s, so a stalled or vanished page stops the robot; None: never)."""
 
     max_base_speed: float = 0.5
     max_base_turn: float = 1.0
@@ -52,6 +54,7 @@ class TeleopConfig:
     seed: int = 0
     jpeg_quality: int = 80
     input_device: str = "keyboard"
+    command_timeout: float | None = 1.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -69,6 +72,8 @@ class TeleopConfig:
             problems.append(f"input_device must be keyboard, webxr or replay, got {self.input_device!r}")
         if not 0 <= self.seed < 2**62:
             problems.append(f"seed must be in [0, 2**62), got {self.seed}")
+        if self.command_timeout is not None and not (math.isfinite(self.command_timeout) and self.command_timeout > 0):
+            problems.append(f"command_timeout must be a positive number or None, got {self.command_timeout}")
         if problems:
             raise ValueError("teleop config: " + "; ".join(problems))
 

@@ -111,8 +111,7 @@ class TeleopSession:
         """A validated operator message (:mod:`stages.teleop.protocol`)."""
         if isinstance(msg, OperatorCommand):
             with self._lock:
-                if msg.seq >= self._cmd.seq:
-                    self._cmd = msg
+                self._cmd = msg
         elif isinstance(msg, EpisodeControl):
             self._controls.append(msg)
         elif isinstance(msg, FrameAck):
@@ -126,6 +125,10 @@ class TeleopSession:
                     ep.display_ms.append(ms)
         elif isinstance(msg, XrPoses):
             self.xr = msg
+
+    def current_command(self) -> OperatorCommand:
+        with self._lock:
+            return self._cmd
 
     def status(self) -> dict:
         """What the page's status bar shows: frames per second (simulated frames per wall second),
@@ -238,7 +241,8 @@ class TeleopSession:
         app = TickApplier(self.cfg, drv)
         S, f = self.engine.steps_per_second, self.cfg.fps
         t0 = time.perf_counter()
-        last_seq = -1
+        last = None
+        timeout = self.cfg.command_timeout
         i = 0
         while True:
             if ep.script is not None:
@@ -253,14 +257,17 @@ class TeleopSession:
                     break
                 with self._lock:
                     cmd = self._cmd
-                tick = Tick(base=cmd.base, jog=cmd.jog, mode=cmd.mode, gripper=cmd.gripper)
+                if timeout is not None and cmd.received and time.perf_counter() - cmd.received > timeout:
+                    tick = Tick(mode=cmd.mode, gripper=cmd.gripper)  # the page went quiet: axes released
+                else:
+                    tick = Tick(base=cmd.base, jog=cmd.jog, mode=cmd.mode, gripper=cmd.gripper)
             app.apply(tick)
-            if ep.script is None and cmd.seq != last_seq and cmd.received:
-                ms = (time.perf_counter() - cmd.received) * 1000.0
+            if ep.script is None and cmd is not last and cmd.received:
+                ms = (time.perf_counter() - cmd.received) * 1000.0  # arrival -> applied [ms]
                 self._recent_input.append(ms)
                 if ep.record:
                     ep.input_ms.append(ms)
-                last_seq = cmd.seq
+                last = cmd
             self.input_log.write({"kind": "tick", "episode": ep.k, "i": i, **tick.to_json()})
             ep.ticks = i = i + 1
             drv.sim.step(max(1, -(-i * S // f) - drv.sim.steps))  # to the next frame step

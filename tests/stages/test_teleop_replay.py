@@ -63,7 +63,8 @@ def test_operated_episode_is_saved_and_its_replay_reproduces_it(kitchen, tmp_pat
     from stages.dataset import load_dataset
     from stages.teleop import TeleopConfig, TeleopSession, read_input_log, replay_session
 
-    cfg = TeleopConfig(width=64, height=48, realtime=False, seed=11)
+    # a scripted operator sends each command once (no 0.1 s repeats as the page does): no timeout
+    cfg = TeleopConfig(width=64, height=48, realtime=False, seed=11, command_timeout=None)
     s = TeleopSession(kitchen, task="pick_place_bowl", out=tmp_path / "live", config=cfg, world_seed=5)
     script = [(3, _cmd(1, base=(1, 0, 0.5))),                       # drive forward, turning
               (12, _cmd(2, base=(0, -1, 0))),                       # strafe right

@@ -1,0 +1,138 @@
+// AgentWorld teleop page: keyboard -> controls over a WebSocket; camera frames (JPEG) <- server.
+// Served by stages/teleop/server.py with the access token in every URL; no external resources.
+"use strict";
+(() => {
+  const token = new URLSearchParams(location.search).get("token") || "";
+  const $ = (id) => document.getElementById(id);
+  const held = new Set();
+  const state = { mode: 0, gripper: 0, seq: 0, frames: 0, fps: 0, status: null, connected: false, xr: null };
+  window.teleopState = state; // read-only introspection (tests, the console)
+
+  const wsUrl = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws?token=${encodeURIComponent(token)}`;
+  let ws = null;
+
+  function send(obj) {
+    if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(obj));
+  }
+
+  function axis(plus, minus) {
+    return (held.has(plus) ? 1 : 0) - (held.has(minus) ? 1 : 0);
+  }
+
+  function command() {
+    let base = [0, 0, 0];
+    let jog = [0, 0, 0, 0, 0, 0];
+    if (state.mode === 0) {
+      base = [axis("KeyW", "KeyS"), axis("KeyA", "KeyD"), axis("KeyQ", "KeyE")];
+    } else {
+      jog = [axis("KeyW", "KeyS"), axis("KeyA", "KeyD"), axis("KeyR", "KeyF"),
+             axis("KeyJ", "KeyL"), axis("KeyI", "KeyK"), axis("KeyQ", "KeyE")];
+    }
+    state.seq += 1;
+    return { type: "cmd", seq: state.seq, base, jog, mode: state.mode, gripper: state.gripper };
+  }
+
+  function sendCommand() { send(command()); }
+
+  function setMode(m) {
+    state.mode = m;
+    $("btn-mode").textContent = `Mode: ${m === 0 ? "locomotion" : "manipulation"} (M)`;
+    sendCommand();
+  }
+
+  function toggleGripper() {
+    state.gripper = state.gripper ? 0 : 1;
+    $("btn-gripper").textContent = `Gripper: ${state.gripper ? "closed" : "open"} (G / Space)`;
+    sendCommand();
+  }
+
+  const CONTROL_KEYS = new Set(["KeyW", "KeyA", "KeyS", "KeyD", "KeyQ", "KeyE", "KeyR", "KeyF",
+                                "KeyI", "KeyJ", "KeyK", "KeyL"]);
+  document.addEventListener("keydown", (e) => {
+    if (e.target && e.target.tagName === "INPUT") return;
+    if (e.code === "KeyM" && !e.repeat) { setMode(state.mode ? 0 : 1); e.preventDefault(); return; }
+    if ((e.code === "KeyG" || e.code === "Space") && !e.repeat) { toggleGripper(); e.preventDefault(); return; }
+    if (CONTROL_KEYS.has(e.code)) {
+      e.preventDefault();
+      if (!held.has(e.code)) { held.add(e.code); sendCommand(); }
+    }
+  });
+  document.addEventListener("keyup", (e) => {
+    if (held.delete(e.code)) sendCommand();
+  });
+  window.addEventListener("blur", () => { held.clear(); sendCommand(); });
+
+  $("btn-mode").addEventListener("click", () => setMode(state.mode ? 0 : 1));
+  $("btn-gripper").addEventListener("click", toggleGripper);
+  $("btn-start").addEventListener("click", () =>
+    send({ type: "episode", action: "start", task: $("instruction").value.trim().slice(0, 200) }));
+  $("btn-save").addEventListener("click", () => send({ type: "episode", action: "save" }));
+  $("btn-discard").addEventListener("click", () => send({ type: "episode", action: "discard" }));
+
+  // -- frames: b"AWF1", u32 frame id, u8 count, then (u8 name length, name, u32 JPEG length, JPEG)*
+  const urls = {};
+  const shown = [];
+  async function onFrame(buf) {
+    const dv = new DataView(buf);
+    const magic = String.fromCharCode(dv.getUint8(0), dv.getUint8(1), dv.getUint8(2), dv.getUint8(3));
+    if (magic !== "AWF1") return;
+    const frame = dv.getUint32(4, true);
+    const count = dv.getUint8(8);
+    let off = 9;
+    const draws = [];
+    for (let i = 0; i < count; i++) {
+      const n = dv.getUint8(off); off += 1;
+      const name = new TextDecoder().decode(new Uint8Array(buf, off, n)); off += n;
+      const len = dv.getUint32(off, true); off += 4;
+      const img = $(`cam-${name}`);
+      if (img) {
+        const url = URL.createObjectURL(new Blob([new Uint8Array(buf, off, len)], { type: "image/jpeg" }));
+        const old = urls[name];
+        urls[name] = url;
+        img.src = url;
+        draws.push(img.decode().catch(() => {}).finally(() => { if (old) URL.revokeObjectURL(old); }));
+      }
+      off += len;
+    }
+    await Promise.all(draws);
+    send({ type: "ack", frame });
+    state.frames += 1;
+    const now = performance.now();
+    shown.push(now);
+    while (shown.length && now - shown[0] > 2000) shown.shift();
+    state.fps = shown.length > 1 ? (shown.length - 1) * 1000 / (shown[shown.length - 1] - shown[0]) : 0;
+  }
+
+  function onStatus(st) {
+    state.status = st;
+    $("task").textContent = `${st.task}: ${st.instruction || ""}`;
+    $("st-fps").textContent = `display ${state.fps.toFixed(1)} fps`;
+    $("st-sim").textContent = `sim ${st.fps} fps`;
+    const lat = (v) => (v === null || v === undefined ? "-" : `${v} ms`);
+    $("st-lat").textContent = `input ${lat(st.input_ms)} · render->display ${lat(st.display_ms)}`;
+    $("st-rec").textContent = st.recording ? `REC episode ${st.episode} (${st.tick} ticks)` : "not recording";
+    $("st-rec").className = st.recording ? "on" : "";
+    $("st-ep").textContent = `saved ${st.saved}`;
+    $("st-msg").textContent = st.last_rejection ? `rejected: ${st.last_rejection}` : "";
+  }
+
+  function connect() {
+    ws = new WebSocket(wsUrl);
+    ws.binaryType = "arraybuffer";
+    ws.onopen = () => { state.connected = true; $("st-conn").textContent = "connected"; sendCommand(); };
+    ws.onclose = () => {
+      state.connected = false;
+      $("st-conn").textContent = "disconnected (reload to reconnect)";
+    };
+    ws.onmessage = (ev) => {
+      if (typeof ev.data === "string") {
+        try { onStatus(JSON.parse(ev.data)); } catch (err) { /* ignore a bad status */ }
+      } else {
+        onFrame(ev.data);
+      }
+    };
+  }
+  connect();
+  // the controls are repeated every 0.1 s: the server releases them when the page goes quiet
+  setInterval(() => { if (!state.xr) sendCommand(); }, 100);
+})();
