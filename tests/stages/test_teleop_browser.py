@@ -24,13 +24,9 @@ def _chromium() -> str:
     pytest.skip("no Chromium from the OS packages (.ci/run installs it: apt-get install chromium)")
 
 
-@pytest.fixture(scope="module")
-def kitchen(tmp_path_factory):
-    pytest.importorskip("newton")
-    pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
-    from stages.teleop.world import teleop_kitchen
-
-    return teleop_kitchen(tmp_path_factory.mktemp("teleop_world"), world_seed=5)
+@pytest.fixture
+def kitchen(teleop_world):
+    return teleop_world
 
 
 def _status(url: str) -> int:
