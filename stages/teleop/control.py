@@ -11,6 +11,8 @@ into commands of the engine's world through the expert's :class:`~stages.demos.d
   max_jog_turn [rad/s]) x 1 / fps [s] in the base frame, and CLIK (the engine's Pinocchio solver,
   from the current joint state and arm targets) gives the arm joint targets; a target CLIK cannot
   reach within 5 mm / 3 degrees is not taken (the hand stops at the edge of the workspace).
+- an end-effector pose (``ee``, from WebXR wrists: :mod:`stages.teleop.xr`): the base stops and
+  CLIK takes the hand to that pose (4, 4, in the base frame) if it can within 5 mm / 3 degrees.
 - gripper: the command as is (the parallel gripper's finger targets).
 
 The applier is deterministic: the same ticks from the same reset give the same commands (this is
@@ -80,15 +82,20 @@ class TeleopConfig:
 
 @dataclass(frozen=True)
 class Tick:
-    """One frame period's controls: base (3,) and jog (6,) axes in [-1, 1], mode 0/1, gripper 0/1."""
+    """One frame period's controls: base (3,) and jog (6,) axes in [-1, 1], mode 0/1, gripper 0/1;
+    ee: an end-effector target (16 numbers, a row-major 4x4 in the base frame [m]) or None."""
 
     base: tuple[float, float, float] = (0.0, 0.0, 0.0)
     jog: tuple[float, ...] = (0.0,) * 6
     mode: int = 0
     gripper: int = 0
+    ee: tuple[float, ...] | None = None
 
     def to_json(self) -> dict:
-        return {"base": list(self.base), "jog": list(self.jog), "mode": self.mode, "gripper": self.gripper}
+        d = {"base": list(self.base), "jog": list(self.jog), "mode": self.mode, "gripper": self.gripper}
+        if self.ee is not None:
+            d["ee"] = list(self.ee)
+        return d
 
 
 class TickApplier:
@@ -105,7 +112,10 @@ class TickApplier:
     def apply(self, tick: Tick) -> None:
         d, cfg = self.drv, self.cfg
         d.cmd.mode = int(tick.mode)
-        if tick.mode == 0:
+        if tick.ee is not None:
+            d.base((0.0, 0.0, 0.0))
+            self._reach(np.asarray(tick.ee, float).reshape(4, 4))
+        elif tick.mode == 0:
             b = tick.base
             d.base((b[0] * cfg.max_base_speed, b[1] * cfg.max_base_speed, b[2] * cfg.max_base_turn))
             self.target = None
@@ -121,6 +131,20 @@ class TickApplier:
     def _q(self) -> np.ndarray:
         ik, d = self.drv.ik, self.drv
         return ik.with_arm(ik.from_sim(d.sim), d.ctl.arm_targets())
+
+    def _reach(self, ee_base: np.ndarray) -> None:
+        """CLIK to an end-effector pose in the base frame (4, 4)."""
+        from stages.teleop.xr import base_to_root
+
+        d, ik = self.drv, self.drv.ik
+        q0 = self._q()
+        qb = tuple(float(q0[ik.q_idx[n]]) for n in d.sim.desc.base_joints)
+        res = ik.solve(base_to_root(qb) @ ee_base, q0, max_iters=300)
+        self.target = None
+        if res.position_error > self.POS_TOL or res.rotation_error > self.ROT_TOL:
+            self.ik_misses += 1
+            return
+        d.ctl.set_arm_targets(ik.arm_q(res.q))
 
     def _jog(self, jog: np.ndarray) -> None:
         from scipy.spatial.transform import Rotation

@@ -57,6 +57,9 @@ class _Episode:
     display_ms: list = field(default_factory=list)
     script: object = None  # the EpisodeScript being replayed
     started: float = 0.0
+    xr_calib: object = None  # head pose (4, 4) at the episode's first XR message
+    xr_gripper: int = 0
+    devices: set = field(default_factory=set)  # "webxr" once XR poses drove a tick
 
 
 class TeleopSession:
@@ -103,6 +106,7 @@ class TeleopSession:
         self._recent_display: collections.deque[float] = collections.deque(maxlen=60)
         self.saved: list[Path] = []
         self.xr: XrPoses | None = None
+        self.last_ee_pose: tuple | None = None  # newest frame's end-effector pose (7: xyz [m], wxyz) in the base frame
         self.error: BaseException | None = None
         self._thread: threading.Thread | None = None
 
@@ -145,7 +149,8 @@ class TeleopSession:
                 "display_ms": med(self._recent_display), "recording": bool(ep is not None and ep.record),
                 "episode": ep.k if ep else None, "tick": ep.ticks if ep else 0, "saved": len(self.saved),
                 "mode": cmd.mode, "gripper": cmd.gripper, "task": self.task,
-                "instruction": ep.instruction if ep else "", "running": self.running}
+                "instruction": ep.instruction if ep else "", "running": self.running,
+                "ee_pose": self.last_ee_pose}
 
     def stop(self) -> None:
         """End the session: the episode in progress ends ("stop"; a recorded one is discarded)."""
@@ -233,6 +238,7 @@ class TeleopSession:
             while len(self._captured) > 256:
                 self._captured.popitem(last=False)
         self._frame_times.append(t)
+        self.last_ee_pose = tuple(float(x) for x in frame.ee_pose)
         for f in self.listeners:
             f(fid, t, frame.rgb)
 
@@ -257,7 +263,10 @@ class TeleopSession:
                     break
                 with self._lock:
                     cmd = self._cmd
-                if timeout is not None and cmd.received and time.perf_counter() - cmd.received > timeout:
+                xr_tick = self._xr_tick(ep, timeout)
+                if xr_tick is not None:
+                    tick, cmd = xr_tick
+                elif timeout is not None and cmd.received and time.perf_counter() - cmd.received > timeout:
                     tick = Tick(mode=cmd.mode, gripper=cmd.gripper)  # the page went quiet: axes released
                 else:
                     tick = Tick(base=cmd.base, jog=cmd.jog, mode=cmd.mode, gripper=cmd.gripper)
@@ -276,6 +285,25 @@ class TeleopSession:
                 if lag > 0:
                     time.sleep(lag)
         ep.reason = f"ik_misses={app.ik_misses}"
+
+    def _xr_tick(self, ep: _Episode, timeout: float | None):
+        """The tick of the newest WebXR poses (wrist -> end-effector target, pinch -> gripper) and
+        the message it came from, or None when there is none (or it is older than ``timeout``)."""
+        import numpy as np
+
+        from stages.teleop.xr import pinch_gripper, wrist_to_ee_target
+
+        xr = self.xr
+        if xr is None or not xr.hands or (timeout is not None and time.perf_counter() - xr.received > timeout):
+            return None
+        head = np.asarray(xr.head, float)
+        if ep.xr_calib is None:
+            ep.xr_calib = head
+        joints = np.asarray(xr.hands["right"] if "right" in xr.hands else xr.hands["left"], float)
+        ep.xr_gripper = pinch_gripper(joints, ep.xr_gripper)
+        ee = wrist_to_ee_target(joints[0], ep.xr_calib)
+        ep.devices.add("webxr")
+        return Tick(mode=1, gripper=ep.xr_gripper, ee=tuple(float(x) for x in ee.ravel())), xr
 
     def _control(self, ep: _Episode) -> str:
         """The episode's outcome if the operator ended it ("start", "save", "discard", "stop"),
@@ -299,7 +327,8 @@ class TeleopSession:
         if ep.record:
             if outcome == "save":
                 meta = {"session": self.name, "episode": ep.k, "task": self.task, "seed": ep.seed,
-                        "input_device": self.cfg.input_device, "input_log": str(self.log_path),
+                        "input_device": "webxr" if "webxr" in ep.devices else self.cfg.input_device,
+                        "input_log": str(self.log_path),
                         "ticks": ep.ticks, "frames": res.frames, "sim_seconds": round(res.sim_seconds, 4),
                         "wall_seconds": round(time.perf_counter() - ep.started, 3),
                         "task_success": bool(res.success), "task_reason": res.reason,

@@ -169,3 +169,93 @@ def test_hostile_messages_are_rejected_and_the_simulation_runs_on(kitchen, tmp_p
         session.stop()
         session.join(60)
         srv.close()
+
+
+def test_emulated_headset_wrist_drives_the_hand_and_a_pinch_closes_the_gripper(kitchen, tmp_path):
+    """IWER (vendored from npm) emulates a Quest 3 with hand tracking in the page: the page's WebXR
+    session streams head and 25 hand-joint poses; the wrist moves the end effector to the commanded
+    pose (within 1 cm and 5 degrees), a pinch closes the gripper, and the episode is saved as webxr."""
+    chromium = _chromium()
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright (pip) drives the browser")
+    from scipy.spatial.transform import Rotation
+
+    from stages.teleop import TeleopConfig, TeleopSession, read_input_log
+    from stages.teleop.vendor import vendored
+    from stages.teleop.xr import ee_target_to_wrist
+
+    if vendored() is None:
+        pytest.skip("IWER is not vendored (python -m stages.teleop.vendor needs npm; .ci/run installs it)")
+    cfg = TeleopConfig(width=32, height=24, cameras=("head", "wrist", "third_person"), seed=4)
+    session = TeleopSession(kitchen, task="pick_place_bowl", out=tmp_path / "out", config=cfg, world_seed=5)
+    srv = ServerThread(session)
+    session.start()
+    js_pose = "(h) => ({p: [h.position.x, h.position.y, h.position.z], q: [h.quaternion.x, h.quaternion.y, " \
+              "h.quaternion.z, h.quaternion.w]})"
+    try:
+        with sync_api.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
+            page = browser.new_page()
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(srv.url + "&emulate=1")
+            wait_for(lambda: page.evaluate("() => window.teleopState.frames > 1"), what="the first frames")
+            page.click("#btn-start")
+            wait_for(lambda: session.status()["recording"] and session.status()["ee_pose"], what="recording")
+            ee0 = np.asarray(session.status()["ee_pose"])  # the hand at the reset, base frame
+            page.click("#btn-xr")  # enter the emulated immersive session (a user gesture)
+            wait_for(lambda: page.evaluate("() => window.teleopState.xrSent > 5") and session.xr is not None
+                     and "right" in session.xr.hands, what="XR poses at the server")
+            # IWER's right hand: its transform -> its wrist joint's pose (what the page reports)
+            hand = page.evaluate(f"() => ({js_pose})(window.teleopXrDevice.hands.right)")
+            hand_m = np.eye(4)
+            hand_m[:3, :3] = Rotation.from_quat(hand["q"]).as_matrix()
+            hand_m[:3, 3] = hand["p"]
+            wait_for(lambda: page.evaluate("() => window.teleopState.xrSent > 10"), what="fresh XR poses")
+            head = np.asarray(session.xr.head)
+            offset = np.linalg.inv(hand_m) @ np.asarray(session.xr.hands["right"][0])
+            # command: 6 cm left and 8 cm up of the reset hand, its orientation
+            goal = np.eye(4)
+            goal[:3, :3] = Rotation.from_quat(np.roll(ee0[3:], -1)).as_matrix()
+            goal[:3, 3] = ee0[:3] + [0.0, 0.06, 0.08]
+            want_hand = ee_target_to_wrist(goal, head) @ np.linalg.inv(offset)
+            q = Rotation.from_matrix(want_hand[:3, :3]).as_quat()
+            page.evaluate("([p, q]) => { const h = window.teleopXrDevice.hands.right; "
+                          "h.position.set(p[0], p[1], p[2]); h.quaternion.set(q[0], q[1], q[2], q[3]); }",
+                          [list(want_hand[:3, 3]), list(q)])
+            t0 = session.status()["tick"]
+            wait_for(lambda: session.status()["tick"] >= t0 + 45, what="1.5 s of reaching")
+            before_pinch = session.status()["tick"]
+            page.evaluate("() => window.teleopXrDevice.hands.right.updatePinchValue(1)")
+            wait_for(lambda: session.status()["tick"] >= before_pinch + 20, what="the pinch")
+            pinch = np.asarray(session.xr.hands["right"])
+            # the emulated headset's canvas covers the page (as a headset's view would): a DOM click
+            page.dispatch_event("#btn-save", "click")
+            wait_for(lambda: session.status()["saved"] >= 1, what="the saved episode")
+            wait_for(lambda: (tmp_path / "out" / "dataset" / "meta" / "teleop.json").is_file(), what="the merge")
+            browser.close()
+        assert not errors, errors
+    finally:
+        session.stop()
+        session.join(120)
+        srv.close()
+    assert np.linalg.norm(pinch[4][:3, 3] - pinch[9][:3, 3]) < 0.025  # thumb and index tips together [m]
+    ep = [e for e in read_input_log(session.log_path).episodes if e.record][0]
+    cmd = np.asarray(ep.ticks[before_pinch - 2].ee).reshape(4, 4)  # the commanded pose, base frame
+    assert np.abs(cmd[:3, 3] - goal[:3, 3]).max() < 1e-3  # the page's poses carry the command (rounded 1e-5)
+    import pyarrow.parquet as pq
+
+    root = tmp_path / "out" / "dataset"
+    t = pq.read_table(sorted((root / "data").glob("*/*.parquet")))
+    state = np.stack(t.column("observation.state").to_numpy(zero_copy_only=False))
+    action = np.stack(t.column("action").to_numpy(zero_copy_only=False))
+    ee = state[before_pinch - 1, 7:14]  # measured end-effector pose (xyz, wxyz), base frame
+    pos_err = np.linalg.norm(ee[:3] - cmd[:3, 3])
+    rot_err = np.degrees((Rotation.from_quat(np.roll(ee[3:], -1)).inv()
+                          * Rotation.from_matrix(cmd[:3, :3])).magnitude())
+    print(f"\nteleop webxr: end effector {pos_err * 1000:.2f} mm, {rot_err:.3f} deg from the wrist's command")
+    assert pos_err < 0.01 and rot_err < 5.0
+    assert np.linalg.norm(state[before_pinch - 1, 7:10] - ee0[:3]) > 0.05  # it did move there
+    assert action[before_pinch - 1, 17] == 0.0 and action[-1, 17] == 1.0  # open, then closed by the pinch
+    assert (action[:, 18] == 1).sum() > 40  # manipulation mode while XR drove it
+    meta = json.loads((root / "meta" / "teleop.json").read_text())["episodes"][0]
+    assert meta["input_device"] == "webxr"

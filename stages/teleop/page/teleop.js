@@ -132,6 +132,121 @@
       }
     };
   }
+
+  // -- WebXR: head and hand joint poses (XRHand, 25 joints) -> server, ~30 Hz; the robot's head
+  // camera drawn in the headset. ?emulate=1 loads IWER (vendored from npm) to emulate a headset.
+  const emulate = new URLSearchParams(location.search).get("emulate");
+  const round = (m) => Array.from(m, (v) => Math.round(v * 1e5) / 1e5);
+
+  function loadEmulator() {
+    return new Promise((resolve, reject) => {
+      const s = document.createElement("script");
+      s.src = `static/vendor/iwer.min.js?token=${encodeURIComponent(token)}`;
+      s.onload = () => {
+        const device = new window.IWER.XRDevice(window.IWER.metaQuest3);
+        device.installRuntime({ forceInstall: true }); // over the browser's own (headset-less) WebXR
+        device.primaryInputMode = "hand";
+        window.teleopXrDevice = device;
+        resolve();
+      };
+      s.onerror = () => reject(new Error("the headset emulator (IWER) is not vendored"));
+      document.head.appendChild(s);
+    });
+  }
+
+  function headQuad(gl) {
+    const sh = (type, src) => { const o = gl.createShader(type); gl.shaderSource(o, src); gl.compileShader(o); return o; };
+    const prog = gl.createProgram();
+    gl.attachShader(prog, sh(gl.VERTEX_SHADER,
+      "attribute vec2 p; varying vec2 uv; void main() { uv = vec2(p.x * 0.5 + 0.5, 0.5 - p.y * 0.5); gl_Position = vec4(p * 0.8, 0.0, 1.0); }"));
+    gl.attachShader(prog, sh(gl.FRAGMENT_SHADER,
+      "precision mediump float; varying vec2 uv; uniform sampler2D tex; void main() { gl_FragColor = texture2D(tex, uv); }"));
+    gl.linkProgram(prog);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1]), gl.STATIC_DRAW);
+    const tex = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    for (const [k, v] of [[gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE],
+                          [gl.TEXTURE_MIN_FILTER, gl.LINEAR], [gl.TEXTURE_MAG_FILTER, gl.LINEAR]]) {
+      gl.texParameteri(gl.TEXTURE_2D, k, v);
+    }
+    return { prog, buf, tex, loc: gl.getAttribLocation(prog, "p"), uploaded: -1 };
+  }
+
+  function drawHead(gl, layer, pose, q) {
+    gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
+    gl.clearColor(0.1, 0.1, 0.1, 1);
+    gl.clear(gl.COLOR_BUFFER_BIT);
+    const img = $("cam-head");
+    gl.useProgram(q.prog);
+    gl.bindTexture(gl.TEXTURE_2D, q.tex);
+    if (img.complete && img.naturalWidth && q.uploaded !== state.frames) {
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, img);
+      q.uploaded = state.frames;
+    }
+    gl.bindBuffer(gl.ARRAY_BUFFER, q.buf);
+    gl.enableVertexAttribArray(q.loc);
+    gl.vertexAttribPointer(q.loc, 2, gl.FLOAT, false, 0, 0);
+    for (const view of pose.views) {
+      const vp = layer.getViewport(view);
+      gl.viewport(vp.x, vp.y, vp.width, vp.height);
+      gl.drawArrays(gl.TRIANGLES, 0, 6);
+    }
+  }
+
+  async function startXr() {
+    const session = await navigator.xr.requestSession("immersive-vr",
+      { requiredFeatures: ["local-floor"], optionalFeatures: ["hand-tracking"] });
+    const canvas = document.createElement("canvas");
+    const gl = canvas.getContext("webgl", { xrCompatible: true });
+    if (gl.makeXRCompatible) await gl.makeXRCompatible();
+    const layer = new XRWebGLLayer(session, gl);
+    session.updateRenderState({ baseLayer: layer });
+    const ref = await session.requestReferenceSpace("local-floor");
+    const quad = headQuad(gl);
+    state.xr = true;
+    state.xrSent = 0;
+    session.addEventListener("end", () => { state.xr = false; sendCommand(); });
+    let last = -1e9;
+    const onFrame = (t, frame) => {
+      session.requestAnimationFrame(onFrame);
+      const pose = frame.getViewerPose(ref);
+      if (!pose) return;
+      if (t - last >= 33) {
+        const hands = {};
+        for (const src of session.inputSources) {
+          if (!src.hand || (src.handedness !== "left" && src.handedness !== "right")) continue;
+          const joints = [];
+          for (const space of src.hand.values()) {
+            const jp = frame.getJointPose(space, ref);
+            if (!jp) break;
+            joints.push(round(jp.transform.matrix));
+          }
+          if (joints.length === 25) hands[src.handedness] = joints;
+        }
+        send({ type: "xr", head: round(pose.transform.matrix), hands });
+        state.xrSent += 1;
+        last = t;
+      }
+      drawHead(gl, layer, pose, quad);
+    };
+    session.requestAnimationFrame(onFrame);
+  }
+
+  async function setupXr() {
+    try {
+      if (emulate) await loadEmulator();
+      if (!navigator.xr || !(await navigator.xr.isSessionSupported("immersive-vr"))) return;
+      const btn = $("btn-xr");
+      btn.hidden = false;
+      btn.addEventListener("click", () => startXr().catch((err) => { $("st-msg").textContent = `VR: ${err.message}`; }));
+    } catch (err) {
+      $("st-msg").textContent = `VR unavailable: ${err.message}`;
+    }
+  }
+  setupXr();
+
   connect();
   // the controls are repeated every 0.1 s: the server releases them when the page goes quiet
   setInterval(() => { if (!state.xr) sendCommand(); }, 100);
