@@ -62,6 +62,27 @@ class TeleopRecorder:
         self._lock = threading.Lock()
         self._pending: Future | None = None
         self.saved: list[Path] = []
+        self._recover()
+
+    def _recover(self) -> None:
+        """After a crash: put back a dataset caught between the swap's two renames, and re-merge when
+        the dataset does not hold exactly the complete shards' episodes."""
+        from stages.dataset import list_shards
+
+        final, old = self.out / "dataset", self.out / ".dataset-old"
+        if not final.exists() and old.exists():
+            os.rename(old, final)
+        shards = sorted(s.shard_id for s in list_shards(self.shards) if s.episodes > 0)
+        merged: list[str] = []
+        meta = final / TELEOP_META
+        if meta.is_file():
+            try:
+                merged = sorted(e["shard"] for e in json.loads(meta.read_text(encoding="utf-8"))["episodes"])
+            except (ValueError, KeyError, TypeError):
+                merged = []
+        if shards and shards != merged:
+            log.warning("teleop: %s holds %d of %d saved episodes; merging again", final, len(merged), len(shards))
+            self.request_merge()
 
     @property
     def recording(self) -> bool:

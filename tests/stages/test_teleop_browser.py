@@ -120,19 +120,26 @@ def test_browser_drives_the_robot_and_saves_an_episode(kitchen, tmp_path):
 
 
 def test_hostile_messages_are_rejected_and_the_simulation_runs_on(kitchen, tmp_path):
+    """Over HTTPS/WSS with the self-signed certificate that ``--host`` off loopback uses."""
     import asyncio
 
     import aiohttp
 
     from stages.teleop import TeleopConfig, TeleopSession
+    from stages.teleop.server import self_signed_context
 
+    if shutil.which("openssl") is None:
+        pytest.skip("no openssl to make the self-signed certificate")
     session = TeleopSession(kitchen, task="press_button", out=tmp_path / "out",
                             config=TeleopConfig(width=32, height=24, cameras=("head",)), world_seed=5)
-    srv = ServerThread(session, rate=50.0, burst=20)
+    srv = ServerThread(session, rate=50.0, burst=20, ssl_context=self_signed_context(tmp_path / "tls", "127.0.0.1"))
+    assert srv.base.startswith("https://")
     session.start()
 
     async def attack() -> tuple[list, int]:
-        async with aiohttp.ClientSession() as http:
+        async with aiohttp.ClientSession(connector=aiohttp.TCPConnector(ssl=False)) as http:
+            async with http.get(srv.base) as r:
+                assert r.status == 401
             async with http.ws_connect(srv.base + "ws?token=" + srv.server.token) as ws:
                 bad = ["{", "[]", '{"type": "cmd"}', '{"type": "cmd", "seq": 1, "base": [NaN, 0, 0], '
                        '"jog": [0,0,0,0,0,0], "mode": 0, "gripper": 0}',
