@@ -100,7 +100,7 @@
     const now = performance.now();
     shown.push(now);
     while (shown.length && now - shown[0] > 2000) shown.shift();
-    state.fps = shown.length > 1 ? (shown.length - 1) * 1000 / (shown[shown.length - 1] - shown[0]) : 0;
+    state.fps = shown.length / 2; // frames shown in the last 2 s, per second
   }
 
   function onStatus(st) {
