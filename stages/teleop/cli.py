@@ -109,7 +109,11 @@ def main(argv: list[str]) -> int:
     log.info("building the kitchen (world seed %d) in %s", a.world_seed, work)
     world = teleop_kitchen(work, a.world_seed)
     log.info("building the simulation (%s)", a.device)
-    session = TeleopSession(world, task=a.task, out=out, config=cfg, world_seed=a.world_seed)
+    try:
+        session = TeleopSession(world, task=a.task, out=out, config=cfg, world_seed=a.world_seed)
+    except ValueError as e:
+        print(f"agentworld teleop: {e}", file=console)
+        return 2
     ssl_context = None
     if a.host not in ("127.0.0.1", "localhost", "::1"):
         from stages.teleop.server import self_signed_context
@@ -125,5 +129,9 @@ def main(argv: list[str]) -> int:
         asyncio.run(serve(session, host=a.host, port=a.port, ssl_context=ssl_context, on_url=on_url))
     except KeyboardInterrupt:
         pass
+    except (RuntimeError, OSError) as e:  # the session failed (logged with its traceback), or the port
+        log.debug("teleop: stopped by an error", exc_info=True)
+        print(f"agentworld teleop: {e}; see {out / 'logs' / 'teleop.log'}", file=console)
+        return 1
     print(f"teleop: {len(session.saved)} episode(s) saved; input log {session.log_path}", file=console)
     return 0

@@ -79,6 +79,7 @@ class TeleopSession:
             raise ValueError(f"teleop: unknown task {task!r}; known {sorted(TASKS)}")
         self.world, self.task, self.cfg, self.replay = world, task, config, replay
         self.out = Path(out)
+        self._check_task()
         self.name = datetime.now(UTC).strftime("%Y%m%dT%H%M%S") + "-" + secrets.token_hex(3)
         ecfg = EngineConfig(worlds=1, device=config.device, width=config.width, height=config.height,
                             fps=config.fps, cameras=config.cameras)
@@ -109,6 +110,16 @@ class TeleopSession:
         self.last_ee_pose: tuple | None = None  # newest frame's end-effector pose (7: xyz [m], wxyz) in the base frame
         self.error: BaseException | None = None
         self._thread: threading.Thread | None = None
+
+    def _check_task(self) -> None:
+        """Fail now, with the reason, if this world cannot hold the task (no start pose, no part)."""
+        from pipeline.types import ItemError
+        from stages.demos.sampling import sample_instance
+
+        try:
+            sample_instance(self.task, self.world, self.cfg.seed)
+        except ItemError as e:
+            raise ValueError(f"teleop: task {self.task!r} cannot run in {self.world.scene_id}: {e}") from None
 
     # -- the server's side ----------------------------------------------------------------------
     def submit(self, msg) -> None:
@@ -171,7 +182,7 @@ class TeleopSession:
         try:
             self.run()
         except BaseException as e:  # noqa: BLE001 (kept for the caller: join() re-raises it)
-            log.error("teleop: the session failed: %r", e)
+            log.error("teleop: the session failed: %r", e, exc_info=e)
             self.error = e
 
     def join(self, timeout: float | None = None) -> None:

@@ -69,3 +69,14 @@ def test_rate_limiter_allows_bursts_then_the_rate():
     assert [rl.allow(now=0.0) for _ in range(7)] == [True] * 5 + [False] * 2
     assert rl.allow(now=0.1) and not rl.allow(now=0.1)  # one token per 0.1 s
     assert rl.dropped == 3
+
+
+def test_importing_teleop_loads_no_simulator_and_no_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, stages.teleop, stages.teleop.server, stages.teleop.xr; "
+            "print(sorted(m for m in ('warp', 'newton', 'torch', 'pxr', 'lerobot', 'mujoco') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=__file__.rsplit("/tests/", 1)[0])
+    assert out.stdout.strip() == "[]"
