@@ -208,7 +208,8 @@ class TeleopServer:
             sender.cancel()
             status.cancel()
             self._operator = None
-            # the operator is gone: controls to zero (mode and gripper kept)
+            # the operator is gone: controls to zero (mode and gripper kept), no XR poses
+            self.session.xr = None
             last = self.session.current_command()
             self.session.submit(OperatorCommand(seq=last.seq + 1, mode=last.mode, gripper=last.gripper,
                                                 received=time.perf_counter()))
