@@ -23,14 +23,16 @@ def kitchen(teleop_world):
     return teleop_world
 
 
-def _start(out: Path, work: Path) -> tuple[subprocess.Popen, str]:
+def _start(out: Path, work: Path) -> tuple[subprocess.Popen, str, list[str]]:
     cmd = [sys.executable, "-m", "pipeline.cli", "teleop", "press_button", "--out", str(out), "--work", str(work),
            "--port", "0", "--width", "32", "--height", "24"]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     t0 = time.monotonic()
+    console = []
     for line in proc.stdout:
+        console.append(line)
         if line.startswith("teleop: open "):
-            return proc, line.split()[2]
+            return proc, line.split()[2], console
         if time.monotonic() - t0 > 300:
             break
     proc.kill()
@@ -75,7 +77,7 @@ def test_a_saved_episode_survives_kill_9_and_nothing_half_written_remains(kitche
     from stages.teleop.recording import TeleopRecorder
 
     out, work = tmp_path / "out", kitchen.usd.parent.parent
-    proc, url = _start(out, work)
+    proc, url, console = _start(out, work)
     try:
         asyncio.run(_operate(url, out))
         temps = [p.name for p in (out / "shards").iterdir() if p.name.startswith(".tmp-")]
@@ -83,6 +85,11 @@ def test_a_saved_episode_survives_kill_9_and_nothing_half_written_remains(kitche
     finally:
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(30)
+        console += proc.stdout.readlines()
+    # the console shows our lines only (Warp's banner and kernel loads, progress bars: in the log)
+    text = "".join(console)
+    assert "Warp" not in text and "Module" not in text and "%|" not in text, text
+    assert (out / "logs" / "teleop.log").is_file()
     shards = list_shards(out / "shards")  # complete shards only
     assert [s.episodes for s in shards] == [1]
     ds = load_dataset(out / "dataset")

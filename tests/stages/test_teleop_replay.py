@@ -5,16 +5,11 @@ and ``--replay`` of the session's input log reproduces it (same actions, state w
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
@@ -62,7 +57,7 @@ def _columns(root):
 
 def test_operated_episode_is_saved_and_its_replay_reproduces_it(kitchen, tmp_path):
     from stages.dataset import load_dataset
-    from stages.teleop import TeleopConfig, TeleopSession, read_input_log
+    from stages.teleop import TeleopConfig, TeleopSession, read_input_log, replay_session
 
     # a scripted operator sends each command once (no 0.1 s repeats as the page does): no timeout
     cfg = TeleopConfig(width=64, height=48, realtime=False, seed=11, command_timeout=None)
@@ -98,18 +93,39 @@ def test_operated_episode_is_saved_and_its_replay_reproduces_it(kitchen, tmp_pat
     # a preview, the recorded episode, maybe the next preview (stopped)
     assert [e.record for e in log.episodes][:2] == [False, True]
     assert [e.outcome for e in log.episodes] in (["start", "save"], ["start", "save", "stop"])
-    # through the command, as CI and a user run it (the kitchen's assets reused from its work dir)
-    work = kitchen.usd.parent.parent
-    cmd = [sys.executable, "-m", "pipeline.cli", "teleop", "pick_place_bowl", "--replay", str(s.log_path),
-           "--out", str(tmp_path / "replay"), "--work", str(work)]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=REPO)
-    assert run.returncode == 0, run.stderr[-2000:]
-    console = run.stdout + run.stderr
-    assert f"replayed 1 episode(s) of {s.log_path}" in console
-    assert "Warp" not in console and "Module" not in console and "%|" not in console, console  # quiet
+    r = replay_session(log, kitchen, out=tmp_path / "replay")  # what `agentworld teleop --replay` runs
+    assert len(r.saved) == 1
     state2, action2 = _columns(tmp_path / "replay" / "dataset")
     assert state2.shape == state.shape
     np.testing.assert_array_equal(action2, action)
     np.testing.assert_allclose(state2, state, rtol=0, atol=1e-6)
     rmeta = json.loads((tmp_path / "replay" / "dataset" / "meta" / "teleop.json").read_text())["episodes"][0]
     assert rmeta["input_device"] == "replay" and rmeta["replay_of_episode"] == 1
+
+
+@pytest.mark.slow
+def test_replay_command_reproduces_a_session(kitchen, tmp_path):
+    """``agentworld teleop TASK --replay LOG`` (a subprocess, the kitchen's assets reused)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from stages.teleop import TeleopConfig, TeleopSession
+
+    cfg = TeleopConfig(width=32, height=24, realtime=False, seed=2, command_timeout=None)
+    s = TeleopSession(kitchen, task="press_button", out=tmp_path / "live", config=cfg, world_seed=5)
+    op = threading.Thread(target=_operator, args=(s, [(3, _cmd(1, base=(1, 0, 1))), (10, _cmd(2, mode=1, jog=(0, 1, 0, 0, 0, 0))),
+                                                      (16, dict(type="episode", action="save"))]), daemon=True)
+    op.start()
+    s.run()
+    op.join(5)
+    repo = Path(__file__).resolve().parents[2]
+    cmd = [sys.executable, "-m", "pipeline.cli", "teleop", "press_button", "--replay", str(s.log_path),
+           "--out", str(tmp_path / "replay"), "--work", str(kitchen.usd.parent.parent)]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=repo)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    assert f"replayed 1 episode(s) of {s.log_path}" in run.stdout + run.stderr
+    state, action = _columns(tmp_path / "live" / "dataset")
+    state2, action2 = _columns(tmp_path / "replay" / "dataset")
+    np.testing.assert_array_equal(action2, action)
+    np.testing.assert_allclose(state2, state, rtol=0, atol=1e-6)
