@@ -16,6 +16,8 @@ $(STAMP): pyproject.toml constraints.txt
 	@test -x $(VENV)/bin/python || $(PY) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -q --upgrade pip
 	$(VENV)/bin/python -m pip install -q -c constraints.txt -e '.[test]'
+	@# the teleop page's headset emulator (IWER) from the npm registry; without npm its test skips
+	-$(VENV)/bin/python -m stages.teleop.vendor
 	@touch $(STAMP)
 
 install: $(STAMP)

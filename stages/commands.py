@@ -15,6 +15,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                      "G1 worlds through the humanoid runtime (policy + CLIK hands): tracking, hand error, falls"),
     "loco-train": ("stages.locomotion.cli:train_main",
                    "train the G1 velocity-tracking policy with PPO on N Newton worlds; resumes from checkpoints"),
+    "teleop": ("stages.teleop.cli:main",
+               "teleoperate a task world from a browser (keyboard) and record episodes; --replay a session"),
     "render-assets": ("stages.render_assets:main",
                       "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
     "render-dataset": ("stages.dataset.render:cli",

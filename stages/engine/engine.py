@@ -249,17 +249,22 @@ class BatchEngine:
 
     # -- the run ----------------------------------------------------------------------------
     def run(self, next_instance: Callable, *, begin: Callable | None = None,
-            end: Callable | None = None, max_steps: int | None = None) -> EngineStats:
+            end: Callable | None = None, max_steps: int | None = None,
+            act: Callable | None = None) -> EngineStats:
         """Run episodes in every world until ``next_instance(world)`` returns None for all of
         them. ``begin(world, instance)`` returns the episode's frame sink (or None: frames
         dropped); ``end(world, instance, EpisodeResult)`` is called when it ends. Both are called
         from the world's program, one world at a time, in a deterministic order. ``next_instance``
         may return ``(instance, max_seconds)`` to give that episode its own time limit [s].
         ``max_steps``: stop after this many physics steps (episodes in progress are abandoned:
-        neither ``end`` nor a result; for benchmarks)."""
+        neither ``end`` nor a result; for benchmarks). ``act(instance, driver)``: what drives each
+        episode in place of the task's scripted expert (teleoperation; threads only, not with
+        ``program_procs``)."""
         stop_at = None if max_steps is None else self.global_step + max_steps
         self._begin, self._end = begin, end
         self.__dict__.pop("_views", None)
+        if act is not None and self.config.program_procs:
+            raise ValueError("engine: act (a custom episode driver) runs in threads, not with program_procs")
         if self.config.program_procs:
             from stages.engine.remote import RemotePrograms
 
@@ -269,6 +274,7 @@ class BatchEngine:
         else:
             ls = self.lockstep = Lockstep(self.config.worlds)
             self.side = self._local_side(ls)
+            self.side.act = act
             for w in range(self.config.worlds):
                 ls.start(w, self.side.program(w, next_instance))
         try:

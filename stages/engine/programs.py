@@ -91,13 +91,15 @@ class WorldSide:
 
     def __init__(self, *, info, views: dict, controls: dict, ik, fps: int, steps_per_second: int,
                  steps: np.ndarray, rec_active: np.ndarray, rec_max: np.ndarray, lockstep, peaks, emit,
-                 free: dict[str, int], scene_coord: dict[str, int], max_seconds: float | None = None) -> None:
+                 free: dict[str, int], scene_coord: dict[str, int], max_seconds: float | None = None,
+                 act=None) -> None:
         self.info, self.views, self.controls, self.ik = info, views, controls, ik
         self.fps, self.steps_per_second = fps, steps_per_second
         self.steps, self.rec_active, self.rec_max = steps, rec_active, rec_max
         self.lockstep, self.peaks, self.emit = lockstep, peaks, emit
         self.free, self.scene_coord, self.max_seconds = free, scene_coord, max_seconds
         self.cmds = {w: Commands() for w in views}
+        self.act = act
 
     def request_steps(self, w: int, n: int) -> None:
         """From world ``w``'s program: run ``n`` physics steps (episode time limit enforced)."""
@@ -148,8 +150,11 @@ class WorldSide:
         self.peaks.start(w)
         reason = detail = ""
         try:
-            EXPERTS[inst.task](inst, drv)
-            drv.step(0.3)
+            if self.act is None:
+                EXPERTS[inst.task](inst, drv)
+                drv.step(0.3)
+            else:
+                self.act(inst, drv)
         except ExpertFailure as e:
             reason, detail = e.reason, str(e)
         except EpisodeTimeout as e:
