@@ -270,7 +270,7 @@ class RemotePrograms:
             if late:
                 self.engine.hold(late)
         live = self.a["flags"][:, DONE] == 0
-        if not replies and live.any() and (self.in_flight | ~live).all():
+        if not replies and self.in_flight.any() and (self.in_flight | ~live).all():
             replies += self._drain(None)  # every live world is planning: wait for one (no spinning)
         if not replies:
             return len(ready)
@@ -291,7 +291,8 @@ class RemotePrograms:
 
     def waiting_sync(self) -> list[int]:
         f = self.a["flags"]
-        return [int(w) for w in np.nonzero((f[:, SYNC] == 1) & (f[:, DONE] == 0))[0]]
+        # a worker writes the flags before its answer arrives: only answered worlds count
+        return [int(w) for w in np.nonzero((f[:, SYNC] == 1) & (f[:, DONE] == 0) & ~self.in_flight)[0]]
 
     def release_sync(self, worlds) -> None:
         for w in worlds:
@@ -312,7 +313,9 @@ class RemotePrograms:
         p[m] = np.maximum(0, p[m] - k)
 
     def alive(self) -> bool:
-        return bool((self.a["flags"][:, DONE] == 0).any())
+        """A world's program still runs, or its last answer (with its episode's end) has not
+        arrived yet: a worker sets DONE before its answer reaches the engine."""
+        return bool(((self.a["flags"][:, DONE] == 0) | self.in_flight).any())
 
     def commands(self, w: int) -> tuple:
         c = self.a["cmdrec"][w]
