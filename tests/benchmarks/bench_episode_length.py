@@ -185,5 +185,11 @@ if __name__ == "__main__":
     p.add_argument("--kitchen", type=int, default=5, help="the kitchen's seed")
     p.add_argument("--phases", action="store_true", help="also simulated seconds per expert phase")
     p.add_argument("--name", default="episode_length", help="writes bench_results/<name>.json")
+    p.add_argument("--verbose", action="store_true", help="the experts' log (stages, re-plans)")
     a = p.parse_args()
+    if a.verbose:
+        import logging
+
+        logging.basicConfig(level=logging.WARNING, format="%(name)s: %(message)s")
+        logging.getLogger("stages.demos").setLevel(logging.INFO)
     run(tuple(a.seeds), a.tasks.split(",") if a.tasks else None, a.catalog, a.kitchen, a.phases, a.name)
