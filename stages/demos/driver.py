@@ -26,7 +26,8 @@ APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retre
 class Pace:
     """How fast the scripted motions go. A hand move takes the longer of its distance over
     ``free_speed`` (free-space moves: a CLIK tolerance of at least APPROACH_TOL) or
-    ``contact_speed`` (moves that end at or in contact) [m/s] and its rotation over ``turn_rate``
+    ``contact_speed`` (moves that end at or in contact) or ``carry_speed`` (a held object carried
+    through free space) [m/s] and its rotation over ``turn_rate``
     [rad/s], at least ``min_move`` [s] and at most the duration the expert gives; it is stretched
     where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (60% of the
     Panda's slowest joint limit, 2.175 rad/s). ``joint_speed`` [rad/s]: arm joint speed of
@@ -36,9 +37,10 @@ class Pace:
 
     free_speed: float = 0.45
     contact_speed: float = 0.25
+    carry_speed: float = 0.35
     turn_rate: float = 2.0
     min_move: float = 0.3
-    joint_speed: float = 1.0
+    joint_speed: float = 1.3
     max_joint_speed: float = 1.3
     finger_still: float = 0.005
     arm_still: float = 0.05
@@ -115,9 +117,9 @@ class Driver:
 
         self.wait_until(still, seconds)
 
-    def move_time(self, target_world: np.ndarray, duration: float, tol: float) -> float:
+    def move_time(self, target_world: np.ndarray, duration: float, tol: float, carry: bool = False) -> float:
         """The duration [s] of a hand move to ``target_world`` (4x4) by the :class:`Pace`, at most
-        ``duration``."""
+        ``duration`` (``carry``: carrying a held object through free space)."""
         from stages.simulate.control import Clik
 
         cur = self.ik.fk(self.ik.with_arm(self.ik.from_sim(self.sim), self.ctl.arm_targets()))
@@ -126,22 +128,23 @@ class Driver:
         cos = (np.trace(cur[:3, :3].T @ goal[:3, :3]) - 1.0) / 2.0
         angle = float(np.arccos(np.clip(cos, -1.0, 1.0)))
         p = self.pace
-        speed = p.free_speed if tol >= APPROACH_TOL else p.contact_speed
+        speed = p.carry_speed if carry else p.free_speed if tol >= APPROACH_TOL else p.contact_speed
         return min(duration, max(p.min_move, dist / speed, angle / p.turn_rate))
 
     def move(self, target_world: np.ndarray, duration: float, *, segments: int = 2, settle: float = 0.0,
-             tol: float = 0.005) -> None:
+             tol: float = 0.005, carry: bool = False) -> None:
         """End-effector to ``target_world`` (4x4) along a straight line in at most ``duration``
         [s] (:meth:`move_time`), then :meth:`settle` up to ``settle`` [s]; every waypoint must be
         reached by CLIK within ``tol`` [m] (free-space approach moves use a looser tolerance than
-        contact moves)."""
+        contact moves); ``carry``: a held object carried through free space (:class:`Pace`)."""
         from stages.simulate.control import move_ee
 
         self.cmd.mode = 1
         self.base((0.0, 0.0, 0.0))
         try:
-            move_ee(self.sim, self.ctl, self.ik, target_world, self.move_time(target_world, duration, tol),
-                    segments=segments, rng=self.rng, tol=tol, max_joint_speed=self.pace.max_joint_speed)
+            seconds = self.move_time(target_world, duration, tol, carry)
+            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments, rng=self.rng, tol=tol,
+                    max_joint_speed=self.pace.max_joint_speed)
         except RuntimeError as e:
             if "unreachable" in str(e):
                 raise ExpertFailure("ik_unreachable", str(e)) from None

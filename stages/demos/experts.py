@@ -120,7 +120,7 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(grasp + [0, 0, 0.12], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(grasp, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
-    d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2)
+    d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2, carry=True)
     place = np.array([bowl[0], bowl[1], top + 0.012 + h - RIM_CLEARANCE + 0.008])
     d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
@@ -154,7 +154,7 @@ def _side_pick(d: Driver, at: np.ndarray, rot: np.ndarray, lift: float, pre: flo
     d.move(_pose(at, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     up = at + [0, 0, lift]
-    d.move(_pose(up, rot), 0.6, segments=1)
+    d.move(_pose(up, rot), 0.6, segments=1, carry=True)
     return up
 
 
@@ -204,10 +204,10 @@ def pick_from_microwave(inst: TaskInstance, d: Driver) -> None:
     d.grip(0.0, 0.1)
     d.move(_pose([start[0], front - 0.10, start[2] + gz], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
     up = _side_pick(d, start + [0.0, -0.003, gz], rot, 0.02, pre=0.0)
-    d.move(_pose([up[0], front - 0.10, up[2]], rot), 1.5, segments=3)
+    d.move(_pose([up[0], front - 0.10, up[2]], rot), 1.5, segments=3, carry=True)
     z = w.counter_z + gz + 0.02
-    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3)
-    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.0, segments=2)
+    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3, carry=True)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.0, segments=2, carry=True)
     d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.015], rot), 0.5, segments=1, settle=0.2)
     d.grip(0.0, 0.6)
     d.move(_pose([tgt[0], tgt[1] - 0.15, z], rot), 1.0, segments=2, tol=APPROACH_TOL)

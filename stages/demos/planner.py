@@ -162,8 +162,8 @@ class PathFollower:
     corner: float = 0.05
     pos_tol: float = 0.01
     yaw_tol: float = 0.01
-    k_pos: float = 4.0
-    k_yaw: float = 4.0
+    k_pos: float = 6.0
+    k_yaw: float = 6.0
 
     def __post_init__(self) -> None:
         self._v = np.zeros(2)  # the last command's world-frame velocity [m/s]
