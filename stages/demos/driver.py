@@ -143,8 +143,8 @@ class Driver:
         self.base((0.0, 0.0, 0.0))
         try:
             seconds = self.move_time(target_world, duration, tol, carry)
-            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments, rng=self.rng, tol=tol,
-                    max_joint_speed=self.pace.max_joint_speed)
+            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments, rng=self.rng,
+                    tol=tol, max_joint_speed=self.pace.max_joint_speed)
         except RuntimeError as e:
             if "unreachable" in str(e):
                 raise ExpertFailure("ik_unreachable", str(e)) from None

@@ -38,7 +38,7 @@ __all__ = ["EXPERTS", "Driver", "ExpertFailure", "approach_counter", "close_arti
 log = logging.getLogger(__name__)
 
 RIM_CLEARANCE = 0.025  # top-down grasp: fingertip centre below the mug's rim [m]
-COUNTER_STAGE = 0.45  # the base raises or tucks the hand this far back from its pose at the counter [m]
+COUNTER_STAGE = 0.35  # the base raises or tucks the hand this far back from its pose at the counter [m]
 
 
 def timed_clik(desc):
@@ -182,7 +182,7 @@ def pick_place_microwave(inst: TaskInstance, d: Driver) -> None:
     z = w.cavity_z + gz + 0.025
     d.move(_pose([start[0], front - 0.10, z], rot), 1.0, segments=2, tol=APPROACH_TOL)
     d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3, tol=APPROACH_TOL)
-    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.5, segments=3)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.5, segments=3, carry=True)
     d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.02], rot), 0.5, segments=1, settle=0.2)
     d.grip(0.0, 0.6)
     d.move(_pose([tgt[0], front - 0.12, z], rot), 1.2, segments=3, tol=APPROACH_TOL)
@@ -279,7 +279,7 @@ def press_button(inst: TaskInstance, d: Driver) -> None:
 
 def leave_counter(inst: TaskInstance, d: Driver) -> None:
     """Raise the hand to the approach pose (clear of the counter), back the base COUNTER_STAGE away
-    (the tucked hand then hangs 0.3 m clear of the counter's front), tuck."""
+    (the tucked hand then hangs 0.2 m clear of the counter's front), tuck."""
     w = inst.world
     bx, by, th = base_pose(d.sim)
     ready = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + 0.12])
