@@ -45,9 +45,10 @@ def _catalog(out: Path) -> Path:
     return build_catalog(out)
 
 
-def _motion(frames) -> dict:
+def _motion(frames, phases=None) -> dict:
     """Peaks of an episode's recorded motion (30 fps): arm joint speed [rad/s] (the Panda's limits
-    are 2.175-2.61 rad/s), base speed command [m/s] and its change [m/s^2], base turn rate
+    are 2.175-2.61 rad/s; with ``phases``, the expert phase of each frame, also the joint and the
+    phase of the peak), base speed command [m/s] and its change [m/s^2], base turn rate
     command [rad/s]."""
     import numpy as np
 
@@ -56,7 +57,10 @@ def _motion(frames) -> dict:
     q = np.stack([f.arm_joint_pos for f in frames])
     v = np.stack([f.base_velocity for f in frames])
     fps = 30.0
-    return {"peak_joint_speed": round(float(np.abs(np.diff(q, axis=0)).max() * fps), 3),
+    dq = np.abs(np.diff(q, axis=0))
+    k, j = np.unravel_index(int(np.argmax(dq)), dq.shape)
+    where = {"peak_joint": int(j) + 1, "peak_phase": phases[k + 1]} if phases else {}
+    return {**where, "peak_joint_speed": round(float(dq.max() * fps), 3),
             "peak_base_speed": round(float(np.linalg.norm(v[:, :2], axis=1).max()), 3),
             "peak_base_accel": round(float(np.linalg.norm(np.diff(v[:, :2], axis=0), axis=1).max() * fps), 3),
             "peak_turn_rate": round(float(np.abs(v[:, 2]).max()), 3)}
@@ -74,6 +78,7 @@ class PhaseClock:
         from stages.demos.driver import Driver
 
         self.sums: dict[str, float] = {}
+        self.current: str | None = None  # the outermost phase running now
         self._depth = 0
         for name in self.METHODS:
             setattr(Driver, name, self._wrap(getattr(Driver, name), name))
@@ -87,10 +92,12 @@ class PhaseClock:
             key = f"{name}@{sys._getframe(1).f_code.co_name}"
             t0 = d.sim.time
             clock._depth += 1
+            clock.current = key
             try:
                 return fn(d, *args, **kwargs)
             finally:
                 clock._depth -= 1
+                clock.current = None
                 clock.sums[key] = clock.sums.get(key, 0.0) + d.sim.time - t0
 
         return wrapped
@@ -122,17 +129,23 @@ def run(seeds=(1, 2), tasks=None, catalog: Path | None = None, kitchen: int = 5,
         rows: list[dict] = []
         clock = PhaseClock() if phases else None
         seen: list = []
+        phase_of: list = []
+
+        def sink(frame):
+            seen.append(frame)
+            phase_of.append(clock.current if clock is not None else None)
 
         def begin(w, ticket):
             seen.clear()
-            return seen.append
+            phase_of.clear()
+            return sink
         t_wall = [time.perf_counter()]
 
         def end(w, ticket, res):
             now = time.perf_counter()
             rows.append({"task": ticket.task, "seed": ticket.seed, "frames": res.frames,
                          "sim_s": round(res.sim_seconds, 2), "success": res.success, "reason": res.reason,
-                         "wall_s": round(now - t_wall[0], 1), **_motion(seen)})
+                         "wall_s": round(now - t_wall[0], 1), **_motion(seen, phase_of if clock else None)})
             if clock is not None:
                 rows[-1]["phases_s"] = clock.take()
                 print("   ", rows[-1]["phases_s"], flush=True)
