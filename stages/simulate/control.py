@@ -367,6 +367,11 @@ def top_down(yaw: float = 0.0) -> np.ndarray:
     return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
 
 
+#: move_ee updates the joint targets at least every this many physics steps (a target that jumps by
+#: a tenth of a long segment at once whips a light wrist joint to several rad/s)
+TARGET_EVERY = 10
+
+
 def move_ee(
     sim,
     ctl: RobotControl,
@@ -409,7 +414,7 @@ def move_ee(
         n_seg = per_seg
         if max_joint_speed:
             n_seg = max(n_seg, int(np.ceil(np.abs(q1 - q0).max() / max_joint_speed / sim.settings.dt)))
-        chunk = max(1, n_seg // 10)
+        chunk = max(1, min(n_seg // 10, TARGET_EVERY))
         for i in range(0, n_seg, chunk):
             ctl.set_arm_targets(q0 + (q1 - q0) * min(1.0, (i + chunk) / n_seg), world)
             sim.step(chunk)
