@@ -58,6 +58,10 @@ log = logging.getLogger(__name__)
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
+CARRY_SPEED = 0.2    # hand speed carrying a handle or pushing a leaf along its arc [m/s]
+CARRY_TURN = 0.5     # hand (and leaf) turn rate while carrying it [rad/s]
+SHIFT_SPEED = 0.35   # base speed of short straight shifts with the arm held [m/s]
+SHIFT_ACCEL = 0.8    # base acceleration of those shifts and of drawer slides [m/s^2]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
@@ -65,7 +69,7 @@ EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 
 
-def _slide(d, distance: float, speed: float = 0.12) -> None:
+def _slide(d, distance: float, speed: float = 0.2) -> None:
     """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held; closed
     on the measured displacement (velocity commands alone fall a few centimetres short)."""
     from stages.demos.record import base_pose
@@ -74,16 +78,18 @@ def _slide(d, distance: float, speed: float = 0.12) -> None:
     u = np.array([math.cos(yaw0), math.sin(yaw0)]) * math.copysign(1.0, distance)
     d.cmd.mode = 1
     t_end = d.sim.time + abs(distance) / speed * 2.0 + 1.0
+    v_prev = 0.0
     while d.sim.time < t_end:
         x, y, _ = base_pose(d.sim)
         left = abs(distance) - float(np.dot([x - x0, y - y0], u))
         if left <= 0.002:
             break
-        v = min(speed, max(0.03, 2.0 * left))
+        v = min(speed, max(0.03, 3.0 * left), v_prev + SHIFT_ACCEL * d.frame_dt)
+        v_prev = v
         d.base((math.copysign(v, distance), 0.0, 0.0))
         d.step(d.frame_dt)
     d.base((0.0, 0.0, 0.0))
-    d.step(0.3)
+    d.step(0.2)
 
 
 def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
@@ -119,11 +125,26 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.home(1.0)
 
 
+def _carry_times(d, start: np.ndarray, poses, slow) -> list[float]:
+    """Durations [s] of hand steps from 4x4 ``start`` through ``poses`` carrying a part: at most
+    CARRY_SPEED [m/s] and CARRY_TURN [rad/s] of hand rotation, half that where ``slow[k]``."""
+    out, prev = [], np.asarray(start, float)
+    for t, s_ in zip(poses, slow, strict=True):
+        dist = float(np.linalg.norm(t[:3, 3] - prev[:3, 3]))
+        cos = (np.trace(prev[:3, :3].T @ t[:3, :3]) - 1.0) / 2.0
+        turn = float(np.arccos(np.clip(cos, -1.0, 1.0)))
+        out.append(max(d.pace.min_wait, dist / CARRY_SPEED, turn / CARRY_TURN) * (2.0 if s_ else 1.0))
+        prev = t
+    return out
+
+
 def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -> int:
     """Follow world poses ``targets`` with the arm: each is solved by CLIK from the robot's actual
     state with the arm seeded by the planned solution in ``seeds`` (so execution stays on the
-    planned branch), and the joint targets move linearly there in ``durations`` [s]; with
-    ``fallback`` (free-space moves) a miss is solved again from the arm's state with restarts.
+    planned branch), and the joint targets move linearly there in ``durations`` [s] (with
+    ``fallback``, free-space moves, at most: by the Driver's pace), longer where an arm joint
+    would move faster than the pace allows; with
+    ``fallback`` a miss is solved again from the arm's state with restarts.
     Returns how many were reached; stops at the first one CLIK misses by more than ``tol`` [m] or
     3 deg."""
     from stages.simulate.control import Clik
@@ -143,7 +164,10 @@ def track(d, targets, seeds, durations, *, tol: float, fallback: bool = False) -
                      res.position_error,
                      res.rotation_error, np.round(seed, 2), np.round(d.ik.arm_q(res.q), 2))
             return k
+        if fallback:
+            dur = d.move_time(t, dur, APPROACH_TOL)
         a0, a1 = d.ctl.arm_targets(), d.ik.arm_q(res.q)
+        dur = max(dur, float(np.abs(a1 - a0).max()) / d.pace.max_joint_speed)
         n = max(1, int(round(dur / d.frame_dt)))
         for i in range(1, n + 1):
             d.ctl.set_arm_targets(a0 + (a1 - a0) * i / n)
@@ -219,7 +243,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             if len(sols2) >= na:
                 sols, n = sols2, len(sols2) - na
         d.grip(1.0 if push else 0.0, 0.4)
-        durs = [1.5] + [0.6] * (na - 2) + [0.5]
+        # free-space approach waypoints by the Driver's pace, the last (onto the part) at CARRY_SPEED
+        durs = [1.5] + [0.6] * (na - 2) + _carry_times(d, approach[-2], approach[-1:], [False])
         log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
                   np.round(base, 3))
         if track(d, approach[:-1], sols[:na - 1], durs, tol=SWING_TOL, fallback=True) < na - 1 or \
@@ -231,7 +256,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             _stow(d)
             q = d.sim.joint_q_of_path(part.joint_path)
             continue
-        d.step(0.2)
+        d.settle(0.2)
         k = 0
         if not push:
             d.grip(1.0, 0.6)
@@ -246,15 +271,15 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 n = -1
         if n >= 0:
             # slow near closed: a heavy leaf driven into its stop rebounds
-            durs = [0.8 if abs(qw - part.closed) < math.radians(20.0) and not opening else 0.4
-                    for qw in qs[:n]]
+            durs = _carry_times(d, approach[-1], arc[:n], [abs(qw - part.closed) < math.radians(20.0)
+                                                           and not opening for qw in qs[:n]])
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
             # pinching an edge: the leaf slides between the fingers, push again while it is short
             for _ in range(2 if edge else 0):
                 if done(d.sim.joint_q_of_path(part.joint_path)):
                     break
                 _edge_push(part, d, grid, q1)
-        d.step(0.4)
+        d.settle(0.4)
         last = qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
@@ -328,7 +353,7 @@ def _escape(d, grid, reach: float = 0.5) -> None:
     if best is None:
         return
     log.info("base at (%.2f, %.2f) is blocked for planning: moving to (%.2f, %.2f)", x, y, *best)
-    _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]), speed=0.1)
+    _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]))
 
 
 def _drive(d, base: tuple[float, float, float], grid) -> None:
@@ -351,8 +376,8 @@ def _drive(d, base: tuple[float, float, float], grid) -> None:
 
 def _settle_part(part: ArticulatedPart, d, max_seconds: float = 2.0, speed: float = 0.03) -> None:
     """Step until the part's joint moves slower than ``speed`` [rad/s or m/s] (a heavy leaf let go
-    of keeps swinging), at most ``max_seconds``; at least 0.3 s."""
-    d.step(0.3)
+    of keeps swinging), at most ``max_seconds``; at least 0.1 s."""
+    d.step(0.1)
     qs_ = int(d.sim.model.joint_qd_start.numpy()[_joint_index(d, part)])
     t_end = d.sim.time + max_seconds
     while d.sim.time < t_end and abs(float(d.sim.state_0.joint_qd.numpy()[qs_])) > speed:
@@ -418,7 +443,7 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
             except ExpertFailure:
                 w = _ee_world(d)
         w = _ee_world(d)
-    _base_shift(d, -0.08 * w[:3, 2], speed=0.08)
+    _base_shift(d, -0.08 * w[:3, 2], speed=0.15)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
         e = part.rotation_at(q) @ lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
@@ -431,8 +456,9 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
         _base_shift(d, dist * e)
 
 
-def _base_shift(d, delta, speed: float = 0.12) -> None:
-    """Translate the base by the horizontal part of world vector ``delta`` [m] (heading kept)."""
+def _base_shift(d, delta, speed: float = SHIFT_SPEED, accel: float = SHIFT_ACCEL) -> None:
+    """Translate the base by the horizontal part of world vector ``delta`` [m] (heading kept):
+    a trapezoidal speed profile, up to ``speed`` [m/s] at ``accel`` [m/s^2]."""
     from stages.demos.record import base_pose
 
     v = np.asarray(delta, float)[:2]
@@ -441,12 +467,22 @@ def _base_shift(d, delta, speed: float = 0.12) -> None:
         return
     _, _, yaw = base_pose(d.sim)
     c, s = math.cos(yaw), math.sin(yaw)
-    u = v / dist * speed
+    u = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1]]) / dist  # base frame
+    peak = min(speed, math.sqrt(accel * dist))
+    ramp = peak / accel
+    total = dist / peak + ramp
+    h = max(1, int(round(d.frame_dt / d.sim.settings.dt))) * d.sim.settings.dt  # one command's time [s]
+    n = max(1, int(math.ceil(total / h)))
+    # speeds sampled at the commands' midpoints, scaled so that they cover exactly ``dist``
+    t = (np.arange(n) + 0.5) * total / n
+    prof = np.minimum.reduce([np.full(n, peak), accel * t, accel * (total - t)])
+    prof *= dist / (prof.sum() * h)
     d.cmd.mode = 1
-    d.base((c * u[0] + s * u[1], -s * u[0] + c * u[1], 0.0))
-    d.step(dist / speed)
+    for vk in prof:
+        d.base((float(vk * u[0]), float(vk * u[1]), 0.0))
+        d.step(h)
     d.base((0.0, 0.0, 0.0))
-    d.step(0.2)
+    d.step(0.1)
 
 
 def _move(d, target: np.ndarray, duration: float, *, segments: int = 1, settle: float = 0.0,
@@ -458,7 +494,8 @@ def _move(d, target: np.ndarray, duration: float, *, segments: int = 1, settle: 
     d.cmd.mode = 1
     d.base((0.0, 0.0, 0.0))
     try:
-        move_ee(d.sim, d.ctl, d.ik, target, duration, segments=segments, settle=settle, rng=None, tol=tol)
+        move_ee(d.sim, d.ctl, d.ik, target, duration, segments=segments, settle=settle, rng=None, tol=tol,
+                max_joint_speed=d.pace.max_joint_speed)
     except RuntimeError as e:
         if "unreachable" in str(e):
             raise ExpertFailure("ik_unreachable", str(e)) from None

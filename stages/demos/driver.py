@@ -22,6 +22,35 @@ ROBOT_RADIUS = 0.40  # planning footprint radius of the base with the arm tucked
 APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retreat waypoints [m]
 
 
+@dataclass(frozen=True, kw_only=True)
+class Pace:
+    """How fast the scripted motions go. A hand move takes the longer of its distance over
+    ``free_speed`` (free-space moves: a CLIK tolerance of at least APPROACH_TOL) or
+    ``contact_speed`` (moves that end at or in contact) or ``carry_speed`` (a held object carried
+    through free space) [m/s] and its rotation over ``turn_rate``
+    [rad/s], at least ``min_move`` [s] and at most the duration the expert gives; it is stretched
+    where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (60% of the
+    Panda's slowest joint limit, 2.175 rad/s). ``joint_speed`` [rad/s]: arm joint speed of
+    joint-space moves (home). Waits end on conditions: a gripper once its fingers stop
+    (``finger_still`` [m/s]), a settle once every arm joint is slower than ``arm_still``
+    [rad/s] and within ``arm_near`` [rad] of its target; ``min_wait`` [s] before either is checked."""
+
+    free_speed: float = 0.45
+    contact_speed: float = 0.25
+    carry_speed: float = 0.35
+    turn_rate: float = 2.0
+    min_move: float = 0.3
+    joint_speed: float = 1.3
+    max_joint_speed: float = 1.3
+    finger_still: float = 0.005
+    arm_still: float = 0.05
+    arm_near: float = 0.01
+    min_wait: float = 0.1
+
+
+PACE = Pace()
+
+
 class ExpertFailure(RuntimeError):
     """The expert could not complete; ``reason`` is a short category."""
 
@@ -41,6 +70,7 @@ class Driver:
     recorder: Recorder
     rng: np.random.Generator
     plan_seconds: float = 0.0
+    pace: Pace = PACE
 
     @property
     def frame_dt(self) -> float:
@@ -53,34 +83,83 @@ class Driver:
         self.cmd.base_velocity = np.asarray(v, float)
         self.ctl.set_base_velocity(*(float(x) for x in v))
 
+    def _joint_speed(self, names) -> np.ndarray:
+        qd = self.sim.state_0.joint_qd.numpy()
+        return np.array([qd[self.sim.world_dof(n)] for n in names])
+
+    def wait_until(self, done, seconds: float) -> None:
+        """Step ``pace.min_wait`` [s], then frame by frame until ``done()`` holds, at most
+        ``seconds`` [s] in all."""
+        t_end = self.sim.time + seconds - 1e-9
+        self.step(min(seconds, self.pace.min_wait))
+        while self.sim.time < t_end and not done():
+            self.step(self.frame_dt)
+
     def grip(self, g: float, seconds: float = 0.6) -> None:
+        """Gripper command ``g`` (0 open .. 1 closed); waits until the fingers stop (closed on
+        the object or at their limit), at most ``seconds`` [s]."""
         self.cmd.mode = 1
         self.cmd.gripper = float(g)
         self.ctl.set_gripper(float(g))
-        self.step(seconds)
+        fingers = self.sim.desc.gripper.finger_joints
+        self.wait_until(lambda: np.abs(self._joint_speed(fingers)).max() < self.pace.finger_still, seconds)
+
+    def settle(self, seconds: float) -> None:
+        """Wait until the arm has come to rest at its joint targets, at most ``seconds`` [s]."""
+        from stages.demos.record import arm_q
+
+        names = self.sim.desc.arm_joints
+
+        def still() -> bool:
+            p = self.pace
+            return (np.abs(self._joint_speed(names)).max() < p.arm_still
+                    and np.abs(arm_q(self.sim) - self.ctl.arm_targets()).max() < p.arm_near)
+
+        self.wait_until(still, seconds)
+
+    def move_time(self, target_world: np.ndarray, duration: float, tol: float, carry: bool = False) -> float:
+        """The duration [s] of a hand move to ``target_world`` (4x4) by the :class:`Pace`, at most
+        ``duration`` (``carry``: carrying a held object through free space)."""
+        from stages.simulate.control import Clik
+
+        cur = self.ik.fk(self.ik.with_arm(self.ik.from_sim(self.sim), self.ctl.arm_targets()))
+        goal = Clik.world_to_root(self.sim.spawn, target_world)
+        dist = float(np.linalg.norm(goal[:3, 3] - cur[:3, 3]))
+        cos = (np.trace(cur[:3, :3].T @ goal[:3, :3]) - 1.0) / 2.0
+        angle = float(np.arccos(np.clip(cos, -1.0, 1.0)))
+        p = self.pace
+        speed = p.carry_speed if carry else p.free_speed if tol >= APPROACH_TOL else p.contact_speed
+        return min(duration, max(p.min_move, dist / speed, angle / p.turn_rate))
 
     def move(self, target_world: np.ndarray, duration: float, *, segments: int = 2, settle: float = 0.0,
-             tol: float = 0.005) -> None:
-        """End-effector to ``target_world`` (4x4) along a straight line in ``duration`` [s]; every
-        waypoint must be reached by CLIK within ``tol`` [m] (free-space approach moves use a looser
-        tolerance than contact moves)."""
+             tol: float = 0.005, carry: bool = False) -> None:
+        """End-effector to ``target_world`` (4x4) along a straight line in at most ``duration``
+        [s] (:meth:`move_time`), then :meth:`settle` up to ``settle`` [s]; every waypoint must be
+        reached by CLIK within ``tol`` [m] (free-space approach moves use a looser tolerance than
+        contact moves); ``carry``: a held object carried through free space (:class:`Pace`)."""
         from stages.simulate.control import move_ee
 
         self.cmd.mode = 1
         self.base((0.0, 0.0, 0.0))
         try:
-            move_ee(self.sim, self.ctl, self.ik, target_world, duration, segments=segments, settle=settle,
-                    rng=self.rng, tol=tol)
+            seconds = self.move_time(target_world, duration, tol, carry)
+            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments, rng=self.rng,
+                    tol=tol, max_joint_speed=self.pace.max_joint_speed)
         except RuntimeError as e:
             if "unreachable" in str(e):
                 raise ExpertFailure("ik_unreachable", str(e)) from None
             raise
+        if settle > 0:
+            self.settle(settle)
 
     def home(self, duration: float = 1.0) -> None:
-        """Arm joint targets back to the tucked home configuration (linear in joint space)."""
+        """Arm joint targets back to the tucked home configuration (linear in joint space) at
+        ``pace.joint_speed``, in at most ``duration`` [s]."""
         self.cmd.mode = 1
         q0 = self.ctl.arm_targets()
         q1 = np.asarray(self.sim.desc.arm_home, float)
+        p = self.pace
+        duration = min(duration, max(p.min_move, float(np.abs(q1 - q0).max()) / p.joint_speed))
         n = max(1, int(duration / self.frame_dt))
         for k in range(1, n + 1):
             self.ctl.set_arm_targets(q0 + (q1 - q0) * k / n)
@@ -111,7 +190,7 @@ class Driver:
     def follow(self, path: np.ndarray, gyaw: float, *, timeout: float = 15.0) -> None:
         """Follow ``path`` (N, 2) [m] to its end, turning to ``gyaw`` [rad]; mode 0 (locomotion)."""
         goal = (*path[-1], gyaw)
-        follower = PathFollower(path, gyaw)
+        follower = PathFollower(path, gyaw, dt=self.frame_dt)
         self.cmd.mode = 0
         t_end = self.sim.time + timeout
         while True:

@@ -38,6 +38,7 @@ __all__ = ["EXPERTS", "Driver", "ExpertFailure", "approach_counter", "close_arti
 log = logging.getLogger(__name__)
 
 RIM_CLEARANCE = 0.025  # top-down grasp: fingertip centre below the mug's rim [m]
+COUNTER_STAGE = 0.35  # the base raises or tucks the hand this far back from its pose at the counter [m]
 
 
 def timed_clik(desc):
@@ -119,7 +120,7 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(grasp + [0, 0, 0.12], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(grasp, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
-    d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2)
+    d.move(_pose(grasp + [0, 0, 0.15], rot), 1.0, segments=2, carry=True)
     place = np.array([bowl[0], bowl[1], top + 0.012 + h - RIM_CLEARANCE + 0.008])
     d.move(_pose(place + [0, 0, 0.08], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(place, rot), 0.8, segments=2, settle=0.2)
@@ -130,12 +131,12 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
 
 def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray | None = None,
                      lift: float = 0.12, reach: float = 0.35) -> None:
-    """Bring the base in front of the counter at ``x`` facing +Y: A* to a pose 0.6 m back, raise
+    """Bring the base in front of the counter at ``x`` facing +Y: A* to a pose COUNTER_STAGE back, raise
     the hand to ``lift`` [m] above the counter top, ``reach`` [m] ahead of the base (the tucked arm
-    would hit the counter's front), then drive the last 0.6 m straight in."""
+    would hit the counter's front), then drive the last COUNTER_STAGE straight in."""
     w = inst.world
     goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
-    stage = (goal[0], goal[1] - 0.6, goal[2])
+    stage = (goal[0], goal[1] - COUNTER_STAGE, goal[2])
     stow(d)
     d.drive_to(stage, _grid(inst), approach=0.0)
     bx, by, th = base_pose(d.sim)
@@ -153,7 +154,7 @@ def _side_pick(d: Driver, at: np.ndarray, rot: np.ndarray, lift: float, pre: flo
     d.move(_pose(at, rot), 1.0, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     up = at + [0, 0, lift]
-    d.move(_pose(up, rot), 0.6, segments=1)
+    d.move(_pose(up, rot), 0.6, segments=1, carry=True)
     return up
 
 
@@ -181,7 +182,7 @@ def pick_place_microwave(inst: TaskInstance, d: Driver) -> None:
     z = w.cavity_z + gz + 0.025
     d.move(_pose([start[0], front - 0.10, z], rot), 1.0, segments=2, tol=APPROACH_TOL)
     d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3, tol=APPROACH_TOL)
-    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.5, segments=3)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.5, segments=3, carry=True)
     d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.02], rot), 0.5, segments=1, settle=0.2)
     d.grip(0.0, 0.6)
     d.move(_pose([tgt[0], front - 0.12, z], rot), 1.2, segments=3, tol=APPROACH_TOL)
@@ -203,10 +204,10 @@ def pick_from_microwave(inst: TaskInstance, d: Driver) -> None:
     d.grip(0.0, 0.1)
     d.move(_pose([start[0], front - 0.10, start[2] + gz], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
     up = _side_pick(d, start + [0.0, -0.003, gz], rot, 0.02, pre=0.0)
-    d.move(_pose([up[0], front - 0.10, up[2]], rot), 1.5, segments=3)
+    d.move(_pose([up[0], front - 0.10, up[2]], rot), 1.5, segments=3, carry=True)
     z = w.counter_z + gz + 0.02
-    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3)
-    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.0, segments=2)
+    d.move(_pose([tgt[0], front - 0.10, z], rot), 1.5, segments=3, carry=True)
+    d.move(_pose([tgt[0], tgt[1] - 0.01, z], rot), 1.0, segments=2, carry=True)
     d.move(_pose([tgt[0], tgt[1] - 0.01, z - 0.015], rot), 0.5, segments=1, settle=0.2)
     d.grip(0.0, 0.6)
     d.move(_pose([tgt[0], tgt[1] - 0.15, z], rot), 1.0, segments=2, tol=APPROACH_TOL)
@@ -255,7 +256,7 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
 
 def press_button(inst: TaskInstance, d: Driver) -> None:
     """Drive in front of the microwave's button, close the hand, point it at the button (pitched
-    25 deg down so the hand clears the counter top), push the fingertips in 1 mm steps until the
+    25 deg down so the hand clears the counter top), push the fingertips in 2 mm steps until the
     button is in by 80% of its travel (at most 25 mm past its face), pull back, leave."""
     w = inst.world
     b = np.asarray(w.button, float)
@@ -268,7 +269,7 @@ def press_button(inst: TaskInstance, d: Driver) -> None:
     d.move(_pose(b - 0.015 * push, rot), 0.6, segments=1)
     depth = -0.015
     while d.sim.joint_q_of_path(joint) < 0.8 * w.button_travel and depth < 0.025:
-        depth += 0.001
+        depth += 0.002
         d.move(_pose(b + depth * push, rot), 0.08, segments=1)
     d.step(0.2)
     d.move(_pose(b - 0.10 * push, rot), 1.0, segments=2, tol=APPROACH_TOL)
@@ -277,12 +278,13 @@ def press_button(inst: TaskInstance, d: Driver) -> None:
 
 
 def leave_counter(inst: TaskInstance, d: Driver) -> None:
-    """Raise the hand to the approach pose (clear of the counter), back the base 0.6 m away, tuck."""
+    """Raise the hand to the approach pose (clear of the counter), back the base COUNTER_STAGE away
+    (the tucked hand then hangs 0.2 m clear of the counter's front), tuck."""
     w = inst.world
     bx, by, th = base_pose(d.sim)
     ready = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + 0.12])
     d.move(_pose(ready, side_rot(0.0)), 1.2, segments=3, tol=APPROACH_TOL)
-    d.drive_straight((bx - 0.6 * math.cos(th), by - 0.6 * math.sin(th), th))
+    d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
     d.home(1.0)
 
 

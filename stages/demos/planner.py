@@ -6,8 +6,9 @@ layout stage's :class:`stages.layout.occupancy.OccupancyGrid`, which :meth:`NavG
 reads). Planning runs A* (8-connected, octile heuristic) on the grid inflated by the robot's
 footprint radius, then shortcuts the cell path to a few straight segments that stay in free cells.
 :class:`PathFollower` turns a path into holonomic base commands (vx, vy in the base frame [m/s],
-vtheta [rad/s]): pure pursuit on a lookahead point, speed ramping down at the goal, yaw turning to
-the goal yaw on the way.
+vtheta [rad/s]): pure pursuit on a lookahead point, speed and turn rate acceleration-limited (ramped
+up, and planned down before the goal and before each path vertex), yaw turning to the goal yaw on
+the way.
 """
 
 from __future__ import annotations
@@ -139,20 +140,34 @@ def wrap(a: float) -> float:
 
 @dataclass
 class PathFollower:
-    """Holonomic pure pursuit. path (N, 2) [m]; goal_yaw [rad]; v_max [m/s]; w_max [rad/s];
-    lookahead [m]; corner: how close [m] to a path vertex the carrot moves on to the next segment
-    (the most a corner is cut); pos_tol [m] / yaw_tol [rad]: when :meth:`command` reports done."""
+    """Holonomic pure pursuit with speed profiles. path (N, 2) [m]; goal_yaw [rad]; v_max [m/s];
+    w_max [rad/s]; accel [m/s^2] / alpha [rad/s^2]: the most the (world-frame) velocity and the
+    turn rate change per second (commands come every ``dt`` [s]; the speed is planned down at
+    ``brake`` of ``accel`` before the goal and before every path vertex, where the velocity turns
+    by ``v_corner`` [m/s] at most); lookahead [m]; corner: how close [m] to a path vertex the carrot
+    moves on to the next segment (the most a corner is cut); k_pos [1/s] / k_yaw [1/s]: the
+    proportional gains of the last centimetres and degrees; pos_tol [m] / yaw_tol [rad]: when
+    :meth:`command` reports done."""
 
     path: np.ndarray
     goal_yaw: float
-    v_max: float = 0.6
-    w_max: float = 1.0
+    v_max: float = 0.9
+    w_max: float = 1.8
+    accel: float = 1.2
+    alpha: float = 4.0
+    brake: float = 0.8
+    v_corner: float = 0.25
+    dt: float = 1.0 / 30.0
     lookahead: float = 0.35
     corner: float = 0.05
     pos_tol: float = 0.01
     yaw_tol: float = 0.01
-    k_pos: float = 2.0
-    k_yaw: float = 2.0
+    k_pos: float = 6.0
+    k_yaw: float = 6.0
+
+    def __post_init__(self) -> None:
+        self._v = np.zeros(2)  # the last command's world-frame velocity [m/s]
+        self._w = 0.0
 
     def command(self, x: float, y: float, theta: float) -> tuple[tuple[float, float, float], bool]:
         """Base-frame command (vx, vy, vtheta) for the current base pose, and whether the goal is reached."""
@@ -161,19 +176,39 @@ class PathFollower:
         d_goal = float(np.linalg.norm(goal - p))
         e_yaw = wrap(self.goal_yaw - theta)
         if d_goal < self.pos_tol and abs(e_yaw) < self.yaw_tol:
+            self._v, self._w = np.zeros(2), 0.0
             return (0.0, 0.0, 0.0), True
-        target = self._lookahead_point(p)
+        target, to_vertex, v_vertex = self._lookahead_point(p)
         d = target - p
         n = float(np.linalg.norm(d))
-        speed = min(self.v_max, self.k_pos * d_goal)
-        v_world = d / n * speed if n > 1e-9 else np.zeros(2)
+        a = self.brake * self.accel
+        speed = min(self.v_max, math.sqrt(2 * a * d_goal), self.k_pos * d_goal,
+                    math.sqrt(v_vertex ** 2 + 2 * a * to_vertex))
+        want = d / n * speed if n > 1e-9 else np.zeros(2)
+        dv = want - self._v
+        dv_n = float(np.linalg.norm(dv))
+        lim = self.accel * self.dt
+        v_world = self._v = want if dv_n <= lim else self._v + dv * (lim / dv_n)
         c, s = math.cos(theta), math.sin(theta)
         vx, vy = c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1]
-        w = float(np.clip(self.k_yaw * e_yaw, -self.w_max, self.w_max))
+        b = self.brake * self.alpha
+        w_abs = min(self.w_max, math.sqrt(2 * b * abs(e_yaw)), self.k_yaw * abs(e_yaw))
+        dw = self.alpha * self.dt
+        w = float(np.clip(math.copysign(w_abs, e_yaw), self._w - dw, self._w + dw))
+        self._w = w
         return (float(vx), float(vy), w), False
 
-    def _lookahead_point(self, p: np.ndarray) -> np.ndarray:
-        """The point ``lookahead`` along the path past the closest point to ``p``."""
+    def _vertex_speed(self, i: int) -> float:
+        """The speed [m/s] at path vertex ``i``: the velocity turns there by at most ``v_corner``."""
+        u, v = self.path[i] - self.path[i - 1], self.path[i + 1] - self.path[i]
+        cos = float(np.dot(u, v) / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-12))
+        chord = 2.0 * math.sin(0.5 * math.acos(min(1.0, max(-1.0, cos))))  # |dv| / v
+        return min(self.v_max, self.v_corner / max(chord, 1e-6))
+
+    def _lookahead_point(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """The point ``lookahead`` along the path past the closest point to ``p``, the distance
+        [m] to the next path vertex and the speed [m/s] to pass it at (inf and 0 on the last
+        segment)."""
         best, best_d, best_seg, best_t = None, math.inf, 0, 0.0
         for i in range(len(self.path) - 1):
             a, b = self.path[i], self.path[i + 1]
@@ -184,13 +219,17 @@ class PathFollower:
             if dd < best_d:
                 best, best_d, best_seg, best_t = q, dd, i, t
         if best is None:
-            return self.path[-1]
+            return self.path[-1], math.inf, 0.0
         # the carrot stays on the current segment until the base is within ``corner`` of its end,
         # so corners are cut by at most that much (a holonomic base turns on the spot)
         a, b = self.path[best_seg], self.path[best_seg + 1]
         length = float(np.linalg.norm(b - a))
         left = (1 - best_t) * length
-        if left > self.corner or best_seg == len(self.path) - 2:
-            return a + min(1.0, best_t + self.lookahead / max(length, 1e-12)) * (b - a)
+        if best_seg == len(self.path) - 2:
+            return a + min(1.0, best_t + self.lookahead / max(length, 1e-12)) * (b - a), math.inf, 0.0
+        v_vertex = self._vertex_speed(best_seg + 1)
+        if left > self.corner:
+            return a + min(1.0, best_t + self.lookahead / max(length, 1e-12)) * (b - a), left, v_vertex
         c = self.path[best_seg + 2]
-        return b + min(1.0, self.lookahead / max(float(np.linalg.norm(c - b)), 1e-12)) * (c - b)
+        nxt = b + min(1.0, self.lookahead / max(float(np.linalg.norm(c - b)), 1e-12)) * (c - b)
+        return nxt, 0.0, v_vertex

@@ -367,6 +367,11 @@ def top_down(yaw: float = 0.0) -> np.ndarray:
     return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
 
 
+#: move_ee updates the joint targets at least every this many physics steps (a target that jumps by
+#: a tenth of a long segment at once whips a light wrist joint to several rad/s)
+TARGET_EVERY = 10
+
+
 def move_ee(
     sim,
     ctl: RobotControl,
@@ -380,11 +385,13 @@ def move_ee(
     rng: np.random.Generator | None = None,
     tol: float = 0.005,
     rot_tol: float = float(np.deg2rad(2.0)),
+    max_joint_speed: float | None = None,
 ) -> IkResult:
     """Move the end-effector to ``target_world`` (4x4, world frame) in ``duration`` [s]: the
     straight Cartesian path is cut into ``segments`` poses (orientation slerped), each solved by
     CLIK from the previous solution, and the joint targets are interpolated linearly between them
-    while the simulation steps; then ``settle`` [s] more. Returns the last IK result (raises
+    while the simulation steps; then ``settle`` [s] more. ``max_joint_speed`` [rad/s]: a segment
+    whose joint targets would move faster takes longer. Returns the last IK result (raises
     RuntimeError if a waypoint cannot be reached within ``tol`` [m] and ``rot_tol`` [rad])."""
     from scipy.spatial.transform import Rotation, Slerp
 
@@ -404,9 +411,12 @@ def move_ee(
                 f"CLIK: waypoint {k}/{segments} unreachable (error {res.position_error:.4f} m)"
             )
         q0, q1 = ctl.arm_targets(world), ik.arm_q(res.q)
-        chunk = max(1, per_seg // 10)
-        for i in range(0, per_seg, chunk):
-            ctl.set_arm_targets(q0 + (q1 - q0) * min(1.0, (i + chunk) / per_seg), world)
+        n_seg = per_seg
+        if max_joint_speed:
+            n_seg = max(n_seg, int(np.ceil(np.abs(q1 - q0).max() / max_joint_speed / sim.settings.dt)))
+        chunk = max(1, min(n_seg // 10, TARGET_EVERY))
+        for i in range(0, n_seg, chunk):
+            ctl.set_arm_targets(q0 + (q1 - q0) * min(1.0, (i + chunk) / n_seg), world)
             sim.step(chunk)
         q_pin = res.q
     if settle > 0:

@@ -53,11 +53,17 @@ def test_follower_drives_a_holonomic_base_to_the_goal_pose():
     f = PathFollower(path, goal_yaw=math.pi / 2)
     x, y, th, dt = 0.5, 0.5, -2.0, 1 / 30
     blocked = grid.inflate(0.25)
+    v_prev, w_prev = np.zeros(2), 0.0
     for step in range(2000):
         (vx, vy, w), done = f.command(x, y, th)
         if done:
             break
         assert math.hypot(vx, vy) <= f.v_max + 1e-9 and abs(w) <= f.w_max + 1e-9
+        # acceleration-limited: the world-frame velocity and the turn rate change smoothly
+        v_world = np.array([math.cos(th) * vx - math.sin(th) * vy, math.sin(th) * vx + math.cos(th) * vy])
+        assert np.linalg.norm(v_world - v_prev) <= f.accel * dt + 1e-9
+        assert abs(w - w_prev) <= f.alpha * dt + 1e-9
+        v_prev, w_prev = v_world, w
         x += (math.cos(th) * vx - math.sin(th) * vy) * dt
         y += (math.sin(th) * vx + math.cos(th) * vy) * dt
         th += w * dt
