@@ -85,12 +85,22 @@ class Placement:
 class _Inst:
     p: Placement
     geo: AssetGeometry
-    pieces: list[ConvexPiece]
+    pose: tuple[np.ndarray, np.ndarray]  # (rotation (3, 3), translation (3,)) of its pieces
     footprint: np.ndarray          # world (K, 2)
     block: np.ndarray | None       # world footprint that blocks the robot, or None
     zones: list[np.ndarray]        # world keep-out zones (clearance, swings)
     on_floor: bool
     reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
+    _pieces: list[ConvexPiece] | None = None
+
+    @property
+    def pieces(self) -> list[ConvexPiece]:
+        """The collider pieces in the world (computed when first asked: most candidates are
+        rejected on their footprint before)."""
+        if self._pieces is None:
+            R3, t = self.pose
+            self._pieces = [p.transformed(R3, t, owner=self.p.inst) for p in self.geo.pieces]
+        return self._pieces
 
 
 @dataclass
@@ -234,7 +244,6 @@ class Populator:
                   yaw: float, support: str | None, clearance: float) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
-        pieces = [p.transformed(R3, t, owner=inst) for p in geo.pieces]
         R2 = R3[:2, :2]
         fp = geo.footprint @ R2.T + xy
         gfp = geo.ground_footprint
@@ -246,7 +255,7 @@ class Populator:
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
-        return _Inst(p, geo, pieces, fp, block, zones, support is None)
+        return _Inst(p, geo, (R3, t), fp, block, zones, support is None)
 
     # -- furniture ------------------------------------------------------------------------------
 
@@ -348,26 +357,32 @@ class Populator:
         floor-standing assets already placed. Conservative (projections of convex outlines)."""
         a, t, L, n = edge
         band = gap + depth
-        blocked: list[tuple[float, float]] = []
-
-        def block(poly: np.ndarray, pad: float = 0.0) -> None:
-            rel = np.asarray(poly) - a
-            s, h = rel @ t, rel @ n
-            if h.min() < band and h.max() > 0.0:
-                blocked.append((float(s.min()) - pad, float(s.max()) + pad))
-
-        for dz in ctx.door_zones:
-            block(dz)
+        polys: list[np.ndarray] = list(ctx.door_zones)
+        pads: list[float] = [0.0] * len(polys)
         if tall:
             for wz, sill in ctx.windows:
                 if height > sill + WINDOW_SILL_MARGIN:
-                    block(wz)
+                    polys.append(wz)
+                    pads.append(0.0)
         min_gap = self.rules.setting(ctx.room.type, "min_gap")
         for o in self.insts:
             if o.on_floor and o.p.floor == ctx.room.floor:
-                block(o.footprint, min_gap)
-                for z in o.zones:
-                    block(z)
+                polys.append(o.footprint)
+                pads.append(min_gap)
+                polys += o.zones
+                pads += [0.0] * len(o.zones)
+        pads = [pd for pd, p in zip(pads, polys) if len(p)]
+        polys = [np.asarray(p) for p in polys if len(p)]
+        blocked: list[tuple[float, float]] = []
+        if polys:  # every outline projected on the edge (s) and its normal (h) at once
+            rel = np.vstack(polys) - a
+            s, h = rel @ t, rel @ n
+            starts = np.cumsum([0, *(len(p) for p in polys[:-1])])
+            hmin, hmax = np.minimum.reduceat(h, starts), np.maximum.reduceat(h, starts)
+            pad = np.asarray(pads)
+            lo, hi = np.minimum.reduceat(s, starts) - pad, np.maximum.reduceat(s, starts) + pad
+            hit = (hmin < band) & (hmax > 0.0)
+            blocked = list(zip(lo[hit].tolist(), hi[hit].tolist()))
         spans, cur = [], 0.0
         for lo, hi in sorted(blocked):
             if lo > cur:
