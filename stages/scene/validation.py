@@ -25,6 +25,7 @@ scene's own layers (root, lighting, materials, placement). ``validate_scene``:
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -203,6 +204,7 @@ def _key(sig) -> str:
     return hashlib.sha256(json.dumps([_validator_version(), sig], sort_keys=True, default=str).encode()).hexdigest()
 
 
+@functools.cache  # a package's metadata lookup scans sys.path: once per process
 def _validator_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
