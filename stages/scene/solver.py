@@ -35,7 +35,7 @@ import numpy as np
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
 from stages.scene.assets import AssetGeometry
-from stages.scene.collide import ConvexPiece, find_penetrations
+from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
     convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
 )
@@ -133,6 +133,7 @@ class Populator:
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
         self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
+        self._others: tuple | None = None  # (insts, their and the layout's pieces, piece_bounds) for _collides
 
     # -- public ---------------------------------------------------------------------------------
 
@@ -462,8 +463,13 @@ class Populator:
         return None
 
     def _collides(self, inst: _Inst) -> str | None:
-        others = self.layout + self.instance_pieces()
-        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP)
+        key = tuple(self.insts)
+        if self._others is None or len(key) != len(self._others[0]) or any(
+                a is not b for a, b in zip(key, self._others[0])):
+            others = self.layout + self.instance_pieces()
+            self._others = (key, others, piece_bounds(others))
+        _, others, bounds = self._others
+        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP, bounds=bounds)
         if hits:
             other = hits[0].owner_b
             what = other.rsplit("/", 2)[-2] if other.startswith("/") else other.rsplit("_", 1)[0]
