@@ -26,10 +26,13 @@ def polygon_area(poly: np.ndarray) -> float:
     return float(0.5 * (np.dot(x, _next(y)) - np.dot(y, _next(x))))
 
 
-def convex_overlap(a: np.ndarray, b: np.ndarray, gap: float = 0.0) -> bool:
-    """Whether two convex polygons (CCW, (K, 2)) come closer than ``gap`` [m] (SAT on edge normals)."""
-    for poly in (a, b):
-        n = _unit_normals(poly, inward=False)
+def convex_overlap(a: np.ndarray, b: np.ndarray, gap: float = 0.0,
+                   normals: tuple[np.ndarray | None, np.ndarray | None] = (None, None)) -> bool:
+    """Whether two convex polygons (CCW, (K, 2)) come closer than ``gap`` [m] (SAT on edge normals).
+    normals: the ``edge_normals`` of a and of b where the caller keeps them (None: computed)."""
+    for poly, n in zip((a, b), normals):
+        if n is None:
+            n = edge_normals(poly)
         pa, pb = a @ n.T, b @ n.T
         if np.any(pa.min(axis=0) >= pb.max(axis=0) + gap) or np.any(pb.min(axis=0) >= pa.max(axis=0) + gap):
             return False
@@ -52,6 +55,11 @@ def _unit_normals(poly: np.ndarray, inward: bool) -> np.ndarray:
         n[:, 0], n[:, 1] = e[:, 1], -e[:, 0]
     n /= np.maximum(np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1])[:, None], 1e-12)
     return n
+
+
+def edge_normals(poly: np.ndarray) -> np.ndarray:
+    """(K, 2) outward unit normals of a CCW polygon's edges (vertex k to k + 1)."""
+    return _unit_normals(poly, inward=False)
 
 
 def points_in_polygon(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:

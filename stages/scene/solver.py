@@ -37,7 +37,7 @@ from stages.layout.floorplan import FloorPlan, RoomModel
 from stages.scene.assets import AssetGeometry
 from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
-    convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
+    convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
 )
 from stages.scene.library import Library
 from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
@@ -92,6 +92,14 @@ class _Inst:
     on_floor: bool
     reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
     _pieces: list[ConvexPiece] | None = None
+    _normals: dict[int, np.ndarray] = field(default_factory=dict)  # id of its outline -> edge_normals
+
+    def normals(self, poly: np.ndarray) -> np.ndarray:
+        """edge_normals of its footprint or one of its zones (kept: arrays it holds, never changed)."""
+        n = self._normals.get(id(poly))
+        if n is None:
+            n = self._normals[id(poly)] = edge_normals(poly)
+        return n
 
     @property
     def pieces(self) -> list[ConvexPiece]:
@@ -441,24 +449,26 @@ class Populator:
         for z in inst.zones:
             if not convex_inside(z, ctx.interior):
                 return "door/drawer swing or clearance outside the room"
+        fp = inst.footprint
+        nf = inst.normals(fp)
         for dz in ctx.door_zones:
-            if convex_overlap(inst.footprint, dz):
+            if convex_overlap(fp, dz, normals=(nf, None)):
                 return "in front of a room door"
         if not rule.tall_ok_at_window:
             for wz, sill in ctx.windows:
-                if geo.hi[2] - geo.lo[2] > sill + WINDOW_SILL_MARGIN and convex_overlap(inst.footprint, wz):
+                if geo.hi[2] - geo.lo[2] > sill + WINDOW_SILL_MARGIN and convex_overlap(fp, wz, normals=(nf, None)):
                     return "blocks a window"
         gap = self.rules.setting(ctx.room.type, "min_gap")
         for o in self.insts:
             if not o.on_floor or o.p.floor != inst.p.floor:
                 continue
-            if convex_overlap(inst.footprint, o.footprint, gap):
+            if convex_overlap(fp, o.footprint, gap, normals=(nf, o.normals(o.footprint))):
                 return f"footprint overlaps {o.p.record.category}"
             for z in o.zones:
-                if convex_overlap(inst.footprint, z):
+                if convex_overlap(fp, z, normals=(nf, o.normals(z))):
                     return f"in the swing/clearance zone of {o.p.record.category}"
             for z in inst.zones:
-                if convex_overlap(z, o.footprint):
+                if convex_overlap(z, o.footprint, normals=(inst.normals(z), o.normals(o.footprint))):
                     return f"its swing/clearance zone hits {o.p.record.category}"
         return None
 
