@@ -134,7 +134,8 @@ class Penetration:
 
 def piece_bounds(pieces: Sequence[ConvexPiece]) -> tuple[np.ndarray, np.ndarray]:
     """(lo (N, 3), hi (N, 3)): the bounds of each piece, stacked."""
-    return np.array([p.lo for p in pieces]), np.array([p.hi for p in pieces])
+    return (np.array([p.lo for p in pieces]).reshape(-1, 3),
+            np.array([p.hi for p in pieces]).reshape(-1, 3))
 
 
 def find_penetrations(new: Sequence[ConvexPiece], others: Sequence[ConvexPiece], *,

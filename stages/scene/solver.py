@@ -473,11 +473,14 @@ class Populator:
         return None
 
     def _collides(self, inst: _Inst) -> str | None:
-        key = tuple(self.insts)
-        if self._others is None or len(key) != len(self._others[0]) or any(
-                a is not b for a, b in zip(key, self._others[0])):
-            others = self.layout + self.instance_pieces()
-            self._others = (key, others, piece_bounds(others))
+        key, old = tuple(self.insts), self._others
+        n = len(old[0]) if old else 0
+        if old is None or len(key) < n or any(a is not b for a, b in zip(key, old[0])):
+            old, n = ((), self.layout, piece_bounds(self.layout)), 0
+        if len(key) > n or old is not self._others:  # instances appended: only theirs stacked anew
+            new = [p for i in key[n:] for p in i.pieces]
+            lo, hi = piece_bounds(new)
+            self._others = (key, old[1] + new, (np.concatenate([old[2][0], lo]), np.concatenate([old[2][1], hi])))
         _, others, bounds = self._others
         hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP, bounds=bounds)
         if hits:
