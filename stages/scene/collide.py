@@ -151,9 +151,10 @@ def find_penetrations(new: Sequence[ConvexPiece], others: Sequence[ConvexPiece],
         return []
     olo, ohi = bounds if bounds is not None else piece_bounds(others)
     worst: dict[tuple[str, str], float] = {}
-    for p in new:
-        cand = np.nonzero(np.all(olo < p.hi - tol, axis=1) & np.all(p.lo + tol < ohi, axis=1))[0]
-        for k in cand:
+    nlo, nhi = piece_bounds(new)  # the broad phase of every new piece at once
+    near = np.all(olo[None] < (nhi - tol)[:, None], axis=2) & np.all((nlo + tol)[:, None] < ohi[None], axis=2)
+    for p, row in zip(new, near):
+        for k in np.nonzero(row)[0]:
             q = others[k]
             if q.owner == p.owner:
                 continue
