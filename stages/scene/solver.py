@@ -520,12 +520,12 @@ class Populator:
                 if own:
                     return "cuts the robot path between the room's doors" if live else "blocks the room door"
                 return f"cuts the robot path{where}"
-            lab = next(iter(live))
+            at_door = labels == next(iter(live))
             reach = self.rules.setting(rctx.room.type, "reach")
             room_insts = [i for i in self.insts if i.p.room == rid and i.p.record.interactable] + (
                 [inst] if own and inst.p.record.interactable else [])
             for i in room_insts:
-                if not (self._reach_of(i, grid, reach) & (labels == lab)).any():
+                if not (self._reach_of(i, grid, reach) & at_door).any():
                     return f"leaves {i.p.record.category}{where} out of the robot's reach"
         return None
 
@@ -579,9 +579,9 @@ class Populator:
             if why is None and rec.interactable and ctx.door_points:
                 if labels is None:
                     ok, lab = self._door_labels_ok(grid, ctx, None)
-                    labels = (grid.components(), lab)
-                lab_grid, lab = labels
-                if not lab or not (grid.reach_mask(fp, reach) & (lab_grid == lab)).any():
+                    labels = (lab, grid.components() == lab)
+                lab, at_door = labels
+                if not lab or not (grid.reach_mask(fp, reach) & at_door).any():
                     why = "out of the robot's reach"
             if why is None:
                 self._accept(inst, None)
