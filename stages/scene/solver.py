@@ -43,16 +43,10 @@ from stages.scene.library import Library
 from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
 from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
 
-
 log = logging.getLogger(__name__)
 
-
 REST_GAP = 0.001          # [m] assets are placed this far above their support
-
-
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
-
-
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
 
@@ -358,14 +352,40 @@ class Populator:
         return anchor - rot2(yaw) @ np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]), yaw
 
     def _free_wall_spans(self, edge, depth: float, height: float, ctx: RoomContext, tall: bool,
-                         gap: float) -> list[tuple[float, float]]:
+                         gap: float, outlines=False) -> list[tuple[float, float]]:
         """Free (start, end) spans [m along the edge] of a wall edge for an against-wall asset of
         ``depth`` and ``height`` [m]: the edge minus what reaches into its band (the strip
         ``gap + depth`` deep in front of it): room-door keep-outs, windows (when ``tall`` and the
         asset rises above sill + WINDOW_SILL_MARGIN), footprints (+ min_gap) and keep-out zones of
-        floor-standing assets already placed. Conservative (projections of convex outlines)."""
+        floor-standing assets already placed. Conservative (projections of convex outlines).
+        outlines: ``_wall_outlines(height, ctx, tall)`` when the caller has it."""
         a, t, L, n = edge
         band = gap + depth
+        if outlines is False:
+            outlines = self._wall_outlines(height, ctx, tall)
+        blocked: list[tuple[float, float]] = []
+        if outlines is not None:  # every outline projected on the edge (s) and its normal (h) at once
+            pts, starts, pad = outlines
+            rel = pts - a
+            s, h = rel @ t, rel @ n
+            hmin, hmax = np.minimum.reduceat(h, starts), np.maximum.reduceat(h, starts)
+            lo, hi = np.minimum.reduceat(s, starts) - pad, np.maximum.reduceat(s, starts) + pad
+            hit = (hmin < band) & (hmax > 0.0)
+            blocked = list(zip(lo[hit].tolist(), hi[hit].tolist()))
+        spans, cur = [], 0.0
+        for lo, hi in sorted(blocked):
+            if lo > cur:
+                spans.append((cur, min(lo, L)))
+            cur = max(cur, hi)
+            if cur >= L:
+                break
+        if cur < L:
+            spans.append((cur, L))
+        return spans
+
+    def _wall_outlines(self, height: float, ctx: RoomContext, tall: bool):
+        """(vertices of every outline _free_wall_spans keeps out, stacked; index of each outline's
+        first vertex; its pad [m]), or None when there is none."""
         polys: list[np.ndarray] = list(ctx.door_zones)
         pads: list[float] = [0.0] * len(polys)
         if tall:
@@ -382,26 +402,9 @@ class Populator:
                 pads += [0.0] * len(o.zones)
         pads = [pd for pd, p in zip(pads, polys) if len(p)]
         polys = [np.asarray(p) for p in polys if len(p)]
-        blocked: list[tuple[float, float]] = []
-        if polys:  # every outline projected on the edge (s) and its normal (h) at once
-            rel = np.vstack(polys) - a
-            s, h = rel @ t, rel @ n
-            starts = np.cumsum([0, *(len(p) for p in polys[:-1])])
-            hmin, hmax = np.minimum.reduceat(h, starts), np.maximum.reduceat(h, starts)
-            pad = np.asarray(pads)
-            lo, hi = np.minimum.reduceat(s, starts) - pad, np.maximum.reduceat(s, starts) + pad
-            hit = (hmin < band) & (hmax > 0.0)
-            blocked = list(zip(lo[hit].tolist(), hi[hit].tolist()))
-        spans, cur = [], 0.0
-        for lo, hi in sorted(blocked):
-            if lo > cur:
-                spans.append((cur, min(lo, L)))
-            cur = max(cur, hi)
-            if cur >= L:
-                break
-        if cur < L:
-            spans.append((cur, L))
-        return spans
+        if not polys:
+            return None
+        return np.vstack(polys), np.cumsum([0, *(len(p) for p in polys[:-1])]), np.asarray(pads)
 
     def _wall_pose(self, geo: AssetGeometry, ctx: RoomContext, gap: float, facing: _Inst | None, *,
                    tall: bool = True, snap: float = 0.0):
@@ -411,8 +414,10 @@ class Populator:
         width = geo.hi[1] - geo.lo[1]
         need = width + 0.02
         cands = []  # (edge, span start, span end)
+        outlines = self._wall_outlines(geo.hi[2] - geo.lo[2], ctx, tall)
         for e in _edges(ctx.interior):
-            for s0, s1 in self._free_wall_spans(e, geo.hi[0] - geo.lo[0], geo.hi[2] - geo.lo[2], ctx, tall, gap):
+            for s0, s1 in self._free_wall_spans(e, geo.hi[0] - geo.lo[0], geo.hi[2] - geo.lo[2], ctx, tall, gap,
+                                                outlines):
                 if s1 - s0 >= need:
                     cands.append((e, s0, s1))
         if not cands:
