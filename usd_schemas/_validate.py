@@ -107,11 +107,12 @@ def _composition_issues(stage) -> list[ValidationIssue]:
             for err in stage.GetCompositionErrors()]
 
 
-def _usd_validator_issues(stage) -> list[ValidationIssue]:
+def _usd_validator_issues(stage, validators=None) -> list[ValidationIssue]:
+    """Issues of usd-core's validators (``validators``: a list of them; None: all registered)."""
     from pxr import UsdValidation
 
-    reg = UsdValidation.ValidationRegistry()
-    validators = reg.GetOrLoadAllValidators()
+    if validators is None:
+        validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
     ctx = UsdValidation.ValidationContext(validators)
     sev = {UsdValidation.ValidationErrorType.Error: "error", UsdValidation.ValidationErrorType.Warn: "warning",
            UsdValidation.ValidationErrorType.Info: "info"}

@@ -132,22 +132,29 @@ class Penetration:
     depth: float
 
 
+def piece_bounds(pieces: Sequence[ConvexPiece]) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (N, 3), hi (N, 3)): the bounds of each piece, stacked."""
+    return (np.array([p.lo for p in pieces]).reshape(-1, 3),
+            np.array([p.hi for p in pieces]).reshape(-1, 3))
+
+
 def find_penetrations(new: Sequence[ConvexPiece], others: Sequence[ConvexPiece], *,
                       tol: float = PENETRATION_TOL, first_only: bool = False,
-                      exact: bool = True) -> list[Penetration]:
+                      exact: bool = True, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> list[Penetration]:
     """Pieces of ``new`` that penetrate pieces of ``others`` by more than ``tol`` [m] (the depth is
     the deepest per owner pair). Pieces of the same owner are never tested against each other.
 
     exact=False uses the face-normal bound only (conservative: it may report a pair that an edge
-    axis separates; used while sampling placements, never for the final check)."""
+    axis separates; used while sampling placements, never for the final check). bounds: the
+    ``piece_bounds`` of ``others`` when the caller keeps them."""
     if not new or not others:
         return []
-    olo = np.array([p.lo for p in others])
-    ohi = np.array([p.hi for p in others])
+    olo, ohi = bounds if bounds is not None else piece_bounds(others)
     worst: dict[tuple[str, str], float] = {}
-    for p in new:
-        cand = np.nonzero(np.all(olo < p.hi - tol, axis=1) & np.all(p.lo + tol < ohi, axis=1))[0]
-        for k in cand:
+    nlo, nhi = piece_bounds(new)  # the broad phase of every new piece at once
+    near = np.all(olo[None] < (nhi - tol)[:, None], axis=2) & np.all((nlo + tol)[:, None] < ohi[None], axis=2)
+    for p, row in zip(new, near):
+        for k in np.nonzero(row)[0]:
             q = others[k]
             if q.owner == p.owner:
                 continue

@@ -114,6 +114,9 @@ class PathGrid:
         self.shape = self.base.shape
         self.radius = path_width / 2
         self.blocks: dict[str, np.ndarray] = {}
+        self._free_key: tuple | None = None  # the block masks _free_mask was computed with
+        self._free_mask = np.zeros(self.shape, dtype=bool)
+        self._labels: np.ndarray | None = None  # components() of _free_mask
 
     def raster(self, poly: np.ndarray) -> np.ndarray:
         """(ny, nx) bool: cells whose center lies inside the convex polygon (world [m])."""
@@ -136,15 +139,48 @@ class PathGrid:
         """Connected-component labels of the cells where the robot's center may be (0: none)."""
         from scipy import ndimage
 
-        occ = self.base.copy()
-        for m in self.blocks.values():
-            occ |= m
-        if extra is not None:
-            occ |= extra
-        dist = ndimage.distance_transform_edt(~occ) * self.cell
-        free = dist >= self.radius + self.cell * 0.5
+        thr = self.radius + self.cell * 0.5
+        free = self._free()
+        if extra is None:
+            if self._labels is None:
+                self._labels = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))[0]
+            return self._labels
+        if extra.any():  # cells near the extra occupancy only: the rest keep their distance to it
+            win, d = self._local_dist(extra, thr)
+            free = free.copy()
+            free[win] &= d >= thr
         labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
         return labels
+
+    def _free(self) -> np.ndarray:
+        """(ny, nx) bool: cells at least path_width / 2 (+ half a cell) away from the base occupancy and
+        every block; computed again only when ``blocks`` changed (the same mask objects: cached)."""
+        from scipy import ndimage
+
+        key = tuple(self.blocks.values())
+        if self._free_key is None or len(key) != len(self._free_key) or any(
+                a is not b for a, b in zip(key, self._free_key)):
+            occ = self.base.copy()
+            for m in key:
+                occ |= m
+            dist = ndimage.distance_transform_edt(~occ) * self.cell
+            self._free_mask = dist >= self.radius + self.cell * 0.5
+            self._free_key, self._labels = key, None
+        return self._free_mask
+
+    def _local_dist(self, mask: np.ndarray, limit: float) -> tuple[tuple[slice, slice], np.ndarray]:
+        """(window, distance [m] to the nearest True cell of ``mask`` in that window): the window
+        holds every True cell and every cell closer than ``limit`` [m] to one; the distances are
+        those of a whole-grid Euclidean distance transform (the same integer offsets). ``mask``
+        must have a True cell."""
+        from scipy import ndimage
+
+        pad = int(math.ceil(limit / self.cell)) + 2
+        ys, xs = np.nonzero(mask)
+        y0, y1 = max(int(ys.min()) - pad, 0), min(int(ys.max()) + pad + 1, self.shape[0])
+        x0, x1 = max(int(xs.min()) - pad, 0), min(int(xs.max()) + pad + 1, self.shape[1])
+        win = (slice(y0, y1), slice(x0, x1))
+        return win, ndimage.distance_transform_edt(~mask[win]) * self.cell
 
     def cell_label(self, labels: np.ndarray, xy: np.ndarray, within: float = 0.45) -> int:
         """Label of the reachable cell nearest to xy within ``within`` [m] (0 if none)."""
@@ -169,7 +205,12 @@ class PathGrid:
             c = ((footprint.mean(axis=0) - self.origin) / self.cell).astype(int)
             if 0 <= c[1] < self.shape[0] and 0 <= c[0] < self.shape[1]:
                 m[c[1], c[0]] = True
-        return ndimage.distance_transform_edt(~m) * self.cell <= reach
+        if not m.any():
+            return ndimage.distance_transform_edt(~m) * self.cell <= reach
+        win, d = self._local_dist(m, reach)  # farther cells are out of reach
+        out = np.zeros(self.shape, dtype=bool)
+        out[win] = d <= reach
+        return out
 
 
 @dataclass(frozen=True)

@@ -35,24 +35,18 @@ import numpy as np
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
 from stages.scene.assets import AssetGeometry
-from stages.scene.collide import ConvexPiece, find_penetrations
+from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
-    convex_inside, convex_overlap, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
+    convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
 )
 from stages.scene.library import Library
 from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
 from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
 
-
 log = logging.getLogger(__name__)
 
-
 REST_GAP = 0.001          # [m] assets are placed this far above their support
-
-
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
-
-
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
 
@@ -85,12 +79,30 @@ class Placement:
 class _Inst:
     p: Placement
     geo: AssetGeometry
-    pieces: list[ConvexPiece]
+    pose: tuple[np.ndarray, np.ndarray]  # (rotation (3, 3), translation (3,)) of its pieces
     footprint: np.ndarray          # world (K, 2)
     block: np.ndarray | None       # world footprint that blocks the robot, or None
     zones: list[np.ndarray]        # world keep-out zones (clearance, swings)
     on_floor: bool
     reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
+    _pieces: list[ConvexPiece] | None = None
+    _normals: dict[int, np.ndarray] = field(default_factory=dict)  # id of its outline -> edge_normals
+
+    def normals(self, poly: np.ndarray) -> np.ndarray:
+        """edge_normals of its footprint or one of its zones (kept: arrays it holds, never changed)."""
+        n = self._normals.get(id(poly))
+        if n is None:
+            n = self._normals[id(poly)] = edge_normals(poly)
+        return n
+
+    @property
+    def pieces(self) -> list[ConvexPiece]:
+        """The collider pieces in the world (computed when first asked: most candidates are
+        rejected on their footprint before)."""
+        if self._pieces is None:
+            R3, t = self.pose
+            self._pieces = [p.transformed(R3, t, owner=self.p.inst) for p in self.geo.pieces]
+        return self._pieces
 
 
 @dataclass
@@ -123,6 +135,7 @@ class Populator:
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
         self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
+        self._others: tuple | None = None  # (insts, their and the layout's pieces, piece_bounds) for _collides
 
     # -- public ---------------------------------------------------------------------------------
 
@@ -234,7 +247,6 @@ class Populator:
                   yaw: float, support: str | None, clearance: float) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
-        pieces = [p.transformed(R3, t, owner=inst) for p in geo.pieces]
         R2 = R3[:2, :2]
         fp = geo.footprint @ R2.T + xy
         gfp = geo.ground_footprint
@@ -246,7 +258,7 @@ class Populator:
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
-        return _Inst(p, geo, pieces, fp, block, zones, support is None)
+        return _Inst(p, geo, (R3, t), fp, block, zones, support is None)
 
     # -- furniture ------------------------------------------------------------------------------
 
@@ -340,34 +352,26 @@ class Populator:
         return anchor - rot2(yaw) @ np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]), yaw
 
     def _free_wall_spans(self, edge, depth: float, height: float, ctx: RoomContext, tall: bool,
-                         gap: float) -> list[tuple[float, float]]:
+                         gap: float, outlines=False) -> list[tuple[float, float]]:
         """Free (start, end) spans [m along the edge] of a wall edge for an against-wall asset of
         ``depth`` and ``height`` [m]: the edge minus what reaches into its band (the strip
         ``gap + depth`` deep in front of it): room-door keep-outs, windows (when ``tall`` and the
         asset rises above sill + WINDOW_SILL_MARGIN), footprints (+ min_gap) and keep-out zones of
-        floor-standing assets already placed. Conservative (projections of convex outlines)."""
+        floor-standing assets already placed. Conservative (projections of convex outlines).
+        outlines: ``_wall_outlines(height, ctx, tall)`` when the caller has it."""
         a, t, L, n = edge
         band = gap + depth
+        if outlines is False:
+            outlines = self._wall_outlines(height, ctx, tall)
         blocked: list[tuple[float, float]] = []
-
-        def block(poly: np.ndarray, pad: float = 0.0) -> None:
-            rel = np.asarray(poly) - a
+        if outlines is not None:  # every outline projected on the edge (s) and its normal (h) at once
+            pts, starts, pad = outlines
+            rel = pts - a
             s, h = rel @ t, rel @ n
-            if h.min() < band and h.max() > 0.0:
-                blocked.append((float(s.min()) - pad, float(s.max()) + pad))
-
-        for dz in ctx.door_zones:
-            block(dz)
-        if tall:
-            for wz, sill in ctx.windows:
-                if height > sill + WINDOW_SILL_MARGIN:
-                    block(wz)
-        min_gap = self.rules.setting(ctx.room.type, "min_gap")
-        for o in self.insts:
-            if o.on_floor and o.p.floor == ctx.room.floor:
-                block(o.footprint, min_gap)
-                for z in o.zones:
-                    block(z)
+            hmin, hmax = np.minimum.reduceat(h, starts), np.maximum.reduceat(h, starts)
+            lo, hi = np.minimum.reduceat(s, starts) - pad, np.maximum.reduceat(s, starts) + pad
+            hit = (hmin < band) & (hmax > 0.0)
+            blocked = list(zip(lo[hit].tolist(), hi[hit].tolist()))
         spans, cur = [], 0.0
         for lo, hi in sorted(blocked):
             if lo > cur:
@@ -379,6 +383,29 @@ class Populator:
             spans.append((cur, L))
         return spans
 
+    def _wall_outlines(self, height: float, ctx: RoomContext, tall: bool):
+        """(vertices of every outline _free_wall_spans keeps out, stacked; index of each outline's
+        first vertex; its pad [m]), or None when there is none."""
+        polys: list[np.ndarray] = list(ctx.door_zones)
+        pads: list[float] = [0.0] * len(polys)
+        if tall:
+            for wz, sill in ctx.windows:
+                if height > sill + WINDOW_SILL_MARGIN:
+                    polys.append(wz)
+                    pads.append(0.0)
+        min_gap = self.rules.setting(ctx.room.type, "min_gap")
+        for o in self.insts:
+            if o.on_floor and o.p.floor == ctx.room.floor:
+                polys.append(o.footprint)
+                pads.append(min_gap)
+                polys += o.zones
+                pads += [0.0] * len(o.zones)
+        pads = [pd for pd, p in zip(pads, polys) if len(p)]
+        polys = [np.asarray(p) for p in polys if len(p)]
+        if not polys:
+            return None
+        return np.vstack(polys), np.cumsum([0, *(len(p) for p in polys[:-1])]), np.asarray(pads)
+
     def _wall_pose(self, geo: AssetGeometry, ctx: RoomContext, gap: float, facing: _Inst | None, *,
                    tall: bool = True, snap: float = 0.0):
         """Back against a free span of a wall (see ``_free_wall_spans``), front into the room; with
@@ -387,8 +414,10 @@ class Populator:
         width = geo.hi[1] - geo.lo[1]
         need = width + 0.02
         cands = []  # (edge, span start, span end)
+        outlines = self._wall_outlines(geo.hi[2] - geo.lo[2], ctx, tall)
         for e in _edges(ctx.interior):
-            for s0, s1 in self._free_wall_spans(e, geo.hi[0] - geo.lo[0], geo.hi[2] - geo.lo[2], ctx, tall, gap):
+            for s0, s1 in self._free_wall_spans(e, geo.hi[0] - geo.lo[0], geo.hi[2] - geo.lo[2], ctx, tall, gap,
+                                                outlines):
                 if s1 - s0 >= need:
                     cands.append((e, s0, s1))
         if not cands:
@@ -425,30 +454,40 @@ class Populator:
         for z in inst.zones:
             if not convex_inside(z, ctx.interior):
                 return "door/drawer swing or clearance outside the room"
+        fp = inst.footprint
+        nf = inst.normals(fp)
         for dz in ctx.door_zones:
-            if convex_overlap(inst.footprint, dz):
+            if convex_overlap(fp, dz, normals=(nf, None)):
                 return "in front of a room door"
         if not rule.tall_ok_at_window:
             for wz, sill in ctx.windows:
-                if geo.hi[2] - geo.lo[2] > sill + WINDOW_SILL_MARGIN and convex_overlap(inst.footprint, wz):
+                if geo.hi[2] - geo.lo[2] > sill + WINDOW_SILL_MARGIN and convex_overlap(fp, wz, normals=(nf, None)):
                     return "blocks a window"
         gap = self.rules.setting(ctx.room.type, "min_gap")
         for o in self.insts:
             if not o.on_floor or o.p.floor != inst.p.floor:
                 continue
-            if convex_overlap(inst.footprint, o.footprint, gap):
+            if convex_overlap(fp, o.footprint, gap, normals=(nf, o.normals(o.footprint))):
                 return f"footprint overlaps {o.p.record.category}"
             for z in o.zones:
-                if convex_overlap(inst.footprint, z):
+                if convex_overlap(fp, z, normals=(nf, o.normals(z))):
                     return f"in the swing/clearance zone of {o.p.record.category}"
             for z in inst.zones:
-                if convex_overlap(z, o.footprint):
+                if convex_overlap(z, o.footprint, normals=(inst.normals(z), o.normals(o.footprint))):
                     return f"its swing/clearance zone hits {o.p.record.category}"
         return None
 
     def _collides(self, inst: _Inst) -> str | None:
-        others = self.layout + self.instance_pieces()
-        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP)
+        key, old = tuple(self.insts), self._others
+        n = len(old[0]) if old else 0
+        if old is None or len(key) < n or any(a is not b for a, b in zip(key, old[0])):
+            old, n = ((), self.layout, piece_bounds(self.layout)), 0
+        if len(key) > n or old is not self._others:  # instances appended: only theirs stacked anew
+            new = [p for i in key[n:] for p in i.pieces]
+            lo, hi = piece_bounds(new)
+            self._others = (key, old[1] + new, (np.concatenate([old[2][0], lo]), np.concatenate([old[2][1], hi])))
+        _, others, bounds = self._others
+        hits = find_penetrations(inst.pieces, others, first_only=True, exact=False, tol=-PLACE_GAP, bounds=bounds)
         if hits:
             other = hits[0].owner_b
             what = other.rsplit("/", 2)[-2] if other.startswith("/") else other.rsplit("_", 1)[0]
@@ -486,12 +525,12 @@ class Populator:
                 if own:
                     return "cuts the robot path between the room's doors" if live else "blocks the room door"
                 return f"cuts the robot path{where}"
-            lab = next(iter(live))
+            at_door = labels == next(iter(live))
             reach = self.rules.setting(rctx.room.type, "reach")
             room_insts = [i for i in self.insts if i.p.room == rid and i.p.record.interactable] + (
                 [inst] if own and inst.p.record.interactable else [])
             for i in room_insts:
-                if not (self._reach_of(i, grid, reach) & (labels == lab)).any():
+                if not (self._reach_of(i, grid, reach) & at_door).any():
                     return f"leaves {i.p.record.category}{where} out of the robot's reach"
         return None
 
@@ -545,9 +584,9 @@ class Populator:
             if why is None and rec.interactable and ctx.door_points:
                 if labels is None:
                     ok, lab = self._door_labels_ok(grid, ctx, None)
-                    labels = (grid.components(), lab)
-                lab_grid, lab = labels
-                if not lab or not (grid.reach_mask(fp, reach) & (lab_grid == lab)).any():
+                    labels = (lab, grid.components() == lab)
+                lab, at_door = labels
+                if not lab or not (grid.reach_mask(fp, reach) & at_door).any():
                     why = "out of the robot's reach"
             if why is None:
                 self._accept(inst, None)

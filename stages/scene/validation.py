@@ -25,6 +25,7 @@ scene's own layers (root, lighting, materials, placement). ``validate_scene``:
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -99,10 +100,14 @@ def validate_scene(scene_usd: Path, packages: Sequence[Path], cache: CheckCache)
     stage.SetEditTarget(stage.GetSessionLayer())  # variant switches stay out of the scene's layers
     world = stage.GetDefaultPrim()
     vset = world.GetVariantSet("look") if world and world.GetVariantSets().HasVariantSet("look") else None
+    per_look, once = _split_validators()
+    fixed = None  # issues of the validators that read only the root layer's files: the same for every look
     for v in (vset.GetVariantNames() if vset else [None]):
         if vset is not None:
             vset.SetVariantSelection(v)
-        for i in _usd_validator_issues(stage):
+        if fixed is None:
+            fixed = _usd_validator_issues(stage, once) if once else []
+        for i in _usd_validator_issues(stage, per_look) + fixed:
             if i.severity == "error":
                 errors.append(f"look {v}: {i.line()}" if v else i.line())
             elif i.severity == "warning":
@@ -126,6 +131,24 @@ def validate_scene(scene_usd: Path, packages: Sequence[Path], cache: CheckCache)
         warnings += int(r["warnings"])
     return SceneValidation(errors=tuple(errors), warnings=warnings, packages=len(uniq), packages_validated=fresh,
                            structures_validated=len(new))
+
+
+# usd-core validators that read only the files below the stage's root layer identifier (its asset
+# dependencies, package files), never the composed stage: a variant selection (in the session
+# layer) cannot change their result, so they run once per scene, not once per look
+ROOT_LAYER_VALIDATORS = frozenset({
+    "usdUtilsValidators:MissingReferenceValidator", "usdUtilsValidators:UsdzPackageValidator",
+    "usdUtilsValidators:PackageEncapsulationValidator", "usdUtilsValidators:RootPackageValidator",
+    "usdUtilsValidators:FileExtensionValidator"})
+
+
+def _split_validators() -> tuple[list, list]:
+    """(validators run for every look, validators run once: ROOT_LAYER_VALIDATORS)."""
+    from pxr import UsdValidation
+
+    every = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
+    once = [v for v in every if v.GetMetadata().name in ROOT_LAYER_VALIDATORS]
+    return [v for v in every if v.GetMetadata().name not in ROOT_LAYER_VALIDATORS], once
 
 
 def _omni_structures(scene_usd: Path, new: dict[str, str], cache: CheckCache) -> list[dict]:
@@ -203,6 +226,7 @@ def _key(sig) -> str:
     return hashlib.sha256(json.dumps([_validator_version(), sig], sort_keys=True, default=str).encode()).hexdigest()
 
 
+@functools.cache  # a package's metadata lookup scans sys.path: once per process
 def _validator_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from stages.scene.collide import find_penetrations
 from stages.scene.solver import Populator
 
@@ -26,12 +28,16 @@ class CheckReport:
 def verify(pop: Populator) -> CheckReport:
     """Exact collider check of every instance against the layout and each other, and the path check
     of every populated room (doors connected, every interactable reachable)."""
-    from stages.scene.collide import find_penetrations as fp
+    from stages.scene.collide import find_penetrations as fp, piece_bounds
 
     pens: dict[tuple[str, str], float] = {}
-    for i, inst in enumerate(pop.insts):
-        later = [p for o in pop.insts[i + 1:] for p in o.pieces]
-        for pen in fp(inst.pieces, pop.layout + later, exact=True):
+    every = [p for o in pop.insts for p in o.pieces]
+    (llo, lhi), (plo, phi) = piece_bounds(pop.layout), piece_bounds(every)
+    start = 0
+    for inst in pop.insts:
+        start += len(inst.pieces)  # the pieces of the instances after this one: every[start:]
+        bounds = np.concatenate([llo, plo[start:]]), np.concatenate([lhi, phi[start:]])
+        for pen in fp(inst.pieces, pop.layout + every[start:], exact=True, bounds=bounds):
             key = (pen.owner_a, pen.owner_b)
             pens[key] = max(pens.get(key, 0.0), pen.depth)
     path: list[str] = []

@@ -132,3 +132,40 @@ def test_textures_and_looks(tmp_path: Path):
     assert {m.kind for lk in looks for m in lk.floors.values()} <= set(FLOOR_KINDS)
     st_ = planar_st(np.array([[0, 0, 0], [2, 0, 0], [0, 3, 0]], float), np.array([0, 1, 2]))
     assert st_.tolist() == [[0, 0], [2, 0], [0, 3]]
+
+
+def test_path_grid_windowed_distances_match_the_whole_grid():
+    """PathGrid.components / reach_mask (cached free mask, distance transforms over a window around
+    the extra cells) give exactly what the whole-grid distance transform gives."""
+    from scipy import ndimage
+
+    from stages.scene.room import PathGrid
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        g = PathGrid.__new__(PathGrid)
+        shape = (int(rng.integers(20, 60)), int(rng.integers(20, 60)))
+        g.origin, g.cell, g.shape = np.zeros(2), 0.05, shape
+        g.base = rng.random(shape) < 0.02
+        g.base[0, :] = g.base[-1, :] = True
+        g.radius = float(rng.uniform(0.1, 0.4))
+        g.blocks, g._free_key, g._free_mask, g._labels = {}, None, np.zeros(shape, dtype=bool), None
+        for k in range(3):
+            g.blocks[f"b{k}"] = g.raster(convex_hull_2d(rng.uniform(0, 2.5, (6, 2))))
+        extra = g.raster(convex_hull_2d(rng.uniform(0, 2.5, (5, 2))))
+        fp = convex_hull_2d(rng.uniform(0, 2.5, (5, 2)))
+        occ = g.base | extra
+        for m in g.blocks.values():
+            occ |= m
+        free = ndimage.distance_transform_edt(~occ) * g.cell >= g.radius + g.cell * 0.5
+        want = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))[0]
+        assert np.array_equal(g.components(extra), want)
+        m = g.raster(fp)
+        if m.any():
+            assert np.array_equal(g.reach_mask(fp, 0.6), ndimage.distance_transform_edt(~m) * g.cell <= 0.6)
+        g.blocks.pop("b0")  # a changed set of blocks is seen
+        occ = g.base.copy()
+        for b in g.blocks.values():
+            occ |= b
+        free = ndimage.distance_transform_edt(~occ) * g.cell >= g.radius + g.cell * 0.5
+        assert np.array_equal(g.components(), ndimage.label(free, structure=np.ones((3, 3), dtype=bool))[0])
