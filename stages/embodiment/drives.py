@@ -83,14 +83,10 @@ def apply_drives(builder, spec: EmbodimentSpec, *, joint_start: int = 0, joint_e
 def _gravity_compensation(builder, bodies: list[int]) -> None:
     """MuJoCo ``gravcomp`` 1 on ``bodies`` and every body rigidly welded below them."""
     import newton
-    from newton.solvers import SolverMuJoCo
 
-    key = "mujoco:gravcomp"
-    if key not in builder.custom_attributes:
-        SolverMuJoCo.register_custom_attributes(builder)
-    attr = builder.custom_attributes[key]
-    if attr.values is None:
-        attr.values = {}
+    from stages.simulate.robot_load import mujoco_attribute
+
+    attr = mujoco_attribute(builder, "mujoco:gravcomp")
     fixed: dict[int, list[int]] = {}
     for j in range(builder.joint_count):
         if builder.joint_type[j] == newton.JointType.FIXED:

@@ -517,24 +517,21 @@ class BatchEngine:
             return
         self._captured_step = step
         worlds = self._recording() if deliver else []
-        if not worlds:
-            for r in self._renders.values():
-                r.wait()
-            self._renders.clear()
-            return
-        from stages.dataset import Frame
-
         t0 = time.perf_counter()
         images = {}
         for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
-            r = self._renders.pop(id(b), None)
+            r = self._renders.get(id(b))
             if r is None and b.rig is not None:
                 r = b.rig.render_compact_async()
             if r is not None:
                 images[id(b)] = r.wait()  # RGB uint8 and depth [mm] uint16, per camera
-        for r in self._renders.values():
+        for r in self._renders.values():  # renders of Sims without a recording world now
             r.wait()
         self._renders.clear()
+        if not worlds:
+            return
+        from stages.dataset import Frame
+
         t1 = time.perf_counter()
         q_all, t_all, base_all = self._robot_state(worlds)
         ee_all = pose7_batch(self.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets

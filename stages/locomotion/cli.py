@@ -36,6 +36,14 @@ def _env_args(p: argparse.ArgumentParser, *, worlds: int) -> None:
     p.add_argument("--no-graph", action="store_true", help="no CUDA graph capture of the physics step")
 
 
+def _report(result: dict, json_path: str) -> None:
+    """Print ``result`` as JSON and also write it to ``json_path`` when one is given."""
+    text = json.dumps(result, indent=2)
+    print(text)
+    if json_path:
+        Path(json_path).write_text(text + "\n")
+
+
 def train_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-train",
                                 description="train the G1 velocity-tracking policy with PPO; resumes from the "
@@ -85,10 +93,7 @@ def eval_main(argv: list[str]) -> int:
     t0 = time.time()
     result = evaluate(EvalConfig(env=env, policy=a.policy, seconds=a.seconds))
     result["wall_s"] = round(time.time() - t0, 1)
-    text = json.dumps(result, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text + "\n")
+    _report(result, a.json)
     return 0
 
 
@@ -114,10 +119,7 @@ def runtime_main(argv: list[str]) -> int:
 
     result = evaluate_runtime(RuntimeEvalConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed,
                                                 seconds=a.seconds, arms=not a.no_arms))
-    text = json.dumps(result, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text + "\n")
+    _report(result, a.json)
     return 0
 
 

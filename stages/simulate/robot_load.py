@@ -122,18 +122,24 @@ def _set_drives(builder, desc: RobotDescription, gains: DriveGains, dof, coord, 
         builder.joint_target_q[coord[name]] = desc.gripper.open_q
 
 
-def _set_finger_contacts(builder, desc: RobotDescription, body: dict[str, int], shape0: int) -> None:
-    """Finger pads get torsional friction (MuJoCo ``condim`` 4, Newton's ``mu_torsional``): with
-    point contacts only, an object pinched off its centre of mass (a mug by its handle) spins
-    freely about the line between the pads."""
+def mujoco_attribute(builder, key: str):
+    """The builder's MuJoCo custom attribute ``key`` (e.g. ``"mujoco:gravcomp"``), registering
+    SolverMuJoCo's attributes first if needed; its ``values`` dict (entity index -> value) exists."""
     from newton.solvers import SolverMuJoCo
 
-    key = "mujoco:condim"
     if key not in builder.custom_attributes:
         SolverMuJoCo.register_custom_attributes(builder)
     attr = builder.custom_attributes[key]
     if attr.values is None:
         attr.values = {}
+    return attr
+
+
+def _set_finger_contacts(builder, desc: RobotDescription, body: dict[str, int], shape0: int) -> None:
+    """Finger pads get torsional friction (MuJoCo ``condim`` 4, Newton's ``mu_torsional``): with
+    point contacts only, an object pinched off its centre of mass (a mug by its handle) spins
+    freely about the line between the pads."""
+    attr = mujoco_attribute(builder, "mujoco:condim")
     fingers = set()
     for j in desc.gripper.finger_joints:
         k = next(i for i in range(builder.joint_count) if _short(builder.joint_label[i]) == j)
@@ -147,14 +153,7 @@ def _set_finger_contacts(builder, desc: RobotDescription, body: dict[str, int], 
 def _set_gravity_compensation(builder, desc: RobotDescription, body: dict[str, int]) -> None:
     """Mark the arm and gripper bodies as gravity-compensated (MuJoCo ``gravcomp``), like the
     Panda's own controller does; other solvers ignore it."""
-    from newton.solvers import SolverMuJoCo
-
-    key = "mujoco:gravcomp"
-    if key not in builder.custom_attributes:
-        SolverMuJoCo.register_custom_attributes(builder)
-    attr = builder.custom_attributes[key]
-    if attr.values is None:
-        attr.values = {}
+    attr = mujoco_attribute(builder, "mujoco:gravcomp")
     arm_root = body.get("panda_link1")
     for b in body.values():
         if arm_root is not None and b >= arm_root:
