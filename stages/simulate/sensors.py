@@ -377,7 +377,8 @@ class CameraRig:
     The third-person cameras are fixed in each world's frame (worlds share coordinates);
     exposure_lux: illuminance shown as white (None: automatic, see the module doc); shadows:
     shadow rays for distant lights (without them sunlight reaches through roofs and walls);
-    textures: load and render the shapes' textures (a missing texture file raises)."""
+    textures: load and render the shapes' textures (a missing texture file raises); tile: (width,
+    height) [px] of the pixel tiles rendered together (images do not depend on it)."""
 
     sim: object
     cameras: list[CameraSpec]
@@ -387,6 +388,7 @@ class CameraRig:
     exposure_lux: float | None = None
     shadows: bool = True
     textures: bool = True
+    tile: tuple[int, int] = (8, 8)
     lights_used: list[RendererLight] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -396,8 +398,12 @@ class CameraRig:
         model = self.sim.model
         # both faces: generated meshes with inward winding (ceilings seen from below) must still
         # occlude the camera and the sun
+        # tiles of neighbouring pixels of one view per thread block: rays of a warp share a world
+        # and a BVH path (Newton's default order puts the same pixel of every world side by side,
+        # 3.6 times slower for 256 differing worlds on an H100: tests/benchmarks/bench_render.py)
         config = SensorCamera.RenderConfig(
-            enable_shadows=self.shadows, enable_backface_culling=False, enable_textures=self.textures
+            enable_shadows=self.shadows, enable_backface_culling=False, enable_textures=self.textures,
+            render_order=SensorCamera.RenderOrder.TILED, tile_width=self.tile[0], tile_height=self.tile[1],
         )
         self._sensor = SensorCamera(model, load_textures=self.textures, default_render_config=config)
         self.lights_used = apply_lights(self._sensor, self.sim.scene.lights, self.exposure_lux)

@@ -117,9 +117,18 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     steps = int(args.sim_seconds * eng.steps_per_second)
     if barrier is not None:
         barrier.wait()
+    prof = None
+    if args.profile:
+        import cProfile
+
+        prof = cProfile.Profile()
+        prof.enable()
     t0 = time.perf_counter()
     eng.run(next_instance, begin=begin, end=end, max_steps=steps)
     _sync(args.device)
+    if prof is not None:
+        prof.disable()
+        _write_profile(prof, args.out.with_name(f"{args.out.stem}_profile_{n}.txt"))
     if shards is not None:
         shards.stop(keep=True)  # episodes cut by the window are written too: their encoding counts
     wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
@@ -363,6 +372,20 @@ def _render_split(eng, bank, args) -> dict:
     return out
 
 
+def _write_profile(prof, path: Path) -> None:
+    """The engine process's profile of the timed window: functions by cumulative and own time."""
+    import io
+    import pstats
+
+    buf = io.StringIO()
+    st = pstats.Stats(prof, stream=buf)
+    st.sort_stats("cumulative").print_stats(70)
+    st.sort_stats("tottime").print_stats(40)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(buf.getvalue())
+    print(f"profile: {path}", flush=True)
+
+
 def _count(it) -> dict:
     out: dict[str, int] = defaultdict(int)
     for x in it:
@@ -383,6 +406,8 @@ def main(argv=None) -> dict:
     p.add_argument("--render-variants", action="store_true",
                    help="with --render-split: whole renders without shadows and without textures too "
                         "(two more rigs: minutes of kernel compilation on a fresh machine)")
+    p.add_argument("--profile", action="store_true",
+                   help="profile the engine process over the timed window (cProfile; written beside --out)")
     p.add_argument("--write", action="store_true", help="record into real dataset shards (encoding included)")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
