@@ -3,10 +3,9 @@ geometry, for the scripted experts.
 
 1. Shape: :func:`object_points` collects the collision geometry of the object's body in the
    simulation (mesh vertices, box corners, sphere / capsule / cylinder samples) in the world;
-   :func:`fit_upright` fits an upright body of revolution to them: axis, bottom, height, the body's
-   radius (the median over height slices of each slice's 90th-percentile distance to the axis, so
-   that a handle does not widen it) and a handle (the direction of the points that stand out more
-   than 25% beyond that radius), and says whether it stands upright.
+   :func:`fit_upright` fits an upright body of revolution to them: axis (from its base, below
+   any handle), bottom, height, the body's radius and a handle (the direction of the points that
+   stand out more than 25% beyond that radius), and says whether it stands upright.
 2. Pose (:func:`plan_top_grasp`): a top power grasp for upright mugs, cans and bottles: the palm
    just above the object's top, facing down, the fingers horizontal and pointing away from the
    robot; closing, they curl down around the far side while the thumb (which opens 11 cm below
@@ -101,38 +100,29 @@ def object_points(sim, body: int) -> np.ndarray:
     return Rotation.from_quat(bq[3:7]).apply(pts) + bq[:3]
 
 
-def fit_upright(points: np.ndarray, *, slices: int = 8) -> UprightShape:
-    """Fit a vertical body of revolution to ``points`` (N, 3) [m] (see the module docstring)."""
+def fit_upright(points: np.ndarray, *, base_fraction: float = 0.15) -> UprightShape:
+    """Fit a vertical body of revolution to ``points`` (N, 3) [m]: the axis is the centre of the
+    points' bounding box in the lowest ``base_fraction`` of the height (below any handle), the
+    radius the 75th percentile of the distances to the axis of the points no farther than 1.2
+    times the base's radius; points beyond 1.25 radii are a handle (their mean direction)."""
     pts = np.asarray(points, float)
     if len(pts) < 8:
         raise ValueError(f"fit_upright: {len(pts)} collision points are too few to fit a shape")
     lo, hi = pts.min(0), pts.max(0)
-    # axis: the centre of the bounding circle of the lower half (a handle sits higher up, but
-    # also widens the box): the mean of each slice's extremes, median over slices
-    zs = np.linspace(lo[2], hi[2], slices + 1)
-    centers, radii = [], []
-    for z0, z1 in zip(zs[:-1], zs[1:], strict=True):
-        sl = pts[(pts[:, 2] >= z0) & (pts[:, 2] <= z1)][:, :2]
-        if len(sl) >= 4:
-            centers.append(np.median(sl, axis=0) if len(sl) > 40 else (sl.min(0) + sl.max(0)) / 2)
-    axis_xy = np.median(np.array(centers), axis=0) if centers else (lo[:2] + hi[:2]) / 2
+    height = float(hi[2] - lo[2])
+    base = pts[pts[:, 2] <= lo[2] + base_fraction * height]
+    if len(base) < 4:
+        base = pts
+    axis_xy = (base[:, :2].min(0) + base[:, :2].max(0)) / 2
     d = np.linalg.norm(pts[:, :2] - axis_xy, axis=1)
-    for z0, z1 in zip(zs[:-1], zs[1:], strict=True):
-        m = (pts[:, 2] >= z0) & (pts[:, 2] <= z1)
-        if m.sum() >= 4:
-            radii.append(np.percentile(d[m], 60))
-    radius = float(np.median(radii)) if radii else float(d.max())
+    r_base = float(np.linalg.norm(base[:, :2] - axis_xy, axis=1).max())
+    radius = float(np.percentile(d[d <= 1.2 * r_base], 75))
     out = d > 1.25 * radius
     handle = None
     if out.sum() >= 3:
         v = (pts[out, :2] - axis_xy).mean(0)
         if np.linalg.norm(v) > 1e-6:
             handle = np.array([*(v / np.linalg.norm(v)), 0.0])
-            # re-centre the axis on the body alone
-            body = pts[~out]
-            axis_xy = (body[:, :2].min(0) + body[:, :2].max(0)) / 2
-            radius = float(np.percentile(np.linalg.norm(body[:, :2] - axis_xy, axis=1), 90))
-    height = float(hi[2] - lo[2])
     return UprightShape(center=np.array([*axis_xy, (lo[2] + hi[2]) / 2]), bottom=float(lo[2]), height=height,
                         radius=radius, handle=handle, upright=height > 1.2 * radius)
 
