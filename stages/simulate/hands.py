@@ -128,7 +128,7 @@ ALLEGRO_PALM_FACE = 0.0111  # [m] palm surface along +X of palm_link (collision 
 def allegro_info() -> HandInfo:
     return HandInfo(kind="allegro", joints=ALLEGRO_JOINTS, open=ALLEGRO_OPEN, closed=ALLEGRO_CLOSED,
                     tips=("allegro_link_15_tip", "allegro_link_3_tip", "allegro_link_7_tip", "allegro_link_11_tip"),
-                    palm_link="allegro_palm_link", tcp="allegro_tcp", tcp_z=ADAPTER + 0.0408,
+                    palm_link="allegro_palm_link", tcp="allegro_tcp", tcp_z=0.0508,   # ADAPTER + the palm box (40.8 mm)
                     palm_half=(0.05, 0.056), reach=0.05, grasp_x=0.015,
                     fingers={name: tuple(f"allegro_link_{i}" for i in range(4 * k, 4 * k + 4)) + (f"allegro_link_{4 * k + 3}_tip",)
                              for k, name in ((3, "thumb"), (0, "index"), (1, "middle"), (2, "ring"))},
@@ -186,7 +186,7 @@ def shadow_info() -> HandInfo:
     effort = tuple(_SH_EFFORT.get(j.removeprefix("shadow_"), _SH_EFFORT.get(j[-2:], 0.9)) for j in SHADOW_JOINTS)
     return HandInfo(kind="shadow", joints=SHADOW_JOINTS, open=SHADOW_OPEN, closed=SHADOW_CLOSED,
                     tips=("shadow_thdistal", "shadow_ffdistal", "shadow_mfdistal", "shadow_rfdistal", "shadow_lfdistal"),
-                    palm_link="shadow_palm", tcp="shadow_tcp", tcp_z=ADAPTER + 0.0222,
+                    palm_link="shadow_palm", tcp="shadow_tcp", tcp_z=0.0322,   # ADAPTER + the palm box (22.2 mm)
                     palm_half=(0.05, 0.035), reach=0.05, grasp_x=0.02,
                     fingers={"thumb": tuple(f"shadow_th{p}" for p in ("base", "proximal", "hub", "middle", "distal")),
                              **{name: tuple(f"shadow_{f}{p}" for p in ("knuckle", "proximal", "middle", "distal"))
