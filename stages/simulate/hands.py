@@ -86,9 +86,15 @@ def _fmt(v) -> str:
 
 
 def _rpy(r: np.ndarray) -> tuple[float, float, float]:
+    """URDF rpy [rad] of a rotation (3, 3); at gimbal lock (pitch +-90 deg) any split of roll and
+    yaw is exact, so scipy's warning about it is silenced."""
+    import warnings
+
     from scipy.spatial.transform import Rotation
 
-    return tuple(float(a) for a in Rotation.from_matrix(r).as_euler("xyz"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return tuple(float(a) for a in Rotation.from_matrix(r).as_euler("xyz"))
 
 
 def _mount(robot: ET.Element, palm: str, r_tcp_palm: np.ndarray, palm_point: np.ndarray, tcp: str,
