@@ -91,11 +91,10 @@ class CommandBuffers:
         from open to closed, and at 1 ``squeeze`` past closed so that the drive pushes with up to
         its force limit on whatever is between the fingers (joint limits stop empty fingers)."""
         g = self.desc.gripper
-        c = float(np.clip(command, 0.0, 1.0))
-        q = g.open_q + c * (g.closed_q - g.open_q) - c * g.squeeze * np.sign(g.open_q - g.closed_q)
+        q = g.finger_targets(command)
         for w in self._worlds(world):
-            for n in g.finger_joints:
-                self._targets[self._c(n, w)] = q
+            for n, v in zip(g.finger_joints, q, strict=True):
+                self._targets[self._c(n, w)] = v
         self._dirty = True
 
     def arm_targets(self, world: int = 0) -> np.ndarray:
@@ -239,8 +238,8 @@ class Clik:
         q = self._pin.neutral(self.model)
         for n, v in zip(self.desc.arm_joints, self.desc.arm_home, strict=True):
             q[self.q_idx[n]] = v
-        for n in self.desc.gripper.finger_joints:
-            q[self.q_idx[n]] = self.desc.gripper.open_q
+        for n, v in zip(self.desc.gripper.finger_joints, self.desc.gripper.finger_targets(0.0), strict=True):
+            q[self.q_idx[n]] = v
         return q
 
     def fk(self, q: np.ndarray, frame: str | None = None) -> np.ndarray:

@@ -59,6 +59,8 @@ ARM_HOME = (0.0, -0.5, 0.0, -2.3, 0.0, 1.8, 0.785)
 class GripperKind(StrEnum):
     PANDA_HAND = "panda_hand"
     ROBOTIQ_2F85 = "robotiq_2f85"
+    ALLEGRO = "allegro"          # dexterous hands: stages.simulate.hands
+    SHADOW = "shadow"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -102,16 +104,29 @@ class GripperSpec:
     and 1 (closed); squeeze [m]: how far past ``closed_q`` the command-1 target lies, so that a
     grasped object is squeezed with about ``finger_ke * (squeeze + penetration)``, capped at
     max_force [N] per finger; tcp: end-effector frame name; hand_link: the link the fingers hang
-    from."""
+    from. A dexterous hand (``hand``: :class:`stages.simulate.hands.HandInfo`) has one open /
+    closed position per joint (its closing synergy) and its own drives; open_q / closed_q are then
+    unused."""
 
     kind: GripperKind
-    finger_joints: tuple[str, str]
+    finger_joints: tuple[str, ...]
     open_q: float
     closed_q: float
     max_force: float
     tcp: str
     hand_link: str
     squeeze: float = 0.02
+    hand: object | None = None
+
+    def finger_targets(self, command: float) -> np.ndarray:
+        """Finger joint targets (n,) [m or rad] for a command in [0, 1] (0 open, 1 closed): a
+        parallel gripper's fingers go ``squeeze`` past closed at 1; a hand interpolates its synergy."""
+        c = float(np.clip(command, 0.0, 1.0))
+        if self.hand is not None:
+            o, k = np.asarray(self.hand.open), np.asarray(self.hand.closed)
+            return o + c * (k - o)
+        q = self.open_q + c * (self.closed_q - self.open_q) - c * self.squeeze * np.sign(self.open_q - self.closed_q)
+        return np.full(len(self.finger_joints), q)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -490,11 +505,13 @@ def write_robot_urdf(
     panda_root: Path | None = None,
     robotiq_root: Path | None = None,
     base: BaseGeometry | None = None,
+    shared_assets: Path | None = None,
 ) -> RobotDescription:
     """Write ``<out_dir>/mobile_panda_<gripper>.urdf`` and return its description.
 
     panda_root: see :func:`find_panda_description`; robotiq_root: folder of the Menagerie 2F-85
-    (needed for ``gripper="robotiq_2f85"``).
+    (needed for ``gripper="robotiq_2f85"``); shared_assets: the third-party assets folder (the
+    hands, ``gripper="allegro"`` or ``"shadow"``; default ``stages.embodiment.sources.default_shared_assets``).
     """
     gripper = GripperKind(gripper)
     base = base or BaseGeometry()
@@ -515,6 +532,14 @@ def write_robot_urdf(
             tcp="panda_hand_tcp",
             hand_link="panda_hand",
         )
+    elif gripper in (GripperKind.ALLEGRO, GripperKind.SHADOW):
+        from stages.embodiment.sources import default_shared_assets
+        from stages.simulate.hands import add_hand
+
+        hand = add_hand(robot, gripper.value, Path(shared_assets) if shared_assets else default_shared_assets())
+        spec = GripperSpec(kind=gripper, finger_joints=hand.joints, open_q=0.0, closed_q=0.0,
+                           max_force=max(hand.drive.effort), tcp=hand.tcp, hand_link=hand.palm_link,
+                           squeeze=0.0, hand=hand)
     else:
         if robotiq_root is None:
             raise ItemError("robotiq_2f85: robotiq_root (the Menagerie 2F-85 folder) is required")

@@ -111,15 +111,17 @@ def _set_drives(builder, desc: RobotDescription, gains: DriveGains, dof, coord, 
         builder.joint_armature[d] = gains.arm_armature
         builder.joint_q[coord[name]] = arm_q[i]
         builder.joint_target_q[coord[name]] = arm_q[i]
-    for name in desc.gripper.finger_joints:
+    g = desc.gripper
+    hand = g.hand.drive if g.hand is not None else None    # a dexterous hand's own drives
+    for i, (name, q0) in enumerate(zip(g.finger_joints, g.finger_targets(0.0), strict=True)):
         d = dof[name]
-        builder.joint_target_ke[d] = gains.finger_ke
-        builder.joint_target_kd[d] = gains.finger_kd
+        builder.joint_target_ke[d] = gains.finger_ke if hand is None else hand.kp
+        builder.joint_target_kd[d] = gains.finger_kd if hand is None else hand.kd
         builder.joint_target_mode[d] = int(newton.JointTargetMode.POSITION)
-        builder.joint_effort_limit[d] = desc.gripper.max_force
-        builder.joint_armature[d] = gains.finger_armature
-        builder.joint_q[coord[name]] = desc.gripper.open_q
-        builder.joint_target_q[coord[name]] = desc.gripper.open_q
+        builder.joint_effort_limit[d] = g.max_force if hand is None else hand.effort[i]
+        builder.joint_armature[d] = gains.finger_armature if hand is None else hand.armature
+        builder.joint_q[coord[name]] = q0
+        builder.joint_target_q[coord[name]] = q0
 
 
 def mujoco_attribute(builder, key: str):
@@ -144,6 +146,8 @@ def _set_finger_contacts(builder, desc: RobotDescription, body: dict[str, int], 
     for j in desc.gripper.finger_joints:
         k = next(i for i in range(builder.joint_count) if _short(builder.joint_label[i]) == j)
         fingers.add(builder.joint_child[k])
+    if desc.gripper.hand is not None:   # a hand grasps with its palm too
+        fingers.add(body[desc.gripper.hand_link])
     for s in range(shape0, builder.shape_count):
         if builder.shape_body[s] in fingers:
             attr.values[s] = 4
