@@ -70,6 +70,69 @@ class Randomization:
 
 
 @dataclass(frozen=True, kw_only=True)
+class TerrainConfig:
+    """Per-world terrain and its curriculum (``stages.locomotion.terrain``); off: flat floors only.
+
+    Defaults follow the layout stage: stairs up to its steepest riser (``stages.layout.model.RISE``,
+    0.19 m) with its tread depths (``RUN``, 0.26-0.30 m), door thresholds of 1-4 cm.
+    """
+
+    enabled: bool = False
+    kinds: tuple[float, float, float] = (0.2, 0.3, 0.5)
+    """shares of worlds that are flat, have door thresholds, have stairs (up, landing, down)"""
+    num_boxes: int = 6
+    """static boxes per world: thresholds per lane, risers per flight"""
+    num_levels: int = 10
+    """difficulty levels; level l scales heights linearly from the low to the high end"""
+    init_max_level: int = 2
+    """worlds start at a uniform level in [0, init_max_level]"""
+    stair_rise: tuple[float, float] = (0.04, 0.19)
+    """riser height at level 0 and at the top level [m]"""
+    stair_run: tuple[float, float] = (0.26, 0.30)
+    """tread depth, drawn per world [m]"""
+    landing: float = 1.0
+    """top landing between the flights [m]"""
+    threshold_height: tuple[float, float] = (0.01, 0.04)
+    """door threshold height at level 0 and at the top level [m]"""
+    threshold_depth: float = 0.06
+    """threshold depth along the walk [m]"""
+    threshold_spacing: float = 0.9
+    """distance between thresholds [m]"""
+    start_x: float = 1.0
+    """distance from the spawn point to the first obstacle [m]"""
+    lane_width: float = 1.6
+    """width of the stairs and thresholds [m]"""
+    spawn_yaw: float = 0.3
+    """half-width of the spawn heading's draw around +x on thresholds and stairs [rad]"""
+    vx: tuple[float, float] = (0.3, 1.0)
+    """forward command on thresholds and stairs [m/s]"""
+    vy: tuple[float, float] = (-0.15, 0.15)
+    """lateral command on thresholds and stairs [m/s]"""
+    heading_gain: float = 1.0
+    """yaw-rate command per radian of heading error (the heading is held along +x) [1/s]"""
+    down_fraction: float = 0.5
+    """a level down when the robot covered less than this share of its commanded distance"""
+    posture_scale: float = 0.5
+    """posture reward scale on thresholds and stairs (climbing bends the knees and hips)"""
+
+    def problems(self) -> list[str]:
+        """One line per inconsistency (empty when valid)."""
+        out = []
+        if len(self.kinds) != 3 or min(self.kinds) < 0 or sum(self.kinds) <= 0:
+            out.append(f"terrain.kinds must be 3 non-negative shares (flat, threshold, stairs), got {self.kinds}")
+        if self.num_boxes < 1:
+            out.append(f"terrain.num_boxes must be positive, got {self.num_boxes}")
+        if not 0 <= self.init_max_level < self.num_levels:
+            out.append(f"terrain levels: need 0 <= init_max_level ({self.init_max_level}) < num_levels "
+                       f"({self.num_levels})")
+        for name in ("stair_rise", "stair_run", "threshold_height"):
+            lo, hi = getattr(self, name)
+            if not 0.0 < lo <= hi:
+                out.append(f"terrain.{name} must be 0 < low <= high, got {(lo, hi)}")
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
 class EnvConfig:
     """One batched G1 environment: N worlds in one Newton model, stepped together."""
 
@@ -94,6 +157,7 @@ class EnvConfig:
     commands: CommandRanges = field(default_factory=CommandRanges)
     rewards: RewardWeights = field(default_factory=RewardWeights)
     randomization: Randomization = field(default_factory=Randomization)
+    terrain: TerrainConfig = field(default_factory=TerrainConfig)
 
     def __post_init__(self) -> None:
         problems = []
@@ -103,6 +167,8 @@ class EnvConfig:
             problems.append(f"decimation must be a positive even number (state swaps), got {self.decimation}")
         if self.sim_dt <= 0.0:
             problems.append(f"sim_dt must be positive, got {self.sim_dt}")
+        if self.terrain.enabled:
+            problems += self.terrain.problems()
         if problems:
             raise ValueError("; ".join(problems))
 
