@@ -47,6 +47,12 @@ class RewardWeights:
     lin_vel_z: float = 0.0
     ang_vel_xy: float = 0.0
     termination: float = 0.0
+    foot_clearance: float = 0.0
+    """swing-foot clearance: penalizes a foot that moves horizontally lower than ``clearance_height``
+    over the terrain under it (legged_gym's humanoid feet clearance); 0 on flat floors, the
+    terrain preset turns it on so the blind policy lifts its feet over thresholds and risers"""
+    clearance_height: float = 0.10
+    """target swing height of the soles over the terrain [m]"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,6 +71,9 @@ class Randomization:
     """control steps between arm target draws (the paper's 150 frames)"""
     arm_range: float = 0.6
     """half-width of the arm targets' draw around the default pose [rad], clipped to limits"""
+    arm_reach: bool = False
+    """draw the arm targets uniformly in ``robot.REACH_ARM_RANGES`` instead (hands from the thigh to
+    above the head: counter-height reaching), clipped to limits; ``arm_range`` is then unused"""
     obs_noise: bool = True
     """add mjlab's uniform observation noise to the policy's observations (not the critic's)"""
 
@@ -210,6 +219,10 @@ class TrainConfig:
     """iterations between checkpoints"""
     checkpoint_dir: str = "out/locomotion/g1_velocity"
     resume: bool = True
+    init_from: str = ""
+    """a checkpoint (rsl-rl ``model_<iter>.pt`` or a policy folder's ``checkpoint.pt``) to start from
+    when ``checkpoint_dir`` holds none yet: its weights, optimizer and iteration count, and the
+    ``curve.csv`` beside it (e.g. the committed flat-floor policy, to fine-tune on terrain)"""
 
     def __post_init__(self) -> None:
         if self.iterations < 0:

@@ -18,8 +18,9 @@ from typing import Any
 import torch
 
 from stages.locomotion.config import EnvConfig
-from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_POSE, LEG_JOINTS, WAIST_JOINTS,
-                                     G1Layout, build_g1_model, joint_gains, posture_std)
+from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_POSE, LEG_JOINTS, SOLE_BELOW_ANKLE,
+                                     WAIST_JOINTS, G1Layout, build_g1_model, joint_gains, posture_std,
+                                     reach_arm_range)
 from stages.locomotion import rewards as R
 from stages.locomotion.terrain import FLAT, TerrainWorlds, build_terrain_model
 
@@ -75,6 +76,7 @@ class G1VelocityEnv:
         self.default_q = tensor([DEFAULT_POSE.get(j, 0.0) for j in self.joint_names])
         self.action_scale = tensor([joint_gains(j).action_scale for j in self.policy_joints])
         self.posture_std = tensor([posture_std(j) for j in self.policy_joints])
+        self.reach_lo, self.reach_hi = tensor([[reach_arm_range(j)[i] for j in ARM_JOINTS] for i in (0, 1)])
         lo = self.model.joint_limit_lower.numpy()[6:6 + len(self.joint_names)]
         hi = self.model.joint_limit_upper.numpy()[6:6 + len(self.joint_names)]
         mid, half = (lo + hi) / 2, (hi - lo) / 2 * SOFT_LIMIT_FACTOR
@@ -111,6 +113,11 @@ class G1VelocityEnv:
         """worlds whose yaw-rate command holds the heading along +x (N,) bool"""
         self.commanded_x = torch.zeros(n, **f32)
         """forward distance the commands asked for in this episode (N,) [m] (terrain curriculum)"""
+        self.body_q = wp.to_torch(self.state_0.body_q).view(n, lay.bodies_per_world, 7)
+        self.foot_idx = tensor(lay.foot_bodies, torch.long)
+        self.prev_foot_xy = self.body_q[:, self.foot_idx, 0:2].clone()
+        self.feet_fresh = torch.ones(n, dtype=torch.bool, device=dev)
+        """worlds reset since the last clearance term: their feet's speed is not known yet (N,) bool"""
         self.posture_scale = torch.where(self.on_terrain, cfg.terrain.posture_scale, 1.0).float()
         self.metrics = R.RewardMetrics(n, dev)
         self._down = torch.tensor([0.0, 0.0, -1.0], device=dev)
@@ -180,8 +187,12 @@ class G1VelocityEnv:
         k = len(ids)
         if k == 0:
             return
-        r = self.cfg.randomization.arm_range
-        target = self.default_q[self.arm_idx] + self._uniform((k, len(self.arm_idx)), -r, r)
+        if self.cfg.randomization.arm_reach:
+            u = torch.rand((k, len(self.arm_idx)), generator=self.gen, device=self.device)
+            target = self.reach_lo + (self.reach_hi - self.reach_lo) * u
+        else:
+            r = self.cfg.randomization.arm_range
+            target = self.default_q[self.arm_idx] + self._uniform((k, len(self.arm_idx)), -r, r)
         self.arm_targets[ids] = torch.maximum(torch.minimum(target, self.soft_hi[self.arm_idx]),
                                               self.soft_lo[self.arm_idx])
         self.arm_timer[ids] = self.cfg.randomization.arm_resample_steps
@@ -210,6 +221,7 @@ class G1VelocityEnv:
         self.prev_actions[ids] = 0.0
         self.episode_length_buf[ids] = 0
         self.commanded_x[ids] = 0.0
+        self.feet_fresh[ids] = True
         self._resample_commands(ids)
         self._resample_arms(ids)
         self._reset_push_timer(ids)
@@ -255,6 +267,21 @@ class G1VelocityEnv:
         noise = (2.0 * torch.rand(clean.shape, generator=self.gen, device=self.device) - 1.0) * self._noise_widths
         return clean + noise, clean
 
+    def _foot_clearance(self) -> torch.Tensor:
+        """Swing-foot clearance term (N,) (``rewards.foot_clearance``); zeros when its weight is 0."""
+        w = self.cfg.rewards
+        if w.foot_clearance == 0.0:
+            return torch.zeros(self.num_worlds, device=self.device)
+        feet = self.body_q[:, self.foot_idx, 0:3]                                    # (N, 2, 3)
+        speed = torch.linalg.norm(feet[..., 0:2] - self.prev_foot_xy, dim=2) / self.cfg.control_dt
+        speed = speed * (~self.feet_fresh).float()[:, None]
+        self.feet_fresh[:] = False
+        self.prev_foot_xy.copy_(feet[..., 0:2])
+        ground = torch.stack([self.terrain.height_at(feet[:, i, 0:2]) if self.terrain is not None
+                              else torch.zeros(self.num_worlds, device=self.device)
+                              for i in range(feet.shape[1])], dim=1)
+        return R.foot_clearance(feet[..., 2] - SOLE_BELOW_ANKLE - ground, speed, w.clearance_height)
+
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
                                                       torch.Tensor]:
         """Advance one control step with actions (N, A); see the class docstring for the returns."""
@@ -279,6 +306,7 @@ class G1VelocityEnv:
             actions=self.actions, prev_actions=self.prev_actions, fell=fell,
             planar_tracking=self.terrain is not None)
         terms["posture"] = terms["posture"] * self.posture_scale
+        terms["foot_clearance"] = self._foot_clearance()
         reward = R.weighted_sum(cfg.rewards, terms, cfg.control_dt)
         reward = torch.nan_to_num(reward, nan=0.0, posinf=0.0, neginf=0.0)
         done = fell | timed_out

@@ -11,7 +11,7 @@ import torch
 from stages.locomotion.config import RewardWeights
 
 TERMS = ("track_lin_vel", "track_ang_vel", "posture", "joint_limits", "action_rate", "lin_vel_z", "ang_vel_xy",
-         "termination")
+         "termination", "foot_clearance")
 
 
 def reward_terms(w: RewardWeights, *, lin_b: torch.Tensor, ang_b: torch.Tensor, commands: torch.Tensor,
@@ -42,6 +42,12 @@ def reward_terms(w: RewardWeights, *, lin_b: torch.Tensor, ang_b: torch.Tensor, 
         "ang_vel_xy": (ang_b[:, :2] ** 2).sum(dim=1),
         "termination": fell.float(),
     }
+
+
+def foot_clearance(height: torch.Tensor, speed: torch.Tensor, target: float) -> torch.Tensor:
+    """sum over feet of max(target - height, 0) * speed, (N,): height (N, F) [m] of each sole over
+    the terrain under it, speed (N, F) [m/s] its horizontal speed, target [m]."""
+    return ((target - height).clamp(min=0.0) * speed).sum(dim=1)
 
 
 def weighted_sum(w: RewardWeights, terms: dict[str, torch.Tensor], control_dt: float) -> torch.Tensor:
