@@ -95,10 +95,11 @@ def house_colliders(plan: Any, fp: Any, door: Any, threshold_height: float) -> n
     return np.asarray(boxes, float)
 
 
-def support_height(colliders: np.ndarray, xy: np.ndarray) -> float:
-    """Top of the highest box under the point xy (2,) [m] (0: the ground)."""
+def support_height(colliders: np.ndarray, p: np.ndarray) -> float:
+    """Top of the highest box under the point p (3,) [m] (below it; 0: the ground)."""
     lo, hi = colliders[:, 0], colliders[:, 1]
-    inside = (lo[:, 0] <= xy[0]) & (xy[0] <= hi[:, 0]) & (lo[:, 1] <= xy[1]) & (xy[1] <= hi[:, 1])
+    inside = ((lo[:, 0] <= p[0]) & (p[0] <= hi[:, 0]) & (lo[:, 1] <= p[1]) & (p[1] <= hi[:, 1])
+              & (hi[:, 2] <= p[2]))
     return float(max(0.0, hi[inside, 2].max())) if inside.any() else 0.0
 
 
@@ -167,7 +168,7 @@ def run_trial(worlds: Any, trial: Trial, colliders: np.ndarray, cfg: HouseEvalCo
         x, y, z, w = quat
         yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         up_z = 1 - 2 * (x * x + y * y)      # world z of the base's z axis
-        support = support_height(colliders, pos[:2])
+        support = support_height(colliders, pos)
         max_z = max(max_z, pos[2])
         path_z.append(pos[2])
         if pos[2] - support < cfg.fall_height or up_z < cos_tilt or not np.isfinite(pos).all():

@@ -134,12 +134,12 @@ class TerrainWorlds:
 
     def apply(self, ids: torch.Tensor) -> None:
         """Write the box heights of worlds ``ids`` (K,) at their levels to the model's shape
-        transforms (the solver needs ``notify`` afterwards)."""
+        transforms (the solver needs ``notify`` afterwards); before ``bind``, only ``tops``."""
         import warp as wp
 
-        if self.box_shapes is None:
-            raise RuntimeError("TerrainWorlds.bind was not called")
         self.tops[ids] = self.box_tops(ids)
+        if self.box_shapes is None:  # not bound to a model (yet): heights only
+            return
         xf = wp.to_torch(self._model.shape_transform).view(-1, 7)
         xf[self.box_shapes[ids].reshape(-1), 2] = (self.tops[ids] - self.box_half_z).reshape(-1)
 
