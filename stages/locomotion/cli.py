@@ -77,7 +77,8 @@ def train_main(argv: list[str]) -> int:
         if row["iteration"] % a.print_every == 0:
             print(f"it {row['iteration']:5d}  {row['iter_s']:.3f} s/it  reward/step {row['reward_per_step']:+.4f}  "
                   f"return {row['episode_return']}  len {row['episode_length']}  falls {row['falls']:.0f}  "
-                  f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  std {row['action_std']:.3f}"
+                  f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  "
+                  f"std {row['action_std']:.3f}"
                   + (f"  level {row['terrain_level']:.2f}" if "terrain_level" in row else ""), flush=True)
 
     import signal

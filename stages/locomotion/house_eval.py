@@ -209,5 +209,6 @@ def evaluate_house(cfg: HouseEvalConfig) -> dict[str, Any]:
         "stairs": {"id": stair.id, "risers": stair.n_risers, "rise_m": round(stair.rise, 4), "run_m": stair.run,
                    "width_m": stair.width},
         "trials": results, "successes": sum(r["success"] for r in results), "falls": sum(r["fell"] for r in results),
-        "colliders": len(colliders), "build_s": round(build_s, 1), "sim_s": round(time.perf_counter() - t0 - build_s, 1),
+        "colliders": len(colliders), "build_s": round(build_s, 1),
+        "sim_s": round(time.perf_counter() - t0 - build_s, 1),
     }
