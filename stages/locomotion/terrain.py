@@ -143,11 +143,13 @@ class TerrainWorlds:
         xf = wp.to_torch(self._model.shape_transform).view(-1, 7)
         xf[self.box_shapes[ids].reshape(-1), 2] = (self.tops[ids] - self.box_half_z).reshape(-1)
 
-    @staticmethod
-    def notify(solver: Any) -> None:
-        """Push the model's shape transforms to a SolverMuJoCo."""
+    def notify(self, solver: Any) -> None:
+        """Push the model's shape transforms to a SolverMuJoCo (after the torch writes land: Warp
+        launches on its own stream)."""
         import newton
 
+        if self.device.type == "cuda":
+            torch.cuda.current_stream(self.device).synchronize()
         solver.notify_model_changed(newton.ModelFlags.SHAPE_PROPERTIES)
 
     def height_at(self, xy: torch.Tensor) -> torch.Tensor:
