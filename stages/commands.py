@@ -11,6 +11,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                   "evaluate a G1 velocity policy: tracking error [m/s, rad/s] and falls over R rollouts"),
     "loco-export": ("stages.locomotion.cli:export_main",
                     "export a G1 velocity checkpoint as TorchScript with its config and reward curve"),
+    "loco-house": ("stages.locomotion.cli:house_main",
+                   "a G1 walks through a doorway with a threshold and up the stairs of a generated house"),
     "loco-runtime": ("stages.locomotion.cli:runtime_main",
                      "G1 worlds through the humanoid runtime (policy + CLIK hands): tracking, hand error, falls"),
     "loco-train": ("stages.locomotion.cli:train_main",

@@ -15,7 +15,8 @@ from collections import deque
 import numpy as np
 
 from stages.layout.geom2d import Rect
-from stages.layout.model import DOOR_DEPTH, DOOR_MARGIN, FloorLayout, HousePlan, Opening, Wall, room_problems
+from stages.layout.model import (DOOR_DEPTH, DOOR_MARGIN, RISE, FloorLayout, HousePlan, Opening, Wall,
+                                 room_problems)
 from stages.layout.spec import LayoutSpec
 
 PROBE = 30  # [cm] beyond the wall face where a door's sides are probed
@@ -139,7 +140,7 @@ def connectivity_problems(plan: HousePlan) -> list[str]:
             probs.append(f"{s.id}: bottom is in no room of floor {s.floor}")
         if _room_at(plan.floors[s.floor + 1], *s.top) is None:
             probs.append(f"{s.id}: top is in no room of floor {s.floor + 1}")
-        if not 0.15 <= s.rise <= 0.19 or s.run < 25:
+        if not RISE[0] <= s.rise <= RISE[1] or s.run < 25:
             probs.append(f"{s.id}: rise {s.rise:.3f} m / run {s.run / 100:.2f} m out of limits")
         if abs(s.n_risers * s.rise - plan.floor_height) > 1e-6:
             probs.append(f"{s.id}: risers do not reach the next floor")

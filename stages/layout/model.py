@@ -49,6 +49,9 @@ PASSAGE = (110, 140)      # [cm] free width beside a staircase
 RUN = (26, 30)            # [cm] tread depth
 
 
+RISE = (0.15, 0.19)       # [m] riser height limits (the checks enforce them)
+
+
 STAIR_WIDTH = (90, 110)   # [cm]
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from asset_catalog.annotations import RoomType
 from stages.layout.geom2d import Point, Rect, make_rect, snap
 from stages.layout.model import (
-    DOOR_DEPTH, DOOR_MARGIN, DOOR_SPACING, Edge, LayoutError, Opening, PlanRejected, RAIL_T, Room, STEP, Stair,
+    DOOR_DEPTH, DOOR_MARGIN, DOOR_SPACING, Edge, LayoutError, Opening, PlanRejected, RAIL_T, RISE, Room, STEP, Stair,
     WINDOW_MARGIN, Wall, _Draft, _merge_intervals, _on_boundary, _uniform_int,
 )
 from stages.layout.spec import ROOM_RULES, LayoutSpec, door_preference
@@ -22,10 +22,10 @@ from stages.layout.spec import ROOM_RULES, LayoutSpec, door_preference
 def _risers(spec: LayoutSpec) -> tuple[int, float]:
     """(number of risers, rise [m]) for the floor height: rise within [0.15, 0.19] m."""
     h = spec.floor_height
-    n = math.ceil(h / 0.19 - 1e-9)
+    n = math.ceil(h / RISE[1] - 1e-9)
     rise = h / n
-    if not 0.15 <= rise <= 0.19:
-        raise LayoutError(f"floor height {h:.3f} m gives rise {rise:.3f} m outside [0.15, 0.19]")
+    if not RISE[0] <= rise <= RISE[1]:
+        raise LayoutError(f"floor height {h:.3f} m gives rise {rise:.3f} m outside [{RISE[0]}, {RISE[1]}]")
     return n, rise
 
 

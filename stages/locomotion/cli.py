@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from stages.locomotion.config import EnvConfig, PPOConfig, TrainConfig
+from stages.locomotion.config import EnvConfig, PPOConfig, Randomization, RewardWeights, TerrainConfig, TrainConfig
 
 DEFAULT_DIR = "out/locomotion/g1_velocity"
 
@@ -55,10 +55,21 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--checkpoint-dir", default=DEFAULT_DIR)
     p.add_argument("--no-resume", action="store_true")
     p.add_argument("--print-every", type=int, default=25)
+    p.add_argument("--init-from", default="", help="checkpoint to start from when --checkpoint-dir has none "
+                                                   "(e.g. stages/locomotion/policies/g1_velocity/checkpoint.pt)")
+    p.add_argument("--terrain", action="store_true",
+                   help="per-world door thresholds and stairs with a level curriculum, swing-foot clearance reward")
+    p.add_argument("--foot-clearance", type=float, default=-1.0, help="clearance reward weight with --terrain")
+    p.add_argument("--arm-reach", action="store_true", help="arm targets over the wide reach ranges "
+                                                            "(counter-height reaching) instead of +-0.6 rad")
     a = p.parse_args(argv)
-    cfg = TrainConfig(env=EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph),
-                      ppo=PPOConfig(), iterations=a.iterations, max_wall_s=a.max_wall_s, save_every=a.save_every,
-                      checkpoint_dir=a.checkpoint_dir, resume=not a.no_resume)
+    env = EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph,
+                    terrain=TerrainConfig(enabled=a.terrain),
+                    rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0),
+                    randomization=Randomization(arm_reach=a.arm_reach))
+    cfg = TrainConfig(env=env, ppo=PPOConfig(), iterations=a.iterations, max_wall_s=a.max_wall_s,
+                      save_every=a.save_every, checkpoint_dir=a.checkpoint_dir, resume=not a.no_resume,
+                      init_from=a.init_from)
     _quiet_logs(Path(a.checkpoint_dir))
     from stages.locomotion.train import train
 
@@ -66,8 +77,9 @@ def train_main(argv: list[str]) -> int:
         if row["iteration"] % a.print_every == 0:
             print(f"it {row['iteration']:5d}  {row['iter_s']:.3f} s/it  reward/step {row['reward_per_step']:+.4f}  "
                   f"return {row['episode_return']}  len {row['episode_length']}  falls {row['falls']:.0f}  "
-                  f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  std {row['action_std']:.3f}",
-                  flush=True)
+                  f"lin {row['term_track_lin_vel']:.3f} ang {row['term_track_ang_vel']:.3f}  "
+                  f"std {row['action_std']:.3f}"
+                  + (f"  level {row['terrain_level']:.2f}" if "terrain_level" in row else ""), flush=True)
 
     import signal
 
@@ -123,6 +135,41 @@ def runtime_main(argv: list[str]) -> int:
     return 0
 
 
+def house_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="agentworld loco-house",
+                                description="a G1 walks through a doorway with a threshold and up the stairs of a "
+                                            "generated two-floor house (trained policy through the humanoid runtime): "
+                                            "success and falls per trial")
+    p.add_argument("--device", default="cpu", help="cpu or cuda:0")
+    p.add_argument("--seed", type=int, default=0, help="the house layout's seed")
+    p.add_argument("--policy", default="stages/locomotion/policies/g1_velocity", help="exported policy folder")
+    p.add_argument("--threshold", type=float, default=0.03, help="door threshold height [m]")
+    p.add_argument("--timeout-s", type=float, default=25.0, help="time limit of each trial [s]")
+    p.add_argument("--trials", default="door,stairs", help="comma-separated: door, stairs")
+    p.add_argument("--json", default="", help="also write the result here")
+    a = p.parse_args(argv)
+    import warnings
+
+    import warp as wp
+
+    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
+    from stages.locomotion.house_eval import HouseEvalConfig, evaluate_house
+
+    try:
+        cfg = HouseEvalConfig(device=a.device, seed=a.seed, policy=a.policy, threshold_height=a.threshold,
+                              timeout_s=a.timeout_s, trials=tuple(t for t in a.trials.split(",") if t))
+    except ValueError as e:
+        print(f"agentworld loco-house: {e}", file=sys.stderr)
+        return 2
+    if not (Path(a.policy) / "policy.pt").is_file() and not Path(a.policy).is_file():
+        print(f"agentworld loco-house: {a.policy}: no exported policy (policy.pt) there", file=sys.stderr)
+        return 2
+    _report(evaluate_house(cfg), a.json)
+    return 0
+
+
 def export_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-export",
                                 description="export a training checkpoint's policy as TorchScript with its metadata, "
@@ -139,5 +186,6 @@ def export_main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    commands = {"train": train_main, "eval": eval_main, "export": export_main, "runtime": runtime_main}
+    commands = {"train": train_main, "eval": eval_main, "export": export_main, "runtime": runtime_main,
+                "house": house_main}
     sys.exit(commands[sys.argv[1]](sys.argv[2:]))

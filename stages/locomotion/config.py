@@ -47,6 +47,12 @@ class RewardWeights:
     lin_vel_z: float = 0.0
     ang_vel_xy: float = 0.0
     termination: float = 0.0
+    foot_clearance: float = 0.0
+    """swing-foot clearance: penalizes a foot that moves horizontally lower than ``clearance_height``
+    over the terrain under it (legged_gym's humanoid feet clearance); 0 on flat floors, the
+    terrain preset turns it on so the blind policy lifts its feet over thresholds and risers"""
+    clearance_height: float = 0.10
+    """target swing height of the soles over the terrain [m]"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,8 +71,74 @@ class Randomization:
     """control steps between arm target draws (the paper's 150 frames)"""
     arm_range: float = 0.6
     """half-width of the arm targets' draw around the default pose [rad], clipped to limits"""
+    arm_reach: bool = False
+    """draw the arm targets uniformly in ``robot.REACH_ARM_RANGES`` instead (hands from the thigh to
+    above the head: counter-height reaching), clipped to limits; ``arm_range`` is then unused"""
     obs_noise: bool = True
     """add mjlab's uniform observation noise to the policy's observations (not the critic's)"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class TerrainConfig:
+    """Per-world terrain and its curriculum (``stages.locomotion.terrain``); off: flat floors only.
+
+    Defaults follow the layout stage: stairs up to its steepest riser (``stages.layout.model.RISE``,
+    0.19 m) with its tread depths (``RUN``, 0.26-0.30 m), door thresholds of 1-4 cm.
+    """
+
+    enabled: bool = False
+    kinds: tuple[float, float, float] = (0.2, 0.3, 0.5)
+    """shares of worlds that are flat, have door thresholds, have stairs (up, landing, down)"""
+    num_boxes: int = 6
+    """static boxes per world: thresholds per lane, risers per flight"""
+    num_levels: int = 10
+    """difficulty levels; level l scales heights linearly from the low to the high end"""
+    init_max_level: int = 2
+    """worlds start at a uniform level in [0, init_max_level]"""
+    stair_rise: tuple[float, float] = (0.04, 0.19)
+    """riser height at level 0 and at the top level [m]"""
+    stair_run: tuple[float, float] = (0.26, 0.30)
+    """tread depth, drawn per world [m]"""
+    landing: float = 1.0
+    """top landing between the flights [m]"""
+    threshold_height: tuple[float, float] = (0.01, 0.04)
+    """door threshold height at level 0 and at the top level [m]"""
+    threshold_depth: float = 0.06
+    """threshold depth along the walk [m]"""
+    threshold_spacing: float = 0.9
+    """distance between thresholds [m]"""
+    start_x: float = 1.0
+    """distance from the spawn point to the first obstacle [m]"""
+    lane_width: float = 1.6
+    """width of the stairs and thresholds [m]"""
+    spawn_yaw: float = 0.3
+    """half-width of the spawn heading's draw around +x on thresholds and stairs [rad]"""
+    vx: tuple[float, float] = (0.3, 1.0)
+    """forward command on thresholds and stairs [m/s]"""
+    vy: tuple[float, float] = (-0.15, 0.15)
+    """lateral command on thresholds and stairs [m/s]"""
+    heading_gain: float = 1.0
+    """yaw-rate command per radian of heading error (the heading is held along +x) [1/s]"""
+    down_fraction: float = 0.5
+    """a level down when the robot covered less than this share of its commanded distance"""
+    posture_scale: float = 0.5
+    """posture reward scale on thresholds and stairs (climbing bends the knees and hips)"""
+
+    def problems(self) -> list[str]:
+        """One line per inconsistency (empty when valid)."""
+        out = []
+        if len(self.kinds) != 3 or min(self.kinds) < 0 or sum(self.kinds) <= 0:
+            out.append(f"terrain.kinds must be 3 non-negative shares (flat, threshold, stairs), got {self.kinds}")
+        if self.num_boxes < 1:
+            out.append(f"terrain.num_boxes must be positive, got {self.num_boxes}")
+        if not 0 <= self.init_max_level < self.num_levels:
+            out.append(f"terrain levels: need 0 <= init_max_level ({self.init_max_level}) < num_levels "
+                       f"({self.num_levels})")
+        for name in ("stair_rise", "stair_run", "threshold_height"):
+            lo, hi = getattr(self, name)
+            if not 0.0 < lo <= hi:
+                out.append(f"terrain.{name} must be 0 < low <= high, got {(lo, hi)}")
+        return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,6 +166,7 @@ class EnvConfig:
     commands: CommandRanges = field(default_factory=CommandRanges)
     rewards: RewardWeights = field(default_factory=RewardWeights)
     randomization: Randomization = field(default_factory=Randomization)
+    terrain: TerrainConfig = field(default_factory=TerrainConfig)
 
     def __post_init__(self) -> None:
         problems = []
@@ -103,6 +176,8 @@ class EnvConfig:
             problems.append(f"decimation must be a positive even number (state swaps), got {self.decimation}")
         if self.sim_dt <= 0.0:
             problems.append(f"sim_dt must be positive, got {self.sim_dt}")
+        if self.terrain.enabled:
+            problems += self.terrain.problems()
         if problems:
             raise ValueError("; ".join(problems))
 
@@ -144,6 +219,10 @@ class TrainConfig:
     """iterations between checkpoints"""
     checkpoint_dir: str = "out/locomotion/g1_velocity"
     resume: bool = True
+    init_from: str = ""
+    """a checkpoint (rsl-rl ``model_<iter>.pt`` or a policy folder's ``checkpoint.pt``) to start from
+    when ``checkpoint_dir`` holds none yet: its weights, optimizer and iteration count, and the
+    ``curve.csv`` beside it (e.g. the committed flat-floor policy, to fine-tune on terrain)"""
 
     def __post_init__(self) -> None:
         if self.iterations < 0:

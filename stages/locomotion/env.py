@@ -18,9 +18,11 @@ from typing import Any
 import torch
 
 from stages.locomotion.config import EnvConfig
-from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_POSE, LEG_JOINTS, WAIST_JOINTS,
-                                     G1Layout, build_g1_model, joint_gains, posture_std)
+from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_POSE, LEG_JOINTS, SOLE_BELOW_ANKLE,
+                                     WAIST_JOINTS, G1Layout, build_g1_model, joint_gains, posture_std,
+                                     reach_arm_range)
 from stages.locomotion import rewards as R
+from stages.locomotion.terrain import FLAT, TerrainWorlds, build_terrain_model
 
 OBS_NOISE = {"lin_vel": 0.1, "ang_vel": 0.2, "gravity": 0.05, "joint_pos": 0.01, "joint_vel": 1.5}
 """half-widths of mjlab's uniform observation noise"""
@@ -54,7 +56,13 @@ class G1VelocityEnv:
         self.gen = torch.Generator(device=self.device)
         self.gen.manual_seed(cfg.seed)
 
-        self.model, self.layout = build_g1_model(n, self.wp_device)
+        self.terrain: TerrainWorlds | None = None
+        """per-world terrain and curriculum (``cfg.terrain.enabled``), else flat floors only"""
+        if cfg.terrain.enabled:
+            self.terrain = TerrainWorlds(cfg.terrain, n, self.device, self.gen)
+            self.model, self.layout = build_terrain_model(n, self.wp_device, self.terrain)
+        else:
+            self.model, self.layout = build_g1_model(n, self.wp_device)
         lay: G1Layout = self.layout
         self.joint_names = lay.joint_names
         self.policy_joints = LEG_JOINTS + (WAIST_JOINTS if cfg.use_waist else ())
@@ -68,15 +76,18 @@ class G1VelocityEnv:
         self.default_q = tensor([DEFAULT_POSE.get(j, 0.0) for j in self.joint_names])
         self.action_scale = tensor([joint_gains(j).action_scale for j in self.policy_joints])
         self.posture_std = tensor([posture_std(j) for j in self.policy_joints])
+        self.reach_lo, self.reach_hi = tensor([[reach_arm_range(j)[i] for j in ARM_JOINTS] for i in (0, 1)])
         lo = self.model.joint_limit_lower.numpy()[6:6 + len(self.joint_names)]
         hi = self.model.joint_limit_upper.numpy()[6:6 + len(self.joint_names)]
         mid, half = (lo + hi) / 2, (hi - lo) / 2 * SOFT_LIMIT_FACTOR
         self.soft_lo, self.soft_hi = tensor(mid - half), tensor(mid + half)
 
         self._randomize_model()
+        contacts = dict(nconmax=40, njmax=240) if self.terrain is not None else dict(nconmax=24, njmax=160)
         self.solver = newton.solvers.SolverMuJoCo(
-            self.model, iterations=cfg.solver_iterations, ls_iterations=cfg.ls_iterations,
-            nconmax=24, njmax=160)
+            self.model, iterations=cfg.solver_iterations, ls_iterations=cfg.ls_iterations, **contacts)
+        if self.terrain is not None:
+            self.terrain.notify(self.solver)
         self.state_0, self.state_1 = self.model.state(), self.model.state()
         self.control = self.model.control()
         self.q = wp.to_torch(self.state_0.joint_q).view(n, lay.coords_per_world)
@@ -95,6 +106,19 @@ class G1VelocityEnv:
         self.push_timer = torch.zeros(n, dtype=torch.long, device=dev)
         self.fixed_commands = False
         """when set, commands are never resampled (evaluation sets them)"""
+        on_terrain = self.terrain.kind != FLAT if self.terrain is not None else torch.zeros(n, dtype=torch.bool)
+        self.on_terrain = on_terrain.to(dev)
+        """worlds with thresholds or stairs (N,) bool: spawned facing +x, commanded forward, heading held"""
+        self.heading_hold = torch.zeros(n, dtype=torch.bool, device=dev)
+        """worlds whose yaw-rate command holds the heading along +x (N,) bool"""
+        self.commanded_x = torch.zeros(n, **f32)
+        """forward distance the commands asked for in this episode (N,) [m] (terrain curriculum)"""
+        self.body_q = wp.to_torch(self.state_0.body_q).view(n, lay.bodies_per_world, 7)
+        self.foot_idx = tensor(lay.foot_bodies, torch.long)
+        self.prev_foot_xy = self.body_q[:, self.foot_idx, 0:2].clone()
+        self.feet_fresh = torch.ones(n, dtype=torch.bool, device=dev)
+        """worlds reset since the last clearance term: their feet's speed is not known yet (N,) bool"""
+        self.posture_scale = torch.where(self.on_terrain, cfg.terrain.posture_scale, 1.0).float()
         self.metrics = R.RewardMetrics(n, dev)
         self._down = torch.tensor([0.0, 0.0, -1.0], device=dev)
         nj = len(self.joint_names)
@@ -138,16 +162,37 @@ class G1VelocityEnv:
         cmd = torch.stack([self._uniform((k,), *c.vx), self._uniform((k,), *c.vy),
                            self._uniform((k,), *c.yaw_rate)], dim=1)
         standing = torch.rand(k, generator=self.gen, device=self.device) < c.standing_fraction
+        if self.terrain is not None:  # thresholds and stairs: forward, heading held along +x
+            t = self.cfg.terrain
+            terr = self.on_terrain[ids]
+            cmd[:, 0] = torch.where(terr, self._uniform((k,), *t.vx), cmd[:, 0])
+            cmd[:, 1] = torch.where(terr, self._uniform((k,), *t.vy), cmd[:, 1])
+            self.heading_hold[ids] = terr & ~standing
         self.commands[ids] = torch.where(standing[:, None], torch.zeros_like(cmd), cmd)
+        self._hold_heading()
         steps = self._uniform((k,), *c.resample_s) / self.cfg.control_dt
         self.command_timer[ids] = steps.long().clamp(min=1)
+
+    def _hold_heading(self) -> None:
+        """Yaw-rate command of the heading-hold worlds: heading_gain * (0 - yaw), clipped to the range."""
+        if self.terrain is None:
+            return
+        q = self.q[:, 3:7]
+        yaw = torch.atan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
+        lo, hi = self.cfg.commands.yaw_rate
+        rate = (-self.cfg.terrain.heading_gain * yaw).clamp(lo, hi)
+        self.commands[:, 2] = torch.where(self.heading_hold, rate, self.commands[:, 2])
 
     def _resample_arms(self, ids: torch.Tensor) -> None:
         k = len(ids)
         if k == 0:
             return
-        r = self.cfg.randomization.arm_range
-        target = self.default_q[self.arm_idx] + self._uniform((k, len(self.arm_idx)), -r, r)
+        if self.cfg.randomization.arm_reach:
+            u = torch.rand((k, len(self.arm_idx)), generator=self.gen, device=self.device)
+            target = self.reach_lo + (self.reach_hi - self.reach_lo) * u
+        else:
+            r = self.cfg.randomization.arm_range
+            target = self.default_q[self.arm_idx] + self._uniform((k, len(self.arm_idx)), -r, r)
         self.arm_targets[ids] = torch.maximum(torch.minimum(target, self.soft_hi[self.arm_idx]),
                                               self.soft_lo[self.arm_idx])
         self.arm_timer[ids] = self.cfg.randomization.arm_resample_steps
@@ -164,6 +209,9 @@ class G1VelocityEnv:
         q = self.init_q.repeat(k, 1)
         q[:, 2] = DEFAULT_BASE_HEIGHT
         yaw = self._uniform((k,), -math.pi, math.pi)
+        if self.terrain is not None:
+            spread = self.cfg.terrain.spawn_yaw
+            yaw = torch.where(self.on_terrain[ids], self._uniform((k,), -spread, spread), yaw)
         q[:, 3:7] = torch.stack([torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(yaw / 2),
                                  torch.cos(yaw / 2)], dim=1)
         q[:, 7:] = self.default_q
@@ -172,6 +220,8 @@ class G1VelocityEnv:
         self.actions[ids] = 0.0
         self.prev_actions[ids] = 0.0
         self.episode_length_buf[ids] = 0
+        self.commanded_x[ids] = 0.0
+        self.feet_fresh[ids] = True
         self._resample_commands(ids)
         self._resample_arms(ids)
         self._reset_push_timer(ids)
@@ -217,6 +267,21 @@ class G1VelocityEnv:
         noise = (2.0 * torch.rand(clean.shape, generator=self.gen, device=self.device) - 1.0) * self._noise_widths
         return clean + noise, clean
 
+    def _foot_clearance(self) -> torch.Tensor:
+        """Swing-foot clearance term (N,) (``rewards.foot_clearance``); zeros when its weight is 0."""
+        w = self.cfg.rewards
+        if w.foot_clearance == 0.0:
+            return torch.zeros(self.num_worlds, device=self.device)
+        feet = self.body_q[:, self.foot_idx, 0:3]                                    # (N, 2, 3)
+        speed = torch.linalg.norm(feet[..., 0:2] - self.prev_foot_xy, dim=2) / self.cfg.control_dt
+        speed = speed * (~self.feet_fresh).float()[:, None]
+        self.feet_fresh[:] = False
+        self.prev_foot_xy.copy_(feet[..., 0:2])
+        ground = torch.stack([self.terrain.height_at(feet[:, i, 0:2]) if self.terrain is not None
+                              else torch.zeros(self.num_worlds, device=self.device)
+                              for i in range(feet.shape[1])], dim=1)
+        return R.foot_clearance(feet[..., 2] - SOLE_BELOW_ANKLE - ground, speed, w.clearance_height)
+
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
                                                       torch.Tensor]:
         """Advance one control step with actions (N, A); see the class docstring for the returns."""
@@ -230,14 +295,18 @@ class G1VelocityEnv:
 
         lin_b, ang_b, grav = self.base_velocities()
         jpos = self.q[:, 7:]
-        fell = (self.q[:, 2] < cfg.fall_height) | (grav[:, 2] > -math.cos(math.radians(cfg.fall_tilt_deg)))
+        height = self.q[:, 2] if self.terrain is None else self.q[:, 2] - self.terrain.height_at(self.q[:, 0:2])
+        fell = (height < cfg.fall_height) | (grav[:, 2] > -math.cos(math.radians(cfg.fall_tilt_deg)))
         fell |= ~torch.isfinite(self.q).all(dim=1) | ~torch.isfinite(self.qd).all(dim=1)
         timed_out = (self.episode_length_buf >= self.max_episode_length) & ~fell
         terms = R.reward_terms(
             cfg.rewards, lin_b=lin_b, ang_b=ang_b, commands=self.commands,
             joint_pos=jpos[:, self.act_idx], default_pos=self.default_q[self.act_idx], posture_std=self.posture_std,
             soft_lo=self.soft_lo[self.act_idx], soft_hi=self.soft_hi[self.act_idx],
-            actions=self.actions, prev_actions=self.prev_actions, fell=fell)
+            actions=self.actions, prev_actions=self.prev_actions, fell=fell,
+            planar_tracking=self.terrain is not None)
+        terms["posture"] = terms["posture"] * self.posture_scale
+        terms["foot_clearance"] = self._foot_clearance()
         reward = R.weighted_sum(cfg.rewards, terms, cfg.control_dt)
         reward = torch.nan_to_num(reward, nan=0.0, posinf=0.0, neginf=0.0)
         done = fell | timed_out
@@ -255,6 +324,12 @@ class G1VelocityEnv:
                 v = cfg.randomization.push_velocity
                 self.qd[pushed, 0:2] += self._uniform((len(pushed), 2), -v, v)
                 self._reset_push_timer(pushed)
-        self.reset_worlds(torch.nonzero(done).flatten())
+        self.commanded_x += self.commands[:, 0].clamp(min=0.0) * cfg.control_dt
+        done_ids = torch.nonzero(done).flatten()
+        if self.terrain is not None and len(done_ids):
+            if self.terrain.update_levels(done_ids, self.q[done_ids, 0], self.commanded_x[done_ids]):
+                self.terrain.notify(self.solver)
+        self.reset_worlds(done_ids)
+        self._hold_heading()
         self.obs, self.critic_obs = self._observations()
         return self.obs, self.critic_obs, reward, fell, timed_out

@@ -11,20 +11,23 @@ import torch
 from stages.locomotion.config import RewardWeights
 
 TERMS = ("track_lin_vel", "track_ang_vel", "posture", "joint_limits", "action_rate", "lin_vel_z", "ang_vel_xy",
-         "termination")
+         "termination", "foot_clearance")
 
 
 def reward_terms(w: RewardWeights, *, lin_b: torch.Tensor, ang_b: torch.Tensor, commands: torch.Tensor,
                  joint_pos: torch.Tensor, default_pos: torch.Tensor, posture_std: torch.Tensor,
                  soft_lo: torch.Tensor, soft_hi: torch.Tensor, actions: torch.Tensor, prev_actions: torch.Tensor,
-                 fell: torch.Tensor) -> dict[str, torch.Tensor]:
+                 fell: torch.Tensor, planar_tracking: bool = False) -> dict[str, torch.Tensor]:
     """Unweighted terms, each (N,).
 
     lin_b, ang_b: (N, 3) base velocities in the body frame [m/s, rad/s]; commands (N, 3) (vx, vy, yaw rate);
     joint_pos (N, A) [rad] of the policy's joints with default_pos, posture_std, soft_lo, soft_hi (A,);
-    actions, prev_actions (N, A); fell (N,) bool.
+    actions, prev_actions (N, A); fell (N,) bool. ``planar_tracking``: the linear tracking error leaves
+    out the vertical velocity (on stairs and thresholds the base rises and sinks by design).
     """
-    lin_err = (commands[:, 0] - lin_b[:, 0]) ** 2 + (commands[:, 1] - lin_b[:, 1]) ** 2 + lin_b[:, 2] ** 2
+    lin_err = (commands[:, 0] - lin_b[:, 0]) ** 2 + (commands[:, 1] - lin_b[:, 1]) ** 2
+    if not planar_tracking:
+        lin_err = lin_err + lin_b[:, 2] ** 2
     ang_err = (commands[:, 2] - ang_b[:, 2]) ** 2 + ang_b[:, 0] ** 2 + ang_b[:, 1] ** 2
     std2 = w.tracking_std ** 2
     posture = torch.exp(-torch.mean(((joint_pos - default_pos) / posture_std) ** 2, dim=1))
@@ -39,6 +42,12 @@ def reward_terms(w: RewardWeights, *, lin_b: torch.Tensor, ang_b: torch.Tensor, 
         "ang_vel_xy": (ang_b[:, :2] ** 2).sum(dim=1),
         "termination": fell.float(),
     }
+
+
+def foot_clearance(height: torch.Tensor, speed: torch.Tensor, target: float) -> torch.Tensor:
+    """sum over feet of max(target - height, 0) * speed, (N,): height (N, F) [m] of each sole over
+    the terrain under it, speed (N, F) [m/s] its horizontal speed, target [m]."""
+    return ((target - height).clamp(min=0.0) * speed).sum(dim=1)
 
 
 def weighted_sum(w: RewardWeights, terms: dict[str, torch.Tensor], control_dt: float) -> torch.Tensor:

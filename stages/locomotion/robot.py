@@ -40,6 +40,26 @@ DEFAULT_POSE: dict[str, float] = {
 }
 DEFAULT_BASE_HEIGHT = 0.76
 
+# arm joint ranges [rad] of the wide ("reach") arm-target draw, left arm; the right arm mirrors the
+# roll and yaw joints. They cover the hand from the thigh to above the head and 0.35 m in front of
+# the chest (pinocchio FK of the G1 URDF, pelvis at 0.76 m: shoulder pitch -1.2, elbow 0.6 puts the
+# hand at 1.10 m, 0.35 m forward), so counter-height reaching (0.9 m counters, hands 0.1-0.2 m
+# above) is inside the training distribution, unlike the default +-0.6 rad around the default pose.
+REACH_ARM_RANGES: dict[str, tuple[float, float]] = {
+    "shoulder_pitch": (-2.0, 0.8), "shoulder_roll": (-0.2, 1.2), "shoulder_yaw": (-1.0, 1.0),
+    "elbow": (-0.6, 1.8), "wrist_roll": (-1.0, 1.0), "wrist_pitch": (-1.0, 1.0), "wrist_yaw": (-1.0, 1.0),
+}
+
+
+def reach_arm_range(name: str) -> tuple[float, float]:
+    """(low, high) [rad] of an arm joint's wide draw (``REACH_ARM_RANGES``, mirrored for the right arm)."""
+    side, rest = name.split("_", 1)
+    lo, hi = REACH_ARM_RANGES[rest.removesuffix("_joint")]
+    if side == "right" and rest.split("_")[-2] in ("roll", "yaw"):
+        lo, hi = -hi, -lo
+    return lo, hi
+
+
 # posture reward std per joint [rad] (mjlab UnitreeG1RoughEnvCfg), first matching pattern wins
 POSTURE_STD: tuple[tuple[str, float], ...] = (
     (r".*hip_pitch.*", 0.3), (r".*hip_roll.*", 0.15), (r".*hip_yaw.*", 0.15), (r".*knee.*", 0.35),
@@ -51,6 +71,8 @@ POSTURE_STD: tuple[tuple[str, float], ...] = (
 # foot sole: 4 spheres at the corners of the sole mjlab's seven foot capsules span, in the
 # ankle_roll_link frame [m] (4 contacts per foot where a box gives 8: half the constraint rows)
 FOOT_SPHERE_RADIUS = 0.01
+SOLE_BELOW_ANKLE = 0.035
+"""height of the ankle_roll_link origin over the sole's lowest point [m]"""
 FOOT_SPHERES: tuple[tuple[float, float, float], ...] = tuple(
     (x, y, -0.025) for x in (-0.045, 0.125) for y in (-0.025, 0.025))
 
@@ -145,6 +167,8 @@ class G1Layout:
     base_body: int
     foot_shapes: tuple[int, ...]
     """shape indices in a world of the feet's sole spheres (left foot's first)"""
+    foot_bodies: tuple[int, ...] = ()
+    """body indices in a world of the feet (``FOOT_BODIES``: left, right)"""
 
     def index(self, names: tuple[str, ...]) -> list[int]:
         """joint indices (0..28) of the named joints"""
@@ -190,7 +214,7 @@ def g1_builder(*, foot_mu: float = 0.6, base_pose: tuple[float, float, float] = 
     layout = G1Layout(joint_names=joint_names, coords_per_world=robot.joint_coord_count,
                       dofs_per_world=robot.joint_dof_count, bodies_per_world=robot.body_count,
                       shapes_per_world=robot.shape_count, base_body=body_names.index(BASE_BODY),
-                      foot_shapes=tuple(foot_shapes))
+                      foot_shapes=tuple(foot_shapes), foot_bodies=tuple(body_names.index(f) for f in FOOT_BODIES))
     return robot, layout
 
 

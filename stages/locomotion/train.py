@@ -26,7 +26,8 @@ log = logging.getLogger(__name__)
 
 CURVE_FIELDS = ("iteration", "wall_s", "iter_s", "reward_per_step", "episode_return", "episode_length", "episodes",
                 "falls", "action_std", "term_track_lin_vel", "term_track_ang_vel", "term_posture",
-                "term_joint_limits", "term_action_rate", "term_lin_vel_z", "term_ang_vel_xy", "term_termination")
+                "term_joint_limits", "term_action_rate", "term_lin_vel_z", "term_ang_vel_xy", "term_termination",
+                "term_foot_clearance", "terrain_level")
 
 
 def _vec_env_class() -> type:
@@ -115,6 +116,23 @@ def _save(runner: Any, cfg: TrainConfig, directory: Path, iteration: int) -> Pat
     return path
 
 
+def _seed_from(source: Path, directory: Path) -> Path:
+    """Copy checkpoint ``source`` into ``directory`` as ``model_<iter>.pt`` (and the ``curve.csv``
+    beside it when ``directory`` has none); returns the copy."""
+    import shutil
+
+    if not source.is_file():
+        raise FileNotFoundError(f"{source}: no such checkpoint (init_from)")
+    iteration = int(torch.load(source, map_location="cpu", weights_only=False)["iter"])
+    target = directory / f"model_{iteration}.pt"
+    shutil.copyfile(source, target)
+    curve = source.parent / "curve.csv"
+    if curve.is_file() and not (directory / "curve.csv").exists():
+        shutil.copyfile(curve, directory / "curve.csv")
+    log.info("initialised from %s (iteration %d)", source, iteration)
+    return target
+
+
 def train(cfg: TrainConfig, *, progress: Any = None, stop: Any = None) -> dict[str, Any]:
     """Run ``cfg.iterations`` PPO iterations (or until ``cfg.max_wall_s``); returns a summary dict.
 
@@ -128,6 +146,8 @@ def train(cfg: TrainConfig, *, progress: Any = None, stop: Any = None) -> dict[s
     runner = make_runner(cfg, env)
     start_it = 0
     ckpt = latest_checkpoint(directory) if cfg.resume else None
+    if ckpt is None and cfg.init_from:
+        ckpt = _seed_from(Path(cfg.init_from), directory)
     if ckpt is not None:
         runner.load(str(ckpt), map_location=str(env.device))
         start_it = int(runner.current_learning_iteration)
@@ -165,6 +185,8 @@ def train(cfg: TrainConfig, *, progress: Any = None, stop: Any = None) -> dict[s
                    "action_std": float(runner.alg.get_policy().output_std.mean())}
             row.update({k: (round(v, 6) if isinstance(v, float) and math.isfinite(v) else v)
                         for k, v in env.metrics.pop().items()})
+            if env.terrain is not None:
+                row["terrain_level"] = round(env.terrain.mean_level(), 3)
             writer.writerow({k: row.get(k, "") for k in CURVE_FIELDS})
             f.flush()
             if progress is not None:
