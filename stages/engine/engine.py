@@ -41,7 +41,7 @@ import numpy as np
 
 from stages.demos.experts import timed_clik
 from stages.demos.record import Timings
-from stages.simulate.batch_fk import pose7_batch
+from stages.engine.capture import FrameCapture
 from stages.engine.lockstep import Lockstep
 from stages.engine.peaks import LocalPeaks, Peaks
 from stages.engine.programs import EpisodeResult, WorldSide
@@ -185,9 +185,7 @@ class BatchEngine:
         self.steps_per_second = int(round(steps_per_s))
         self.sync_period = self.steps_per_second // math.gcd(self.steps_per_second, config.fps)
         self.global_step = 0
-        self._captured_step = self._launched_step = -1
-        self._renders: dict[int, object] = {}  # renders in flight by bank (stages.simulate.compact)
-        self._stale: set[int] = set()  # worlds reset after the render of this step was launched
+        self.capture = FrameCapture(self, self._handle_event)
         self._free = {}
         qs = self.banks[0].model.joint_q_start.numpy()
         child = self.banks[0].model.joint_child.numpy()
@@ -253,8 +251,9 @@ class BatchEngine:
             act: Callable | None = None) -> EngineStats:
         """Run episodes in every world until ``next_instance(world)`` returns None for all of
         them. ``begin(world, instance)`` returns the episode's frame sink (or None: frames
-        dropped); ``end(world, instance, EpisodeResult)`` is called when it ends. Both are called
-        from the world's program, one world at a time, in a deterministic order. ``next_instance``
+        dropped); ``end(world, instance, EpisodeResult)`` is called when it ends. Both run in the
+        engine's thread, one world at a time, in a deterministic order, after the frames captured
+        before them were delivered (:mod:`stages.engine.capture`). ``next_instance``
         may return ``(instance, max_seconds)`` to give that episode its own time limit [s].
         ``max_steps``: stop after this many physics steps (episodes in progress are abandoned:
         neither ``end`` nor a result; for benchmarks). ``act(instance, driver)``: what drives each
@@ -288,12 +287,12 @@ class BatchEngine:
                     break
                 if self._reset_due():
                     continue
-                self._finish_capture()
+                self.capture.collect()
                 self._advance([w for w in ls.waiting_sync() if not self.held[w]])
                 self._reset_due()  # before the render, so that reset worlds record this frame
-                self._launch_capture()  # the GPU renders while the programs run
+                self.capture.launch()  # the GPU renders while the programs and steps run on
         finally:
-            self._finish_capture(deliver=False)
+            self.capture.close()
             ls.shutdown()
         return self.stats
 
@@ -303,7 +302,7 @@ class BatchEngine:
         the programs run): a world that asks then is reset at the next sync point, before its
         render, so that every episode records its first frame."""
         ls = self.lockstep
-        if self._launched_step == self.global_step:
+        if self.capture.launched_step == self.global_step:
             return False
         sync = [w for w in ls.waiting_sync() if not self.held[w]]
         if not sync or self.global_step % self.sync_period:
@@ -331,7 +330,14 @@ class BatchEngine:
         """An event of world ``w``'s program (see :mod:`stages.engine.programs`)."""
         if kind == "reset":
             self._pending_reset[w] = payload
-        elif kind == "begin":
+        elif kind in ("begin", "end"):
+            if not self.capture.defer(kind, w, payload):  # after the frames collected before it
+                self._handle_event(kind, w, payload)
+        else:
+            raise ValueError(f"engine: unknown event {kind!r} from world {w}")
+
+    def _handle_event(self, kind: str, w: int, payload) -> None:
+        if kind == "begin":
             self.recs[w].frames = 0
             self.recs[w].sink = self._begin(w, payload) if self._begin is not None else None
         elif kind == "end":
@@ -341,8 +347,6 @@ class BatchEngine:
             self.stats.episodes += 1
             if self._end is not None:
                 self._end(w, ticket, res)
-        else:
-            raise ValueError(f"engine: unknown event {kind!r} from world {w}")
 
     def _advance(self, sync: list[int]) -> None:
         """Step every world by the largest count that meets no request, sync point, frame or
@@ -471,8 +475,8 @@ class BatchEngine:
                 q[i * c + k] = v
             bank.ctl.reset_world(i)
             self.steps[w] = 0
-            if self._launched_step == self.global_step:
-                self._stale.add(w)
+            if self.capture.launched_step == self.global_step:
+                self.capture.stale.add(w)
         q_wp = wp.array(q, dtype=wp.float32, device=dev)
         sim.state_0.joint_q.assign(q_wp)
         if bank.joint_world is None:
@@ -481,100 +485,6 @@ class BatchEngine:
         newton.eval_fk(sim.model, q_wp, sim.state_0.joint_qd, sim.state_0, joint_mask=jmask)
         sim.state_1.assign(sim.state_0)
         bank.snapshot.invalidate()
-
-    def _recording(self) -> list[int]:
-        """Worlds that record a frame at this step: recording, within their limit, not held, and
-        not reset after this step's render was launched (its images show the state before)."""
-        return [w for w in range(self.config.worlds) if self.rec_active[w] and self.steps[w] <= self.rec_max[w]
-                and not self.held[w] and w not in self._stale]
-
-    def _launch_capture(self) -> None:
-        """At a frame step, before the programs run: read the state (one read per Sim), then
-        enqueue one render of every world of each Sim with a recording world; the frames are
-        assembled by :meth:`_finish_capture` once the programs have answered (their commands are
-        the frame's action). Only a reset changes the state in between; worlds reset after the
-        launch do not record at that step."""
-        step = self.global_step
-        if step == self._launched_step or not self._is_frame_step(step):
-            return
-        self._launched_step = step
-        self._stale.clear()
-        t0 = time.perf_counter()
-        banks = {id(self._where[w][0]): self._where[w][0] for w in self._recording()}
-        for b in banks.values():
-            b.snapshot.prefetch()
-            if b.peaks.paths:
-                b.peaks.host()
-            if b.rig is not None:
-                self._renders[id(b)] = b.rig.render_compact_async()
-        self.stats.timings.rendering += time.perf_counter() - t0
-
-    def _finish_capture(self, deliver: bool = True) -> None:
-        """At a frame step, after the programs: one frame per recording world (images of the
-        render launched at this step, rendered now for Sims that had no recording world then)."""
-        step = self.global_step
-        if step == self._captured_step or not self._is_frame_step(step):
-            return
-        self._captured_step = step
-        worlds = self._recording() if deliver else []
-        t0 = time.perf_counter()
-        images = {}
-        for b in {id(self._where[w][0]): self._where[w][0] for w in worlds}.values():
-            r = self._renders.get(id(b))
-            if r is None and b.rig is not None:
-                r = b.rig.render_compact_async()
-            if r is not None:
-                images[id(b)] = r.wait()  # RGB uint8 and depth [mm] uint16, per camera
-        for r in self._renders.values():  # renders of Sims without a recording world now
-            r.wait()
-        self._renders.clear()
-        if not worlds:
-            return
-        from stages.dataset import Frame
-
-        t1 = time.perf_counter()
-        q_all, t_all, base_all = self._robot_state(worlds)
-        ee_all = pose7_batch(self.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
-        k = len(worlds)
-        for j, w in enumerate(worlds):
-            rec = self.recs[w]
-            bank, i = self._where[w]
-            base_v, grip, mode = self.lockstep.commands(w) if self.config.program_procs else _cmd(self.side.cmds[w])
-            state = dict(arm_joint_pos=q_all[j], ee_pose=ee_all[j], base_pose=base_all[j],
-                         arm_joint_target=t_all[j], ee_target=ee_all[k + j],
-                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
-            frames = images.get(id(bank), {})
-            rgb = {name: im[0][i].copy() for name, im in frames.items()}  # the rig reuses its buffers
-            depth = {name: im[1][i].copy() for name, im in frames.items()}
-            if rec.sink is not None:
-                rec.sink(Frame(**state, rgb=rgb, depth_mm=depth))
-            rec.frames += 1
-        tm = self.stats.timings
-        tm.rendering += t1 - t0
-        tm.encoding += time.perf_counter() - t1
-        tm.frames += len(worlds)
-        self.stats.renders += 1
-
-    def _robot_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Arm joint positions (K, 7), arm joint targets (K, 7) and base poses (K, 3) (x, y, theta
-        in the world [m, rad], as ``record.base_pose``) of ``worlds``, from one state read per Sim."""
-        sim = self.banks[0].sim
-        desc, c = sim.desc, sim.coords_per_world
-        arm = np.array([sim.robot.coord[n] for n in desc.arm_joints])
-        base = np.array([sim.robot.coord[n] for n in desc.base_joints])
-        q, t, b = [], [], []
-        for w in worlds:
-            bank, i = self._where[w]
-            jq = bank.snapshot.get("joint_q")
-            q.append(jq[i * c + arm])
-            t.append(bank.ctl._targets[i * c + arm])
-            b.append(jq[i * c + base])
-        x0, y0, yaw0 = sim.spawn
-        cs, sn = math.cos(yaw0), math.sin(yaw0)
-        lb = np.asarray(b, float).reshape(-1, 3)
-        th = (yaw0 + lb[:, 2] + math.pi) % (2 * math.pi) - math.pi
-        poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
-        return np.asarray(q), np.asarray(t), poses
 
     @property
     def arm_fk(self):
@@ -585,6 +495,3 @@ class BatchEngine:
             self._arm_fk = ArmFK(self.ik)
         return self._arm_fk
 
-
-def _cmd(c) -> tuple:
-    return c.base_velocity, c.gripper, c.mode

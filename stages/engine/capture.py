@@ -1,0 +1,166 @@
+"""The engine's frame capture, pipelined with the world programs.
+
+At a frame step ``F`` the engine reads the state once per Sim and enqueues one render of every
+camera in every world (:meth:`FrameCapture.launch`); the world programs then run, and once they
+have answered, :meth:`FrameCapture.collect` takes each recording world's frame without its images
+(robot state read at ``F``, the commands just given: the frame's action) and counts it. The images
+are attached and the frames handed to the episode sinks by :meth:`FrameCapture.deliver`, called only
+when the engine reaches the next frame step (before its render overwrites the read-back buffers) or
+stops, so the GPU renders frame ``F`` while the programs and physics steps between ``F`` and the
+next frame run on.
+
+Episode begin and end callbacks that fall between a collect and its delivery are queued
+(:meth:`FrameCapture.defer`) and run in order after the frames, so a sink receives all of its
+episode's frames before the episode's ``end`` and a new episode's sink receives none of the old one's.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from stages.simulate.batch_fk import pose7_batch
+
+
+class FrameCapture:
+    """Launch, collect and deliver the recorded frames of a :class:`~stages.engine.BatchEngine`.
+    ``handle(kind, world, payload)`` runs a begin/end event (the engine's own handling)."""
+
+    def __init__(self, engine, handle: Callable[[str, int, object], None]) -> None:
+        self.e = engine
+        self._handle = handle
+        self.launched_step = self.collected_step = -1
+        self.stale: set[int] = set()  # worlds reset after the render of this step was launched
+        self._renders: dict[int, object] = {}  # renders in flight by bank (stages.simulate.compact)
+        self._pending: list[tuple] | None = None  # collected frames waiting for their images
+        self._queued: list[tuple[str, int, object]] = []
+
+    # -- events -------------------------------------------------------------------------------
+    def defer(self, kind: str, w: int, payload) -> bool:
+        """Queue a begin/end event behind the collected frames (True), or let it run now (False)."""
+        if self._pending is None:
+            return False
+        self._queued.append((kind, w, payload))
+        return True
+
+    # -- the three steps ------------------------------------------------------------------------
+    def launch(self) -> None:
+        """At a frame step, before the programs run: deliver the previous frame, read the state
+        (one read per Sim), enqueue one render of every world of each Sim with a recording world."""
+        e = self.e
+        step = e.global_step
+        if step == self.launched_step or not e._is_frame_step(step):
+            return
+        self.deliver()
+        self.launched_step = step
+        self.stale.clear()
+        t0 = time.perf_counter()
+        banks = {id(e._where[w][0]): e._where[w][0] for w in self.recording()}
+        for b in banks.values():
+            b.snapshot.prefetch()
+            if b.peaks.paths:
+                b.peaks.host()
+            if b.rig is not None:
+                self._renders[id(b)] = b.rig.render_compact_async()
+        e.stats.timings.rendering += time.perf_counter() - t0
+
+    def collect(self) -> None:
+        """At a frame step, after the programs: one frame (state and action) per recording world;
+        its images follow at :meth:`deliver`."""
+        from stages.dataset import Frame
+
+        e = self.e
+        step = e.global_step
+        if step == self.collected_step or not e._is_frame_step(step):
+            return
+        self.collected_step = step
+        worlds = self.recording()
+        t0 = time.perf_counter()
+        for b in {id(e._where[w][0]): e._where[w][0] for w in worlds}.values():
+            if id(b) not in self._renders and b.rig is not None:  # no recording world at the launch
+                self._renders[id(b)] = b.rig.render_compact_async()
+        if not worlds:
+            return
+        q_all, t_all, base_all = self.robot_state(worlds)
+        ee_all = pose7_batch(e.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
+        k = len(worlds)
+        frames = []
+        for j, w in enumerate(worlds):
+            rec = e.recs[w]
+            base_v, grip, mode = e.lockstep.commands(w) if e.config.program_procs else _cmd(e.side.cmds[w])
+            state = dict(arm_joint_pos=q_all[j], ee_pose=ee_all[j], base_pose=base_all[j],
+                         arm_joint_target=t_all[j], ee_target=ee_all[k + j],
+                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
+            bank, i = e._where[w]
+            frames.append((rec.sink, id(bank), i, Frame(**state, rgb={}, depth_mm={})))
+            rec.frames += 1
+        self._pending = frames
+        e.stats.timings.encoding += time.perf_counter() - t0
+        e.stats.timings.frames += k
+        e.stats.renders += 1
+
+    def deliver(self) -> None:
+        """Wait for the renders in flight, attach the images to the collected frames, hand them to
+        their sinks, then run the events queued behind them."""
+        e = self.e
+        t0 = time.perf_counter()
+        images = {bid: r.wait() for bid, r in self._renders.items()}  # RGB uint8, depth [mm] uint16
+        self._renders.clear()
+        t1 = time.perf_counter()
+        frames, self._pending = self._pending or [], None
+        for sink, bid, i, frame in frames:
+            if sink is None:
+                continue
+            for name, im in images.get(bid, {}).items():  # the rig reuses its buffers: copies
+                frame.rgb[name] = im[0][i].copy()
+                frame.depth_mm[name] = im[1][i].copy()
+            sink(frame)
+        tm = e.stats.timings
+        tm.rendering += t1 - t0
+        tm.encoding += time.perf_counter() - t1
+        queued, self._queued = self._queued, []
+        for kind, w, payload in queued:
+            self._handle(kind, w, payload)
+
+    def close(self) -> None:
+        """At the end of a run: deliver what was collected (and the queued events); a render
+        launched but not collected is waited for and dropped."""
+        self.deliver()
+
+    # -- helpers ------------------------------------------------------------------------------
+    def recording(self) -> list[int]:
+        """Worlds that record a frame at this step: recording, within their limit, not held, and
+        not reset after this step's render was launched (its images show the state before)."""
+        e = self.e
+        return [w for w in range(e.config.worlds) if e.rec_active[w] and e.steps[w] <= e.rec_max[w]
+                and not e.held[w] and w not in self.stale]
+
+    def robot_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Arm joint positions (K, 7), arm joint targets (K, 7) and base poses (K, 3) (x, y, theta
+        in the world [m, rad], as ``record.base_pose``) of ``worlds``, from one state read per Sim."""
+        import math
+
+        e = self.e
+        sim = e.banks[0].sim
+        desc, c = sim.desc, sim.coords_per_world
+        arm = np.array([sim.robot.coord[n] for n in desc.arm_joints])
+        base = np.array([sim.robot.coord[n] for n in desc.base_joints])
+        q, t, b = [], [], []
+        for w in worlds:
+            bank, i = e._where[w]
+            jq = bank.snapshot.get("joint_q")
+            q.append(jq[i * c + arm])
+            t.append(bank.ctl._targets[i * c + arm])
+            b.append(jq[i * c + base])
+        x0, y0, yaw0 = sim.spawn
+        cs, sn = math.cos(yaw0), math.sin(yaw0)
+        lb = np.asarray(b, float).reshape(-1, 3)
+        th = (yaw0 + lb[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
+        return np.asarray(q), np.asarray(t), poses
+
+
+def _cmd(c) -> tuple:
+    return c.base_velocity, c.gripper, c.mode
