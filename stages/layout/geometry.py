@@ -86,11 +86,19 @@ def solid_mesh(boxes: list[Box3], holes: list[Box3] = ()) -> tuple[np.ndarray, n
     return np.round(v, 6), f
 
 
+def _mesh(boxes: list[Box3], holes: list[Box3] = (), meshes: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``solid_mesh(boxes, holes)``, or an empty mesh ((0, 3) vertices, (0, 3) faces) when ``meshes``
+    is off (colliders only: no manifold3d needed)."""
+    if not meshes:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32)
+    return solid_mesh(boxes, holes)
+
+
 def _xy_box(r: Rect, z0: float, z1: float) -> Box3:
     return Box3((r.x0 / 100, r.y0 / 100, z0), (r.x1 / 100, r.y1 / 100, z1))
 
 
-def _wall_element(plan: HousePlan, w: Wall, z: float) -> list[Element]:
+def _wall_element(plan: HousePlan, w: Wall, z: float, meshes: bool = True) -> list[Element]:
     fl = plan.floors[w.floor]
     h = plan.ceiling_height
     ops = [o for o in fl.openings if o.wall == w.id]
@@ -112,7 +120,7 @@ def _wall_element(plan: HousePlan, w: Wall, z: float) -> list[Element]:
                       for p in pieces)
     cut = [to3((o.center - o.width // 2) / 100, (o.center + o.width // 2) / 100, c0 / 100 - CUT, c1 / 100 + CUT,
                z + (o.z0 if o.z0 > 0 else -CUT), z + o.z1) for o in ops]
-    v, f = solid_mesh([to3(a0 / 100, a1 / 100, c0 / 100, c1 / 100, z, z + h)], cut)
+    v, f = _mesh([to3(a0 / 100, a1 / 100, c0 / 100, c1 / 100, z, z + h)], cut, meshes)
     out = [Element(w.id, "Walls", w.floor, "wall", None, v, f, colliders, COLORS["wall"])]
     for o in ops:
         if o.kind != "window":
@@ -120,7 +128,7 @@ def _wall_element(plan: HousePlan, w: Wall, z: float) -> list[Element]:
         mid = (c0 + c1) / 200
         pane = to3((o.center - o.width // 2) / 100, (o.center + o.width // 2) / 100, mid - 0.01, mid + 0.01,
                    z + o.z0, z + o.z1)
-        pv, pf = solid_mesh([pane])
+        pv, pf = _mesh([pane], meshes=meshes)
         out.append(Element(o.id, "Windows", w.floor, "window", o.rooms[0], pv, pf, (pane,), COLORS["window"], 0.35))
     return out
 
@@ -133,7 +141,7 @@ def _slab_pieces(rects: tuple[Rect, ...], holes: list[Rect], z0: float, z1: floa
     return cols, cuts
 
 
-def _room_elements(plan: HousePlan, f: int, z: float) -> list[Element]:
+def _room_elements(plan: HousePlan, f: int, z: float, meshes: bool = True) -> list[Element]:
     out = []
     down = [r for s in plan.stairs_to(f) for r in s.opening]      # stairwell in this floor's slab
     up = [r for s in plan.stairs_from(f) for r in s.opening]       # stairwell in the ceiling above
@@ -142,50 +150,51 @@ def _room_elements(plan: HousePlan, f: int, z: float) -> list[Element]:
         z0, z1 = z - plan.slab_thickness, z
         cols, cuts = _slab_pieces(room.rects, down, z0, z1)
         if cols:
-            v, fa = solid_mesh([_xy_box(r, z0, z1) for r in room.rects], cuts)
+            v, fa = _mesh([_xy_box(r, z0, z1) for r in room.rects], cuts, meshes)
             out.append(Element("Floor", grp, f, "floor", room.id, v, fa, tuple(cols), COLORS["floor"]))
         c0, c1 = z + plan.ceiling_height, z + plan.ceiling_height + plan.ceiling_thickness
         if c1 > c0:
             cols, cuts = _slab_pieces(room.rects, up, c0, c1)
             if cols:
-                v, fa = solid_mesh([_xy_box(r, c0, c1) for r in room.rects], cuts)
+                v, fa = _mesh([_xy_box(r, c0, c1) for r in room.rects], cuts, meshes)
                 out.append(Element("Ceiling", grp, f, "ceiling", room.id, v, fa, tuple(cols), COLORS["ceiling"]))
     return out
 
 
-def _stair_elements(plan: HousePlan, s: Stair) -> list[Element]:
+def _stair_elements(plan: HousePlan, s: Stair, meshes: bool = True) -> list[Element]:
     z = s.floor * plan.floor_height
     steps = [_xy_box(r, z, z + n * s.rise) for r, n in s.treads]
-    v, f = solid_mesh(steps)
+    v, f = _mesh(steps, meshes=meshes)
     out = [Element(s.id, "Stairs", s.floor, "stairs", None, v, f, tuple(steps), COLORS["stairs"])]
     from stages.layout.model import RAIL_HEIGHT
 
     bal = [_xy_box(r, z + n * s.rise, z + n * s.rise + RAIL_HEIGHT) for r, n in s.balustrades]
     if bal:
-        v, f = solid_mesh(bal)
+        v, f = _mesh(bal, meshes=meshes)
         out.append(Element(f"{s.id}_balustrade", "Railings", s.floor, "railing", None, v, f, tuple(bal),
                            COLORS["railing"]))
     zt = z + plan.floor_height
     rails = [_xy_box(r, zt, zt + RAIL_HEIGHT) for r in s.rails]
     if rails:
-        v, f = solid_mesh(rails)
+        v, f = _mesh(rails, meshes=meshes)
         out.append(Element(f"{s.id}_railing", "Railings", s.floor + 1, "railing", None, v, f, tuple(rails),
                            COLORS["railing"]))
     return out
 
 
-def build_geometry(plan: HousePlan) -> list[Element]:
-    """All elements of the house, floor by floor, then the roof."""
+def build_geometry(plan: HousePlan, *, meshes: bool = True) -> list[Element]:
+    """All elements of the house, floor by floor, then the roof. ``meshes`` off: the elements carry
+    their colliders and empty meshes (no manifold3d booleans: physics-only consumers, faster)."""
     out: list[Element] = []
     for fl in plan.floors:
         z = fl.index * plan.floor_height
-        out.extend(_room_elements(plan, fl.index, z))
+        out.extend(_room_elements(plan, fl.index, z, meshes))
         for w in fl.walls:
-            out.extend(_wall_element(plan, w, z))
+            out.extend(_wall_element(plan, w, z, meshes))
         for s in plan.stairs_from(fl.index):
-            out.extend(_stair_elements(plan, s))
+            out.extend(_stair_elements(plan, s, meshes))
     top = len(plan.floors) * plan.floor_height
     roof = _xy_box(plan.footprint, top - plan.slab_thickness, top)
-    v, f = solid_mesh([roof])
+    v, f = _mesh([roof], meshes=meshes)
     out.append(Element("Roof", "", None, "roof", None, v, f, (roof,), COLORS["roof"]))
     return out

@@ -60,12 +60,16 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--terrain", action="store_true",
                    help="per-world door thresholds and stairs with a level curriculum, swing-foot clearance reward")
     p.add_argument("--foot-clearance", type=float, default=-1.0, help="clearance reward weight with --terrain")
+    p.add_argument("--ang-vel-xy", type=float, default=-0.05,
+                   help="roll/pitch rate penalty weight with --terrain (legged_gym's; the yaw-rate kernel "
+                        "leaves them out there)")
     p.add_argument("--arm-reach", action="store_true", help="arm targets over the wide reach ranges "
                                                             "(counter-height reaching) instead of +-0.6 rad")
     a = p.parse_args(argv)
     env = EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph,
                     terrain=TerrainConfig(enabled=a.terrain),
-                    rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0),
+                    rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0,
+                                          ang_vel_xy=a.ang_vel_xy if a.terrain else 0.0),
                     randomization=Randomization(arm_reach=a.arm_reach))
     cfg = TrainConfig(env=env, ppo=PPOConfig(), iterations=a.iterations, max_wall_s=a.max_wall_s,
                       save_every=a.save_every, checkpoint_dir=a.checkpoint_dir, resume=not a.no_resume,

@@ -87,8 +87,10 @@ class TerrainConfig:
     """
 
     enabled: bool = False
-    kinds: tuple[float, float, float] = (0.2, 0.3, 0.5)
-    """shares of worlds that are flat, have door thresholds, have stairs (up, landing, down)"""
+    kinds: tuple[float, float, float] = (0.4, 0.2, 0.4)
+    """shares of worlds that are flat, have door thresholds, have stairs (up, landing, down); the flat
+    worlds keep the flat task's commands (mjlab's rough G1 mix: 40 % flat), so the flat-floor tracking,
+    yaw rates across the whole range included, is not forgotten while climbing is learned"""
     num_boxes: int = 6
     """static boxes per world: thresholds per lane, risers per flight"""
     num_levels: int = 10
@@ -118,7 +120,16 @@ class TerrainConfig:
     vy: tuple[float, float] = (-0.15, 0.15)
     """lateral command on thresholds and stairs [m/s]"""
     heading_gain: float = 1.0
-    """yaw-rate command per radian of heading error (the heading is held along +x) [1/s]"""
+    """yaw-rate command per radian of heading error [1/s] (heading-hold draws: mjlab's
+    ``heading_control_stiffness``), clipped to ``commands.yaw_rate``"""
+    heading_range: float = 0.3
+    """half-width of the heading target's draw around +x on heading-hold draws [rad]: with the spawn
+    heading's spread the yaw-rate commands span about +-2 heading_range * heading_gain [rad/s] at a
+    draw, then decay as the heading is reached; the lane (``lane_width``) bounds it"""
+    turn_fraction: float = 0.5
+    """share of the command draws on threshold worlds whose yaw rate is drawn in ``commands.yaw_rate``
+    (the robot turns while it walks over the sills, as on a flat floor) instead of holding a heading;
+    stairs always hold one (turning on a flight walks off its side)"""
     down_fraction: float = 0.5
     """a level down when the robot covered less than this share of its commanded distance"""
     posture_scale: float = 0.5
@@ -131,6 +142,11 @@ class TerrainConfig:
             out.append(f"terrain.kinds must be 3 non-negative shares (flat, threshold, stairs), got {self.kinds}")
         if self.num_boxes < 1:
             out.append(f"terrain.num_boxes must be positive, got {self.num_boxes}")
+        if not 0.0 <= self.turn_fraction <= 1.0:
+            out.append(f"terrain.turn_fraction must be in [0, 1], got {self.turn_fraction}")
+        if self.heading_range < 0.0 or self.heading_gain < 0.0:
+            out.append(f"terrain.heading_range and heading_gain must be >= 0, got {self.heading_range}, "
+                       f"{self.heading_gain}")
         if not 0 <= self.init_max_level < self.num_levels:
             out.append(f"terrain levels: need 0 <= init_max_level ({self.init_max_level}) < num_levels "
                        f"({self.num_levels})")

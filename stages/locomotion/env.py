@@ -22,7 +22,7 @@ from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_PO
                                      WAIST_JOINTS, G1Layout, build_g1_model, joint_gains, posture_std,
                                      reach_arm_range)
 from stages.locomotion import rewards as R
-from stages.locomotion.terrain import FLAT, TerrainWorlds, build_terrain_model
+from stages.locomotion.terrain import FLAT, THRESHOLD, TerrainWorlds, build_terrain_model
 
 OBS_NOISE = {"lin_vel": 0.1, "ang_vel": 0.2, "gravity": 0.05, "joint_pos": 0.01, "joint_vel": 1.5}
 """half-widths of mjlab's uniform observation noise"""
@@ -108,11 +108,13 @@ class G1VelocityEnv:
         """when set, commands are never resampled (evaluation sets them)"""
         on_terrain = self.terrain.kind != FLAT if self.terrain is not None else torch.zeros(n, dtype=torch.bool)
         self.on_terrain = on_terrain.to(dev)
-        """worlds with thresholds or stairs (N,) bool: spawned facing +x, commanded forward, heading held"""
+        """worlds with thresholds or stairs (N,) bool: spawned facing about +x, commanded forward"""
         self.heading_hold = torch.zeros(n, dtype=torch.bool, device=dev)
-        """worlds whose yaw-rate command holds the heading along +x (N,) bool"""
+        """worlds whose yaw-rate command holds ``heading_target`` (N,) bool"""
+        self.heading_target = torch.zeros(n, dtype=torch.float32, device=dev)
+        """heading the heading-hold worlds turn to and hold (N,) [rad], 0 along +x"""
         self.commanded_x = torch.zeros(n, **f32)
-        """forward distance the commands asked for in this episode (N,) [m] (terrain curriculum)"""
+        """distance along +x the commands asked for in this episode (N,) [m] (terrain curriculum)"""
         self.body_q = wp.to_torch(self.state_0.body_q).view(n, lay.bodies_per_world, 7)
         self.foot_idx = tensor(lay.foot_bodies, torch.long)
         self.prev_foot_xy = self.body_q[:, self.foot_idx, 0:2].clone()
@@ -156,31 +158,44 @@ class G1VelocityEnv:
         inv_mass[base] = 1.0 / mass[base]
 
     def _resample_commands(self, ids: torch.Tensor) -> None:
+        """New commands for worlds ``ids`` (K,): uniform in ``cfg.commands`` (a ``standing_fraction`` share
+        zero). With terrain, thresholds and stairs walk forward (``terrain.vx``, ``terrain.vy``); their
+        yaw rate holds a heading drawn within ``terrain.heading_range`` of +x (``_hold_heading``), except
+        a ``terrain.turn_fraction`` share of the threshold worlds' draws, which keep the uniform yaw rate."""
         c, k = self.cfg.commands, len(ids)
         if k == 0 or self.fixed_commands:
             return
         cmd = torch.stack([self._uniform((k,), *c.vx), self._uniform((k,), *c.vy),
                            self._uniform((k,), *c.yaw_rate)], dim=1)
         standing = torch.rand(k, generator=self.gen, device=self.device) < c.standing_fraction
-        if self.terrain is not None:  # thresholds and stairs: forward, heading held along +x
+        if self.terrain is not None:
             t = self.cfg.terrain
             terr = self.on_terrain[ids]
             cmd[:, 0] = torch.where(terr, self._uniform((k,), *t.vx), cmd[:, 0])
             cmd[:, 1] = torch.where(terr, self._uniform((k,), *t.vy), cmd[:, 1])
-            self.heading_hold[ids] = terr & ~standing
+            turn = (self.terrain.kind[ids] == THRESHOLD) & (
+                torch.rand(k, generator=self.gen, device=self.device) < t.turn_fraction)
+            self.heading_hold[ids] = terr & ~standing & ~turn
+            self.heading_target[ids] = self._uniform((k,), -t.heading_range, t.heading_range)
         self.commands[ids] = torch.where(standing[:, None], torch.zeros_like(cmd), cmd)
         self._hold_heading()
         steps = self._uniform((k,), *c.resample_s) / self.cfg.control_dt
         self.command_timer[ids] = steps.long().clamp(min=1)
 
+    def base_yaw(self) -> torch.Tensor:
+        """Heading of each world's base (N,) [rad] in (-pi, pi], 0 along +x."""
+        q = self.q[:, 3:7]
+        return torch.atan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
+
     def _hold_heading(self) -> None:
-        """Yaw-rate command of the heading-hold worlds: heading_gain * (0 - yaw), clipped to the range."""
+        """Yaw-rate command of the heading-hold worlds: heading_gain * (heading target - yaw), the
+        error wrapped to (-pi, pi], clipped to the yaw-rate range (mjlab's heading command)."""
         if self.terrain is None:
             return
-        q = self.q[:, 3:7]
-        yaw = torch.atan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
+        err = self.heading_target - self.base_yaw()
+        err = torch.atan2(torch.sin(err), torch.cos(err))
         lo, hi = self.cfg.commands.yaw_rate
-        rate = (-self.cfg.terrain.heading_gain * yaw).clamp(lo, hi)
+        rate = (self.cfg.terrain.heading_gain * err).clamp(lo, hi)
         self.commands[:, 2] = torch.where(self.heading_hold, rate, self.commands[:, 2])
 
     def _resample_arms(self, ids: torch.Tensor) -> None:
@@ -324,7 +339,10 @@ class G1VelocityEnv:
                 v = cfg.randomization.push_velocity
                 self.qd[pushed, 0:2] += self._uniform((len(pushed), 2), -v, v)
                 self._reset_push_timer(pushed)
-        self.commanded_x += self.commands[:, 0].clamp(min=0.0) * cfg.control_dt
+        if self.terrain is not None:  # the commanded velocity's +x component (a turning world asks for less)
+            yaw = self.base_yaw()
+            vx_world = self.commands[:, 0] * torch.cos(yaw) - self.commands[:, 1] * torch.sin(yaw)
+            self.commanded_x += vx_world.clamp(min=0.0) * cfg.control_dt
         done_ids = torch.nonzero(done).flatten()
         if self.terrain is not None and len(done_ids):
             if self.terrain.update_levels(done_ids, self.q[done_ids, 0], self.commanded_x[done_ids]):

@@ -85,7 +85,8 @@ def house_colliders(plan: Any, fp: Any, door: Any, threshold_height: float) -> n
     from stages.layout.geometry import build_geometry
 
     keep = {(0, "wall"), (0, "stairs"), (0, "railing"), (1, "floor"), (1, "railing")}
-    boxes = [(b.lo, b.hi) for e in build_geometry(plan) if (e.floor, e.label) in keep for b in e.colliders]
+    elements = build_geometry(plan, meshes=False)      # colliders only: no manifold3d on the GPU machines
+    boxes = [(b.lo, b.hi) for e in elements if (e.floor, e.label) in keep for b in e.colliders]
     wall = next(w for w in fp.floors[0].walls if w.id == door.wall)
     c, n = np.asarray(door.position, float), np.asarray(door.normal, float)
     along = np.abs(np.array([n[1], -n[0]])) * door.width / 2

@@ -22,13 +22,17 @@ def reward_terms(w: RewardWeights, *, lin_b: torch.Tensor, ang_b: torch.Tensor, 
 
     lin_b, ang_b: (N, 3) base velocities in the body frame [m/s, rad/s]; commands (N, 3) (vx, vy, yaw rate);
     joint_pos (N, A) [rad] of the policy's joints with default_pos, posture_std, soft_lo, soft_hi (A,);
-    actions, prev_actions (N, A); fell (N,) bool. ``planar_tracking``: the linear tracking error leaves
-    out the vertical velocity (on stairs and thresholds the base rises and sinks by design).
+    actions, prev_actions (N, A); fell (N,) bool. ``planar_tracking`` (terrain): the linear tracking
+    error leaves out the vertical velocity and the angular one the roll and pitch rates (legged_gym's
+    terms; ``ang_vel_xy`` penalizes those instead). On stairs the base rises, sinks and pitches by
+    design: with them in the kernel (mjlab's flat terms, roll and pitch rates of 1-2 rad^2/s^2 on a
+    flight) the yaw-rate term saturates near 0 and no longer rewards turning.
     """
     lin_err = (commands[:, 0] - lin_b[:, 0]) ** 2 + (commands[:, 1] - lin_b[:, 1]) ** 2
+    ang_err = (commands[:, 2] - ang_b[:, 2]) ** 2
     if not planar_tracking:
         lin_err = lin_err + lin_b[:, 2] ** 2
-    ang_err = (commands[:, 2] - ang_b[:, 2]) ** 2 + ang_b[:, 0] ** 2 + ang_b[:, 1] ** 2
+        ang_err = ang_err + ang_b[:, 0] ** 2 + ang_b[:, 1] ** 2
     std2 = w.tracking_std ** 2
     posture = torch.exp(-torch.mean(((joint_pos - default_pos) / posture_std) ** 2, dim=1))
     over = (soft_lo - joint_pos).clamp(min=0.0) + (joint_pos - soft_hi).clamp(min=0.0)

@@ -6,7 +6,10 @@ house evaluation end to end (1 s trials, MuJoCo C)."""
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
+import math
+import sys
 from pathlib import Path
 
 import pytest
@@ -146,9 +149,72 @@ def test_g1_stands_on_the_stairs_landing_of_its_world(terrain_env):
         if w != s:
             assert float(env.q[w, 2]) < 0.85                               # the other worlds' floors are low
     assert obs.shape == (3, env.num_obs) == (3, 85)                        # the flat policy's observations
-    # terrain worlds hold their heading along +x; arm targets come from the wide draw
-    assert env.heading_hold[t.kind != FLAT].any() or (env.commands[t.kind != FLAT] == 0).all()
+    # the stairs world holds a heading (or stands); arm targets come from the wide draw
+    assert bool(env.heading_hold[s]) or (env.commands[s] == 0).all()
     assert (env.arm_targets >= env.reach_lo - 1e-6).all() and (env.arm_targets <= env.reach_hi + 1e-6).all()
+
+
+def test_terrain_commands_keep_yaw_rates_across_the_range(terrain_env):
+    env = terrain_env
+    t, cfg = env.terrain, env.cfg.terrain
+    flat, sill, stairs = (int(torch.nonzero(t.kind == k)) for k in (FLAT, THRESHOLD, STAIRS))
+    ids = torch.arange(3)
+    yaw = {w: [] for w in range(3)}
+    hold = {w: [] for w in range(3)}
+    for _ in range(300):
+        env._resample_commands(ids)
+        for w in range(3):
+            hold[w].append(bool(env.heading_hold[w]))
+            if not hold[w][-1] and (env.commands[w] != 0).any():
+                yaw[w].append(float(env.commands[w, 2]))
+        target = env.heading_target[env.heading_hold]
+        assert (target.abs() <= cfg.heading_range + 1e-6).all()
+        err = torch.atan2(torch.sin(env.heading_target - env.base_yaw()), torch.cos(env.heading_target - env.base_yaw()))
+        want = (cfg.heading_gain * err).clamp(-1.0, 1.0)
+        assert torch.allclose(env.commands[env.heading_hold, 2], want[env.heading_hold], atol=1e-5)
+    assert not any(hold[flat]) and all(hold[stairs][i] or not yaw[stairs] for i in range(300))
+    assert not yaw[stairs]                                   # stairs: always a heading (or standing)
+    share = sum(hold[sill]) / 300                            # thresholds: turn_fraction of draws turn
+    assert abs((1 - share) - (cfg.turn_fraction + (1 - cfg.turn_fraction) * 0.1)) < 0.1
+    for w in (flat, sill):                                   # free yaw rates span the whole range
+        y = torch.tensor(yaw[w])
+        assert y.min() < -0.8 and y.max() > 0.8 and (y.abs() <= 1.0).all()
+    assert TerrainConfig().kinds[0] >= 0.4                   # a flat share like mjlab's rough mix
+
+
+def test_terrain_yaw_kernel_leaves_out_roll_and_pitch_rates():
+    from stages.locomotion.rewards import reward_terms
+
+    n, a = 2, 3
+    kw = dict(joint_pos=torch.zeros(n, a), default_pos=torch.zeros(a), posture_std=torch.ones(a),
+              soft_lo=-torch.ones(a), soft_hi=torch.ones(a), actions=torch.zeros(n, a),
+              prev_actions=torch.zeros(n, a), fell=torch.zeros(n, dtype=torch.bool))
+    commands = torch.tensor([[0.5, 0.0, 0.8], [0.5, 0.0, 0.8]])
+    lin_b = torch.tensor([[0.5, 0.0, 0.3], [0.5, 0.0, 0.3]])
+    ang_b = torch.tensor([[1.2, 0.8, 0.8], [1.2, 0.8, 0.0]])             # climbing: pitching and rolling
+    flat = reward_terms(RewardWeights(), lin_b=lin_b, ang_b=ang_b, commands=commands, **kw)
+    terr = reward_terms(RewardWeights(), lin_b=lin_b, ang_b=ang_b, commands=commands, planar_tracking=True, **kw)
+    assert flat["track_ang_vel"][0] < 0.01                                # saturated: turning no longer pays
+    assert terr["track_ang_vel"][0] == pytest.approx(1.0)
+    assert terr["track_ang_vel"][1] == pytest.approx(math.exp(-0.64 / 0.25))
+    assert terr["track_lin_vel"][0] == pytest.approx(1.0) and flat["track_lin_vel"][0] < 1.0
+    assert terr["ang_vel_xy"][0] == pytest.approx(1.2 ** 2 + 0.8 ** 2)   # penalized by its own weight
+
+
+def test_commanded_distance_counts_the_commands_along_the_lane(terrain_env):
+    env = terrain_env
+    ids = torch.arange(3)
+    env.reset_worlds(ids)
+    yaw = torch.tensor([0.0, math.pi / 2, math.pi])
+    env.q[:, 3:7] = torch.stack([torch.zeros(3), torch.zeros(3), torch.sin(yaw / 2), torch.cos(yaw / 2)], dim=1)
+    env.heading_hold[:] = False
+    env.commands[:] = torch.tensor([0.8, 0.0, 0.0])
+    env.commanded_x[:] = 0.0
+    env.step(torch.zeros(3, env.num_actions))
+    dt = env.cfg.control_dt
+    assert float(env.commanded_x[0]) == pytest.approx(0.8 * dt, rel=0.05)   # facing the lane
+    assert float(env.commanded_x[1]) < 0.1 * 0.8 * dt                     # facing across it
+    assert float(env.commanded_x[2]) == 0.0                               # facing back
 
 
 @pytest.mark.slow
@@ -184,3 +250,19 @@ def test_house_evaluation_runs_end_to_end(tmp_path):
     for t in result["trials"]:
         assert t["success"] + t["fell"] <= 1 and t["time_s"] <= 1.0 + 0.02
     assert house_main(["--policy", str(tmp_path / "missing")]) == 2
+
+
+def test_house_colliders_need_no_manifold3d(monkeypatch):
+    from stages.layout.geometry import build_geometry
+    from stages.locomotion.house_eval import house_plan
+
+    plan, _ = house_plan(0)
+    full = build_geometry(plan) if importlib.util.find_spec("manifold3d") else None
+    monkeypatch.setitem(sys.modules, "manifold3d", None)                  # as on the GPU machines
+    with pytest.raises(ImportError):
+        build_geometry(plan)
+    boxes = build_geometry(plan, meshes=False)
+    assert boxes and all(len(e.vertices) == 0 and len(e.faces) == 0 for e in boxes)
+    assert any(e.label == "stairs" and e.colliders for e in boxes)
+    if full is not None:
+        assert [(e.name, e.colliders) for e in boxes] == [(e.name, e.colliders) for e in full]
