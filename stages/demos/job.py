@@ -341,9 +341,11 @@ def _tallies(r: ShardResult | _mixed.MixedResult) -> dict[str, _mixed.TaskTally]
 
 
 def success_report(results: list[ShardResult | _mixed.MixedResult]) -> dict[str, Any]:
-    """Per task: attempts, successes, rate, failures by reason, unfinished episodes (mixed mode,
-    cut by max_sim_seconds), frames written and the median length of successful episodes [frames];
-    totals, timings [s], and the contacts' peaks against their capacities (MuJoCo-Warp)."""
+    """Per task: attempts, successes, success_rate (of attempts), failures by reason, unfinished
+    episodes (mixed mode, cut by max_sim_seconds), success_rate_of_planned (unfinished counted as
+    failures), frames written and the median length of successful episodes [frames]; totals,
+    min_success_rate (the lowest task's success_rate_of_planned), timings [s], and the contacts'
+    peaks against their capacities (MuJoCo-Warp)."""
     tasks: dict[str, dict[str, Any]] = {}
     lengths: dict[str, list[int]] = {}
     stage_s: Counter[str] = Counter()
@@ -368,6 +370,7 @@ def success_report(results: list[ShardResult | _mixed.MixedResult]) -> dict[str,
                 caps[k] = min(caps.get(k, int(v)), int(v))
     for name, t in tasks.items():
         t["success_rate"] = round(t["successes"] / max(1, t["attempts"]), 4)
+        t["success_rate_of_planned"] = round(t["successes"] / max(1, t["attempts"] + t["unfinished"]), 4)
         t["failures"] = dict(sorted(t["failures"].items()))
         t["median_frames"] = _mixed.median(lengths[name])
     frames = int(sum(r.timings.get("frames", 0) for r in results))
@@ -376,7 +379,7 @@ def success_report(results: list[ShardResult | _mixed.MixedResult]) -> dict[str,
             "attempts": sum(t["attempts"] for t in tasks.values()),
             "successes": sum(t["successes"] for t in tasks.values()),
             "unfinished": sum(t["unfinished"] for t in tasks.values()),
-            "min_success_rate": min((t["success_rate"] for t in tasks.values()), default=None),
+            "min_success_rate": min((t["success_rate_of_planned"] for t in tasks.values()), default=None),
             "frames_recorded": frames,
             "seconds": {k: round(v, 3) for k, v in sorted(stage_s.items())},
             "frames_per_second": round(frames / busy, 3) if busy else None,

@@ -122,8 +122,9 @@ def test_one_engine_runs_every_task_and_the_report_counts_timeouts_and_unfinishe
     assert (report["attempts"], report["successes"], report["unfinished"]) == (2, 0, 1)
     assert report["tasks"]["push_object"] == {"attempts": 1, "successes": 0, "unfinished": 0,
                                               "failures": {"timeout": 1}, "frames": 0, "success_rate": 0.0,
-                                              "median_frames": None}
+                                              "success_rate_of_planned": 0.0, "median_frames": None}
     assert report["tasks"]["open_drawer"]["unfinished"] == 1 and report["tasks"]["open_drawer"]["attempts"] == 0
+    assert report["min_success_rate"] == 0.0
     assert report["contacts"]["overflows"] == 0 and report["contacts"]["overflowed_items"] == {}
     # every captured frame is counted, the cut episode's too (it started at a sync point after 1.0 s)
     assert report["frames_recorded"] == res.timings["frames"] > 62
