@@ -169,3 +169,24 @@ def test_mixed_episodes_succeed_load_with_lerobot_and_replay_from_their_seeds(ca
         x, y = load_dataset(Path(a)), load_dataset(Path(b))
         for col in ("observation.state", "action"):
             np.testing.assert_array_equal(np.stack(x.hf_dataset[col]), np.stack(y.hf_dataset[col]), err_msg=col)
+
+
+@pytest.mark.slow
+def test_the_contact_summary_of_a_batched_engine_reports_peaks_within_capacity(catalog, tmp_path):
+    """MuJoCo-Warp (the GPU layout, here on CPU): 2 worlds stepped 0.6 s; the monitor's peaks are
+    real counts below the per-world capacities (~40 s on 2 cores)."""
+    from stages.demos.kitchen import AssetLibrary, write_kitchen
+    from stages.demos.mixed import contact_summary
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    lib = AssetLibrary.from_folder(catalog / "assets", catalog / "catalog" / "default" / "generated.json")
+    room = write_kitchen(tmp_path / "kitchen", lib, scene_id="k", rng=np.random.default_rng(5))
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path,
+                      config=EngineConfig(worlds=2, layout="batched", record_images=False))
+    eng.run(Listed(room, {0: [("push_object", 1, None)], 1: [("press_button", 2, None)]}), max_steps=300)
+    c = contact_summary(eng)
+    assert c["solver"] == "mujoco_warp" and c["overflows"] == 0
+    assert 0 < c["peak_contacts_per_world"] <= c["nconmax"], c
+    assert 0 < c["peak_constraint_rows_per_world"] <= c["njmax"], c
+    assert c["peak_contacts_per_world"] <= c["peak_contacts_all_worlds"] <= c["naconmax"] == 2 * c["nconmax"], c
