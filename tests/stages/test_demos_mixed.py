@@ -135,10 +135,9 @@ def test_mixed_episodes_succeed_load_with_lerobot_and_replay_from_their_seeds(ca
     """2 worlds, push_object and pick_place_bowl to success (~2 min on 2 cores); the item recorded
     again from the same params and seed gives the same episodes and frames."""
     from pipeline import load_results
-    from pipeline.types import ItemContext, derive_seed
+    from pipeline.types import ItemContext, PlanContext, derive_seed
     from stages.dataset import load_dataset, read_episode_columns
     from stages.demos.job import DemosConfig, plan_demos
-    from pipeline.types import PlanContext
     from stages.demos.mixed import record_mixed
 
     out = _copy_catalog(catalog, tmp_path / "out")
