@@ -13,6 +13,9 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
     batch_worlds = 1            # engine worlds per item (simulated together, one shard each)
     program_procs = 0           # worker processes for the experts of an item's engine (GPU)
+    # mixed = true              # one item per kitchen: one engine runs every task (stages.demos.mixed)
+    # episodes_per_task = 30    # with mixed: episodes of each task per kitchen
+    # max_sim_seconds = 120.0   # with mixed: stop each engine after this much simulated time [s]
     width = 128
     height = 96
     # panda_root = "..."        # the Panda description's root (default: pip example-robot-data)
@@ -27,6 +30,12 @@ one complete shard per engine world to ``<out>/<step>/<item>/dataset_w<k>`` thro
 ``<out>/datasets/<step>`` (LeRobot v3.0, loadable with ``LeRobotDataset``) and writes
 ``<out>/reports/<step>.json``: per task attempts, successes, success rate and failure reasons,
 plus recorded frames and the wall time per stage.
+
+With ``mixed = true`` the items are ``mixed_w<k>`` instead: one engine per kitchen runs
+``episodes_per_task`` episodes of every task, round robin (:mod:`stages.demos.mixed`); the shards
+and the report are the same. The report also counts contact overflows (items failed on dropped
+contacts, see :mod:`stages.simulate.contacts`) and, for MuJoCo-Warp, the peak contacts and
+constraint rows per world against their capacities.
 """
 
 from __future__ import annotations
@@ -38,9 +47,10 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
+from stages.demos import mixed as _mixed
 from stages.demos.tasks import TASKS
 
 
@@ -63,7 +73,14 @@ class DemosConfig(_Strict):
     planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA);
     program_wait: with program_procs, seconds the engine waits for planning experts before it
     holds their worlds and steps the others on (None: wait for all); panda_root: the Panda
-    description's root (None: the pip package example-robot-data)."""
+    description's root (None: the pip package example-robot-data); max_seconds: episode time limit
+    [s] for every task (None: each task's own).
+
+    mixed: one item per kitchen (``worlds`` kitchens), whose engine of ``batch_worlds`` worlds runs
+    ``episodes_per_task`` episodes of every task round robin (:mod:`stages.demos.mixed`) instead of
+    one item per (task, kitchen) running ``episodes_per_shard``; max_sim_seconds: with mixed, stop
+    each engine after this much simulated time [s] (episodes still running are counted as
+    unfinished; None: run every episode to its end)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -79,6 +96,35 @@ class DemosConfig(_Strict):
     program_procs: int = Field(default=0, ge=0, le=256)
     program_wait: float | None = Field(default=None, ge=0.0, le=60.0)
     panda_root: Path | None = None
+    max_seconds: float | None = Field(default=None, gt=0.0, le=600.0)
+    mixed: bool = False
+    episodes_per_task: int = Field(default=1, ge=1, le=10000)
+    max_sim_seconds: float | None = Field(default=None, gt=0.0, le=86400.0)
+
+    @field_validator("device")
+    @classmethod
+    def _device(cls, v: str) -> str:
+        import re
+
+        if not re.fullmatch(r"cpu|cuda(:\d+)?", v):
+            raise ValueError(f"device must be 'cpu' or 'cuda[:n]', got {v!r}")
+        return v
+
+    @model_validator(mode="after")
+    def _mode(self) -> DemosConfig:
+        given = self.model_fields_set
+        if self.mixed and "episodes_per_shard" in given:
+            raise ValueError("episodes_per_shard is for per-(task, kitchen) items; with mixed = true "
+                             "set episodes_per_task")
+        for k in ("episodes_per_task", "max_sim_seconds"):
+            if not self.mixed and k in given:
+                raise ValueError(f"{k} needs mixed = true (per-(task, kitchen) items use episodes_per_shard)")
+        if self.program_procs and not self.device.startswith("cuda"):
+            raise ValueError("program_procs needs device = 'cuda' (the batched engine layout); on CPU the "
+                             "experts run as threads (program_procs = 0)")
+        if self.program_wait is not None and not self.program_procs:
+            raise ValueError("program_wait needs program_procs > 0")
+        return self
 
     @field_validator("tasks")
     @classmethod
@@ -86,6 +132,8 @@ class DemosConfig(_Strict):
         bad = [t for t in v if t not in TASKS]
         if bad:
             raise ValueError(f"unknown task(s) {bad}; known: {sorted(TASKS)}")
+        if not v or len(set(v)) != len(v):
+            raise ValueError(f"tasks must be a non-empty list without repeats, got {list(v)}")
         return v
 
 
@@ -108,6 +156,7 @@ class ShardParams(_Strict):
     batch_worlds: int = 1
     program_procs: int = 0
     program_wait: float | None = None
+    max_seconds: float | None = None
 
 
 class EpisodeRecord(_Strict):
@@ -135,6 +184,7 @@ class ShardResult(_Strict):
     timings: dict[str, float]
     build_seconds: float
     datasets: tuple[str, ...] = ()
+    contacts: dict = Field(default_factory=dict)
 
 
 def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[str, str]]:
@@ -173,10 +223,14 @@ def _catalog_inputs(config: DemosConfig, ctx: PlanContext) -> tuple[Path, dict[s
 
 
 def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | PlannedFailure]:
-    """One item per (task, world); the Panda URDF, generated.json and the packages are its inputs."""
+    """One item per (task, world), or with ``mixed`` one per world; the Panda URDF, generated.json
+    and the packages are its inputs."""
     from stages.simulate.robot import PANDA_URDF_REL, find_panda_description
 
-    ids = [f"{t}_w{w:03d}" for t in config.tasks for w in range(config.worlds)]
+    if config.mixed:
+        ids = [f"mixed_w{w:03d}" for w in range(config.worlds)]
+    else:
+        ids = [f"{t}_w{w:03d}" for t in config.tasks for w in range(config.worlds)]
     try:
         urdf = find_panda_description(config.panda_root) / PANDA_URDF_REL
         generated, packages = _catalog_inputs(config, ctx)
@@ -185,15 +239,26 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 for i in ids]
     items: list[WorkItem | PlannedFailure] = []
     inputs = (urdf, generated, *sorted(Path(p) for p in packages.values()))
+    panda_root = None if config.panda_root is None else str(config.panda_root)
+    if config.mixed:
+        for w, item_id in enumerate(ids):
+            mp = _mixed.MixedParams(
+                world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)), tasks=config.tasks,
+                episodes_per_task=config.episodes_per_task, max_sim_seconds=config.max_sim_seconds,
+                max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
+                device=config.device, record_images=config.record_images, batch_worlds=config.batch_worlds,
+                program_procs=config.program_procs, program_wait=config.program_wait, generated=str(generated),
+                packages=packages, panda_root=panda_root)
+            items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
+        return items
     for t in config.tasks:
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
-                                 program_wait=config.program_wait,
-                                 generated=str(generated), packages=packages,
-                                 panda_root=None if config.panda_root is None else str(config.panda_root))
+                                 program_wait=config.program_wait, max_seconds=config.max_seconds,
+                                 generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
 
@@ -209,6 +274,7 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     from stages.demos.kitchen import AssetLibrary, write_kitchen
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
+    from stages.simulate.contacts import ContactOverflowError
 
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
@@ -217,7 +283,7 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           rng=np.random.default_rng(params.world_seed))
     n = min(params.batch_worlds, params.episodes)
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
-                          device=params.device, record_images=params.record_images,
+                          device=params.device, record_images=params.record_images, max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
@@ -248,8 +314,12 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
             records[k] = EpisodeRecord(seed=inst.seed, success=res.success, reason=res.reason, frames=res.frames,
                                        sim_seconds=round(res.sim_seconds, 3))
 
-        stats = engine.run(next_instance, begin=begin, end=end)
+        try:
+            stats = engine.run(next_instance, begin=begin, end=end)
+        except ContactOverflowError as e:
+            raise ItemError(f"{_mixed.OVERFLOW_PREFIX}{e}") from None
         t1 = time.perf_counter()
+        contacts = _mixed.contact_summary(engine)  # an overflow fails the item: its shards are dropped
     total = stats.timings
     total.writing += time.perf_counter() - t1
     recs = tuple(records[k] for k in sorted(records))
@@ -258,32 +328,62 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                        dataset=str(ctx.final_dir) if datasets else None, datasets=datasets,
                        attempts=len(recs), episodes=sum(r.success for r in recs),
                        frames=sum(r.frames for r in recs if r.success), failures=dict(failures),
-                       records=recs, timings=total.to_json(), build_seconds=round(build, 3))
+                       records=recs, timings=total.to_json(), build_seconds=round(build, 3), contacts=contacts)
 
 
-def success_report(results: list[ShardResult]) -> dict[str, Any]:
-    """Per task: attempts, successes, rate, failures by reason; totals and timings."""
+def _tallies(r: ShardResult | _mixed.MixedResult) -> dict[str, _mixed.TaskTally]:
+    """Per-task tallies of one item's result (either mode)."""
+    if isinstance(r, _mixed.MixedResult):
+        return r.tasks
+    lengths = tuple(e.frames for e in r.records if e.success)
+    return {r.task: _mixed.TaskTally(attempts=r.attempts, successes=r.episodes, unfinished=0,
+                                     failures=r.failures, frames=r.frames, lengths=lengths)}
+
+
+def success_report(results: list[ShardResult | _mixed.MixedResult]) -> dict[str, Any]:
+    """Per task: attempts, successes, success_rate (of attempts), failures by reason, unfinished
+    episodes (mixed mode, cut by max_sim_seconds), success_rate_of_planned (unfinished counted as
+    failures), frames written and the median length of successful episodes [frames]; totals,
+    min_success_rate (the lowest task's success_rate_of_planned), timings [s], and the contacts'
+    peaks against their capacities (MuJoCo-Warp)."""
     tasks: dict[str, dict[str, Any]] = {}
+    lengths: dict[str, list[int]] = {}
     stage_s: Counter[str] = Counter()
+    peaks: Counter[str] = Counter()
+    caps: dict[str, int] = {}
     for r in results:
-        t = tasks.setdefault(r.task, {"attempts": 0, "successes": 0, "failures": Counter(), "frames": 0})
-        t["attempts"] += r.attempts
-        t["successes"] += r.episodes
-        t["failures"].update(r.failures)
-        t["frames"] += r.frames
+        for name, tl in _tallies(r).items():
+            t = tasks.setdefault(name, {"attempts": 0, "successes": 0, "unfinished": 0, "failures": Counter(),
+                                        "frames": 0})
+            t["attempts"] += tl.attempts
+            t["successes"] += tl.successes
+            t["unfinished"] += tl.unfinished
+            t["failures"].update(tl.failures)
+            t["frames"] += tl.frames
+            lengths.setdefault(name, []).extend(tl.lengths)
         stage_s.update({k: v for k, v in r.timings.items() if k != "frames"})
         stage_s["build"] += r.build_seconds
-    for t in tasks.values():
+        for k, v in r.contacts.items():
+            if k.startswith("peak_"):
+                peaks[k] = max(peaks[k], int(v))
+            elif k in ("nconmax", "njmax", "naconmax"):
+                caps[k] = min(caps.get(k, int(v)), int(v))
+    for name, t in tasks.items():
         t["success_rate"] = round(t["successes"] / max(1, t["attempts"]), 4)
+        t["success_rate_of_planned"] = round(t["successes"] / max(1, t["attempts"] + t["unfinished"]), 4)
         t["failures"] = dict(sorted(t["failures"].items()))
+        t["median_frames"] = _mixed.median(lengths[name])
     frames = int(sum(r.timings.get("frames", 0) for r in results))
     busy = sum(v for k, v in stage_s.items() if k != "build")
     return {"tasks": dict(sorted(tasks.items())),
             "attempts": sum(t["attempts"] for t in tasks.values()),
             "successes": sum(t["successes"] for t in tasks.values()),
+            "unfinished": sum(t["unfinished"] for t in tasks.values()),
+            "min_success_rate": min((t["success_rate_of_planned"] for t in tasks.values()), default=None),
             "frames_recorded": frames,
             "seconds": {k: round(v, 3) for k, v in sorted(stage_s.items())},
-            "frames_per_second": round(frames / busy, 3) if busy else None}
+            "frames_per_second": round(frames / busy, 3) if busy else None,
+            "contacts": {"overflows": 0, **dict(sorted(peaks.items())), **caps}}
 
 
 def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any]) -> None:
@@ -291,12 +391,17 @@ def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any
     from stages.dataset import merge_datasets
     from stages.dataset.writer import write_json_atomic
 
-    res = [r if isinstance(r, ShardResult) else ShardResult.model_validate(r) for r in results.values()]
+    kind = _mixed.MixedResult if config.mixed else ShardResult
+    res = [r if isinstance(r, kind) else kind.model_validate(r) for r in results.values()]
     step = ctx.step or "demos"
     report = success_report(res)
+    report["mode"] = "mixed" if config.mixed else "per_task"
     failed_items = ctx.failed.get(step, {})
     report["failed_items"] = dict(failed_items)
-    roots = [Path(d) for r in res if r.episodes > 0 for d in (r.datasets or (r.dataset,)) if d]
+    overflowed = _mixed.contact_overflows(failed_items)
+    report["contacts"]["overflows"] = len(overflowed)
+    report["contacts"]["overflowed_items"] = overflowed
+    roots = [Path(d) for r in res for d in (r.datasets or (r.dataset,)) if d]  # shards with episodes
     out = ctx.work_dir / "datasets" / step
     report["dataset"] = None
     if roots:
