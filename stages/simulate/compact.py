@@ -4,14 +4,21 @@ asynchronously so that the host can work while the GPU renders.
 :func:`launch_compact` enqueues the render of every camera in every world of a
 :class:`~stages.simulate.sensors.CameraRig`, the conversion kernel and the copies into pinned host
 buffers, and returns at once with a :class:`CompactRender`; its :meth:`CompactRender.wait` blocks
-until the images are on the host. The state must not change between the launch and the wait
-except through work enqueued after the launch on the same stream (the render reads ``state_0``
-when the GPU reaches it).
+until the images are on the host. On CUDA the render runs on a stream of its own from a copy of
+the body poses taken at the launch (in the simulation stream's order), so physics steps and state
+reads may follow the launch at once; the next launch of the same rig must wait for this one.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+
+# CUDA: render on a stream of its own (True) or on the simulation's stream. Both give the same
+# images (tests/benchmarks/bench_render.py checks it); on the H100 at 256 worlds the own stream hid
+# the render wait (0.02 -> 0.01 s per frame) but the engine's frame assembly was slower in that run
+# (611 vs 721 timesteps/s, two runs on different machines): bench_engine --ab-render-stream decides.
+OWN_STREAM = False
 
 
 class CompactRender:
@@ -47,6 +54,32 @@ def launch_compact(rig) -> CompactRender:
     cuda = str(model.device).startswith("cuda")
     # the camera poses are read from the host before anything is enqueued (a read waits for the stream)
     tfs = {cam.name: rig._transforms(cam)[0] for cam in rig.cameras}
+    if not cuda or not OWN_STREAM:
+        out = _render(rig, state, tfs, cuda)
+        event = wp.get_device(model.device).stream.record_event() if cuda else None
+        return CompactRender(out, event)
+    # CUDA: the render reads its own copy of the body poses on its own stream, so that the physics
+    # steps and state reads enqueued after the launch on the simulation's stream need not wait for it
+    main = wp.get_stream(model.device)
+    render_stream = rig.__dict__.get("_render_stream")
+    if render_stream is None:
+        render_stream = rig._render_stream = wp.Stream(model.device)
+        rig._render_state = model.state()
+    rstate = rig._render_state
+    wp.copy(rstate.body_q, state.body_q)
+    render_stream.wait_event(main.record_event())
+    with wp.ScopedStream(render_stream):
+        out = _render(rig, rstate, tfs, cuda)
+        event = render_stream.record_event()
+    return CompactRender(out, event)
+
+
+def _render(rig, state, tfs, cuda: bool) -> dict:
+    """Enqueue the renders, the conversion and (CUDA) the copies to pinned buffers on the current
+    stream; the arrays by camera name (see :class:`CompactRender`)."""
+    import warp as wp
+
+    model = rig.sim.model
     model.bvh_refit_shapes(state)
     nw = rig.sim.world_count
     bufs = rig.__dict__.setdefault("_compact", {})
@@ -74,8 +107,7 @@ def launch_compact(rig) -> CompactRender:
         else:  # .numpy() is a view of the buffer the next render overwrites: copy it
             r, d = (a.numpy().copy() for a in (rgb, mm))
         out[cam.name] = (r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width))
-    event = wp.get_device(model.device).stream.record_event() if cuda else None
-    return CompactRender(out, event)
+    return out
 
 
 _COMPACT = None

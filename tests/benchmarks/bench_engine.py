@@ -406,6 +406,8 @@ def main(argv=None) -> dict:
     p.add_argument("--render-variants", action="store_true",
                    help="with --render-split: whole renders without shadows and without textures too "
                         "(two more rigs: minutes of kernel compilation on a fresh machine)")
+    p.add_argument("--ab-render-stream", action="store_true",
+                   help="each world count twice: render on the simulation's CUDA stream, then on its own")
     p.add_argument("--profile", action="store_true",
                    help="profile the engine process over the timed window (cProfile; written beside --out)")
     p.add_argument("--write", action="store_true", help="record into real dataset shards (encoding included)")
@@ -432,9 +434,17 @@ def main(argv=None) -> dict:
     lib = AssetLibrary.from_folder(cat / "assets", cat / "catalog" / "default" / "generated.json")
     room = write_kitchen(args.work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
     results = []
-    for n in args.worlds:
+    from stages.simulate import compact
+
+    runs = [(n, s) for n in args.worlds for s in ((False, True) if args.ab_render_stream else (None,))]
+    for n, stream in runs:
+        if stream is not None:
+            compact.OWN_STREAM = stream
+            print(f"worlds {n}: render on its own CUDA stream: {stream}", flush=True)
         try:
             results.append(bench_pool(n, args) if args.procs > 1 else bench_worlds(room, args.work, n, args))
+            if stream is not None:
+                results[-1]["render_own_stream"] = stream
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
             results.append({"worlds": n, "error": repr(e)})

@@ -113,6 +113,32 @@ def bench_render(eng, names, reps: int) -> dict:
     return out
 
 
+def compact_equals_render(eng) -> bool:
+    """The engine's recording render (``render_compact_async``: on CUDA its own stream and a copy of
+    the body poses, or the simulation's stream: both are checked) gives the images of
+    ``CameraRig.render``, RGB and depth in millimetres, with physics steps enqueued right after the
+    launch (on the simulation's stream they run after the render)."""
+    from stages.dataset.schema import depth_m_to_mm
+    from stages.simulate import compact
+
+    bank = eng.banks[0]
+    rig, sim = bank.rig, bank.sim
+    same = True
+    default = compact.OWN_STREAM
+    try:
+        for own in (True, False):
+            compact.OWN_STREAM = own
+            ref = {k: (f.rgb.copy(), depth_m_to_mm(f.depth)) for k, f in rig.render().items()}
+            pending = rig.render_compact_async()
+            sim.step(5)  # must not change what the launched render sees
+            got = pending.wait()
+            same &= all(np.array_equal(got[k][0], ref[k][0]) and np.array_equal(got[k][1], ref[k][1])
+                        for k in ref)
+    finally:
+        compact.OWN_STREAM = default
+    return bool(same)
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--device", default=os.environ.get("AGENTWORLD_BENCH_DEVICE", "cpu"))
@@ -150,7 +176,10 @@ def main(argv=None) -> dict:
                                                   height=args.height))
             eng.run(RoundRobin(room, sorted(TASKS), 0), begin=lambda w, inst: (lambda frame: None),
                     end=lambda w, inst, res: None, max_steps=args.warm_frames * eng.sync_period)
-            results.append({"worlds": n, "variants": bench_render(eng, names, args.reps)})
+            results.append({"worlds": n, "variants": bench_render(eng, names, args.reps),
+                            "compact_equals_render": compact_equals_render(eng)})
+            print(f"  compact render (own stream) equals the main-stream render: "
+                  f"{results[-1]['compact_equals_render']}", flush=True)
             del eng
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
@@ -167,6 +196,7 @@ def test_bench_render():
                 "--variants", "pixel,tiled16x8"])
     for r in doc["results"]:
         assert r["variants"]["tiled16x8"]["same_images_as_first_order"] is True
+        assert r["compact_equals_render"] is True
 
 
 if __name__ == "__main__":
