@@ -22,7 +22,7 @@ from pipeline import remove_orphaned_temps, temp_sibling
 
 from .schema import EPISODE_COLUMN_PREFIX, DatasetSpec
 from .shards import ShardInfo, list_shards, shard_info
-from .writer import import_lerobot, read_sidecar, write_json_atomic
+from .writer import canonical_stats, import_lerobot, read_sidecar, write_json_atomic
 
 logger = logging.getLogger(__name__)
 
@@ -95,6 +95,7 @@ def _merge(shards: list[ShardInfo], out_dir: Path, where: str, repo_id: str, dat
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     try:
         _aggregate(filled, tmp, repo_id, spec, data_files_size_mb, video_files_size_mb)
+        canonical_stats(tmp)
         failures: Counter[str] = Counter()
         for s in shards:
             failures.update(s.failures)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -74,12 +75,27 @@ class ShardWriter(EpisodeWriter):
         return self
 
     def close(self) -> WriterStats:
-        stats = super().close()
+        stats = self.finish()
+        self.publish()
+        return stats
+
+    def finish(self) -> WriterStats:
+        """Finalize the dataset in its temporary folder; it is not visible until :meth:`publish`
+        (a pool of writers finishes every shard before it publishes any)."""
+        return super().close()
+
+    def publish(self) -> None:
+        """Rename the finished dataset into place."""
         _fsync_dir(self.root)
         os.rename(self.root, self.final)  # atomic on one filesystem; fails if final appeared meanwhile
         _fsync_dir(self.shards_dir)
         self.root = self.final
-        return stats
+
+    def abort(self) -> None:
+        """Delete the temporary folder (also of a finished, unpublished shard); a published one stays."""
+        super().abort()
+        if self.root != self.final:
+            shutil.rmtree(self.root, ignore_errors=True)
 
 
 def open_shard(shards_dir: Path, shard_id: str, spec: DatasetSpec, **kwargs) -> ShardWriter:

@@ -237,6 +237,7 @@ class EpisodeWriter:
         self._require(_State.OPEN, "close")
         t0 = time.perf_counter()
         self._impl.finalize()
+        canonical_stats(self.root)
         if self._columns:
             add_episode_columns(self.root, self._columns)
         extra = {"repo_id": self.repo_id, "backend": self.backend}
@@ -335,6 +336,24 @@ def write_sidecar(
     """Write ``meta/agentworld.json`` (atomically: temp file, fsync, rename)."""
     data = {"format": "agentworld-lerobot-v3.0", "spec": spec.to_json(), **stats.to_json(), **(extra or {})}
     write_json_atomic(root / SIDECAR_PATH, data)
+
+
+def canonical_stats(root: Path) -> None:
+    """Rewrite ``meta/stats.json`` with its features in ``meta/info.json``'s order (same values).
+
+    lerobot's ``aggregate_stats`` collects the feature keys in a set, so the file's key order follows
+    the process's string hash seed: two processes writing the same episodes wrote different bytes."""
+    path, info = root / "meta" / "stats.json", root / "meta" / "info.json"
+    if not path.is_file() or not info.is_file():
+        return
+    stats = json.loads(path.read_text())
+    order = list(json.loads(info.read_text()).get("features", {}))
+    keys = [k for k in order if k in stats] + sorted(k for k in stats if k not in order)
+    text = json.dumps({k: stats[k] for k in keys}, indent=4, ensure_ascii=False)
+    if text != path.read_text():
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(text)
+        os.replace(tmp, path)
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:

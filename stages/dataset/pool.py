@@ -1,0 +1,384 @@
+"""Shard writers in worker processes: the recorder hands frames over shared memory (issue 12).
+
+Why: a batched engine records hundreds of worlds in one process. Writing a frame inline (the shard's
+``add_frame``: validation, column buffers, handing RGB to the video encoder threads, PNG-compressing
+depth) costs the engine process's interpreter time on every frame of every world, beside the
+simulation and the experts. :class:`ShardPool` moves the shards' writers into ``workers`` processes;
+the engine process only validates a frame, copies its images into a free slot of the owning worker's
+shared-memory ring and sends a few hundred bytes (slot, numeric fields) down a pipe.
+
+The result is the same dataset: each shard is written by the same :class:`~stages.dataset.ShardWriter`
+with the same frames in the same order (tests compare the files); a shard is complete or absent as
+before, and the pool is all or nothing: every shard is finished before any is published (when the pool
+closes); when it aborts or a worker fails, every temporary folder is removed (see
+:mod:`stages.dataset.shards`).
+
+Usage (shard ``i`` of ``shard_ids``)::
+
+    with ShardPool(shards_dir, ["dataset_w000", "dataset_w001"], spec, PoolConfig(workers=2)) as pool:
+        pool.begin_episode(0, EpisodeInfo(...))
+        sink = pool.sink(0)          # a frame sink (callable); it copies the frame's arrays
+        sink(frame)                  # or pool.add_frame(0, frame)
+        pool.end_episode(0, success=True)
+    # leaving the block publishes every shard; an exception (or a worker's failure) removes them all
+
+Frames in flight are bounded by ``slots`` per worker: ``add_frame`` blocks (never drops a frame) until
+the worker has copied an earlier frame out of its slot. A worker that fails reports one line
+(``ShardPoolError``: the worker, the shard and the problem) at the next call.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing as mp
+import struct
+import time
+from dataclasses import dataclass
+from multiprocessing.shared_memory import SharedMemory
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .schema import DatasetSpec, EpisodeInfo, Frame, validate_frame
+
+_IMAGE_FIELDS = ("rgb", "depth_mm")
+_NUMERIC = tuple(f.name for f in dataclasses.fields(Frame) if f.name not in _IMAGE_FIELDS)
+_SCALAR_FLOAT, _SCALAR_INT, _VECTOR = 0, 1, 2
+_HEAD = struct.Struct("<iiI")  # shard, slot, bitmask of the images present (2 bits per camera)
+
+
+class ShardPoolError(RuntimeError):
+    """A writer process failed (or died); the pool is unusable and its shards are removed."""
+
+
+@dataclass(frozen=True)
+class PoolConfig:
+    """workers: writer processes (shard ``i`` goes to worker ``i % workers``); slots: frames in flight
+    per worker (each slot holds one frame's images: 3 cameras of 240x320 RGB + depth take 1.15 MB);
+    writer: keyword arguments of each :class:`~stages.dataset.ShardWriter` (backend, encoder_threads,
+    queue_frames); timeout: [s] a blocked call waits this long for a worker before failing."""
+
+    workers: int = 2
+    slots: int = 32
+    writer: dict[str, Any] = dataclasses.field(default_factory=dict)
+    timeout: float = 600.0
+
+    def __post_init__(self) -> None:
+        if self.workers < 1 or self.slots < 1:
+            raise ValueError(f"PoolConfig: workers and slots must be >= 1, got {self.workers}, {self.slots}")
+
+
+def _layout(spec: DatasetSpec) -> list[tuple[str, str, tuple[int, ...], np.dtype, int]]:
+    """(camera, field, shape, dtype, byte offset) of every image a slot holds, in spec order."""
+    out, off = [], 0
+    for cam in spec.cameras:
+        for field, on, shape, dtype in (("rgb", cam.rgb, (cam.height, cam.width, 3), np.dtype(np.uint8)),
+                                        ("depth_mm", cam.depth, (cam.height, cam.width), np.dtype(np.uint16))):
+            if on:
+                out.append((cam.name, field, shape, dtype, off))
+                off += int(np.prod(shape)) * dtype.itemsize
+    return out
+
+
+def _slot_bytes(layout) -> int:
+    if not layout:
+        return 1
+    _, _, shape, dtype, off = layout[-1]
+    return off + int(np.prod(shape)) * dtype.itemsize
+
+
+def _pack_numeric(frame: Frame) -> bytes:
+    """The frame's non-image fields: per field (kind, length) then float64 values."""
+    kinds, values = [], []
+    for name in _NUMERIC:
+        v = getattr(frame, name)
+        if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+            kinds.append((_SCALAR_INT, 1))
+            values.append(np.array([v], np.float64))
+        elif np.ndim(v) == 0:
+            kinds.append((_SCALAR_FLOAT, 1))
+            values.append(np.array([v], np.float64))
+        else:
+            a = np.asarray(v, np.float64).ravel()
+            kinds.append((_VECTOR, a.size))
+            values.append(a)
+    head = struct.pack(f"<{2 * len(kinds)}H", *[x for k in kinds for x in k])
+    return head + np.concatenate(values).tobytes()
+
+
+def _unpack_numeric(buf: bytes) -> dict[str, Any]:
+    n = len(_NUMERIC)
+    kinds = struct.unpack_from(f"<{2 * n}H", buf)
+    vals = np.frombuffer(buf, np.float64, offset=4 * n)
+    out, i = {}, 0
+    for j, name in enumerate(_NUMERIC):
+        kind, length = kinds[2 * j], kinds[2 * j + 1]
+        chunk = vals[i:i + length]
+        i += length
+        out[name] = int(chunk[0]) if kind == _SCALAR_INT else float(chunk[0]) if kind == _SCALAR_FLOAT \
+            else chunk.copy()
+    return out
+
+
+def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: int, shards_dir: str,
+            ids: dict[int, str], spec: DatasetSpec, writer_kwargs: dict[str, Any]) -> None:
+    """Writer process ``k``: owns the shards ``ids`` (pool index -> shard id) until told to close."""
+    from .shards import open_shard
+
+    shm = SharedMemory(name=shm_name)
+    layout = _layout(spec)
+    writers: dict[int, Any] = {}
+    where = "opening"
+    try:
+        for i, sid in ids.items():
+            where = sid
+            writers[i] = open_shard(Path(shards_dir), sid, spec, **writer_kwargs).open()
+        while True:
+            msg = conn_in.recv_bytes()
+            kind = msg[:1]
+            if kind == b"F":
+                i, slot, mask = _HEAD.unpack_from(msg, 1)
+                where = ids[i]
+                base = slot * slot_bytes
+                rgb, depth = {}, {}
+                for b, (cam, field, shape, dtype, off) in enumerate(layout):
+                    if mask >> b & 1:
+                        a = np.ndarray(shape, dtype, buffer=shm.buf, offset=base + off).copy()
+                        (rgb if field == "rgb" else depth)[cam] = a
+                conn_out.send_bytes(b"R" + struct.pack("<i", slot))  # the slot is free again
+                fields = _unpack_numeric(msg[1 + _HEAD.size:])
+                writers[i].add_frame(Frame(**fields, rgb=rgb, depth_mm=depth))
+            elif kind == b"B":
+                i, info = json.loads(msg[1:])
+                where = ids[i]
+                writers[i].begin_episode(EpisodeInfo(**{**info, "asset_ids": tuple(info["asset_ids"])}))
+            elif kind == b"E":
+                i, success, reason = json.loads(msg[1:])
+                where = ids[i]
+                writers[i].end_episode(success=success, reason=reason)
+            elif kind == b"C":  # finish every shard (not yet visible), report, wait for publish
+                stats = {}
+                for i, w in sorted(writers.items()):
+                    where = ids[i]
+                    st = w.finish()
+                    stats[ids[i]] = {"episodes": st.episodes_written, "frames": st.frames_written}
+                conn_out.send_bytes(b"D" + json.dumps(stats).encode())
+            elif kind == b"P":
+                for i, w in sorted(writers.items()):
+                    where = ids[i]
+                    w.publish()
+                writers.clear()
+                conn_out.send_bytes(b"P")
+                return
+            else:  # b"A": abort
+                return
+    except BaseException as e:  # noqa: BLE001 - reported to the engine process as one line
+        try:
+            conn_out.send_bytes(b"X" + f"writer process {k}, shard {where}: {type(e).__name__}: {e}".encode())
+        except OSError:
+            pass
+    finally:
+        for w in writers.values():
+            try:
+                w.abort()
+            except Exception:  # noqa: BLE001 - best effort: the next open cleans its temps
+                pass
+        shm.close()
+
+
+class _Worker:
+    """The engine side of one writer process: its pipes, ring of slots and free list."""
+
+    def __init__(self, k: int, ctx, slots: int, slot_bytes: int) -> None:
+        self.k = k
+        self.shm = SharedMemory(create=True, size=slots * slot_bytes)
+        self.send_in, self.recv_in = ctx.Pipe(duplex=False)[::-1]  # engine writes send_in
+        self.recv_out, self.send_out = ctx.Pipe(duplex=False)     # engine reads recv_out
+        self.free = list(range(slots))[::-1]
+        self.proc = None
+        self.error: str | None = None
+        self.done: dict | None = None
+        self.published = False
+
+
+class ShardPool:
+    """Shards ``shard_ids`` in ``shards_dir`` written by ``config.workers`` processes (module docstring)."""
+
+    def __init__(self, shards_dir: Path, shard_ids: list[str], spec: DatasetSpec,
+                 config: PoolConfig | None = None) -> None:
+        self.shards_dir, self.ids, self.spec = Path(shards_dir), list(shard_ids), spec
+        self.config = config or PoolConfig()
+        self._layout = _layout(spec)
+        self._slot_bytes = _slot_bytes(self._layout)
+        self._workers: list[_Worker] = []
+        self._frames = [0] * len(self.ids)
+        self.wait_s = 0.0  # [s] add_frame spent waiting for a free slot (the workers behind)
+
+    # -- lifecycle ------------------------------------------------------------------------------
+    def open(self) -> ShardPool:
+        ctx = mp.get_context("spawn")  # the engine process holds CUDA: never fork it
+        n = min(self.config.workers, max(1, len(self.ids)))
+        for k in range(n):
+            w = _Worker(k, ctx, self.config.slots, self._slot_bytes)
+            ids = {i: sid for i, sid in enumerate(self.ids) if i % n == k}
+            w.proc = ctx.Process(target=_worker, name=f"shard-writer-{k}", daemon=True,
+                                 args=(k, w.recv_in, w.send_out, w.shm.name, self.config.slots, self._slot_bytes,
+                                       str(self.shards_dir), ids, self.spec, dict(self.config.writer)))
+            w.proc.start()
+            w.recv_in.close()
+            w.send_out.close()
+            self._workers.append(w)
+        return self
+
+    def close(self) -> dict[str, dict]:
+        """Publish every shard; returns shard id -> {episodes, frames} written."""
+        out: dict[str, dict] = {}
+        try:
+            for w in self._workers:
+                self._send(w, b"C")
+            for w in self._workers:
+                while w.done is None:
+                    self._receive(w, block=True)
+                out.update(w.done)
+            for w in self._workers:  # every shard finished: publish them all
+                self._send(w, b"P")
+            for w in self._workers:
+                while not w.published:
+                    self._receive(w, block=True)
+        except BaseException:
+            self.abort()
+            raise
+        self._release()
+        return out
+
+    def abort(self) -> None:
+        """Stop the workers; their shards' temporary folders are removed (nothing is published)."""
+        for w in self._workers:
+            if w.proc.is_alive() and w.error is None and not w.published:
+                try:
+                    w.send_in.send_bytes(b"A")
+                except OSError:
+                    pass
+        for w in self._workers:
+            w.proc.join(timeout=30)
+            if w.proc.is_alive():
+                w.proc.kill()
+                w.proc.join()
+        from .shards import clean_stale_temps
+
+        clean_stale_temps(self.shards_dir)  # a killed worker's temporary folders (its process is gone)
+        self._release()
+
+    def __enter__(self) -> ShardPool:
+        return self.open() if not self._workers else self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    # -- episodes -------------------------------------------------------------------------------
+    def begin_episode(self, i: int, info: EpisodeInfo) -> None:
+        problems = info.problems()
+        if problems:
+            raise ValueError(f"{self.shards_dir / self.ids[i]}: episode info: " + "; ".join(problems))
+        self._frames[i] = 0
+        d = dataclasses.asdict(info)
+        d["asset_ids"] = list(d["asset_ids"])
+        self._send(self._owner(i), b"B" + json.dumps([i, d]).encode())
+
+    def add_frame(self, i: int, frame: Frame) -> None:
+        """Validate the frame here (errors are raised at once, naming the shard), then hand it over."""
+        validate_frame(self.spec, frame, where=f"{self.shards_dir / self.ids[i]} frame {self._frames[i]}")
+        w = self._owner(i)
+        self._receive(w, block=False)
+        if not w.free:
+            t0 = time.perf_counter()
+            while not w.free:
+                self._receive(w, block=True)
+            self.wait_s += time.perf_counter() - t0
+        slot = w.free.pop()
+        base, mask = slot * self._slot_bytes, 0
+        for b, (cam, field, shape, dtype, off) in enumerate(self._layout):
+            src = getattr(frame, field).get(cam)
+            if src is None:
+                continue
+            dst = np.ndarray(shape, dtype, buffer=w.shm.buf, offset=base + off)
+            dst[...] = np.asarray(src).reshape(shape)
+            mask |= 1 << b
+        self._send(w, b"F" + _HEAD.pack(i, slot, mask) + _pack_numeric(frame))
+        self._frames[i] += 1
+
+    def end_episode(self, i: int, success: bool, reason: str = "") -> None:
+        self._send(self._owner(i), b"E" + json.dumps([i, bool(success), str(reason)]).encode())
+
+    def sink(self, i: int) -> _Sink:
+        """A frame sink for shard ``i`` (what the engine's ``begin`` returns)."""
+        return _Sink(self, i)
+
+    # -- plumbing -------------------------------------------------------------------------------
+    def _owner(self, i: int) -> _Worker:
+        if not 0 <= i < len(self.ids):
+            raise IndexError(f"shard index {i} out of range (0..{len(self.ids) - 1})")
+        return self._workers[i % len(self._workers)]
+
+    def _send(self, w: _Worker, msg: bytes) -> None:
+        self._receive(w, block=False)
+        try:
+            w.send_in.send_bytes(msg)
+        except OSError:
+            self._receive(w, block=True)  # the worker is gone: its report (or the death) raises
+            raise ShardPoolError(f"writer process {w.k} is gone") from None
+
+    def _receive(self, w: _Worker, block: bool) -> None:
+        """Drain the worker's messages (freed slots, its close report, its error); when ``block``,
+        wait for at least one. Raises :class:`ShardPoolError` if it failed or died."""
+        deadline = time.monotonic() + self.config.timeout
+        while True:
+            if w.recv_out.poll(0.5 if block else 0):
+                try:
+                    msg = w.recv_out.recv_bytes()
+                except EOFError:
+                    msg = b"X" + f"writer process {w.k} exited (code {w.proc.exitcode})".encode()
+                kind = msg[:1]
+                if kind == b"R":
+                    w.free.append(struct.unpack_from("<i", msg, 1)[0])
+                elif kind == b"D":
+                    w.done = json.loads(msg[1:])
+                elif kind == b"P":
+                    w.published = True
+                else:
+                    w.error = msg[1:].decode(errors="replace")
+                    raise ShardPoolError(w.error)
+                block = False
+                continue
+            if not block:
+                return
+            if not w.proc.is_alive():
+                raise ShardPoolError(f"writer process {w.k} exited (code {w.proc.exitcode})")
+            if time.monotonic() > deadline:
+                raise ShardPoolError(f"writer process {w.k}: no answer in {self.config.timeout:.0f} s")
+
+    def _release(self) -> None:
+        for w in self._workers:
+            for c in (w.send_in, w.recv_out):
+                c.close()
+            w.shm.close()
+            w.shm.unlink()
+        self._workers = []
+
+
+class _Sink:
+    """``pool.add_frame(i, frame)`` as a callable frame sink; ``takes_views``: the sink copies the
+    frame's arrays before returning, so the caller may pass views of buffers it reuses."""
+
+    takes_views = True
+
+    def __init__(self, pool: ShardPool, i: int) -> None:
+        self.pool, self.i = pool, i
+
+    def __call__(self, frame: Frame) -> None:
+        self.pool.add_frame(self.i, frame)
