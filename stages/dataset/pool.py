@@ -34,6 +34,8 @@ import json
 import multiprocessing as mp
 import struct
 import time
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from multiprocessing.shared_memory import SharedMemory
 from pathlib import Path
@@ -315,9 +317,9 @@ class ShardPool:
     def end_episode(self, i: int, success: bool, reason: str = "") -> None:
         self._send(self._owner(i), b"E" + json.dumps([i, bool(success), str(reason)]).encode())
 
-    def sink(self, i: int) -> _Sink:
+    def sink(self, i: int):
         """A frame sink for shard ``i`` (what the engine's ``begin`` returns)."""
-        return _Sink(self, i)
+        return PoolShard(self, i).add_frame
 
     # -- plumbing -------------------------------------------------------------------------------
     def _owner(self, i: int) -> _Worker:
@@ -371,14 +373,37 @@ class ShardPool:
         self._workers = []
 
 
-class _Sink:
-    """``pool.add_frame(i, frame)`` as a callable frame sink; ``takes_views``: the sink copies the
-    frame's arrays before returning, so the caller may pass views of buffers it reuses."""
-
-    takes_views = True
+class PoolShard:
+    """Shard ``i`` of a pool with a :class:`~stages.dataset.ShardWriter`'s episode methods; its
+    ``add_frame`` copies the frame's arrays before returning (``takes_views``: a caller may pass views
+    of buffers it reuses)."""
 
     def __init__(self, pool: ShardPool, i: int) -> None:
         self.pool, self.i = pool, i
 
-    def __call__(self, frame: Frame) -> None:
+    def begin_episode(self, info: EpisodeInfo) -> None:
+        self.pool.begin_episode(self.i, info)
+
+    def add_frame(self, frame: Frame) -> None:
         self.pool.add_frame(self.i, frame)
+
+    add_frame.takes_views = True  # type: ignore[attr-defined]  # read through bound methods too
+
+    def end_episode(self, success: bool, reason: str = "") -> None:
+        self.pool.end_episode(self.i, success, reason)
+
+
+@contextmanager
+def open_shards(shards_dir: Path, shard_ids: list[str], spec: DatasetSpec, writer_procs: int = 0,
+                slots: int = 32) -> Iterator[list]:
+    """Writers of the shards ``shard_ids`` (one per engine world): inline shard writers when
+    ``writer_procs`` is 0, else :class:`PoolShard` handles of a :class:`ShardPool` of that many processes.
+    Leaving the block publishes them; an exception removes them."""
+    from .shards import open_shard
+
+    if writer_procs <= 0:
+        with ExitStack() as stack:
+            yield [stack.enter_context(open_shard(shards_dir, sid, spec)) for sid in shard_ids]
+        return
+    with ShardPool(shards_dir, shard_ids, spec, PoolConfig(workers=writer_procs, slots=slots)) as pool:
+        yield [PoolShard(pool, i) for i in range(len(shard_ids))]

@@ -13,6 +13,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     episodes_per_shard = 2      # episodes attempted per item; failed ones are counted, not written
     batch_worlds = 1            # engine worlds per item (simulated together, one shard each)
     program_procs = 0           # worker processes for the experts of an item's engine (GPU)
+    writer_procs = 0            # processes writing an item's shards (0: the engine's process)
     # mixed = true              # one item per kitchen: one engine runs every task (stages.demos.mixed)
     # episodes_per_task = 30    # with mixed: episodes of each task per kitchen
     # max_sim_seconds = 120.0   # with mixed: stop each engine after this much simulated time [s]
@@ -72,7 +73,9 @@ class DemosConfig(_Strict):
     CUDA, one MuJoCo C model each on CPU); program_procs: worker processes for the experts'
     planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA);
     program_wait: with program_procs, seconds the engine waits for planning experts before it
-    holds their worlds and steps the others on (None: wait for all); panda_root: the Panda
+    holds their worlds and steps the others on (None: wait for all); writer_procs: processes that
+    write an item's shards (:mod:`stages.dataset.pool`; 0: the engine's process writes them; the
+    files are the same); panda_root: the Panda
     description's root (None: the pip package example-robot-data); max_seconds: episode time limit
     [s] for every task (None: each task's own).
 
@@ -95,6 +98,7 @@ class DemosConfig(_Strict):
     batch_worlds: int = Field(default=1, ge=1, le=4096)
     program_procs: int = Field(default=0, ge=0, le=256)
     program_wait: float | None = Field(default=None, ge=0.0, le=60.0)
+    writer_procs: int = Field(default=0, ge=0, le=64)
     panda_root: Path | None = None
     max_seconds: float | None = Field(default=None, gt=0.0, le=600.0)
     mixed: bool = False
@@ -156,6 +160,7 @@ class ShardParams(_Strict):
     batch_worlds: int = 1
     program_procs: int = 0
     program_wait: float | None = None
+    writer_procs: int = 0
     max_seconds: float | None = None
 
 
@@ -247,8 +252,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 episodes_per_task=config.episodes_per_task, max_sim_seconds=config.max_sim_seconds,
                 max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
                 device=config.device, record_images=config.record_images, batch_worlds=config.batch_worlds,
-                program_procs=config.program_procs, program_wait=config.program_wait, generated=str(generated),
-                packages=packages, panda_root=panda_root)
+                program_procs=config.program_procs, program_wait=config.program_wait,
+                writer_procs=config.writer_procs, generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
         return items
     for t in config.tasks:
@@ -257,7 +262,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.device, record_images=config.record_images,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
-                                 program_wait=config.program_wait, max_seconds=config.max_seconds,
+                                 program_wait=config.program_wait, writer_procs=config.writer_procs,
+                                 max_seconds=config.max_seconds,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -270,7 +276,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
 
     import numpy as np
 
-    from stages.dataset import EpisodeInfo, open_shard
+    from stages.dataset import EpisodeInfo
+    from stages.dataset.pool import open_shards
     from stages.demos.kitchen import AssetLibrary, write_kitchen
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
@@ -295,8 +302,8 @@ def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     seeds = {k: derive_seed(ctx.seed, "episode", str(k)) % (2**62) for k in range(params.episodes)}
     written: Counter[int] = Counter()
     with ExitStack() as stack:
-        shards = [stack.enter_context(open_shard(ctx.out_dir, f"dataset_w{w:03d}", config.dataset_spec()))
-                  for w in range(n)]
+        shards = stack.enter_context(open_shards(ctx.out_dir, [f"dataset_w{w:03d}" for w in range(n)],
+                                                 config.dataset_spec(), params.writer_procs if n > 1 else 0))
 
         next_instance = Listed(world, {w: [(params.task, seeds[k], None) for k in todo[w]] for w in range(n)})
 

@@ -64,6 +64,7 @@ class MixedParams(_Strict):
     batch_worlds: int
     program_procs: int = 0
     program_wait: float | None = None
+    writer_procs: int = 0
     generated: str
     packages: dict[str, str]
     panda_root: str | None = None
@@ -164,7 +165,8 @@ def record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
 
     import numpy as np
 
-    from stages.dataset import EpisodeInfo, open_shard
+    from stages.dataset import EpisodeInfo
+    from stages.dataset.pool import open_shards
     from stages.demos.kitchen import AssetLibrary, write_kitchen
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
@@ -192,8 +194,8 @@ def record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     max_steps = None if params.max_sim_seconds is None else int(round(params.max_sim_seconds
                                                                        * engine.steps_per_second))
     with ExitStack() as stack:
-        shards = [stack.enter_context(open_shard(ctx.out_dir, f"dataset_w{w:04d}", config.dataset_spec()))
-                  for w in range(n)]
+        shards = stack.enter_context(open_shards(ctx.out_dir, [f"dataset_w{w:04d}" for w in range(n)],
+                                                 config.dataset_spec(), params.writer_procs if n > 1 else 0))
 
         def begin(w: int, inst):
             live[w] = todo[w][0]

@@ -113,9 +113,10 @@ class FrameCapture:
         for sink, bid, i, frame in frames:
             if sink is None:
                 continue
-            for name, im in images.get(bid, {}).items():  # the rig reuses its buffers: copies
-                frame.rgb[name] = im[0][i].copy()
-                frame.depth_mm[name] = im[1][i].copy()
+            views = getattr(sink, "takes_views", False)  # the sink copies before it returns
+            for name, im in images.get(bid, {}).items():  # the rig reuses its buffers: else copies
+                frame.rgb[name] = im[0][i] if views else im[0][i].copy()
+                frame.depth_mm[name] = im[1][i] if views else im[1][i].copy()
             sink(frame)
         tm = e.stats.timings
         tm.rendering += t1 - t0

@@ -232,3 +232,35 @@ def test_a_failing_program_names_its_world():
         ls.resume_ready()
     ls.shutdown()
     assert ls.is_done(0) and ls.is_done(1)
+
+
+def test_shards_written_by_writer_processes_equal_shards_written_by_the_engine(room, tmp_path):
+    """The engine hands its frames (views of the render buffers) to a ShardPool: the shards are the
+    same files as those the engine's process writes itself."""
+    import hashlib
+
+    from stages.dataset import EpisodeInfo
+    from stages.dataset.pool import open_shards
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    queues = {0: [("press_button", 3, 0.5), ("push_object", 5, 0.4)], 1: [("pick_place_bowl", 4, 0.6)]}
+    files = {}
+    for procs in (0, 2):
+        config = EngineConfig(worlds=2, width=64, height=48, layout="per_world")
+        eng = BatchEngine(room, panda_root=None, work_dir=tmp_path / f"e{procs}", config=config)
+        with open_shards(tmp_path / f"shards{procs}", ["w0", "w1"], config.dataset_spec(), procs) as shards:
+            def begin(w, inst):
+                shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id="k",
+                                                    seed=inst.seed))
+                return shards[w].add_frame
+
+            def end(w, inst, res, shards=shards):
+                shards[w].end_episode(success=True)  # timeouts kept: the files are compared
+
+            eng.run(Listed(room, queues), begin=begin, end=end)
+        root = tmp_path / f"shards{procs}"
+        files[procs] = {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+                        for p in sorted(root.rglob("*")) if p.is_file() and p.name != "agentworld.json"}
+    assert files[0] == files[2]
+    assert sum(k.endswith(".mp4") for k in files[0]) == 3 * 3  # 3 episodes x 3 cameras
