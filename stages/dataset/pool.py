@@ -137,6 +137,7 @@ def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: in
         for i, sid in ids.items():
             where = sid
             writers[i] = open_shard(Path(shards_dir), sid, spec, **writer_kwargs).open()
+        conn_out.send_bytes(b"O")  # ready
         while True:
             msg = conn_in.recv_bytes()
             kind = msg[:1]
@@ -203,6 +204,7 @@ class _Worker:
         self.error: str | None = None
         self.done: dict | None = None
         self.published = False
+        self.ready = False
 
 
 class ShardPool:
@@ -233,6 +235,13 @@ class ShardPool:
             w.send_out.close()
             self._workers.append(w)
         return self
+
+    def wait_ready(self) -> None:
+        """Block until every worker has started and opened its shards (for benchmarks: frames
+        handed over before that wait in the slots)."""
+        for w in self._workers:
+            while not w.ready:
+                self._receive(w, block=True)
 
     def close(self) -> dict[str, dict]:
         """Publish every shard; returns shard id -> {episodes, frames} written."""
@@ -352,6 +361,8 @@ class ShardPool:
                     w.done = json.loads(msg[1:])
                 elif kind == b"P":
                     w.published = True
+                elif kind == b"O":
+                    w.ready = True
                 else:
                     w.error = msg[1:].decode(errors="replace")
                     raise ShardPoolError(w.error)

@@ -86,7 +86,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
 
     held = {"frames": 0}
 
-    shards = _Shards(eng, work / f"shards_{n}") if args.write else None
+    shards = _Shards(eng, work / f"shards_{n}", args.writer_procs) if args.write else None
 
     def begin(w, inst):
         add = shards.begin(w, inst) if shards is not None else None
@@ -96,6 +96,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
             held["last"] = frame  # keep one frame alive (its arrays are real copies)
             if add is not None:
                 add(frame)
+        # a pool's writers copy the frame at once: the engine may pass views of its render buffers
+        sink.takes_views = shards is not None and args.writer_procs > 0
         return sink
 
     done: list[tuple[str, bool, int, str]] = []
@@ -165,7 +167,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     if render_only is not None:
         maxima["rendering"] = round(render_only, 1)
     if shards is not None and "last" in held:
-        maxima["encoding"] = round(_encode_only(eng, work / f"encode_{n}", held["last"]), 1)
+        maxima["encoding"] = round(_encode_only(eng, work / f"encode_{n}", held["last"],
+                                                procs=args.writer_procs), 1)
     slowest = min(maxima.values())
     lengths: dict[str, list[int]] = defaultdict(list)
     for task, ok, fr, _ in done:
@@ -191,20 +194,21 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
 class _Shards:
     """One dataset shard per engine world (the demos job's writer), recreated per window."""
 
-    def __init__(self, eng, root: Path) -> None:
+    def __init__(self, eng, root: Path, procs: int = 0) -> None:
         import shutil
 
         shutil.rmtree(root, ignore_errors=True)
-        self.eng, self.root, self.k = eng, root, 0
+        self.eng, self.root, self.k, self.procs = eng, root, 0, procs
         self.open()
 
     def open(self) -> None:
-        from stages.dataset import open_shard
+        from stages.dataset.pool import open_shards
 
         self.k += 1
         spec = self.eng.config.dataset_spec()
-        self.w = [open_shard(self.root / f"r{self.k}", f"w{i:04d}", spec).__enter__()
-                  for i in range(self.eng.config.worlds)]
+        self._ctx = open_shards(self.root / f"r{self.k}", [f"w{i:04d}" for i in range(self.eng.config.worlds)],
+                                spec, self.procs)
+        self.w = self._ctx.__enter__()
         self.live = set()
 
     def begin(self, w: int, inst):
@@ -223,22 +227,26 @@ class _Shards:
         """End the episodes the window cut (written when ``keep``, else dropped), close every shard."""
         for w in sorted(self.live):
             self.w[w].end_episode(success=keep, reason="" if keep else "benchmark_window")
-        for wr in self.w:
-            wr.close()
+        self._ctx.__exit__(None, None, None)
         self.open()
 
 
-def _encode_only(eng, root: Path, frame, frames_per_world: int = 30) -> float:
+def _encode_only(eng, root: Path, frame, frames_per_world: int = 30, procs: int = 0) -> float:
     """Encoding alone: ``frames_per_world`` copies of ``frame`` into one fresh shard per world,
-    all worlds in turn per frame (as the engine hands them over). Returns timesteps/s."""
+    all worlds in turn per frame (as the engine hands them over), written by the engine's process
+    or by ``procs`` writer processes (closing included). Returns timesteps/s."""
     import shutil
 
-    from stages.dataset import EpisodeInfo, open_shard
+    from stages.dataset import EpisodeInfo
+    from stages.dataset.pool import open_shards
 
     shutil.rmtree(root, ignore_errors=True)
     spec = eng.config.dataset_spec()
     n = eng.config.worlds
-    ws = [open_shard(root, f"w{i:04d}", spec).__enter__() for i in range(n)]
+    ctx = open_shards(root, [f"w{i:04d}" for i in range(n)], spec, procs)
+    ws = ctx.__enter__()
+    if procs:
+        ws[0].pool.wait_ready()  # process start-up and lerobot's import are not encoding
     t = time.perf_counter()
     for wr in ws:
         wr.begin_episode(EpisodeInfo(task="encode", task_kind="press_button", scene_id="kitchen_bench", seed=0,
@@ -248,7 +256,7 @@ def _encode_only(eng, root: Path, frame, frames_per_world: int = 30) -> float:
             wr.add_frame(frame)
     for wr in ws:
         wr.end_episode(success=True)
-        wr.close()
+    ctx.__exit__(None, None, None)
     rate = n * frames_per_world / (time.perf_counter() - t)
     shutil.rmtree(root, ignore_errors=True)
     return rate
@@ -411,6 +419,8 @@ def main(argv=None) -> dict:
     p.add_argument("--profile", action="store_true",
                    help="profile the engine process over the timed window (cProfile; written beside --out)")
     p.add_argument("--write", action="store_true", help="record into real dataset shards (encoding included)")
+    p.add_argument("--writer-procs", type=int, default=0,
+                   help="with --write: processes writing the shards (stages.dataset.pool; 0: the engine's)")
     p.add_argument("--catalog", type=Path, default=None)
     p.add_argument("--panda-root", type=Path, default=None)
     p.add_argument("--procs", type=int, default=1, help="engine processes sharing the device (worlds split)")
