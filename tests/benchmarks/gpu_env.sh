@@ -1,0 +1,26 @@
+# Source from the repository root on the GPU machine (device tool) before a benchmark or GPU job:
+#   . tests/benchmarks/gpu_env.sh && python3 tests/benchmarks/bench_engine.py --device cuda ...
+#   . tests/benchmarks/gpu_env.sh && python3 -m pipeline.cli run jobs/demos_success_gpu.toml --no-progress
+# Installs, once per machine, the simulation stack staged in $HOME/stash by ../shared/tools/device-wheels
+# (six .carry/partNN calls), then the project's other missing wheels carried in .whl/ (lerobot, datasets,
+# rsl-rl-lib, pydantic, rich, omniverse-asset-validator, ...: pip download --no-deps of constraints.txt's
+# versions) and, when the image lacks PyAV, .whl_av/. Sets PYTHONPATH (the G1's URDF from .loco/erd when
+# carried), WARP_CACHE_PATH and unbuffered output. Says what it could not do; returns non-zero then.
+_aw_fail() { echo "gpu_env: $*" >&2; return 3; }
+if [ ! -d "$HOME/site" ]; then
+  ls "$HOME"/stash/part0* >/dev/null 2>&1 || { _aw_fail "no staged wheels in \$HOME/stash (the .carry/partNN calls)"; return 3; }
+  (cd "$HOME/stash" && cat part0* | tar -x && python3 -m pip install -q --no-index --no-deps --no-compile \
+     --no-cache-dir --target "$HOME/site" wheels/*.whl) >/dev/null 2>&1 || { _aw_fail "installing the staged wheels failed"; return 3; }
+fi
+if [ -d .whl ] && [ ! -f "$HOME/site/.aw_whl" ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$HOME/site" .whl/*.whl \
+    >/dev/null 2>&1 && touch "$HOME/site/.aw_whl" || { _aw_fail "installing .whl/ failed"; return 3; }
+fi
+if ! python3 -c "import av" 2>/dev/null && [ -d .whl_av ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$HOME/site" .whl_av/*.whl \
+    >/dev/null 2>&1 || { _aw_fail "installing .whl_av/ failed"; return 3; }
+fi
+export PYTHONPATH="$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$PWD${PYTHONPATH:+:$PYTHONPATH}"
+[ -d .loco/erd ] && export PYTHONPATH="$PYTHONPATH:$PWD/.loco/erd"
+export WARP_CACHE_PATH="$HOME/stash/warp-cache" PYTHONUNBUFFERED=1
+python3 -c "import newton, warp, lerobot, pydantic" 2>/dev/null || { _aw_fail "newton/warp/lerobot/pydantic do not import"; return 3; }
