@@ -132,7 +132,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         prof.disable()
         _write_profile(prof, args.out.with_name(f"{args.out.stem}_profile_{n}.txt"))
     if shards is not None:
-        shards.stop(keep=True)  # episodes cut by the window are written too: their encoding counts
+        shards.stop(keep=True, reopen=False)  # episodes cut by the window are written too: encoding counts
     wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
     s1 = eng.stats.to_json()["timings"]
     split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
@@ -223,12 +223,14 @@ class _Shards:
         self.w[w].end_episode(success=res.success, reason=res.reason)
         self.live.discard(w)
 
-    def stop(self, *, keep: bool) -> None:
-        """End the episodes the window cut (written when ``keep``, else dropped), close every shard."""
+    def stop(self, *, keep: bool, reopen: bool = True) -> None:
+        """End the episodes the window cut (written when ``keep``, else dropped), close every shard,
+        and open fresh ones for the next window when ``reopen``."""
         for w in sorted(self.live):
             self.w[w].end_episode(success=keep, reason="" if keep else "benchmark_window")
         self._ctx.__exit__(None, None, None)
-        self.open()
+        if reopen:
+            self.open()
 
 
 def _encode_only(eng, root: Path, frame, frames_per_world: int = 30, procs: int = 0) -> float:
