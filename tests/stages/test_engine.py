@@ -246,9 +246,9 @@ def test_shards_written_by_writer_processes_equal_shards_written_by_the_engine(r
 
     queues = {0: [("press_button", 3, 0.5), ("push_object", 5, 0.4)], 1: [("pick_place_bowl", 4, 0.6)]}
     files = {}
+    config = EngineConfig(worlds=2, width=64, height=48, layout="per_world")
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path / "e", config=config)  # each episode resets
     for procs in (0, 2):
-        config = EngineConfig(worlds=2, width=64, height=48, layout="per_world")
-        eng = BatchEngine(room, panda_root=None, work_dir=tmp_path / f"e{procs}", config=config)
         with open_shards(tmp_path / f"shards{procs}", ["w0", "w1"], config.dataset_spec(), procs) as shards:
             def begin(w, inst):
                 shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id="k",
