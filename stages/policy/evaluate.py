@@ -214,9 +214,8 @@ class Evaluator:
 
     def _end(self, w: int, ticket, res) -> None:
         ep = self._episodes.pop(w)
-        video = ""
-        if ep.video is not None:
-            video = str(ep.video.close())
+        path = ep.video.close() if ep.video is not None else None
+        video = "" if path is None else str(path)
         self.records.append(EpisodeRecord(task=ticket.task, scene=self.world.scene_id, seed=ticket.seed, world=w,
                                           success=bool(res.success), reason=res.reason, frames=res.frames,
                                           sim_seconds=round(res.sim_seconds, 3), video=video))
