@@ -101,6 +101,7 @@ def eval_main(argv: list[str]) -> int:
                    help="the training dataset (default: from the checkpoint's train_config.json)")
     p.add_argument("--allow-seen", action="store_true", help="run kitchens / seeds the training data holds")
     p.add_argument("--out", type=Path, required=True, help="output folder: eval.json, videos/, eval.log")
+    p.add_argument("--work", type=Path, default=None, help="where kitchens are built (default OUT/.work; reused)")
     p.add_argument("--verbose", action="store_true")
     a = p.parse_args(argv)
     ckpt = a.checkpoint
@@ -115,7 +116,7 @@ def eval_main(argv: list[str]) -> int:
         return 2
     console = _eval_logging(a.out, a.verbose)
     try:
-        res = evaluate(cfg, a.out)
+        res = evaluate(cfg, a.out, work_dir=a.work)
     except (ValueError, FileNotFoundError) as e:
         print(f"agentworld eval: {e}", file=console)
         return 2

@@ -241,9 +241,9 @@ class Evaluator:
                 self._frame[w] = k
                 self._apply(drv, self._action(w))
                 k += 1
-                if k / f > ep.limit + 1e-9:
-                    return  # the time limit: the engine's success predicate decides
                 view.step(max(1, -(-k * S // f) - view.steps))  # to frame k
+                if k / f >= ep.limit - 1e-9:
+                    return  # the time limit: the engine's success predicate decides
                 if k % check == 0:
                     ok, _ = spec.success(inst, read_state(view), peaks=self.engine.side.peaks.read(w))
                     if ok:
