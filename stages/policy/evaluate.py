@@ -168,7 +168,7 @@ class Evaluator:
         self._cache: dict[int, np.ndarray] = {}
         self._cache_step = -1
         self._queues: dict[int, list] = {}
-        self._frame: dict[int, int] = {}  # each acting world's frame index in its episode
+        self._start: dict[int, int] = {}  # each acting world's episode start [global step]
 
     # -- the engine's callbacks ----------------------------------------------------------------
     def run(self, episodes: list[tuple[str, int]]) -> list[EpisodeRecord]:
@@ -234,11 +234,11 @@ class Evaluator:
         S, f = self.engine.steps_per_second, self.cfg.fps
         check = max(1, round(self.cfg.check_seconds * f))
         self.runner.reset(w, inst.seed)
+        self._start[w] = self.engine.global_step
         self._active.add(w)
         try:
             k = 0
             while True:
-                self._frame[w] = k
                 self._apply(drv, self._action(w))
                 k += 1
                 view.step(max(1, -(-k * S // f) - view.steps))  # to frame k
@@ -262,9 +262,14 @@ class Evaluator:
             obs = self.observe(worlds)
             for v in worlds:
                 for fn in self.observers:
-                    fn(v, self._frame[v], obs[v])
+                    fn(v, self._frame_index(v), obs[v])
             self._cache.update(self.runner.act(obs))
         return self._cache.pop(w)
+
+    def _frame_index(self, w: int) -> int:
+        """World ``w``'s frame index in its episode at this (frame) step."""
+        e = self.engine
+        return round((e.global_step - self._start[w]) * self.cfg.fps / e.steps_per_second)
 
     def observe(self, worlds: list[int]) -> dict[int, dict[str, np.ndarray]]:
         """The policy's observations of ``worlds`` at this frame step: ``observation.state``
