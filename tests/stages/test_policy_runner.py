@@ -145,3 +145,25 @@ def test_load_policy_names_a_folder_that_is_no_checkpoint(tmp_path: Path):
 
     with pytest.raises(FileNotFoundError, match="not a lerobot checkpoint"):
         load_policy(tmp_path)
+
+
+def test_train_policy_uses_the_papers_settings_and_validates_its_config(tmp_path: Path):
+    from stages.policy.train import TrainConfig, lerobot_args
+
+    act = lerobot_args(TrainConfig(policy="act", dataset=tmp_path / "ds", out=tmp_path / "o"))
+    for arg in ("--policy.type=act", "--policy.chunk_size=20", "--policy.n_action_steps=1",
+                "--policy.temporal_ensemble_coeff=0.01", "--batch_size=16", "--policy.pretrained_backbone_weights=null",
+                f"--dataset.root={(tmp_path / 'ds').resolve()}", f"--output_dir={(tmp_path / 'o').resolve() / 'lerobot'}"):
+        assert arg in act, arg
+    dp = lerobot_args(TrainConfig(policy="diffusion", dataset=tmp_path / "ds", out=tmp_path / "o",
+                                  extra_args=("--policy.horizon=32",)))
+    assert "--policy.type=diffusion" in dp and dp[-1] == "--policy.horizon=32"
+    assert not any(a.startswith(("--policy.chunk_size", "--policy.temporal_ensemble")) for a in dp)
+    with pytest.raises(ValueError, match="policy must be one of.*steps must be >= 1.*--key=value"):
+        TrainConfig(policy="pi0", dataset=tmp_path, out=tmp_path, steps=0, extra_args=("policy.x=1",))
+
+
+def test_eval_command_parses_seed_ranges():
+    from stages.policy.cli import _ints
+
+    assert _ints("1,2,5-7") == (1, 2, 5, 6, 7) and _ints("1000000-1000002") == (1000000, 1000001, 1000002)
