@@ -167,6 +167,7 @@ class Evaluator:
         self._episodes: dict[int, _Episode] = {}
         self._cache: dict[int, np.ndarray] = {}
         self._cache_step = -1
+        self._taken: set[int] = set()  # worlds that took their action at this step
         self._queues: dict[int, list] = {}
         self._start: dict[int, int] = {}  # each acting world's episode start [global step]
 
@@ -256,14 +257,17 @@ class Evaluator:
         world's action in one batched call."""
         step = self.engine.global_step
         if step != self._cache_step:
-            self._cache, self._cache_step = {}, step
-        if w not in self._cache:
-            worlds = sorted(v for v in self._active if v not in self._cache)
+            self._cache, self._cache_step, self._taken = {}, step, set()
+        if w in self._taken:
+            raise RuntimeError(f"eval: world {w} asked twice for an action at step {step}")
+        if w not in self._cache:  # every acting world that has no action for this step yet
+            worlds = sorted(v for v in self._active if v not in self._cache and v not in self._taken)
             obs = self.observe(worlds)
             for v in worlds:
                 for fn in self.observers:
                     fn(v, self._frame_index(v), obs[v])
             self._cache.update(self.runner.act(obs))
+        self._taken.add(w)
         return self._cache.pop(w)
 
     def _frame_index(self, w: int) -> int:
