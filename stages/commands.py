@@ -7,6 +7,8 @@ One entry per command; the built-in names (run, ingest, catalog, status) cannot 
 """
 
 COMMANDS: dict[str, tuple[str, str]] = {
+    "eval": ("stages.policy.cli:eval_main",
+             "evaluate a lerobot policy checkpoint closed-loop in held-out task kitchens (success, reasons, videos)"),
     "loco-eval": ("stages.locomotion.cli:eval_main",
                   "evaluate a G1 velocity policy: tracking error [m/s, rad/s] and falls over R rollouts"),
     "loco-export": ("stages.locomotion.cli:export_main",
@@ -17,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                      "G1 worlds through the humanoid runtime (policy + CLIK hands): tracking, hand error, falls"),
     "loco-train": ("stages.locomotion.cli:train_main",
                    "train the G1 velocity-tracking policy with PPO on N Newton worlds; resumes from checkpoints"),
+    "train-policy": ("stages.policy.cli:train_main",
+                     "train ACT or Diffusion Policy on a dataset with lerobot-train; curve CSV/PNG, wall time"),
     "teleop": ("stages.teleop.cli:main",
                "teleoperate a task world from a browser (keyboard) and record episodes; --replay a session"),
     "render-assets": ("stages.render_assets:main",

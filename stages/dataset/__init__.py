@@ -20,16 +20,18 @@ Merge and load::
     from stages.dataset import merge_shards, load_dataset, read_episode_columns
     result = merge_shards(shards_dir, work_dir / "datasets/basic/merged")   # MergeResult with failures
     ds = load_dataset(result.root)                           # a lerobot LeRobotDataset
+    depth = decode_depth(ds[0]["depth.wrist"])               # uint16 (H, W) [mm], lossless
     torch.utils.data.DataLoader(ds, batch_size=32, num_workers=4)
 
 Contact sheet: ``agentworld render-dataset DATASET --out sheet.png``.
 
-Modules: schema (typed spec, frames, validation), writer (EpisodeWriter lifecycle, lerobot backend),
+Modules: schema (typed spec, frames, validation), depth (the lossless depth codec), writer (EpisodeWriter lifecycle, lerobot backend),
 direct (the faster backend writing the same format), shards (atomic shards), merge (aggregation,
 loading), render (contact sheet), synthetic (deterministic frames for tests and benchmarks).
 Importing this package loads neither torch nor lerobot; they load when a writer opens.
 """
 
+from .depth import decode_depth, depth_keys_of, encode_depth
 from .merge import MergeError, MergeResult, load_dataset, merge_datasets, merge_shards, read_episode_columns
 from .schema import (
     CameraSpec,
@@ -68,7 +70,10 @@ __all__ = [
     "VideoCodecSpec",
     "WriterStats",
     "clean_stale_temps",
+    "decode_depth",
+    "depth_keys_of",
     "depth_m_to_mm",
+    "encode_depth",
     "list_shards",
     "load_dataset",
     "merge_datasets",

@@ -22,7 +22,8 @@ What differs (all inside the v3.0 format, which maps every episode to a chunk/fi
 each episode's video is its own mp4 file (``videos/<key>/chunk-XXX/file-YYY.mp4``, from_timestamp 0),
 so a failed episode is deleted without touching others and nothing is re-muxed; merging with
 lerobot's aggregation packs them into size-limited files. Depth frames are 16-bit PNG (lossless,
-zlib level 1) instead of raw TIFF bytes: same ``image`` feature, read by the same PIL decoder.
+zlib level 1, :mod:`stages.dataset.depth`) in ``depth.<camera>`` string columns, encoded by two
+threads as the frames come; their stats are image stats in millimetres, like lerobot's depth maps'.
 The tests prove the result by loading it with ``LeRobotDataset`` and a torch DataLoader.
 """
 
@@ -39,11 +40,11 @@ from typing import Any
 import numpy as np
 
 from ._lerobot import import_lerobot
+from .depth import encode_depth
 from .schema import ACTION_KEY, STATE_KEY, DatasetSpec, Frame
 
 logger = logging.getLogger(__name__)
 
-PNG_LEVEL = 1  # zlib level of the depth PNGs: fast, and most of the gain of higher levels
 STATS_MAX_SIDE = 80  # image stats use frames subsampled to at most this many pixels per side
 QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # lerobot's DEFAULT_QUANTILES (stats keys q01 ... q99)
 
@@ -108,16 +109,6 @@ class _VideoStream:
         self.path.unlink(missing_ok=True)
 
 
-def _png16(depth_mm: np.ndarray) -> bytes:
-    import cv2
-
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(depth_mm.reshape(depth_mm.shape[:2])),
-                           [cv2.IMWRITE_PNG_COMPRESSION, PNG_LEVEL])  # fmt: skip
-    if not ok:
-        raise RuntimeError("cv2.imencode failed to write a 16-bit PNG")
-    return buf.tobytes()
-
-
 class DirectBackend:
     """Backend of :class:`~stages.dataset.writer.EpisodeWriter` (same calls as its lerobot backend)."""
 
@@ -179,11 +170,11 @@ class DirectBackend:
         for cam, key in self.spec.rgb_keys().items():
             img = frame.rgb[cam]
             self._videos[key].put(img)
-            self._samples.setdefault(key, []).append(_stats_sample(img.transpose(2, 0, 1)))
+            self._samples.setdefault(key, []).append(stats_sample(img.transpose(2, 0, 1)))
         for cam, key in self.spec.depth_keys().items():
             d = frame.depth_mm[cam].reshape(frame.depth_mm[cam].shape[:2])
-            self._depth_png[key].append(self._pool.submit(_png16, d.copy()))
-            self._samples.setdefault(key, []).append(_stats_sample(d[None]))
+            self._depth_png[key].append(self._pool.submit(encode_depth, d.copy()))
+            self._samples.setdefault(key, []).append(stats_sample(d[None]))
 
     def _open_videos(self) -> None:
         chunk, file = divmod(self._video_file, self.spec.chunk_size)
@@ -227,9 +218,7 @@ class DirectBackend:
             ep_meta.update({f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
                             f"videos/{key}/from_timestamp": 0.0,
                             f"videos/{key}/to_timestamp": get_video_duration_in_s(stream.path)})  # fmt: skip
-        depth = {
-            key: [{"bytes": f.result(), "path": None} for f in futs] for key, futs in self._depth_png.items()
-        }
+        depth = {key: [f.result() for f in futs] for key, futs in self._depth_png.items()}
         ep_meta.update(self._write_data(columns, depth, start, n))
         stats = self._episode_stats(columns)
         self.meta.save_episode(ep_index, n, [task], stats, ep_meta)
@@ -294,7 +283,7 @@ class DirectBackend:
         return stats
 
 
-def _stats_sample(chw: np.ndarray) -> np.ndarray:
+def stats_sample(chw: np.ndarray) -> np.ndarray:
     """A strided copy of a (C, H, W) frame with at most STATS_MAX_SIDE pixels per side."""
     step = max(1, -(-max(chw.shape[1:]) // STATS_MAX_SIDE))
     return chw[:, ::step, ::step].copy()

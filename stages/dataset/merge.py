@@ -159,7 +159,8 @@ def load_dataset(root: Path, *, episodes: list[int] | None = None, **kwargs: Any
     """Open a dataset written by this package with ``LeRobotDataset`` (local, offline, PyAV decoding).
 
     Items hold ``observation.state`` / ``action`` float32 tensors, RGB videos as float32 (3, H, W) in
-    [0, 1], depth as float32 (1, H, W) [mm] (exact), ``timestamp``, ``task``. kwargs go to LeRobotDataset
+    [0, 1], depth as ``depth.<camera>`` text (:func:`stages.dataset.depth.decode_depth`: uint16 (H, W)
+    [mm], exact), ``timestamp``, ``task``. kwargs go to LeRobotDataset
     (e.g. ``delta_timestamps``, ``episode_filter=lambda ep: ep["agentworld/task_kind"] == "pick_place"``).
     """
     lds = import_lerobot()

@@ -56,6 +56,7 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
     frames: frames per episode, evenly spaced from first to last."""
     from PIL import Image, ImageDraw
 
+    from .depth import decode_depth, depth_keys_of
     from .merge import load_dataset
 
     ds = load_dataset(Path(root))
@@ -66,7 +67,8 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
     bad = [e for e in episodes if not 0 <= e < n_eps]
     if bad:
         raise ValueError(f"{root}: episodes {bad} out of range (dataset has {n_eps})")
-    cams = [k for k in ds.meta.camera_keys]
+    depth_keys = depth_keys_of(ds.meta.features)
+    cams = [*ds.meta.camera_keys, *depth_keys]
     rows: list[tuple[str, list]] = []  # (label, thumbnails)
     headers: list[tuple[int, str]] = []  # (row index, text)
     for ep in episodes:
@@ -78,11 +80,13 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
         text = f"episode {ep}: {items[0]['task']}  ({stop - start} frames; frames {shown})"
         headers.append((len(rows), text))
         for key in cams:
-            if key in ds.meta.depth_keys:
-                thumbs = [_thumb(colorize_depth(it[key][0].numpy())) for it in items]
+            if key in depth_keys:
+                thumbs = [_thumb(colorize_depth(decode_depth(it[key]))) for it in items]
+                label = key.removeprefix("depth.") + " depth"
             else:
                 thumbs = [_thumb(_to_uint8_rgb(it[key])) for it in items]
-            rows.append((key.removeprefix("observation.images."), thumbs))
+                label = key.removeprefix("observation.images.")
+            rows.append((label, thumbs))
     row_h = [max(t.height for t in thumbs) for _, thumbs in rows]
     header_rows = {r for r, _ in headers}
     width = LABEL_W + frames * (THUMB_W + 2)

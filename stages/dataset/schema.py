@@ -10,11 +10,16 @@ Layout of one frame (``fps`` frames per second, 30 by default):
   frame, gripper command (1: 0 open .. 1 closed), mode (1: 0 locomotion / 1 manipulation)];
 - ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec,
   :class:`VideoCodecSpec`; default x264 ultrafast, crf 23, GOP 30, chosen by measurement below);
-- ``observation.images.<camera>_depth`` depth uint16 ``(H, W, 1)`` [mm], stored WITHOUT LOSS as a lerobot
-  depth image (``dtype: image``, ``info.is_depth_map: true``, ``info.depth_unit: mm``): 16-bit PNG bytes
-  (direct backend) or raw 16-bit TIFF bytes (lerobot backend) embedded in the data parquet.
-  ``LeRobotDataset`` returns it as float32 ``(1, H, W)`` millimetres, exact for every uint16 value.
-  (lerobot's depth *video* path quantizes to 12 bits, 4096 levels over 0.01-10 m, so it is not used.)
+- ``depth.<camera>`` depth uint16 ``(H, W)`` [mm], stored WITHOUT LOSS as a 16-bit PNG, base64 text
+  (``dtype: string``, ``info.agentworld_depth: png16_base64``, ``info.height/width``,
+  ``info.depth_unit: mm``) in the data parquet; :func:`stages.dataset.depth.decode_depth` gives the
+  array back, exact for every uint16 value. Why this key and dtype: lerobot's policies take every
+  ``image``/``video`` feature as a camera and every other ``observation.*`` feature as a state, so
+  depth as ``observation.images.<camera>_depth`` (a 1-channel lerobot depth image) made
+  ``lerobot-train --policy.type=act`` fail ("expected input ... to have 3 channels"); a key outside
+  ``observation.`` that is not an image is passed through by ``LeRobotDataset`` (as a string per
+  frame) and ignored by the policies, so datasets train as they are. (lerobot's depth *video* path
+  quantizes to 12 bits, 4096 levels over 0.01-10 m, so it is not used.)
 - the task text (``task``) and, per episode, :class:`EpisodeInfo` as extra ``meta/episodes`` columns
   prefixed ``agentworld/`` (lerobot carries unknown columns through loading and aggregation).
 
@@ -36,7 +41,7 @@ lerobot's AV1 default for 0.45 dB less; most of every codec's loss is the sensor
 keep. On the 16-core GPU host issue 12 measured x264 ultrafast 10,778, veryfast 5,778, AV1 p10 5,026
 and lerobot's default 751 frames/s at 320x240. JPEG is as fast on the CPU but 6x the bytes; nvJPEG
 on CUDA tensors is measured by the benchmark with ``--device cuda``. Depth is not affected: it stays
-lossless 16-bit PNG/TIFF images.
+lossless 16-bit PNG.
 
 Nothing here imports torch or lerobot: the schema is plain data, usable by the recorder and tests.
 """
@@ -54,7 +59,8 @@ import numpy as np
 STATE_KEY = "observation.state"
 ACTION_KEY = "action"
 RGB_KEY = "observation.images.{camera}"
-DEPTH_KEY = "observation.images.{camera}_depth"
+DEPTH_KEY = "depth.{camera}"
+DEPTH_ENCODING = "png16_base64"  # info.agentworld_depth of the depth features
 EPISODE_COLUMN_PREFIX = "agentworld/"
 MODE_LOCOMOTION = 0
 MODE_MANIPULATION = 1
@@ -185,7 +191,7 @@ class DatasetSpec:
         return {c.name: RGB_KEY.format(camera=c.name) for c in self.cameras if c.rgb}
 
     def depth_keys(self) -> dict[str, str]:
-        """camera name -> feature key of its depth image."""
+        """camera name -> feature key of its depth (16-bit PNG, base64; see the module docstring)."""
         return {c.name: DEPTH_KEY.format(camera=c.name) for c in self.cameras if c.depth}
 
     def features(self) -> dict[str, dict[str, Any]]:
@@ -202,8 +208,9 @@ class DatasetSpec:
                 }  # fmt: skip
             if cam.depth:
                 feats[DEPTH_KEY.format(camera=cam.name)] = {
-                    "dtype": "image", "shape": (cam.height, cam.width, 1), "names": hwc,
-                    "info": {"is_depth_map": True, "depth_unit": "mm"},
+                    "dtype": "string", "shape": (1,), "names": None,
+                    "info": {"agentworld_depth": DEPTH_ENCODING, "height": cam.height, "width": cam.width,
+                             "depth_unit": "mm"},
                 }  # fmt: skip
         return feats
 

@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 
 from ._lerobot import import_lerobot
-from .direct import DirectBackend
+from .depth import encode_depth
+from .direct import DirectBackend, stats_sample, image_stats
 from .schema import (
     ACTION_KEY,
     STATE_KEY,
@@ -122,19 +123,34 @@ class _LerobotBackend:
             streaming_encoding=True,
             encoder_queue_maxsize=self._queue_frames,
             encoder_threads=self._encoder_threads,
-            image_writer_threads=2 if self.spec.depth_keys() else 0,
+            image_writer_threads=0,
             data_files_size_in_mb=self.spec.data_files_size_mb,
             video_files_size_in_mb=self.spec.video_files_size_mb,
         )
         self._ds.meta.info.chunks_size = self.spec.chunk_size
+        self._depth_samples: dict[str, list[np.ndarray]] = {}
+        save_meta = self._ds.meta.save_episode
+
+        def save_episode(episode_index, episode_length, episode_tasks, episode_stats, episode_metadata):
+            # lerobot computes no stats of string features: add the depth frames' image stats [mm]
+            from lerobot.datasets.compute_stats import sample_indices
+
+            for key, frames in self._depth_samples.items():
+                sampled = np.stack([frames[i] for i in sample_indices(len(frames))])
+                episode_stats[key] = image_stats(sampled, scale=1.0)
+            self._depth_samples = {}
+            return save_meta(episode_index, episode_length, episode_tasks, episode_stats, episode_metadata)
+
+        self._ds.meta.save_episode = save_episode
 
     def add(self, frame: Frame, task: str) -> None:
         row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": task}
         for cam, key in self.spec.rgb_keys().items():
             row[key] = frame.rgb[cam]
-        for cam, key in self.spec.depth_keys().items():  # copied: lerobot's image writer threads keep it
-            d = frame.depth_mm[cam]
-            row[key] = (d if d.ndim == 3 else d[..., None]).copy()
+        for cam, key in self.spec.depth_keys().items():
+            d = frame.depth_mm[cam].reshape(frame.depth_mm[cam].shape[:2])
+            row[key] = encode_depth(d)
+            self._depth_samples.setdefault(key, []).append(stats_sample(d[None]))
         self._ds.add_frame(row)
 
     def save(self, task: str) -> None:
@@ -142,6 +158,7 @@ class _LerobotBackend:
 
     def discard(self) -> None:
         self._ds.clear_episode_buffer()
+        self._depth_samples = {}
 
     def finalize(self) -> None:
         self._ds.finalize()

@@ -125,6 +125,19 @@ class FrameCapture:
         for kind, w, payload in queued:
             self._handle(kind, w, payload)
 
+    def images_now(self, bank) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The images of the current frame step for a Sim's worlds (by camera: RGB (W, H, Wd, 3)
+        uint8, depth (W, H, Wd) uint16 [mm]; views: copy what you keep), for world programs that
+        act on the current frame (policy evaluation). Waits for the render launched at this step,
+        or launches it (then it is the one :meth:`collect` and :meth:`deliver` use)."""
+        e = self.e
+        if not e._is_frame_step(e.global_step) or self.collected_step == e.global_step:
+            raise RuntimeError(f"engine: images_now at step {e.global_step}: only programs at a frame step")
+        r = self._renders.get(id(bank))
+        if r is None:
+            r = self._renders[id(bank)] = bank.rig.render_compact_async()
+        return r.wait()
+
     def close(self) -> None:
         """At the end of a run: deliver what was collected (and the queued events); a render
         launched but not collected is waited for and dropped."""

@@ -26,9 +26,9 @@ def test_default_spec_dimensions_and_features():
     for cam in ("wrist", "head", "third_person"):
         assert feats[f"observation.images.{cam}"] == {
             "dtype": "video", "shape": (240, 320, 3), "names": ["height", "width", "channels"]}  # fmt: skip
-        depth = feats[f"observation.images.{cam}_depth"]
-        assert depth["dtype"] == "image" and depth["shape"] == (240, 320, 1)
-        assert depth["info"] == {"is_depth_map": True, "depth_unit": "mm"}
+        depth = feats[f"depth.{cam}"]  # not an image and not observation.*: no policy takes it as input
+        assert depth["dtype"] == "string" and depth["shape"] == (1,)
+        assert depth["info"] == {"agentworld_depth": "png16_base64", "height": 240, "width": 320, "depth_unit": "mm"}
 
 
 def test_spec_is_configurable_and_round_trips_json():
@@ -106,7 +106,7 @@ def test_importing_the_package_loads_no_heavy_module():
 
 
 def test_measured_codec_presets_round_trip_and_the_default_is_x264_ultrafast():
-    """The RGB default is the preset bench_encode.py measured fastest per quality; depth stays an image."""
+    """The RGB default is the preset bench_encode.py measured fastest per quality; depth stays PNG text."""
     from stages.dataset.schema import CODEC_PRESETS, CameraSpec, DatasetSpec, VideoCodecSpec
 
     assert VideoCodecSpec() == CODEC_PRESETS["x264_ultrafast"]
@@ -116,4 +116,4 @@ def test_measured_codec_presets_round_trip_and_the_default_is_x264_ultrafast():
         assert DatasetSpec.from_json(spec.to_json()).video == codec, name
         feats = spec.features()
         assert feats["observation.images.head"]["dtype"] == "video"
-        assert feats["observation.images.head_depth"]["dtype"] == "image"
+        assert feats["depth.head"]["dtype"] == "string"

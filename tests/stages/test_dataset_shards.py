@@ -24,6 +24,7 @@ if "HF_DATASETS_CACHE" not in os.environ:  # LeRobotDataset caches arrow copies 
     os.environ["HF_DATASETS_CACHE"] = tempfile.mkdtemp(prefix="hf-datasets-cache-")
     atexit.register(shutil.rmtree, os.environ["HF_DATASETS_CACHE"], True)
 
+from stages.dataset.depth import decode_depth  # noqa: E402
 from stages.dataset.merge import MergeError, load_dataset, merge_shards, read_episode_columns  # noqa: E402
 from stages.dataset.schema import CameraSpec, DatasetSpec, FrameError  # noqa: E402
 from stages.dataset.shards import ShardExistsError, clean_stale_temps, list_shards, open_shard  # noqa: E402
@@ -117,10 +118,10 @@ def test_merged_frames_match_what_was_written(merged):
             np.testing.assert_array_equal(batch["observation.state"][j].numpy(), want.state())
             np.testing.assert_array_equal(batch["action"][j].numpy(), want.action())
             assert batch["task"][j] == synthetic_episode_info(shard, episode).task
-            for cam in ("wrist", "head"):  # depth: exact, float32 (1, H, W) millimetres
-                depth = batch[f"observation.images.{cam}_depth"][j]
-                assert depth.shape == (1, 48, 64)
-                np.testing.assert_array_equal(depth[0].numpy(), want.depth_mm[cam].astype(np.float32))
+            for cam in ("wrist", "head"):  # depth: exact uint16 (H, W) millimetres, decoded from its PNG text
+                depth = decode_depth(batch[f"depth.{cam}"][j])
+                assert depth.shape == (48, 64) and depth.dtype == np.uint16
+                np.testing.assert_array_equal(depth, want.depth_mm[cam])
             for cam in ("wrist", "head", "third_person"):  # rgb: lossy codec, float32 (3, H, W) in [0, 1]
                 got = batch[f"observation.images.{cam}"][j].permute(1, 2, 0).numpy() * 255.0
                 rgb_psnr.append(_psnr(got, want.rgb[cam]))
@@ -142,7 +143,7 @@ def test_merged_stats_match_written_values(merged):
         np.testing.assert_allclose(st["mean"], values.mean(0, dtype=np.float64), rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(st["std"], values.std(0, dtype=np.float64), rtol=1e-4, atol=1e-3)
         assert int(np.asarray(st["count"]).item()) == len(frames)
-    depth = ds.meta.stats["observation.images.wrist_depth"]
+    depth = ds.meta.stats["depth.wrist"]
     assert float(np.squeeze(depth["min"])) == 0.0 and float(np.squeeze(depth["max"])) == 65535.0
     rgb = np.stack([f.rgb["head"] for f in frames]).astype(np.float64) / 255.0
     np.testing.assert_allclose(np.squeeze(ds.meta.stats["observation.images.head"]["mean"]),
@@ -200,7 +201,7 @@ def test_rollover_to_several_files_loads_every_frame(tmp_path, backend):
         ep, i = int(item["episode_index"]), int(item["frame_index"])
         want = synthetic_frame(spec, ep // 3, ep % 3, i)
         np.testing.assert_array_equal(item["observation.state"].numpy(), want.state())
-        depth = item["observation.images.wrist_depth"][0].numpy()
+        depth = decode_depth(item["depth.wrist"])
         np.testing.assert_array_equal(depth, want.depth_mm["wrist"])
         got = item["observation.images.wrist"].permute(1, 2, 0).numpy() * 255.0
         assert _psnr(got, want.rgb["wrist"]) > 28.0

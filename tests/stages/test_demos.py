@@ -274,7 +274,7 @@ def _psnr(a: np.ndarray, b: np.ndarray) -> float:
 def test_the_dataset_loads_and_matches_the_recorded_frames(recorded):
     import torch
 
-    from stages.dataset import load_dataset, read_episode_columns
+    from stages.dataset import decode_depth, load_dataset, read_episode_columns
 
     frames, inst, room = recorded["frames"], recorded["inst"], recorded["room"]
     ds = load_dataset(recorded["merged"].root)
@@ -289,9 +289,9 @@ def test_the_dataset_loads_and_matches_the_recorded_frames(recorded):
             np.testing.assert_array_equal(batch["action"][j].numpy(), want.action())
             assert batch["task"][j] == inst.instruction
             for cam in ("wrist", "head", "third_person"):
-                depth = batch[f"observation.images.{cam}_depth"][j]
-                assert depth.shape == (1, 72, 96)
-                np.testing.assert_array_equal(depth[0].numpy(), want.depth_mm[cam].astype(np.float32))
+                depth = decode_depth(batch[f"depth.{cam}"][j])
+                assert depth.shape == (72, 96)
+                np.testing.assert_array_equal(depth, want.depth_mm[cam])
                 depth_hits += int((want.depth_mm[cam] > 0).sum())
                 got = batch[f"observation.images.{cam}"][j].permute(1, 2, 0).numpy() * 255.0
                 psnr.append(_psnr(got, want.rgb[cam]))
@@ -305,7 +305,7 @@ def test_the_dataset_loads_and_matches_the_recorded_frames(recorded):
     np.testing.assert_allclose(st["max"], state.max(0), rtol=1e-6)
     np.testing.assert_allclose(st["mean"], state.mean(0, dtype=np.float64), rtol=1e-5, atol=1e-6)
     depth = np.stack([f.depth_mm["head"] for f in frames]).astype(np.float64)
-    dst = ds.meta.stats["observation.images.head_depth"]  # image stats come from sampled frames
+    dst = ds.meta.stats["depth.head"]  # image stats come from sampled frames
     assert depth.min() <= float(np.squeeze(dst["min"])) <= float(np.squeeze(dst["max"])) <= depth.max()
     assert float(np.squeeze(dst["mean"])) == pytest.approx(depth.mean(), rel=0.1)
     (row,) = read_episode_columns(recorded["merged"].root)

@@ -1,0 +1,81 @@
+"""``python -m stages.policy.lerobot_train_run CURVE.csv -- <lerobot-train arguments>``.
+
+Runs lerobot's own training entry point (``lerobot.scripts.lerobot_train:main``, what the
+``lerobot-train`` command runs) with the given arguments, in this process, offline. One addition: a
+logging handler receives lerobot's metrics tracker at every log step (``--log_freq``) and appends a
+row to ``CURVE.csv``: step, samples, epochs, loss and the policy's sub-losses, gradient norm,
+learning rate, update and data-loading time per step [s], and the wall time since start [s].
+(lerobot's console line rounds the step to thousands, "step:2K"; the tracker has the exact values.)
+It is a filter of the root logger, which lerobot's ``init_logging`` keeps (it replaces handlers).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+# curve columns; sub-losses of a policy (ACT: l1_loss, kld_loss) follow as they appear
+CURVE_COLUMNS = ("step", "samples", "epochs", "loss", "grad_norm", "lr", "update_s", "data_s", "wall_s")
+_TRACKER_NAMES = {"loss": "loss", "grad_norm": "grad_norm", "lr": "lr", "update_s": "update_s",
+                  "data_s": "dataloading_s"}  # curve column -> lerobot's tracker metric
+
+
+class CurveFilter(logging.Filter):
+    """Writes a CSV row per logged metrics tracker (``lerobot.utils.logging_utils.MetricsTracker``);
+    lets every record through."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = Path(path)
+        self.t0 = time.perf_counter()
+        self.columns: list[str] | None = None
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        tracker = record.msg
+        if hasattr(tracker, "steps") and hasattr(tracker, "metrics"):
+            self._write(tracker)
+        return True
+
+    def _write(self, tracker) -> None:
+        metrics = tracker.metrics
+        row = {"step": int(tracker.steps), "samples": int(tracker.samples), "epochs": f"{tracker.epochs:.4f}",
+               "wall_s": f"{time.perf_counter() - self.t0:.2f}"}
+        for col, name in _TRACKER_NAMES.items():
+            row[col] = f"{float(metrics[name].avg):.6g}" if name in metrics else ""
+        known = set(_TRACKER_NAMES.values()) | {"samples_per_s"}
+        for name, meter in metrics.items():
+            if name not in known:
+                row[name] = f"{float(meter.avg):.6g}"
+        new = self.columns is None
+        if new:
+            self.columns = [*CURVE_COLUMNS, *(k for k in row if k not in CURVE_COLUMNS)]
+        with self.path.open("a", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=self.columns, extrasaction="ignore")
+            if new:
+                w.writeheader()
+            w.writerow(row)
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 2 or argv[1] != "--":
+        print("usage: python -m stages.policy.lerobot_train_run CURVE.csv -- <lerobot-train arguments>",
+              file=sys.stderr)
+        return 2
+    os.environ.setdefault("HF_HUB_OFFLINE", "1")
+    os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
+    from lerobot.scripts import lerobot_train
+
+    curve = Path(argv[0])
+    curve.unlink(missing_ok=True)
+    logging.getLogger().addFilter(CurveFilter(curve))
+    sys.argv = ["lerobot-train", *argv[2:]]
+    lerobot_train.main()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,155 @@
+"""Train ACT or Diffusion Policy on one of our datasets with ``lerobot-train`` (issue 17).
+
+:func:`train_policy` runs lerobot's training entry point in a subprocess
+(:mod:`stages.policy.lerobot_train_run`: ``lerobot-train`` with a hook that records the training
+curve) on a dataset folder as the project writes it (no conversion: depth is ``depth.<camera>``,
+which no policy takes as an input). Output folder ``OUT``:
+
+- ``OUT/lerobot/``: lerobot's ``output_dir`` (checkpoints; the policy to evaluate is
+  ``OUT/lerobot/checkpoints/last/pretrained_model``, see :func:`checkpoint_of`);
+- ``OUT/curve.csv`` / ``OUT/curve.png``: loss (and ACT's l1 / kld terms), gradient norm and
+  learning rate against the step;
+- ``OUT/train.json``: configuration, the exact lerobot-train command, wall time [s], last loss;
+- ``OUT/train.log``: lerobot's output.
+
+Settings (the AgentWorld paper trains lerobot's implementations with action chunks of 20 for basic
+tasks, 40 for multistage ones, temporal ensembling and batch 16): ACT with ``chunk_size`` 20,
+``n_action_steps`` 1 and ``temporal_ensemble_coeff`` 0.01 (lerobot's ensembling needs one action
+per step); Diffusion Policy with lerobot's defaults (horizon 16, 2 observation steps, 8 actions per
+chunk: its U-Net needs a horizon divisible by 8, and lerobot has no ensembling for it); batch 16;
+every other setting lerobot's default for the policy. The vision backbone starts from scratch
+(``pretrained_backbone_weights`` unset): ImageNet weights cannot be downloaded on these machines.
+``extra_args`` passes further ``--key=value`` arguments to lerobot-train as they are (a tiny model
+for tests, a crop for small images).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+POLICIES = ("act", "diffusion")
+CHECKPOINT = Path("lerobot") / "checkpoints" / "last" / "pretrained_model"
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """policy: "act" or "diffusion"; dataset: a LeRobot dataset folder written by the project;
+    out: the output folder (must not exist); steps: optimizer steps; batch_size: samples per step;
+    chunk_size: ACT's action chunk [frames] (20 basic, 40 multistage tasks); temporal_ensemble:
+    ACT's temporal ensembling coefficient (None: no ensembling, ``n_action_steps`` = chunk);
+    device: "cuda", "cuda:N" or "cpu"; seed: lerobot's seed; num_workers: data loader workers;
+    log_freq: steps per curve point; save_freq: steps per checkpoint; extra_args: more
+    lerobot-train arguments (``--policy.dim_model=64``)."""
+
+    policy: str
+    dataset: Path
+    out: Path
+    steps: int = 100_000
+    batch_size: int = 16
+    chunk_size: int = 20
+    temporal_ensemble: float | None = 0.01
+    device: str = "cuda"
+    seed: int = 1000
+    num_workers: int = 4
+    log_freq: int = 100
+    save_freq: int = 20_000
+    extra_args: tuple[str, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.policy not in POLICIES:
+            problems.append(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        for name in ("steps", "batch_size", "chunk_size", "log_freq", "save_freq"):
+            if getattr(self, name) < 1:
+                problems.append(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.num_workers < 0:
+            problems.append(f"num_workers must be >= 0, got {self.num_workers}")
+        bad = [a for a in self.extra_args if not a.startswith("--")]
+        if bad:
+            problems.append(f"extra_args must be --key=value arguments, got {bad}")
+        if problems:
+            raise ValueError("train-policy: " + "; ".join(problems))
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """checkpoint: the last checkpoint's ``pretrained_model`` folder; curve_csv / curve_png;
+    wall_seconds: the training subprocess's wall time [s]; steps; last_loss (the last curve
+    point's loss, None without one); command: the lerobot-train arguments."""
+
+    checkpoint: Path
+    curve_csv: Path
+    curve_png: Path
+    wall_seconds: float
+    steps: int
+    last_loss: float | None
+    command: tuple[str, ...]
+
+
+def lerobot_args(cfg: TrainConfig) -> list[str]:
+    """The lerobot-train arguments of ``cfg`` (see the module docstring for the settings)."""
+    ds = Path(cfg.dataset).resolve()
+    args = [
+        f"--dataset.repo_id=agentworld/{ds.name}", f"--dataset.root={ds}", "--dataset.video_backend=pyav",
+        f"--policy.type={cfg.policy}", f"--policy.device={cfg.device}", "--policy.push_to_hub=false",
+        f"--output_dir={Path(cfg.out).resolve() / 'lerobot'}", f"--job_name={cfg.policy}_{ds.name}",
+        f"--steps={cfg.steps}", f"--batch_size={cfg.batch_size}", f"--num_workers={cfg.num_workers}",
+        f"--log_freq={cfg.log_freq}", f"--save_freq={min(cfg.save_freq, cfg.steps)}", f"--seed={cfg.seed}",
+        "--wandb.enable=false", "--policy.pretrained_backbone_weights=null",
+    ]  # fmt: skip
+    if cfg.policy == "act":
+        args += [f"--policy.chunk_size={cfg.chunk_size}"]
+        if cfg.temporal_ensemble is not None:
+            args += ["--policy.n_action_steps=1", f"--policy.temporal_ensemble_coeff={cfg.temporal_ensemble}"]
+        else:
+            args += [f"--policy.n_action_steps={cfg.chunk_size}"]
+    return args + list(cfg.extra_args)
+
+
+def checkpoint_of(out: Path) -> Path:
+    """The evaluable checkpoint (``pretrained_model`` folder) of a train-policy output folder."""
+    return Path(out) / CHECKPOINT
+
+
+def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResult:
+    """Run lerobot-train for ``cfg`` (see the module docstring); raises ``RuntimeError`` naming the
+    log when it fails."""
+    out = Path(cfg.out).resolve()
+    if out.exists():
+        raise FileExistsError(f"train-policy: {out} exists (choose a new output folder)")
+    if not (Path(cfg.dataset) / "meta" / "info.json").is_file():
+        raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
+    out.mkdir(parents=True)
+    args = lerobot_args(cfg)
+    cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), "--", *args]
+    env = dict(os.environ, HF_HUB_OFFLINE="1", TQDM_DISABLE="1", HF_DATASETS_DISABLE_PROGRESS_BARS="1")
+    repo = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = os.pathsep.join([repo, *filter(None, [env.get("PYTHONPATH")])])
+    t0 = time.perf_counter()
+    with (out / "train.log").open("w") as log:
+        proc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, timeout=timeout)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"train-policy: lerobot-train failed (exit {proc.returncode}); see {out / 'train.log'}")
+    ckpt = checkpoint_of(out)
+    if not (ckpt / "model.safetensors").is_file():
+        raise RuntimeError(f"train-policy: no checkpoint in {ckpt}; see {out / 'train.log'}")
+    rows = list(csv.DictReader((out / "curve.csv").open())) if (out / "curve.csv").is_file() else []
+    from .curve import plot_curve
+
+    png = plot_curve(out / "curve.csv", out / "curve.png")
+    last = float(rows[-1]["loss"]) if rows and rows[-1].get("loss") else None
+    res = TrainResult(checkpoint=ckpt, curve_csv=out / "curve.csv", curve_png=png, wall_seconds=round(wall, 2),
+                      steps=cfg.steps, last_loss=last, command=("lerobot-train", *args))
+    summary = {"config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+               "checkpoint": str(ckpt), "wall_seconds": res.wall_seconds, "steps": cfg.steps,
+               "curve_points": len(rows), "last_loss": last, "command": list(res.command)}
+    (out / "train.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return res
