@@ -25,7 +25,7 @@ import numpy as np
 
 from pipeline.types import ItemError
 from stages.simulate.robot import RobotDescription
-from stages.simulate.robot_load import DriveGains, RobotIndices, add_robot
+from stages.simulate.robot_load import DriveGains, RobotIndices
 
 log = logging.getLogger(__name__)
 ROBOT_LABEL = "robot"
@@ -461,7 +461,7 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
     SolverMuJoCo.register_custom_attributes(b)
     loaded = load_scene(b, scene)
     spawn = cfg.spawn or find_free_spawn(b, rng, radius=cfg.robot_radius, near=cfg.spawn_near)
-    robot = add_robot(b, desc, spawn_xy_yaw=spawn, gains=cfg.gains)
+    robot = desc.add_to_builder(b, spawn, cfg.gains)
     labels = list(loaded.shape_label) + [ROBOT_LABEL] * (robot.shape_end - robot.shape_start)
     return b, loaded, robot, spawn, labels
 
