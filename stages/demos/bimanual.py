@@ -180,7 +180,7 @@ def lift_tray(sim, ctl, ik, scene: TrayScene, *, lift: float = 0.10, hold: float
         q = sim.state_0.body_q.numpy()
         return np.array([q[body][:3] - q[t][:3] for t in tcps.values()])
 
-    q1 = sim.state_0.body_q.numpy()[body]
+    q1 = sim.state_0.body_q.numpy()[body].copy()   # on the CPU, numpy() is a view of a swapped buffer
     r1, tilts = rel(), []
     for _ in range(int(round(hold / sim.settings.dt)) // 25):
         sim.step(25)

@@ -18,7 +18,9 @@ Source and what is kept (``vx300s_left.xml``; ``vx300s_right.xml`` is the same a
 becomes a link with its inertial (pos / quat / diaginertia turned into a full tensor in the link
 frame), every hinge / slide joint a revolute / prismatic joint with its range, every mesh geom a
 visual and a collision mesh (MuJoCo collides its convex hull, as the source's own MJCF does);
-bodies without a joint (the gripper prop) are welded. Names lose ``vx300s_left/`` and get
+bodies without a joint (the gripper prop) are welded; the right finger mimics the left one
+(multiplier -1: one servo drives both, so the pair stays centred on what it grips; Pinocchio ignores
+the tag and sees two joints). Names lose ``vx300s_left/`` and get
 ``<arm>_``. Dropped: the base mesh's collision (contype 0 in the source), the camera-focus body
 and sites, the joints' ``frictionloss`` (30-60 N m of Coulomb friction in MuJoCo: with the
 source's gains it stood in for damping; here the spec's drives damp) and the source's
@@ -95,9 +97,9 @@ class DualArmDescription:
     def joints(self) -> tuple[str, ...]:
         return self.base_joints + self.arm_joints + self.finger_joints
 
-    def add_to_builder(self, builder, spawn_xy_yaw=(0.0, 0.0, 0.0), gains=None):
-        """Add the robot to a Newton ``ModelBuilder`` (:func:`add_dual_arm`; ``gains`` is unused:
-        the spec's drives apply); ``stages.simulate.world.build_sim`` calls this."""
+    def add_to_builder(self, builder, spawn_xy_yaw=(0.0, 0.0, 0.0)):
+        """Add the robot to a Newton ``ModelBuilder`` (:func:`add_dual_arm`, with the spec's
+        drives); ``stages.simulate.world.build_sim`` calls this for descriptions that have it."""
         return add_dual_arm(builder, self, spawn_xy_yaw=spawn_xy_yaw)
 
 
@@ -210,6 +212,8 @@ def _add_arm(robot: ET.Element, side: str, src: Path, mount_xyz, tcp_xyz, tcp_rp
                 lo, hi = (float(v) for v in joints[0].get("range").split())
                 ET.SubElement(j, "axis", xyz=_fmt(_vec(joints[0], "axis")))
                 ET.SubElement(j, "limit", lower=f"{lo:.9g}", upper=f"{hi:.9g}", effort="10", velocity="3")
+                if jname == f"{side}_right_finger":   # one servo moves both fingers (rack and pinion)
+                    ET.SubElement(j, "mimic", joint=f"{side}_left_finger", multiplier="-1", offset="0")
         for child in body.findall("body"):
             walk(child, name)
 

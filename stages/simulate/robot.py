@@ -153,13 +153,6 @@ class RobotDescription:
     def ee_frame(self) -> str:
         return self.gripper.tcp
 
-    def add_to_builder(self, builder, spawn_xy_yaw=(0.0, 0.0, 0.0), gains=None):
-        """Add the robot to a Newton ``ModelBuilder`` (:func:`stages.simulate.robot_load.add_robot`
-        with ``gains``, a ``DriveGains``); ``stages.simulate.world.build_sim`` calls this."""
-        from stages.simulate.robot_load import add_robot
-
-        return add_robot(builder, self, spawn_xy_yaw=spawn_xy_yaw, gains=gains)
-
 
 # --------------------------------------------------------------------------------------------
 # Finding the Panda description
