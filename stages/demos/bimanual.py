@@ -1,9 +1,10 @@
 """Bimanual scripted experts for the dual-arm platform (:mod:`stages.simulate.dual_arm`) and the
 table scene they work in.
 
-- :func:`write_tray_scene`: floor, a table (static boxes) and a serving tray on it (a rigid body:
-  a floor plate and four rims, :class:`TraySpec`), as a USD scene that
-  :func:`stages.simulate.world.build_sim` loads like a composed scene.
+- :func:`write_table_scene`: floor, a table (static boxes) and an object on it: a serving tray
+  (a rigid body of a floor plate and four rims, :class:`TraySpec`) or a block
+  (:class:`BlockSpec`), as a USD scene that :func:`stages.simulate.world.build_sim` loads like a
+  composed scene.
 - :func:`lift_tray`: both grippers come down top-down onto the middle of the tray's two side rims
   (the fingers straddling each rim, closing across it), close, lift the tray ``lift`` [m]
   straight up with both arms at once, and hold it ``hold`` [s]. The two grasps lie on one line
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-TRAY_PRIM = "/World/Tray"
+OBJECT_PRIM = "/World/Object"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -33,6 +34,7 @@ class TraySpec:
     rim: float = 0.008
     floor: float = 0.006
     mass: float = 0.4
+    label: str = "tray"
 
     def boxes(self) -> dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]:
         """Part name -> (centre, size) [m] in the tray frame (origin: the floor's bottom centre)."""
@@ -47,26 +49,44 @@ class TraySpec:
 
 
 @dataclass(frozen=True, kw_only=True)
-class TrayScene:
-    """usd: the scene file; body: the tray's rigid-body prim path; tray; position: the tray
-    origin's start position (3,) [m]; table_height [m]."""
+class BlockSpec:
+    """A block lying along Y: size (x, y, z) [m], mass [kg] (20 cm of 35 x 40 mm wood: 0.15 kg)."""
+
+    size: tuple[float, float, float] = (0.035, 0.20, 0.04)
+    mass: float = 0.15
+    label: str = "block"
+
+    @property
+    def height(self) -> float:
+        return self.size[2]
+
+    def boxes(self) -> dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]:
+        """Part name -> (centre, size) [m] in the block frame (origin: its bottom centre)."""
+        return {"Body": ((0.0, 0.0, self.size[2] / 2), self.size)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class TableScene:
+    """usd: the scene file; body: the object's rigid-body prim path; obj: its spec
+    (:class:`TraySpec` or :class:`BlockSpec`); position: the object origin's start position (3,)
+    [m]; table_height [m]."""
 
     usd: Path
     body: str
-    tray: TraySpec
+    obj: TraySpec | BlockSpec
     position: tuple[float, float, float]
     table_height: float
 
 
-def write_tray_scene(path: Path, *, tray: TraySpec | None = None, table_xy=(0.62, 0.0), table_size=(0.6, 0.9),
-                     table_height: float = 0.55, tray_xy=(0.46, 0.0)) -> TrayScene:
+def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.0), table_xy=(0.62, 0.0),
+                      table_size=(0.6, 0.9), table_height: float = 0.55) -> TableScene:
     """Author the scene at ``path`` (.usda): floor, a table whose top centre is at ``table_xy``
-    [m] with its surface at ``table_height`` [m], and ``tray`` standing on it at ``tray_xy``."""
+    [m] with its surface at ``table_height`` [m], and ``obj`` (a rigid body of boxes) standing on
+    it at ``obj_xy``."""
     from pxr import Gf, Sdf
 
     from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
 
-    tray = tray or TraySpec()
     path = Path(path)
     w = _Writer()
     w.prim("/World", "Xform", meta={"kind": "assembly"})
@@ -80,14 +100,14 @@ def write_tray_scene(path: Path, *, tray: TraySpec | None = None, table_xy=(0.62
     _box(w, "/World/Table/Top", (*table_xy, table_height - t / 2), (*table_size, t), (0.55, 0.4, 0.3))
     _box(w, "/World/Table/Base", (*table_xy, (table_height - t) / 2),
          (table_size[0] * 0.5, table_size[1] * 0.5, table_height - t), (0.4, 0.3, 0.25))
-    pos = (float(tray_xy[0]), float(tray_xy[1]), float(table_height) + 0.0005)
-    la, lv = _labels("tray")
-    w.prim(TRAY_PRIM, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
-           attrs={**_xform_attrs(pos), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, tray.mass)})
-    for name, (c, s) in tray.boxes().items():
-        _box(w, f"{TRAY_PRIM}/{name}", c, s, (0.75, 0.72, 0.65))
+    pos = (float(obj_xy[0]), float(obj_xy[1]), float(table_height) + 0.0005)
+    la, lv = _labels(obj.label)
+    w.prim(OBJECT_PRIM, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
+           attrs={**_xform_attrs(pos), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, obj.mass)})
+    for name, (c, s) in obj.boxes().items():
+        _box(w, f"{OBJECT_PRIM}/{name}", c, s, (0.75, 0.72, 0.65))
     w.write(path, "World")
-    return TrayScene(usd=path, body=TRAY_PRIM, tray=tray, position=pos, table_height=float(table_height))
+    return TableScene(usd=path, body=OBJECT_PRIM, obj=obj, position=pos, table_height=float(table_height))
 
 
 # --------------------------------------------------------------------------------------------
@@ -120,7 +140,7 @@ def tilt_deg(quat_xyzw) -> float:
     return float(np.degrees(np.arccos(np.clip(z[2], -1.0, 1.0))))
 
 
-def rim_grasps(scene: TrayScene, tray_q, *, depth: float = 0.015) -> dict[str, np.ndarray]:
+def rim_grasps(scene: TableScene, tray_q, *, depth: float = 0.015) -> dict[str, np.ndarray]:
     """TCP poses (4, 4), world, for the two side rims of the tray at pose ``tray_q`` (7,) (x, y,
     z, quaternion x, y, z, w): over the middle of each rim's centre line, ``depth`` [m] below its
     top, pointing down with the fingers closing across the rim; "left" takes the +Y rim."""
@@ -130,7 +150,7 @@ def rim_grasps(scene: TrayScene, tray_q, *, depth: float = 0.015) -> dict[str, n
 
     r = Rotation.from_quat(tray_q[3:7])
     yaw = float(r.as_euler("xyz")[2])
-    tr = scene.tray
+    tr = scene.obj
     out = {}
     for arm, s in (("left", 1.0), ("right", -1.0)):
         local = np.array([0.0, s * (tr.size[1] / 2 - tr.rim / 2), tr.height - depth])
@@ -152,7 +172,19 @@ def gripper_contacts(sim, desc, body: int, world: int = 0) -> dict[str, int]:
     return {arm: len(v) for arm, v in out.items()}
 
 
-def lift_tray(sim, ctl, ik, scene: TrayScene, *, lift: float = 0.10, hold: float = 2.0, above: float = 0.08,
+def close_gripper(sim, ctl, arm: str | None, duration: float, *, settle: float = 0.3, world: int = 0,
+                  opening: bool = False) -> None:
+    """Ramp the gripper command of ``arm`` (None: both) from 0 to 1 (``opening``: 1 to 0) over
+    ``duration`` [s], then wait ``settle`` [s] for the grip force to build."""
+    steps = max(1, int(round(duration / sim.settings.dt)))
+    for i in range(0, steps, 10):
+        c = min(1.0, (i + 10) / steps)
+        ctl.set_gripper(1.0 - c if opening else c, world, arm)
+        sim.step(10)
+    sim.step(int(round(settle / sim.settings.dt)))
+
+
+def lift_tray(sim, ctl, ik, scene: TableScene, *, lift: float = 0.10, hold: float = 2.0, above: float = 0.08,
               close_time: float = 0.6, world: int = 0) -> TrayLift:
     """The tray lift expert (see the module docstring) in ``sim`` with ``ctl`` (a
     :class:`stages.simulate.bimanual_control.BimanualControl`) and ``ik`` (``BimanualIk``):
@@ -167,11 +199,7 @@ def lift_tray(sim, ctl, ik, scene: TrayScene, *, lift: float = 0.10, hold: float
     move_arms(sim, ctl, ik, pre, 2.0, segments=8, settle=0.3, world=world)
     move_arms(sim, ctl, ik, grasps, 1.0, segments=4, settle=0.3, world=world)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
-    steps = max(1, int(round(close_time / sim.settings.dt)))
-    for i in range(0, steps, 10):
-        ctl.set_gripper(min(1.0, (i + 10) / steps), world)
-        sim.step(10)
-    sim.step(int(round(0.3 / sim.settings.dt)))
+    close_gripper(sim, ctl, None, close_time, world=world)
     move_arms(sim, ctl, ik, {a: _raised(p, lift) for a, p in grasps.items()}, 2.0, segments=8, settle=0.3,
               world=world)
     tcps = {a: sim.world_body(desc_arm.tcp, world) for a, desc_arm in ik.desc.arms.items()}
@@ -196,3 +224,79 @@ def _raised(p: np.ndarray, dz: float) -> np.ndarray:
     out = np.array(p, float)
     out[2, 3] += dz
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# the hand-over
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class Handover:
+    """What the hand-over measured. picked: the block's rise [m] in the giving gripper before the
+    hand-over; gripped_after: per arm, the fingers touching the block at the end (the receiver 2,
+    the giver 0); height: the block's bottom above the table [m] at the end; slip: change [m] of the
+    block's position relative to the receiving TCP over the final hold."""
+
+    picked: float
+    gripped_after: dict[str, int]
+    height: float
+    slip: float
+
+
+def block_grasp(block_q, along: float, height: float, *, depth: float = 0.012) -> np.ndarray:
+    """TCP pose (4, 4), world, over a block of ``height`` [m] at pose ``block_q`` (7,) (x, y, z,
+    quaternion x, y, z, w), ``along`` [m] from its centre along its length (its Y), ``depth`` [m]
+    below its top, pointing down with the fingers closing across the block (along its X)."""
+    from scipy.spatial.transform import Rotation
+
+    from stages.simulate.control import pose, top_down
+
+    r = Rotation.from_quat(block_q[3:7])
+    yaw = float(r.as_euler("xyz")[2])
+    return pose(r.apply([0.0, along, height - depth]) + block_q[:3], top_down(yaw + np.pi / 2))
+
+
+def hand_over(sim, ctl, ik, scene: TableScene, *, giver: str = "right", receiver: str = "left", rise: float = 0.15,
+              offset: float = 0.06, above: float = 0.08, hold: float = 1.0, world: int = 0) -> Handover:
+    """The hand-over expert: ``giver`` picks the block (lying along Y) by its own end (``offset``
+    [m] from the centre, top-down), lifts it ``rise`` [m]; ``receiver`` comes down on the block's
+    other end where the block now is and closes; ``giver`` opens and withdraws ``above`` [m] up
+    and away; ``receiver`` carries the block ``offset`` [m] towards its own side and holds it
+    ``hold`` [s]."""
+    from stages.simulate.bimanual_control import move_arms
+
+    body = sim.body_of_path(scene.body, world)
+    table_z = scene.table_height
+    side = {"left": 1.0, "right": -1.0}
+    q = sim.state_0.body_q.numpy()[body].copy()
+    z0 = float(q[2])
+    ctl.set_gripper(0.0, world)
+    grasp = block_grasp(q, side[giver] * offset, scene.obj.height)
+    move_arms(sim, ctl, ik, {giver: _raised(grasp, above)}, 1.5, segments=6, settle=0.2, world=world)
+    move_arms(sim, ctl, ik, {giver: grasp}, 1.0, segments=4, settle=0.2, world=world)
+    close_gripper(sim, ctl, giver, 0.5, world=world)
+    move_arms(sim, ctl, ik, {giver: _raised(grasp, rise)}, 1.5, segments=6, settle=0.3, world=world)
+    q = sim.state_0.body_q.numpy()[body].copy()
+    picked = float(q[2]) - z0
+    take = block_grasp(q, side[receiver] * offset, scene.obj.height)
+    move_arms(sim, ctl, ik, {receiver: _raised(take, above)}, 1.5, segments=6, settle=0.2, world=world)
+    move_arms(sim, ctl, ik, {receiver: take}, 1.0, segments=4, settle=0.2, world=world)
+    close_gripper(sim, ctl, receiver, 0.5, world=world)
+    close_gripper(sim, ctl, giver, 0.3, world=world, opening=True)
+    back = _raised(grasp, rise + above)
+    back[1, 3] += side[giver] * 0.10
+    move_arms(sim, ctl, ik, {giver: back}, 1.0, segments=4, world=world)
+    away = _raised(take, 0.0)
+    away[1, 3] += side[receiver] * offset
+    move_arms(sim, ctl, ik, {receiver: away}, 1.0, segments=4, settle=0.2, world=world)
+    tcp = sim.world_body(ik.desc.arms[receiver].tcp, world)
+
+    def rel() -> np.ndarray:
+        bq = sim.state_0.body_q.numpy()
+        return bq[body][:3] - bq[tcp][:3]
+
+    r1 = rel()
+    sim.step(int(round(hold / sim.settings.dt)))
+    return Handover(picked=picked, gripped_after=gripper_contacts(sim, ik.desc, body, world),
+                    height=float(sim.state_0.body_q.numpy()[body][2]) - table_z, slip=float(np.linalg.norm(rel() - r1)))

@@ -18,7 +18,12 @@ Source and what is kept (``vx300s_left.xml``; ``vx300s_right.xml`` is the same a
 becomes a link with its inertial (pos / quat / diaginertia turned into a full tensor in the link
 frame), every hinge / slide joint a revolute / prismatic joint with its range, every mesh geom a
 visual and a collision mesh (MuJoCo collides its convex hull, as the source's own MJCF does);
-bodies without a joint (the gripper prop) are welded; the right finger mimics the left one
+bodies without a joint (the gripper prop) are welded. The fingers collide as boxes (the pad, the
+finger's inner 8 mm over the 55 mm next to the tip, 16 mm wide, and the finger's root) instead of
+their mesh's convex hull: MuJoCo gives a box pair up to 8 contact points, so a pinched object
+resists turning between the pads through friction across the pad, as a real pad's contact patch
+does (a hull gives one point, whose torsional friction alone lets a block held by one end creep
+round, measured 5 deg/s). The right finger mimics the left one
 (multiplier -1: one servo drives both, so the pair stays centred on what it grips; Pinocchio ignores
 the tag and sees two joints). Names lose ``vx300s_left/`` and get
 ``<arm>_``. Dropped: the base mesh's collision (contype 0 in the source), the camera-focus body
@@ -45,6 +50,7 @@ log = logging.getLogger(__name__)
 VIPERX_REL = Path("robots/aloha__gym_aloha")
 VIPERX_FILE = "vx300s_left.xml"
 _SRC_PREFIX = "vx300s_left/"
+PAD_TORSION = 0.01   # [m] torsional friction length of the finger pads (MuJoCo condim 4), as the Panda's
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -157,17 +163,37 @@ def _arm_link(robot: ET.Element, body: ET.Element, name: str, meshes: dict[str, 
         el = ET.SubElement(link, "inertial")
         ET.SubElement(el, "mass", value="0.5")
         ET.SubElement(el, "inertia", ixx="1e-3", ixy="0", ixz="0", iyy="1e-3", iyz="0", izz="1e-3")
+    pads = _finger_boxes(name)
+    for xyz, size in pads:
+        el = ET.SubElement(link, "collision")
+        ET.SubElement(el, "origin", xyz=_fmt(xyz), rpy="0 0 0")
+        ET.SubElement(ET.SubElement(el, "geometry"), "box", size=_fmt(size))
     for g in body.findall("geom"):
         if g.get("type") != "mesh":
             continue
         path = meshes[g.get("mesh")]
-        collide = not (g.get("contype") == "0" and g.get("conaffinity") == "0")
+        collide = not (g.get("contype") == "0" and g.get("conaffinity") == "0") and not pads
         for tag in ("visual", "collision") if collide else ("visual",):
             el = ET.SubElement(link, tag)
             _origin(el, _vec(g, "pos"), _rot(g))
             ET.SubElement(ET.SubElement(el, "geometry"), "mesh", filename=str(path), scale="0.001 0.001 0.001")
             if tag == "visual":
                 ET.SubElement(ET.SubElement(el, "material", name=f"{name}_{len(link)}"), "color", rgba=rgba)
+
+
+# the finger's inner face lies PAD_FACE inboard of the finger link's origin (along -+Y for the left / right
+# finger); measured on vx300s_10_custom_finger_*.stl as the source places it
+PAD_FACE = 0.0224   # [m]
+
+
+def _finger_boxes(link: str) -> list[tuple[tuple[float, float, float], tuple[float, float, float]]]:
+    """Collision boxes (centre, size) [m] in a finger link's frame: the pad (the finger's inner 8 mm
+    over the 55 mm next to the tip, 16 mm wide) and the finger's root; none for other links."""
+    side = 1.0 if link.endswith("_left_finger_link") else -1.0 if link.endswith("_right_finger_link") else 0.0
+    if not side:
+        return []
+    y = -side * (PAD_FACE - 0.004)
+    return [((0.0575, y, 0.0), (0.055, 0.008, 0.016)), ((0.0125, y, 0.0), (0.035, 0.008, 0.05))]
 
 
 def _add_arm(robot: ET.Element, side: str, src: Path, mount_xyz, tcp_xyz, tcp_rpy) -> None:
@@ -318,6 +344,6 @@ def add_dual_arm(builder, desc: DualArmDescription, *, spawn_xy_yaw=(0.0, 0.0, 0
     for s in range(shape0, builder.shape_count):
         if builder.shape_body[s] in pads:          # a pinched object does not spin between the pads
             condim.values[s] = 4
-            builder.shape_material_mu_torsional[s] = 0.01
+            builder.shape_material_mu_torsional[s] = PAD_TORSION
     return RobotIndices(dof=joints.dof, coord=joints.coord, body=body, shape_start=shape0,
                         shape_end=builder.shape_count)

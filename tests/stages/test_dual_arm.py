@@ -47,12 +47,12 @@ def test_dual_arm_spec_describes_what_dual_arm_py_builds(tmp_path, shared_assets
 
 @pytest.fixture(scope="module")
 def tray_sim(tmp_path_factory, shared_assets):
-    from stages.demos.bimanual import write_tray_scene
+    from stages.demos.bimanual import TraySpec, write_table_scene
     from stages.simulate.dual_arm import write_dual_arm_urdf
     from stages.simulate.world import SimConfig, build_sim
 
     tmp = tmp_path_factory.mktemp("tray")
-    scene = write_tray_scene(tmp / "scene.usda")
+    scene = write_table_scene(tmp / "scene.usda", TraySpec(), obj_xy=(0.46, 0.0))
     desc = write_dual_arm_urdf(tmp / "robot", shared_assets=shared_assets)
     sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(0))
     return sim, scene, desc
