@@ -236,12 +236,14 @@ class Handover:
     """What the hand-over measured. picked: the block's rise [m] in the giving gripper before the
     hand-over; gripped_after: per arm, the fingers touching the block at the end (the receiver 2,
     the giver 0); height: the block's bottom above the table [m] at the end; slip: change [m] of the
-    block's position relative to the receiving TCP over the final hold."""
+    block's position relative to the receiving TCP over the final hold; tilt: angle [deg] of the
+    block's up axis from the vertical at the end."""
 
     picked: float
     gripped_after: dict[str, int]
     height: float
     slip: float
+    tilt: float
 
 
 def block_grasp(block_q, along: float, height: float, *, depth: float = 0.012) -> np.ndarray:
@@ -298,5 +300,6 @@ def hand_over(sim, ctl, ik, scene: TableScene, *, giver: str = "right", receiver
 
     r1 = rel()
     sim.step(int(round(hold / sim.settings.dt)))
+    bq = sim.state_0.body_q.numpy()[body]
     return Handover(picked=picked, gripped_after=gripper_contacts(sim, ik.desc, body, world),
-                    height=float(sim.state_0.body_q.numpy()[body][2]) - table_z, slip=float(np.linalg.norm(rel() - r1)))
+                    height=float(bq[2]) - table_z, slip=float(np.linalg.norm(rel() - r1)), tilt=tilt_deg(bq[3:7]))

@@ -84,3 +84,24 @@ def test_dual_arm_lifts_a_tray_10_cm_and_holds_it_level(tray_sim):
     assert fig.tilt_max < 5.0, f"tilted {fig.tilt_max:.2f} deg"
     assert fig.slip < 0.005, f"slipped {fig.slip:.4f} m in 2 s"
     assert fig.gripped == {"left": 2, "right": 2}, f"fingers on the tray after 2 s: {fig.gripped}"
+
+
+def test_dual_arm_hands_a_block_from_one_gripper_to_the_other(tmp_path, shared_assets):
+    """The hand-over: the right gripper picks a 20 cm block by its end and lifts it 15 cm, the left
+    takes the other end in the air, the right lets go and withdraws; after 1 s the block is in the
+    left gripper only, still in the air, level, and has not slipped."""
+    from stages.demos.bimanual import BlockSpec, hand_over, write_table_scene
+    from stages.simulate.bimanual_control import BimanualControl, BimanualIk
+    from stages.simulate.dual_arm import write_dual_arm_urdf
+    from stages.simulate.world import SimConfig, build_sim
+
+    scene = write_table_scene(tmp_path / "scene.usda", BlockSpec(), obj_xy=(0.42, 0.0))
+    desc = write_dual_arm_urdf(tmp_path / "robot", shared_assets=shared_assets)
+    sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(0))
+    sim.step(50)
+    fig = hand_over(sim, BimanualControl(sim), BimanualIk(desc), scene, giver="right", receiver="left", rise=0.15)
+    print("hand-over", fig)
+    assert fig.picked >= 0.13, f"the giver lifted the block only {fig.picked:.3f} m"
+    assert fig.gripped_after == {"left": 2, "right": 0}, f"fingers on the block at the end: {fig.gripped_after}"
+    assert fig.height >= 0.13, f"the block sank to {fig.height:.3f} m above the table"
+    assert fig.tilt < 5.0 and fig.slip < 0.005, f"tilt {fig.tilt:.2f} deg, slip {fig.slip:.4f} m"
