@@ -215,9 +215,10 @@ def lift_tray(sim, ctl, ik, scene: TableScene, *, lift: float = 0.10, hold: floa
         tilts.append(tilt_deg(sim.state_0.body_q.numpy()[body][3:7]))
     q2 = sim.state_0.body_q.numpy()
     z_tcp = [float(q2[t][2]) for t in tcps.values()]
-    return TrayLift(lift=float(q1[2]) - z0, lift_held=float(q2[body][2]) - z0, tilt=tilts[-1], tilt_max=max(tilts),
-                    slip=float(np.linalg.norm(rel() - r1, axis=1).max()),
-                    gripped=gripper_contacts(sim, ik.desc, body, world), height_error=abs(z_tcp[0] - z_tcp[1]))
+    return TrayLift(lift=float(q1[2]) - z0, lift_held=float(q2[body][2]) - z0, tilt=tilts[-1],
+                    tilt_max=max(tilts), slip=float(np.linalg.norm(rel() - r1, axis=1).max()),
+                    gripped=gripper_contacts(sim, ik.desc, body, world),
+                    height_error=abs(z_tcp[0] - z_tcp[1]))
 
 
 def _raised(p: np.ndarray, dz: float) -> np.ndarray:
@@ -259,8 +260,9 @@ def block_grasp(block_q, along: float, height: float, *, depth: float = 0.012) -
     return pose(r.apply([0.0, along, height - depth]) + block_q[:3], top_down(yaw + np.pi / 2))
 
 
-def hand_over(sim, ctl, ik, scene: TableScene, *, giver: str = "right", receiver: str = "left", rise: float = 0.15,
-              offset: float = 0.06, above: float = 0.08, hold: float = 1.0, world: int = 0) -> Handover:
+def hand_over(sim, ctl, ik, scene: TableScene, *, giver: str = "right", receiver: str = "left",
+              rise: float = 0.15, offset: float = 0.06, above: float = 0.08, hold: float = 1.0,
+              world: int = 0) -> Handover:
     """The hand-over expert: ``giver`` picks the block (lying along Y) by its own end (``offset``
     [m] from the centre, top-down), lifts it ``rise`` [m]; ``receiver`` comes down on the block's
     other end where the block now is and closes; ``giver`` opens and withdraws ``above`` [m] up
@@ -302,4 +304,5 @@ def hand_over(sim, ctl, ik, scene: TableScene, *, giver: str = "right", receiver
     sim.step(int(round(hold / sim.settings.dt)))
     bq = sim.state_0.body_q.numpy()[body]
     return Handover(picked=picked, gripped_after=gripper_contacts(sim, ik.desc, body, world),
-                    height=float(bq[2]) - table_z, slip=float(np.linalg.norm(rel() - r1)), tilt=tilt_deg(bq[3:7]))
+                    height=float(bq[2]) - table_z, slip=float(np.linalg.norm(rel() - r1)),
+                    tilt=tilt_deg(bq[3:7]))

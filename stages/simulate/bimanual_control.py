@@ -78,8 +78,8 @@ class BimanualIk:
         return np.asarray(q)[..., self.clik.arms[arm].q_idx]
 
 
-def move_arms(sim, ctl: BimanualControl, ik: BimanualIk, targets_world: Mapping[str, np.ndarray], duration: float,
-              *, world: int = 0, segments: int = 1, settle: float = 0.0, tol: float = 0.003,
+def move_arms(sim, ctl: BimanualControl, ik: BimanualIk, targets_world: Mapping[str, np.ndarray],
+              duration: float, *, world: int = 0, segments: int = 1, settle: float = 0.0, tol: float = 0.003,
               rot_tol: float = float(np.deg2rad(2.0)), target_every: int = 10):
     """Move the TCPs of the arms named in ``targets_world`` (arm -> 4x4 world pose) to their targets
     in ``duration`` [s] along straight lines, in ``segments`` CLIK waypoints (both arms solved
@@ -102,8 +102,9 @@ def move_arms(sim, ctl: BimanualControl, ik: BimanualIk, targets_world: Mapping[
                for a in names}
         res = ik.solve(wps, q_pin)
         if res.position_error.max() > tol or res.rotation_error.max() > rot_tol:
-            raise RuntimeError(f"CLIK: waypoint {k}/{segments} of {names} unreachable (errors "
-                               f"{np.round(res.position_error, 4).tolist()} m, {np.round(res.rotation_error, 4).tolist()} rad)")
+            pe, re = np.round(res.position_error, 4).tolist(), np.round(res.rotation_error, 4).tolist()
+            raise RuntimeError(f"CLIK: waypoint {k}/{segments} of {names} unreachable "
+                               f"(errors {pe} m, {re} rad)")
         q1 = res.q[0]
         arms0 = ctl.arm_targets()
         arms1 = arms0.copy()

@@ -176,7 +176,8 @@ def _arm_link(robot: ET.Element, body: ET.Element, name: str, meshes: dict[str, 
         for tag in ("visual", "collision") if collide else ("visual",):
             el = ET.SubElement(link, tag)
             _origin(el, _vec(g, "pos"), _rot(g))
-            ET.SubElement(ET.SubElement(el, "geometry"), "mesh", filename=str(path), scale="0.001 0.001 0.001")
+            ET.SubElement(ET.SubElement(el, "geometry"), "mesh", filename=str(path),
+                          scale="0.001 0.001 0.001")
             if tag == "visual":
                 ET.SubElement(ET.SubElement(el, "material", name=f"{name}_{len(link)}"), "color", rgba=rgba)
 
@@ -230,7 +231,8 @@ def _add_arm(robot: ET.Element, side: str, src: Path, mount_xyz, tcp_xyz, tcp_rp
             joints = body.findall("joint")
             kind = {"slide": "prismatic", None: "revolute", "hinge": "revolute"}
             jname = f"{side}_{joints[0].get('name').removeprefix(_SRC_PREFIX)}" if joints else f"{name}_weld"
-            j = ET.SubElement(robot, "joint", name=jname, type=kind[joints[0].get("type")] if joints else "fixed")
+            jtype = kind[joints[0].get("type")] if joints else "fixed"
+            j = ET.SubElement(robot, "joint", name=jname, type=jtype)
             ET.SubElement(j, "parent", link=parent)
             ET.SubElement(j, "child", link=name)
             _origin(j, _vec(body, "pos"), _rot(body))
@@ -257,7 +259,8 @@ def _add_arm(robot: ET.Element, side: str, src: Path, mount_xyz, tcp_xyz, tcp_rp
 def _base_geometry(spec: EmbodimentSpec) -> BaseGeometry:
     m = spec.base.mobile
     if m is None:
-        raise ItemError(f"{spec.name}: the dual-arm platform needs [base.mobile] (the holonomic base's geometry)")
+        raise ItemError(f"{spec.name}: the dual-arm platform needs [base.mobile] "
+                        "(the holonomic base's geometry)")
     return BaseGeometry(chassis=m.chassis, clearance=m.clearance, mass=m.mass, arm_mount=m.arm_mount,
                         mast_xy=m.mast_xy, mast_height=m.mast_height, max_force=spec.base.max_force or 400.0,
                         max_torque=spec.base.max_torque or 200.0)
@@ -330,10 +333,9 @@ def add_dual_arm(builder, desc: DualArmDescription, *, spawn_xy_yaw=(0.0, 0.0, 0
 
     x, y, yaw = spawn_xy_yaw
     body0, shape0, joint0 = builder.body_count, builder.shape_count, builder.joint_count
-    builder.add_urdf(str(desc.urdf), xform=wp.transform(wp.vec3(x, y, 0.0),
-                                                       wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), float(yaw))),
-                     floating=False, enable_self_collisions=False, joint_ordering="dfs",
-                     collapse_fixed_joints=False)
+    xform = wp.transform(wp.vec3(x, y, 0.0), wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), float(yaw)))
+    builder.add_urdf(str(desc.urdf), xform=xform, floating=False, enable_self_collisions=False,
+                     joint_ordering="dfs", collapse_fixed_joints=False)
     joints = apply_drives(builder, desc.spec, joint_start=joint0)
     missing = [n for n in desc.joints if n not in joints.dof]
     if missing:

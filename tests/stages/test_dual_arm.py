@@ -33,8 +33,8 @@ def test_dual_arm_spec_describes_what_dual_arm_py_builds(tmp_path, shared_assets
     q = kin.default_q()
     for name in desc.cameras:   # the camera links sit where the spec mounts them
         parent = kin.frame_pose(q, spec.cameras[name].parent)
-        np.testing.assert_allclose(kin.frame_pose(q, spec.cameras[name].link), parent @ camera_mount_pose(spec, name),
-                                   atol=1e-8)
+        np.testing.assert_allclose(kin.frame_pose(q, spec.cameras[name].link),
+                                   parent @ camera_mount_pose(spec, name), atol=1e-8)
     left, right = kin.ee_pose(q, "left"), kin.ee_pose(q, "right")   # mirror images about the XZ plane
     np.testing.assert_allclose(left[:3, 3] * [1, -1, 1], right[:3, 3], atol=1e-9)
     for arm in desc.arms.values():
@@ -99,9 +99,10 @@ def test_dual_arm_hands_a_block_from_one_gripper_to_the_other(tmp_path, shared_a
     desc = write_dual_arm_urdf(tmp_path / "robot", shared_assets=shared_assets)
     sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(0))
     sim.step(50)
-    fig = hand_over(sim, BimanualControl(sim), BimanualIk(desc), scene, giver="right", receiver="left", rise=0.15)
+    fig = hand_over(sim, BimanualControl(sim), BimanualIk(desc), scene, giver="right", receiver="left",
+                    rise=0.15)
     print("hand-over", fig)
     assert fig.picked >= 0.13, f"the giver lifted the block only {fig.picked:.3f} m"
-    assert fig.gripped_after == {"left": 2, "right": 0}, f"fingers on the block at the end: {fig.gripped_after}"
+    assert fig.gripped_after == {"left": 2, "right": 0}, f"fingers on the block: {fig.gripped_after}"
     assert fig.height >= 0.13, f"the block sank to {fig.height:.3f} m above the table"
     assert fig.tilt < 5.0 and fig.slip < 0.005, f"tilt {fig.tilt:.2f} deg, slip {fig.slip:.4f} m"
