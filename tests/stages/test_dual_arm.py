@@ -69,6 +69,35 @@ def test_newton_and_pinocchio_agree_on_both_tcps(tray_sim):
         np.testing.assert_allclose(bq[sim.world_body(arm.tcp)][:3], ik.ee_pose(q, name)[:3, 3], atol=1e-5)
 
 
+def test_wrist_and_third_person_cameras_see_the_grippers_and_the_tray(tray_sim):
+    """The spec's cameras rendered (CPU ray tracing, 32 x 32): each wrist camera sees its own
+    gripper's two fingers and the tray ahead, not the other gripper; the fixed third-person camera
+    (placed like stages/engine/engine.py's, at the scene) sees the robot, the table and the tray."""
+    from stages.simulate.sensors import CameraRig, CameraSpec, look_at, robot_cameras
+
+    sim, scene, desc = tray_sim
+    third = desc.spec.cameras["third_person"]
+    cams = [CameraSpec(name=c.name, width=32, height=32, vertical_fov=c.vertical_fov, link=c.link)
+            for c in robot_cameras(desc)]
+    cams.append(CameraSpec(name="third_person", width=32, height=32, vertical_fov=third.vertical_fov,
+                           pose=look_at((1.6, 0.9, 1.4), (0.4, 0.0, 0.6))))
+    frames = CameraRig(sim, cams, textures=False).render()
+    assert set(frames) == {"left_wrist", "right_wrist", "third_person"}
+    shape_body = sim.model.shape_body.numpy()
+    for arm in ("left", "right"):
+        f = frames[f"{arm}_wrist"]
+        seen = set(f.labels(sim.shape_label)[0].ravel())
+        assert {"robot", "tray"} <= seen, seen
+        bodies = {int(shape_body[s]) for s in np.unique(f.shape[0]) if s >= 0}
+        own = {sim.world_body(link) for link in desc.arms[arm].finger_links}
+        other = {sim.world_body(link) for a in desc.arms.values() if a.name != arm for link in a.finger_links}
+        assert own <= bodies and not other & bodies, f"{arm} wrist camera sees bodies {bodies}"
+        tray = f.labels(sim.shape_label)[0] == "tray"
+        assert 0.1 < f.depth[0][tray].min() and f.depth[0][tray].max() < 0.6   # the tray [m] just ahead
+    seen = set(frames["third_person"].labels(sim.shape_label)[0].ravel())
+    assert {"robot", "table", "tray"} <= seen, seen
+
+
 def test_dual_arm_lifts_a_tray_10_cm_and_holds_it_level(tray_sim):
     """The issue's Done-when item: both grippers grasp the tray's side rims, lift it 10 cm and
     hold it 2 s; it stays within 5 degrees of level, in both grippers, without slipping."""
