@@ -78,11 +78,11 @@ class TableScene:
     table_height: float
 
 
-def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.0), table_xy=(0.62, 0.0),
-                      table_size=(0.6, 0.9), table_height: float = 0.55) -> TableScene:
+def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.0), obj_yaw: float = 0.0,
+                      table_xy=(0.62, 0.0), table_size=(0.6, 0.9), table_height: float = 0.55) -> TableScene:
     """Author the scene at ``path`` (.usda): floor, a table whose top centre is at ``table_xy``
     [m] with its surface at ``table_height`` [m], and ``obj`` (a rigid body of boxes) standing on
-    it at ``obj_xy``."""
+    it at ``obj_xy`` [m], turned ``obj_yaw`` [rad] about +Z."""
     from pxr import Gf, Sdf
 
     from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
@@ -103,7 +103,7 @@ def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.
     pos = (float(obj_xy[0]), float(obj_xy[1]), float(table_height) + 0.0005)
     la, lv = _labels(obj.label)
     w.prim(OBJECT_PRIM, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],
-           attrs={**_xform_attrs(pos), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, obj.mass)})
+           attrs={**_xform_attrs(pos, obj_yaw), **lv, "physics:mass": (Sdf.ValueTypeNames.Float, obj.mass)})
     for name, (c, s) in obj.boxes().items():
         _box(w, f"{OBJECT_PRIM}/{name}", c, s, (0.75, 0.72, 0.65))
     w.write(path, "World")
@@ -130,6 +130,27 @@ class TrayLift:
     slip: float
     gripped: dict[str, int]
     height_error: float
+
+    def success(self, lift: float = 0.10, *, max_tilt: float = 5.0, max_slip: float = 0.005) -> bool:
+        """Lifted at least 95% of ``lift`` [m] and still there after the hold, within ``max_tilt``
+        [deg] of level throughout, slipped less than ``max_slip`` [m], in all four fingers."""
+        return (min(self.lift, self.lift_held) >= 0.95 * lift and self.tilt_max < max_tilt
+                and self.slip < max_slip and all(n == 2 for n in self.gripped.values()))
+
+
+def reset_episode(sim, ctl, scene: TableScene, xy, yaw: float = 0.0) -> None:
+    """Start an episode (every world): the robot back at its default posture with the grippers
+    open, base commands zero, and the object at ``xy`` [m] on the table, turned ``yaw`` [rad]."""
+    from stages.demos.session import set_coords
+
+    sim.reset()
+    ctl.reset()
+    body = sim.body_of_path(scene.body)
+    j = int(np.flatnonzero(sim.model.joint_child.numpy() == body)[0])
+    c = int(sim.model.joint_q_start.numpy()[j])
+    pose7 = (float(xy[0]), float(xy[1]), scene.position[2], 0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2))
+    for w in range(sim.world_count):
+        set_coords(sim, {c + w * sim.coords_per_world + i: v for i, v in enumerate(pose7)})
 
 
 def tilt_deg(quat_xyzw) -> float:
@@ -245,6 +266,13 @@ class Handover:
     height: float
     slip: float
     tilt: float
+
+    def success(self, receiver: str = "left", *, min_height: float = 0.10, max_tilt: float = 5.0,
+                max_slip: float = 0.005) -> bool:
+        """The block ends in ``receiver``'s two fingers only, at least ``min_height`` [m] above the
+        table, within ``max_tilt`` [deg] of level, having slipped less than ``max_slip`` [m]."""
+        return (self.gripped_after.get(receiver) == 2 and sum(self.gripped_after.values()) == 2
+                and self.height >= min_height and self.tilt < max_tilt and self.slip < max_slip)
 
 
 def block_grasp(block_q, along: float, height: float, *, depth: float = 0.012) -> np.ndarray:

@@ -135,3 +135,32 @@ def test_dual_arm_hands_a_block_from_one_gripper_to_the_other(tmp_path, shared_a
     assert fig.gripped_after == {"left": 2, "right": 0}, f"fingers on the block: {fig.gripped_after}"
     assert fig.height >= 0.13, f"the block sank to {fig.height:.3f} m above the table"
     assert fig.tilt < 5.0 and fig.slip < 0.005, f"tilt {fig.tilt:.2f} deg, slip {fig.slip:.4f} m"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", ["tray", "hand_over"])
+def test_bimanual_experts_succeed_over_random_object_poses(task, tmp_path, shared_assets):
+    """Scripted success over 10 episodes per task (about 40 s each on a CPU core), the object
+    placed at random on the table (+-4 cm along X, +-3 cm along Y, +-11 deg about Z) by
+    reset_episode in one simulation: at least 8 succeed (TrayLift.success / Handover.success)."""
+    from stages.demos import bimanual as bm
+    from stages.simulate.bimanual_control import BimanualControl, BimanualIk
+    from stages.simulate.dual_arm import write_dual_arm_urdf
+    from stages.simulate.world import SimConfig, build_sim
+
+    obj, x0 = (bm.TraySpec(), 0.46) if task == "tray" else (bm.BlockSpec(), 0.42)
+    scene = bm.write_table_scene(tmp_path / "scene.usda", obj, obj_xy=(x0, 0.0))
+    desc = write_dual_arm_urdf(tmp_path / "robot", shared_assets=shared_assets)
+    sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(0))
+    ctl, ik = BimanualControl(sim), BimanualIk(desc)
+    rng, results = np.random.default_rng(1), []
+    for _ in range(10):
+        xy = (x0 + rng.uniform(-0.04, 0.04), rng.uniform(-0.03, 0.03))
+        bm.reset_episode(sim, ctl, scene, xy, rng.uniform(-0.2, 0.2))
+        sim.step(50)
+        q = sim.state_0.body_q.numpy()[sim.body_of_path(scene.body)]
+        np.testing.assert_allclose(q[:2], xy, atol=0.002)      # the episode starts where it was placed
+        fig = bm.lift_tray(sim, ctl, ik, scene) if task == "tray" else bm.hand_over(sim, ctl, ik, scene)
+        results.append(fig.success())
+        print(task, xy, fig)
+    assert sum(results) >= 8, f"{task}: {sum(results)}/10 episodes succeeded"
