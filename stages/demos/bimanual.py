@@ -119,9 +119,10 @@ def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.
 class TrayLift:
     """What the tray lift measured. lift: rise of the tray [m] after the lift; lift_held: after
     the hold; tilt / tilt_max: angle [deg] of the tray's up axis from the vertical at the end of
-    the hold / the largest during the hold; slip: largest change [m] of the tray's position
-    relative to either TCP over the hold; gripped: per arm, the fingers touching the tray after
-    the hold (0-2); height_error: difference of the two TCP heights [m] at the end."""
+    the hold / the largest from the grasp through the lift and the hold; slip: largest change
+    [m] of the tray's position relative to either TCP over the hold; gripped: per arm, the
+    fingers touching the tray after the hold (0-2); height_error: difference of the two TCP
+    heights [m] at the end."""
 
     lift: float
     lift_held: float
@@ -221,23 +222,32 @@ def lift_tray(sim, ctl, ik, scene: TableScene, *, lift: float = 0.10, hold: floa
     move_arms(sim, ctl, ik, grasps, 1.0, segments=4, settle=0.3, world=world)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
     close_gripper(sim, ctl, None, close_time, world=world)
-    move_arms(sim, ctl, ik, {a: _raised(p, lift) for a, p in grasps.items()}, 2.0, segments=8, settle=0.3,
-              world=world)
-    tcps = {a: sim.world_body(desc_arm.tcp, world) for a, desc_arm in ik.desc.arms.items()}
+    tilts: list[float] = []
 
-    def rel() -> np.ndarray:
-        q = sim.state_0.body_q.numpy()
-        return np.array([q[body][:3] - q[t][:3] for t in tcps.values()])
+    def watch(s) -> None:      # the tray's tilt every 25 steps, from the grasp to the end of the hold
+        if s.steps % 25 == 0:
+            tilts.append(tilt_deg(s.state_0.body_q.numpy()[body][3:7]))
 
-    q1 = sim.state_0.body_q.numpy()[body].copy()   # on the CPU, numpy() is a view of a swapped buffer
-    r1, tilts = rel(), []
-    for _ in range(int(round(hold / sim.settings.dt)) // 25):
-        sim.step(25)
-        tilts.append(tilt_deg(sim.state_0.body_q.numpy()[body][3:7]))
+    sim.post_step.append(watch)
+    try:
+        move_arms(sim, ctl, ik, {a: _raised(p, lift) for a, p in grasps.items()}, 2.0, segments=8, settle=0.3,
+                  world=world)
+        tcps = {a: sim.world_body(desc_arm.tcp, world) for a, desc_arm in ik.desc.arms.items()}
+
+        def rel() -> np.ndarray:
+            q = sim.state_0.body_q.numpy()
+            return np.array([q[body][:3] - q[t][:3] for t in tcps.values()])
+
+        q1 = sim.state_0.body_q.numpy()[body].copy()   # on the CPU, numpy() is a view of a swapped buffer
+        r1 = rel()
+        sim.step(int(round(hold / sim.settings.dt)))
+    finally:
+        sim.post_step.remove(watch)
     q2 = sim.state_0.body_q.numpy()
     z_tcp = [float(q2[t][2]) for t in tcps.values()]
-    return TrayLift(lift=float(q1[2]) - z0, lift_held=float(q2[body][2]) - z0, tilt=tilts[-1],
-                    tilt_max=max(tilts), slip=float(np.linalg.norm(rel() - r1, axis=1).max()),
+    tilt = tilt_deg(q2[body][3:7])
+    return TrayLift(lift=float(q1[2]) - z0, lift_held=float(q2[body][2]) - z0, tilt=tilt,
+                    tilt_max=max([*tilts, tilt]), slip=float(np.linalg.norm(rel() - r1, axis=1).max()),
                     gripped=gripper_contacts(sim, ik.desc, body, world),
                     height_error=abs(z_tcp[0] - z_tcp[1]))
 
