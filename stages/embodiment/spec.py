@@ -147,12 +147,15 @@ class DescriptionSpec(_Strict):
 class MobileBaseGeometry(_Strict):
     """The project's holonomic base (assembly ``mobile_base``): chassis box (x, y, z) [m];
     clearance: chassis bottom above the floor [m]; mass [kg]; arm_mount: arm root position on the
-    chassis top in base_link (x, y) [m]; mast_xy [m]; mast_height: mast top above the floor [m]."""
+    chassis top in base_link (x, y) [m]; arm_mounts: per arm name, its root position there (x, y)
+    [m] (several arms; stages.simulate.dual_arm); mast_xy [m]; mast_height: mast top above the
+    floor [m]."""
 
     chassis: Vec3
     clearance: float
     mass: float = Field(gt=0)
     arm_mount: tuple[float, float]
+    arm_mounts: dict[str, tuple[float, float]] = {}
     mast_xy: tuple[float, float]
     mast_height: float = Field(gt=0)
 

@@ -456,12 +456,12 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
     from newton.solvers import SolverMuJoCo
 
     b = newton.ModelBuilder()
-    b.default_shape_cfg.ke = cfg.contact_ke
-    b.default_shape_cfg.kd = cfg.contact_kd
+    b.default_shape_cfg.ke, b.default_shape_cfg.kd = cfg.contact_ke, cfg.contact_kd
     SolverMuJoCo.register_custom_attributes(b)
     loaded = load_scene(b, scene)
     spawn = cfg.spawn or find_free_spawn(b, rng, radius=cfg.robot_radius, near=cfg.spawn_near)
-    robot = add_robot(b, desc, spawn_xy_yaw=spawn, gains=cfg.gains)
+    adder = getattr(desc, "add_to_builder", None)     # a description that loads itself (dual_arm.py)
+    robot = adder(b, spawn) if adder else add_robot(b, desc, spawn_xy_yaw=spawn, gains=cfg.gains)
     labels = list(loaded.shape_label) + [ROBOT_LABEL] * (robot.shape_end - robot.shape_start)
     return b, loaded, robot, spawn, labels
 
