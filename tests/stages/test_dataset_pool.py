@@ -14,7 +14,8 @@ REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from stages.dataset import CameraSpec, DatasetSpec, FrameError, list_shards, load_dataset, open_shard  # noqa: E402
+from stages.dataset import (  # noqa: E402
+    CameraSpec, DatasetSpec, FrameError, decode_depth, list_shards, load_dataset, open_shard)
 from stages.dataset.pool import PoolConfig, ShardPool, ShardPoolError  # noqa: E402
 from stages.dataset.synthetic import synthetic_episode_info, synthetic_frame  # noqa: E402
 
@@ -75,7 +76,7 @@ def test_pool_writes_the_same_files_as_inline_shards(tmp_path):
     assert item["observation.state"].shape[0] == SPEC.state_dim
     depth_key = SPEC.depth_keys()["wrist"]
     want = synthetic_frame(SPEC, 2, 1, 0).depth_mm["wrist"].astype(np.float32)
-    np.testing.assert_array_equal(item[depth_key][0].numpy(), want)
+    np.testing.assert_array_equal(decode_depth(item[depth_key]).astype(np.float32), want)
 
 
 def test_a_bad_frame_names_the_shard_and_a_worker_failure_publishes_nothing(tmp_path):
