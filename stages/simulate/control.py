@@ -16,18 +16,13 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
 
 import numpy as np
-from numpy.linalg import _umath_linalg
 
+from stages.simulate.clik_lanes import IkResult, _solve1, solve_lanes
 from stages.simulate.robot import RobotDescription
 
 log = logging.getLogger(__name__)
-
-# np.linalg.solve's gufunc for one right-hand side: the same LAPACK call without the wrapper's
-# checks (the damped J J^T + lambda I it solves is positive definite)
-_solve1 = _umath_linalg.solve1
 
 
 def _base_kernel():
@@ -198,18 +193,6 @@ class RobotControl(CommandBuffers):
 # --------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class IkResult:
-    """q: full Pinocchio configuration (nq,); success: within tolerance; position_error [m];
-    rotation_error [rad]; iterations."""
-
-    q: np.ndarray
-    success: bool
-    position_error: float
-    rotation_error: float
-    iterations: int
-
-
 class Clik:
     """Closed-loop IK for the robot's end-effector frame on its Pinocchio model.
 
@@ -306,6 +289,14 @@ class Clik:
             if best.success:
                 break
         return best
+
+    def solve_many(self, targets, q0s, *, max_iters: int = 300, pos_tol: float = 1e-4, rot_tol: float = 1e-3,
+                   restarts: int = 0, rngs=None, width: int = 32) -> list[IkResult]:
+        """:meth:`solve` for each (target, q0, rng) of ``targets``, ``q0s``, ``rngs`` (one
+        generator per solve, for ``restarts``), the same results computed in lockstep
+        (:mod:`stages.simulate.clik_lanes`), ``width`` at a time."""
+        return solve_lanes(self, targets, q0s, max_iters=max_iters, pos_tol=pos_tol, rot_tol=rot_tol,
+                           restarts=restarts, rngs=rngs, width=width)
 
     def _solve(self, target, q0, max_iters, pos_tol, rot_tol) -> IkResult:
         """One damped-least-squares solve from ``q0``. The arithmetic is that of the plain loop
