@@ -63,6 +63,18 @@ def solve_job(ik, target, q0, *, max_iters: int = 300, pos_tol: float = 1e-4, ro
     return best
 
 
+def run_job(ik, job):
+    """The value of one job, its solves run one after another by ``ik._solve`` (a lone job gains
+    nothing from lanes)."""
+    result = None
+    while True:
+        try:
+            target, q0, max_iters, pos_tol, rot_tol = job.send(result)
+        except StopIteration as e:
+            return e.value
+        result = ik._solve(target, q0, max_iters, pos_tol, rot_tol)
+
+
 class _Lane:
     __slots__ = ("k", "job", "goal", "q", "best", "best_it", "it", "max_iters", "pos_tol", "rot_tol")
 

@@ -68,33 +68,30 @@ def _stage_inputs(inst, d):
 
 
 class Recorder:
-    """Records the arguments of the ``reach`` and ``Clik.solve`` calls made while it is on (by
-    wrapping the module function and the instance method; the calls run unchanged)."""
+    """Records the arguments of the ``reach`` and ``Clik.solve`` calls that the reference
+    ``plan_stage`` (``tests/stages/expert_reference.py``) makes while it is on, by wrapping the
+    reference module's functions (the calls run unchanged)."""
 
-    def __init__(self, d) -> None:
-        from stages.demos import part_planning
+    def __init__(self) -> None:
+        import expert_reference as ref
 
         self.reach_calls: list = []
         self.solve_calls: list = []
-        self.on = False
-        reach, solve = part_planning.reach, d.ik.solve
-        self._undo = lambda: (setattr(part_planning, "reach", reach), delattr(d.ik, "solve"))
+        reach, solve = ref.reach, ref.clik_solve
+        self._undo = lambda: (setattr(ref, "reach", reach), setattr(ref, "clik_solve", solve))
 
         def rec_reach(d_, base, targets, **kw):
-            if self.on:
-                self.reach_calls.append((base, [t.copy() for t in targets], kw))
+            self.reach_calls.append((base, [t.copy() for t in targets], kw))
             return reach(d_, base, targets, **kw)
 
-        def rec_solve(target, q0, **kw):
-            if self.on:
-                kw2 = dict(kw)
-                if kw2.get("rng") is not None:
-                    kw2["rng"] = copy.deepcopy(kw2["rng"])
-                self.solve_calls.append((target.copy(), q0.copy(), kw2))
-            return solve(target, q0, **kw)
+        def rec_solve(ik, target, q0, **kw):
+            kw2 = dict(kw)
+            if kw2.get("rng") is not None:
+                kw2["rng"] = copy.deepcopy(kw2["rng"])
+            self.solve_calls.append((target.copy(), q0.copy(), kw2))
+            return solve(ik, target, q0, **kw)
 
-        part_planning.reach = rec_reach
-        d.ik.solve = rec_solve
+        ref.reach, ref.clik_solve = rec_reach, rec_solve
 
     def close(self) -> None:
         self._undo()
@@ -156,14 +153,13 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
                 world.reset(inst)
                 d = Driver(world.sim, world.ctl, world.ik, world.cmd, world.recorder, np.random.default_rng(seed))
                 args = _stage_inputs(inst, d)
-                rec = Recorder(d)  # an untimed run records the calls
-                rec.on = True
+                rec = Recorder()  # an untimed run of the reference records the calls
                 try:
-                    part_planning.plan_stage(d, *args)
+                    ref.plan_stage(d, *args)
                 except ExpertFailure:
                     pass
-                rec.on = False
-                rec.close()
+                finally:
+                    rec.close()
                 reach_calls += [(d, c) for c in rec.reach_calls]
                 solve_calls += [(d, c) for c in rec.solve_calls]
                 times_new, times_ref = [], []
@@ -218,6 +214,25 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
             rows["solve"].append({"new_ms": 1e3 * statistics.median(tn), "ref_ms": 1e3 * statistics.median(tr),
                                   "restarts": kw.get("restarts", 0), "iterations": a.iterations,
                                   "success": bool(a.success), "same": ok})
+    # the recorded solves in lockstep (Clik.solve_many, 32 lanes), per call, against the reference
+    by_kind: dict = {}
+    for d, call in solve_calls:
+        by_kind.setdefault((id(d), call[2].get("restarts", 0)), (d, []))[1].append(call)
+    for (_, restarts), (d, calls) in by_kind.items():
+        for s in range(0, len(calls), 64):
+            group = calls[s:s + 64]
+            rngs = [copy.deepcopy(c[2].get("rng")) for c in group]
+            t_new, res = _time(d.ik.solve_many, [c[0] for c in group], [c[1] for c in group], restarts=restarts,
+                               rngs=rngs)
+            t0 = time.perf_counter()
+            refs = [ref.clik_solve(d.ik, c[0], c[1], **{**c[2], "rng": copy.deepcopy(c[2].get("rng"))})
+                    for c in group]
+            t_ref = time.perf_counter() - t0
+            ok = all(_same_ik(a, b) for a, b in zip(res, refs, strict=True))
+            same.setdefault("solve_many", True)
+            same["solve_many"] &= ok
+            rows.setdefault("solve_many", []).append({"new_ms": 1e3 * t_new / len(group), "ref_ms": 1e3 * t_ref / len(group),
+                                                      "calls": len(group), "restarts": restarts, "same": ok})
     summary = {}
     for key, rs in rows.items():
         rs = [r for r in rs if not math.isnan(r["new_ms"])]
