@@ -79,9 +79,10 @@ def choose_base(d, part: ArticulatedPart, grid, candidates,
         if is_free(grid, blocked, base[0], base[1]):
             free.append((base, pitch, dn, dl, dyaw))
     q = _robot_q(d)
-    # all free candidates' reaches run in lockstep (the first that reaches wins, as in order)
+    # the free candidates' reaches run in lockstep (the first that reaches wins, as in order): 2
+    # lanes, doubling per candidate judged, up to 8
     jobs = (_reach_job(d, q, c[0], targets_of(c[0], c[1]), 0.004, count=True) for c in free)
-    for k, (sols, total) in _lockstep(d, jobs, width=8):
+    for k, (sols, total) in _lockstep(d, jobs, lambda judged: min(8, 2 << judged)):
         if len(sols) == total:
             base, pitch, dn, dl, dyaw = free[k]
             log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
@@ -134,7 +135,7 @@ def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -
     return _run(d, _reach_job(d, _robot_q(d), base, targets, tol))
 
 
-def _lockstep(d, jobs, width: int = 16):
+def _lockstep(d, jobs, width):
     from stages.simulate.clik_lanes import lockstep
 
     return lockstep(d.ik, jobs, width)
@@ -227,7 +228,7 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     waypoints.
 
     The candidates (base poses by :func:`_swing_bases`, each with its :func:`grips`) are checked
-    in order, the first ``max_checks``; their reaches run in lockstep, 16 at a time
+    in order, the first ``max_checks``; their reaches run in lockstep, up to 16 at a time
     (:mod:`stages.simulate.clik_lanes`), and are judged in order as they complete."""
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
@@ -256,7 +257,9 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     q_robot = _robot_q(d)
     jobs = (job(*c) for c in cands)
     checks = 0
-    for k, sols in _lockstep(d, jobs):
+    # the first candidates often suffice (a full reach ends the search): 2 lanes, doubling per
+    # candidate judged, up to 16
+    for k, sols in _lockstep(d, jobs, lambda judged: min(16, 2 << judged)):
         base, pitch, along = cands[k]
         approach, arc = gesture_of(pitch, along)
         n = len(sols) - len(approach)

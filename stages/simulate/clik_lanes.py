@@ -28,6 +28,10 @@ from numpy.linalg import _umath_linalg
 _solve1 = _umath_linalg.solve1
 
 
+#: :func:`lockstep` starts a job at most this many widths after the first not yet done
+LOOKAHEAD = 2
+
+
 @dataclass(frozen=True)
 class IkResult:
     """q: full Pinocchio configuration (nq,); success: within tolerance; position_error [m];
@@ -86,15 +90,17 @@ class _Lane:
         self.best, self.best_it, self.it = math.inf, 0, 0
 
 
-def lockstep(ik, jobs, width: int = 32):
+def lockstep(ik, jobs, width=32):
     """Run the ``jobs`` (an iterable of job generators, taken as lanes free up) ``width`` at a
-    time; yields ``(index, value)`` in the jobs' order as soon as each and all before it are done
-    (the caller may stop early; jobs not started are never taken). The wall time is added to
-    ``ik.seconds`` where the Clik counts its solve time there."""
+    time (``width``: a number, or a function of how many values were yielded so far, so that a
+    caller that may stop early can start narrow; a job starts at most LOOKAHEAD ``width`` after the
+    first whose value is not yielded yet); yields ``(index, value)`` in the jobs' order as soon
+    as each and all before it are done (the caller may stop early; jobs not started are never
+    taken). The wall time is added to ``ik.seconds`` where the Clik counts its solve time there."""
     jobs = enumerate(jobs)
     lanes: list[_Lane] = []
     done: dict[int, object] = {}
-    nxt, more = 0, True
+    nxt, started, more = 0, 0, True
     timed = hasattr(ik, "seconds")
 
     def advance(k: int, job, result) -> None:
@@ -107,12 +113,14 @@ def lockstep(ik, jobs, width: int = 32):
 
     while True:
         t0 = time.perf_counter()
-        while more and len(lanes) < width:
+        w = width(nxt) if callable(width) else width
+        while more and len(lanes) < w and started < nxt + LOOKAHEAD * w:
             try:
                 k, job = next(jobs)
             except StopIteration:
                 more = False
             else:
+                started += 1
                 advance(k, job, None)
         if lanes:
             finished = _iterate(ik, lanes)
