@@ -138,15 +138,16 @@ def lockstep(ik, jobs, width=32):
 
 def _iterate(ik, lanes: list[_Lane]) -> dict:
     """One iteration of ``Clik._solve`` for every lane; returns {lane: IkResult} of those that
-    finished (converged, stalled, or out of iterations)."""
+    finished (converged, stalled, or out of iterations). The norms are ``np.vecdot`` of the rows
+    (the ``dot`` a lone solve takes of each)."""
     pin = ik._pin
     model, data, frame, cols = ik.model, ik.data, ik.frame, ik._cols
-    upd, sqrt = pin.updateFramePlacement, math.sqrt
+    upd, getj, local, sqrt = pin.updateFramePlacement, pin.getFrameJacobian, pin.LOCAL, math.sqrt
     finished: dict = {}
     buf = np.empty((len(lanes), len(ik.v_idx), 6))  # J^T per lane: J is the column-major (6, n) view
     jac = buf.transpose(0, 2, 1)
     err = np.empty((len(lanes), 6))
-    moving = []
+    live = []
     for ln in lanes:
         if ln.it >= ln.max_iters:  # out of iterations: the kinematics of the last iterate
             pin.forwardKinematics(model, data, ln.q)
@@ -154,35 +155,45 @@ def _iterate(ik, lanes: list[_Lane]) -> dict:
             continue
         ln.it += 1
         pin.computeJointJacobians(model, data, ln.q)
-        m = upd(model, data, frame)
-        e6 = pin.log6(m.actInv(ln.goal)).vector
-        ep, er = e6[:3], e6[3:]
-        pe, re = sqrt(ep.dot(ep)), sqrt(er.dot(er))
+        k = len(live)
+        err[k] = pin.log6(upd(model, data, frame).actInv(ln.goal)).vector
+        jac[k] = getj(model, data, frame, local)[:, cols]
+        live.append(ln)
+    if not live:
+        return finished
+    k = len(live)
+    buf, err = buf[:k], err[:k]
+    pes = np.sqrt(np.vecdot(err[:, :3], err[:, :3])).tolist()
+    res = np.sqrt(np.vecdot(err[:, 3:], err[:, 3:])).tolist()
+    moving, rows = [], []
+    for j, (ln, pe, re) in enumerate(zip(live, pes, res, strict=True)):
         if pe < ln.pos_tol and re < ln.rot_tol:
-            finished[ln] = _result(ik, ln, m)
+            finished[ln] = None
             continue
         # stalled (a joint limit, an unreachable target): no 0.1% progress in STALL_ITERS
         e = pe + 0.1 * re
         if e < ln.best * (1.0 - 1e-3):
             ln.best, ln.best_it = e, ln.it
         elif ik.stall_iters and ln.it - ln.best_it >= ik.stall_iters:
-            finished[ln] = _result(ik, ln, m)
+            finished[ln] = None
             continue
-        k = len(moving)
-        jac[k] = pin.getFrameJacobian(model, data, frame, pin.LOCAL)[:, cols]
-        err[k] = e6
         moving.append(ln)
+        rows.append(j)
+    for ln in [ln for ln, r in finished.items() if r is None]:  # the kinematics of its last iterate again
+        pin.forwardKinematics(model, data, ln.q)
+        finished[ln] = _result(ik, ln, upd(model, data, frame))
     if not moving:
         return finished
+    if len(moving) < k:
+        buf, err = buf[rows], err[rows]
     k = len(moving)
-    buf, err = buf[:k], err[:k]
     jac = buf.transpose(0, 2, 1)
     x = _solve1(jac @ buf + ik._damp, err, signature="dd->d")
     dv = np.matmul(buf, x[:, :, None])[:, :, 0]
-    for row in dv:
-        n = sqrt(row.dot(row))
-        if n > ik.max_step:
-            row *= ik.max_step / n
+    n = np.sqrt(np.vecdot(dv, dv))
+    over = n > ik.max_step
+    if over.any():
+        dv[over] *= (ik.max_step / n[over])[:, None]
     if ik._additive:
         v = np.zeros((k, model.nv))
         v[:, cols] = dv
