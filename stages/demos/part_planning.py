@@ -164,20 +164,24 @@ def _reach_job(d, q_robot: np.ndarray, base, targets, tol: float, count: bool = 
     q = _place_base(d, q_robot, base)
     out = []
     targets = list(targets)
+    root = Clik.root_from_world(d.sim.spawn)  # world_to_root's transform, once
+    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
     for k, t in enumerate(targets):
-        res = yield from solve_job(d.ik, Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
+        res = yield from solve_job(d.ik, root @ np.asarray(t, float), q, max_iters=300,
                                    restarts=6 if k == 0 else 0, rng=lambda k=k: np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
+        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q, idx=idx):
             break
         q = res.q
         out.append(d.ik.arm_q(q))
     return (out, len(targets)) if count else out
 
 
-def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
+def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN, idx=None) -> bool:
     """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
-    (such a plan breaks when the base stops a centimetre off its goal)."""
-    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
+    (such a plan breaks when the base stops a centimetre off its goal). ``idx``: the arm joints'
+    configuration indices, where the caller has them."""
+    if idx is None:
+        idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
     return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 

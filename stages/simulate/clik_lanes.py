@@ -224,5 +224,6 @@ def solve_lanes(ik, targets, q0s, *, max_iters: int = 300, pos_tol: float = 1e-4
     """``[ik.solve(t, q0, ..., rng=r) for t, q0, r in zip(targets, q0s, rngs)]`` in lockstep;
     ``rngs``: one generator per solve (for ``restarts``)."""
     jobs = (solve_job(ik, t, q0, max_iters=max_iters, pos_tol=pos_tol, rot_tol=rot_tol, restarts=restarts,
-                      rng=None if rngs is None else rngs[i]) for i, (t, q0) in enumerate(zip(targets, q0s, strict=True)))
+                      rng=None if rngs is None else rngs[i])
+            for i, (t, q0) in enumerate(zip(targets, q0s, strict=True)))
     return [v for _, v in lockstep(ik, jobs, width)]

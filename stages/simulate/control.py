@@ -358,10 +358,16 @@ class Clik:
     @staticmethod
     def world_to_root(spawn_xy_yaw, pose_world: np.ndarray) -> np.ndarray:
         """A world 4x4 pose expressed in the robot root (spawn) frame."""
+        return Clik.root_from_world(spawn_xy_yaw) @ np.asarray(pose_world, float)
+
+    @staticmethod
+    def root_from_world(spawn_xy_yaw) -> np.ndarray:
+        """The 4x4 transform taking world poses into the robot root (spawn) frame (``world_to_root``
+        multiplies by it; a caller converting many poses computes it once)."""
         x, y, yaw = spawn_xy_yaw
         c, s = np.cos(yaw), np.sin(yaw)
         t = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-        return np.linalg.inv(t) @ np.asarray(pose_world, float)
+        return np.linalg.inv(t)
 
     def from_sim(self, sim, world: int = 0) -> np.ndarray:
         """The Pinocchio configuration (nq,) of the robot's current joint positions in ``sim``."""

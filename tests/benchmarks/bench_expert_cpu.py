@@ -108,7 +108,8 @@ def _same_ik(a, b) -> bool:
     import numpy as np
 
     return (np.array_equal(a.q, b.q) and a.position_error == b.position_error
-            and a.rotation_error == b.rotation_error and a.iterations == b.iterations and a.success == b.success)
+            and a.rotation_error == b.rotation_error and a.iterations == b.iterations
+            and a.success == b.success)
 
 
 def _time(fn, *args, **kw):
@@ -127,7 +128,8 @@ def _kitchen_world(tmp: Path, catalog: Path | None, kitchen: int):
     cat = _catalog(Path(catalog) if catalog else tmp / "out")
     lib = AssetLibrary.from_folder(cat / "assets", cat / "catalog" / "default" / "generated.json")
     room = write_kitchen(tmp / "kitchen", lib, scene_id="expert_cpu", rng=np.random.default_rng(kitchen))
-    world = DemoWorld(room, panda_root=None, work_dir=tmp / "kitchen", settings=DemoSettings(record_images=False))
+    world = DemoWorld(room, panda_root=None, work_dir=tmp / "kitchen",
+                      settings=DemoSettings(record_images=False))
     return room, world
 
 
@@ -151,7 +153,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
             for seed in seeds:
                 inst = sample_instance(task, room, seed)
                 world.reset(inst)
-                d = Driver(world.sim, world.ctl, world.ik, world.cmd, world.recorder, np.random.default_rng(seed))
+                d = Driver(world.sim, world.ctl, world.ik, world.cmd, world.recorder,
+                           np.random.default_rng(seed))
                 args = _stage_inputs(inst, d)
                 rec = Recorder()  # an untimed run of the reference records the calls
                 try:
@@ -174,7 +177,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
                     except ExpertFailure as e:
                         t_ref, plan_ref = math.nan, e.reason
                     times_ref.append(t_ref)
-                ok = plan == plan_ref if isinstance(plan, str) or isinstance(plan_ref, str) else _same_plan(plan, plan_ref)
+                failed = isinstance(plan, str) or isinstance(plan_ref, str)
+                ok = plan == plan_ref if failed else _same_plan(plan, plan_ref)
                 same["plan_stage"] &= bool(ok)
                 rows["plan_stage"].append({"task": task, "seed": seed, "mode": args[4], "steps": len(args[3]),
                                            "reached": plan[2] if not isinstance(plan, str) else plan,
@@ -183,11 +187,14 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
                                            "reach_calls": len(rec.reach_calls),
                                            "solve_calls": len(rec.solve_calls)})
                 r_ = rows["plan_stage"][-1]
-                print(f"plan_stage {task:16s} seed {seed}: {r_['new_ms']:8.1f} ms (reference {r_['ref_ms']:8.1f} ms)"
+                print(f"plan_stage {task:16s} seed {seed}: {r_['new_ms']:8.1f} ms "
+                      f"(reference {r_['ref_ms']:8.1f} ms)"
                       f" reached {r_['reached']} of {len(args[3])}, {r_['reach_calls']} reaches, "
                       f"{r_['solve_calls']} solves, same {ok}", flush=True)
         rng = np.random.default_rng(0)
-        pick = lambda calls, k: [calls[i] for i in sorted(rng.choice(len(calls), min(k, len(calls)), replace=False))]  # noqa: E731
+        def pick(calls, k):
+            return [calls[i] for i in sorted(rng.choice(len(calls), min(k, len(calls)), replace=False))]
+
         for d, (base, targets, kw) in pick(reach_calls, max_reaches):
             tn, tr = [], []
             for _ in range(repeats):
@@ -197,7 +204,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
                 tr.append(t)
             ok = len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
             same["reach"] &= ok
-            rows["reach"].append({"new_ms": 1e3 * statistics.median(tn), "ref_ms": 1e3 * statistics.median(tr),
+            rows["reach"].append({"new_ms": 1e3 * statistics.median(tn),
+                                  "ref_ms": 1e3 * statistics.median(tr),
                                   "targets": len(targets), "reached": len(a), "same": ok})
         for d, (target, q0, kw) in pick(solve_calls, max_solves):
             tn, tr = [], []
@@ -211,7 +219,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
                 tr.append(t)
             ok = _same_ik(a, b)
             same["solve"] &= ok
-            rows["solve"].append({"new_ms": 1e3 * statistics.median(tn), "ref_ms": 1e3 * statistics.median(tr),
+            rows["solve"].append({"new_ms": 1e3 * statistics.median(tn),
+                                  "ref_ms": 1e3 * statistics.median(tr),
                                   "restarts": kw.get("restarts", 0), "iterations": a.iterations,
                                   "success": bool(a.success), "same": ok})
     # the recorded solves in lockstep (Clik.solve_many, 32 lanes), per call, against the reference
@@ -222,8 +231,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
         for s in range(0, len(calls), 64):
             group = calls[s:s + 64]
             rngs = [copy.deepcopy(c[2].get("rng")) for c in group]
-            t_new, res = _time(d.ik.solve_many, [c[0] for c in group], [c[1] for c in group], restarts=restarts,
-                               rngs=rngs)
+            t_new, res = _time(d.ik.solve_many, [c[0] for c in group], [c[1] for c in group],
+                               restarts=restarts, rngs=rngs)
             t0 = time.perf_counter()
             refs = [ref.clik_solve(d.ik, c[0], c[1], **{**c[2], "rng": copy.deepcopy(c[2].get("rng"))})
                     for c in group]
@@ -231,7 +240,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
             ok = all(_same_ik(a, b) for a, b in zip(res, refs, strict=True))
             same.setdefault("solve_many", True)
             same["solve_many"] &= ok
-            rows.setdefault("solve_many", []).append({"new_ms": 1e3 * t_new / len(group), "ref_ms": 1e3 * t_ref / len(group),
+            rows.setdefault("solve_many", []).append({"new_ms": 1e3 * t_new / len(group),
+                                                      "ref_ms": 1e3 * t_ref / len(group),
                                                       "calls": len(group), "restarts": restarts, "same": ok})
     summary = {}
     for key, rs in rows.items():
@@ -241,13 +251,15 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
         new, old = statistics.median(r["new_ms"] for r in rs), statistics.median(r["ref_ms"] for r in rs)
         tot_new, tot_old = sum(r["new_ms"] for r in rs), sum(r["ref_ms"] for r in rs)
         summary[key] = {"calls": len(rs), "median_new_ms": round(new, 3), "median_ref_ms": round(old, 3),
-                        "mean_new_ms": round(tot_new / len(rs), 3), "mean_ref_ms": round(tot_old / len(rs), 3),
+                        "mean_new_ms": round(tot_new / len(rs), 3),
+                        "mean_ref_ms": round(tot_old / len(rs), 3),
                         "median_speedup": round(old / new, 2), "total_speedup": round(tot_old / tot_new, 2),
                         "all_same": same[key]}
     print(f"\n{'function':12s} {'calls':>5s} {'new ms':>9s} {'ref ms':>9s} {'mean new':>9s} {'mean ref':>9s} "
           f"{'median x':>8s} {'total x':>8s} same")
     for k, v in summary.items():
-        print(f"{k:12s} {v['calls']:5d} {v['median_new_ms']:9.3f} {v['median_ref_ms']:9.3f} {v['mean_new_ms']:9.3f} "
+        print(f"{k:12s} {v['calls']:5d} {v['median_new_ms']:9.3f} {v['median_ref_ms']:9.3f} "
+              f"{v['mean_new_ms']:9.3f} "
               f"{v['mean_ref_ms']:9.3f} {v['median_speedup']:8.2f} {v['total_speedup']:8.2f} {v['all_same']}")
     out = {"kitchen_seed": kitchen, "seeds": list(seeds), "tasks": list(tasks), "repeats": repeats,
            "cpu_count": os.cpu_count(), "summary": summary, "calls": rows}
@@ -260,7 +272,8 @@ def run(seeds=(1,), tasks=DOOR_TASKS, catalog: Path | None = None, kitchen: int 
 @pytest.mark.benchmark
 def test_bench_expert_cpu():
     res = run(seeds=(1,), repeats=1, max_solves=60, max_reaches=20,
-              catalog=Path(os.environ["BENCH_EPLEN_CATALOG"]) if "BENCH_EPLEN_CATALOG" in os.environ else None)
+              catalog=(Path(os.environ["BENCH_EPLEN_CATALOG"]) if "BENCH_EPLEN_CATALOG" in os.environ
+                       else None))
     assert all(v["all_same"] for v in res["summary"].values())
 
 
@@ -271,10 +284,11 @@ if __name__ == "__main__":
     p.add_argument("--catalog", type=Path, default=None,
                    help="work dir with assets/ and catalog/default/generated.json (built there if absent)")
     p.add_argument("--kitchen", type=int, default=5, help="the kitchen's seed")
-    p.add_argument("--repeats", type=int, default=3, help="timed runs of each call (alternating with the reference)")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="timed runs of each call (alternating with the reference)")
     p.add_argument("--max-solves", type=int, default=300, help="Clik.solve calls timed (a random sample)")
     p.add_argument("--max-reaches", type=int, default=120, help="reach calls timed (a random sample)")
     p.add_argument("--name", default="expert_cpu", help="writes bench_results/<name>.json")
     a = p.parse_args()
-    run(tuple(a.seeds), tuple(a.tasks.split(",")), a.catalog, a.kitchen, a.repeats, a.max_solves, a.max_reaches,
-        a.name)
+    run(tuple(a.seeds), tuple(a.tasks.split(",")), a.catalog, a.kitchen, a.repeats, a.max_solves,
+        a.max_reaches, a.name)

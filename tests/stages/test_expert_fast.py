@@ -67,14 +67,16 @@ def requests(teleop_world, ik):
         part = world_part(teleop_world, which)
         q0, qs, mode, grid = _first_stage(part, teleop_world.grid(), task)
         vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
-        p0 = door_pitch(float(part.handle_at(q0)[2])) if vertical else drawer_pitch(float(part.handle_at(q0)[2]))
+        z = float(part.handle_at(q0)[2])
+        p0 = door_pitch(z) if vertical else drawer_pitch(z)
         for base in _swing_bases(part, grid, q0, qs)[:6]:
             pitch, along = grips(part, base, p0, vertical, edge=mode == "edge")[0]
             approach, arc = gesture(part, q0, qs, pitch, mode, along)
             q = ik.neutral()
             c, s = math.cos(yaw0), math.sin(yaw0)
             dx, dy = base[0] - x0, base[1] - y0
-            for name, v in zip(ik.desc.base_joints, (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0), strict=True):
+            local = (c * dx + s * dy, -s * dx + c * dy, base[2] - yaw0)
+            for name, v in zip(ik.desc.base_joints, local, strict=True):
                 q[ik.q_idx[name]] = v
             for k, t in enumerate(approach + arc):
                 target = Clik.world_to_root(spawn, t)
@@ -87,8 +89,9 @@ def requests(teleop_world, ik):
 
 
 def _same(a, b) -> bool:
-    return (np.array_equal(a.q, b.q) and a.position_error == b.position_error and a.rotation_error == b.rotation_error
-            and a.iterations == b.iterations and a.success == b.success)
+    return (np.array_equal(a.q, b.q) and a.position_error == b.position_error
+            and a.rotation_error == b.rotation_error and a.iterations == b.iterations
+            and a.success == b.success)
 
 
 def test_clik_solve_equals_the_plain_loop(ik, requests):
@@ -104,7 +107,7 @@ def test_clik_solve_equals_the_plain_loop(ik, requests):
         results.append(a)
     assert len(requests) > 50
     assert any(r.success for r in results) and any(r.position_error > 0.004 for r in results)
-    assert any(r.iterations == 300 for r in results) or any(0 < r.iterations < 300 and not r.success for r in results)
+    assert any(r.iterations == 300 or not r.success for r in results)
 
 
 @pytest.mark.parametrize("width", [1, 5, 32])
@@ -170,7 +173,8 @@ def test_plan_stage_and_reach_equal_the_reference(sim_world, task: str):
     inst, d = _driver(sim_world, task)
     part = inst.part
     which = "open" if task.startswith("open") else "close"
-    q0, qs, mode, grid = _first_stage(part, _grid(inst), which, float(inst.joints.get(part.joint_path, part.closed)))
+    q_start = float(inst.joints.get(part.joint_path, part.closed))
+    q0, qs, mode, grid = _first_stage(part, _grid(inst), which, q_start)
     a = plan_stage(d, part, grid, q0, qs, mode)
     b = ref.plan_stage(d, part, grid, q0, qs, mode)
     assert _plan_equal(a, b)
