@@ -3,7 +3,10 @@ which CLIK reaches a part's waypoints (:func:`choose_base`, :func:`plan_stage`),
 along them (:func:`reach`) and the occupancy grid with the area a part sweeps (:func:`swept_grid`).
 
 ``d`` is a :class:`~stages.demos.driver.Driver`; plans are checked by IK only, the simulation does
-not step.
+not step. The candidates of a search have their reaches computed side by side
+(:mod:`stages.simulate.clik_lanes`: the same solves, bit for bit, as one after another) and are
+judged in order, so the plans are those of the plain sequential search
+(``tests/stages/test_expert_fast.py``).
 """
 
 from __future__ import annotations
@@ -42,11 +45,6 @@ def _place_base(d, q: np.ndarray, base: tuple[float, float, float]) -> np.ndarra
     for name, v in zip(d.sim.desc.base_joints, local, strict=True):
         q[d.ik.q_idx[name]] = v
     return q
-
-
-def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
-    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
-    return _place_base(d, _robot_q(d), base)
 
 
 def reachable(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -> bool:
