@@ -312,14 +312,15 @@ class Clik:
         upd, log6, sqrt, lower, upper = pin.updateFramePlacement, pin.log6, math.sqrt, self.lower, self.upper
         damp, max_step, stall, additive = self._damp, self.max_step, self.stall_iters, self._additive
         goal = pin.SE3(np.asarray(target, float))
-        q = np.clip(np.asarray(q0, float).copy(), lower, upper)
+        q = np.minimum(np.maximum(np.asarray(q0, float), lower), upper)  # np.clip's values, a new array
         v = np.zeros(model.nv)
         it = 0
         best, best_it = np.inf, 0
-        placed = False  # data holds the kinematics of q
+        placed, m = False, None  # whether data (and m, the end-effector placement) hold q's kinematics
         for it in range(1, max_iters + 1):  # noqa: B007 (the count is reported)
             jjt_fn(model, data, q)
-            err = log6(upd(model, data, frame).actInv(goal)).vector
+            m = upd(model, data, frame)
+            err = log6(m.actInv(goal)).vector
             placed = True
             ep, er = err[:3], err[3:]
             pe, re = sqrt(ep.dot(ep)), sqrt(er.dot(er))
@@ -341,8 +342,7 @@ class Clik:
             placed = False
         if not placed:
             pin.forwardKinematics(model, data, q)
-            upd(model, data, frame)
-        m = data.oMf[frame]
+            m = upd(model, data, frame)
         dp = m.translation - goal.translation
         pe = sqrt(dp.dot(dp))
         r = pin.log3(m.rotation.T @ goal.rotation)
