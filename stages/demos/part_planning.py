@@ -3,13 +3,17 @@ which CLIK reaches a part's waypoints (:func:`choose_base`, :func:`plan_stage`),
 along them (:func:`reach`) and the occupancy grid with the area a part sweeps (:func:`swept_grid`).
 
 ``d`` is a :class:`~stages.demos.driver.Driver`; plans are checked by IK only, the simulation does
-not step.
+not step. The candidates of a search have their reaches computed side by side
+(:mod:`stages.simulate.clik_lanes`: the same solves, bit for bit, as one after another) and are
+judged in order, so the plans are those of the plain sequential search
+(``tests/stages/test_expert_fast.py``).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
 
 import numpy as np
 
@@ -26,9 +30,14 @@ LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
 
 
-def _base_q(d, base: tuple[float, float, float]) -> np.ndarray:
-    """The Pinocchio configuration of the robot now, with the base moved to ``base`` (world x, y, yaw)."""
-    q = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+def _robot_q(d) -> np.ndarray:
+    """The Pinocchio configuration of the robot now (arm at its joint targets)."""
+    return d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+
+
+def _place_base(d, q: np.ndarray, base: tuple[float, float, float]) -> np.ndarray:
+    """A copy of configuration ``q`` with the base moved to ``base`` (world x, y, yaw)."""
+    q = q.copy()
     x0, y0, yaw0 = d.sim.spawn
     c, s = math.cos(yaw0), math.sin(yaw0)
     dx, dy = base[0] - x0, base[1] - y0
@@ -61,19 +70,24 @@ def choose_base(d, part: ArticulatedPart, grid, candidates,
     h = np.asarray(part.handle, float)
     face, sgn = heading(-n), toward_hinge(part)
     blocked = grid.inflate(ROBOT_RADIUS)
-    tried = 0
+    free = []
     for dn, dl, dyaw, pitch in candidates:
         p = h + dn * n + dl * lat
         base = (float(p[0]), float(p[1]), face + sgn * dyaw)
-        if not is_free(grid, blocked, base[0], base[1]):
-            continue
-        tried += 1
-        if reachable(d, base, targets_of(base, pitch)):
+        if is_free(grid, blocked, base[0], base[1]):
+            free.append((base, pitch, dn, dl, dyaw))
+    q = _robot_q(d)
+    # the free candidates' reaches run in lockstep (the first that reaches wins, as in order): 2
+    # lanes, doubling per candidate judged, up to 8
+    jobs = (_reach_job(d, q, c[0], targets_of(c[0], c[1]), 0.004, count=True) for c in free)
+    for k, (sols, total) in _lockstep(d, jobs, lambda judged: min(8, 2 << judged)):
+        if len(sols) == total:
+            base, pitch, dn, dl, dyaw = free[k]
             log.info("%s: base %s (dn %.2f dl %.2f dyaw %.2f pitch %.2f)", part.joint_path, base, dn, dl,
                      dyaw, pitch)
             return base, pitch
     raise ExpertFailure("no_base_pose",
-                        f"{part.joint_path}: none of {tried} free base poses reaches the handle path")
+                        f"{part.joint_path}: none of {len(free)} free base poses reaches the handle path")
 
 
 def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: float = 0.06):
@@ -116,24 +130,56 @@ def reach(d, base: tuple[float, float, float], targets, *, tol: float = 0.004) -
     """Arm solutions (7,) for the leading ``targets`` (4x4 world poses, in order) that CLIK reaches
     one after the other from a base at ``base`` (the first with random restarts, the others
     warm-started from the previous solution, as the motion runs)."""
+    return _run(d, _reach_job(d, _robot_q(d), base, targets, tol))
+
+
+def _lockstep(d, jobs, width):
+    from stages.simulate.clik_lanes import lockstep
+
+    return lockstep(d.ik, jobs, width)
+
+
+def _run(d, job):
+    """The value of one job (see :mod:`stages.simulate.clik_lanes`), its solves timed as
+    ``Clik.solve`` calls are where the Clik counts them (``seconds``)."""
+    from stages.simulate.clik_lanes import run_job
+
+    t0 = time.perf_counter()
+    try:
+        return run_job(d.ik, job)
+    finally:
+        if hasattr(d.ik, "seconds"):
+            d.ik.seconds += time.perf_counter() - t0
+
+
+def _reach_job(d, q_robot: np.ndarray, base, targets, tol: float, count: bool = False):
+    """:func:`reach` from configuration ``q_robot`` (base moved to ``base``) as a job of
+    :mod:`stages.simulate.clik_lanes` (the same solves: restarts from ``default_rng(k)``);
+    ``count``: returns (solutions, len(targets))."""
+    from stages.simulate.clik_lanes import solve_job
     from stages.simulate.control import Clik
 
-    q = _base_q(d, base)
+    q = _place_base(d, q_robot, base)
     out = []
+    targets = list(targets)
+    root = Clik.root_from_world(d.sim.spawn)  # world_to_root's transform, once
+    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
     for k, t in enumerate(targets):
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), q, max_iters=300,
-                         restarts=6 if k == 0 else 0, rng=np.random.default_rng(k))
-        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q):
+        res = yield from solve_job(d.ik, root @ np.asarray(t, float), q, max_iters=300,
+                                   restarts=6 if k == 0 else 0, rng=lambda k=k: np.random.default_rng(k))
+        if res.position_error > tol or res.rotation_error > math.radians(2.0) or _at_limit(d, res.q, idx=idx):
             break
         q = res.q
         out.append(d.ik.arm_q(q))
-    return out
+    return (out, len(targets)) if count else out
 
 
-def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN) -> bool:
+def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN, idx=None) -> bool:
     """Whether an arm joint of Pinocchio configuration ``q`` is within ``margin`` [rad] of a limit
-    (such a plan breaks when the base stops a centimetre off its goal)."""
-    idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
+    (such a plan breaks when the base stops a centimetre off its goal). ``idx``: the arm joints'
+    configuration indices, where the caller has them."""
+    if idx is None:
+        idx = [d.ik.q_idx[n] for n in d.sim.desc.arm_joints]
     return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
@@ -166,13 +212,14 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> lis
     return [b for _, b in out]
 
 
-def _robust(d, base, part: ArticulatedPart, targets) -> bool:
+def _robust(d, base, part: ArticulatedPart, targets, q_robot: np.ndarray | None = None) -> bool:
     """Whether ``targets`` stay reachable with the base stopped BASE_SLACK further from the handle
     than planned (the drive ends within a centimetre or two of its goal)."""
     away = np.asarray(base[:2]) - np.asarray(part.handle[:2])
     away = away / max(np.linalg.norm(away), 1e-9) * BASE_SLACK
     shifted = (base[0] + float(away[0]), base[1] + float(away[1]), base[2])
-    return len(reach(d, shifted, targets, tol=0.006)) == len(targets)
+    q = _robot_q(d) if q_robot is None else q_robot
+    return len(_run(d, _reach_job(d, q, shifted, targets, 0.006))) == len(targets)
 
 
 def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
@@ -180,12 +227,15 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
     bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
     large as found (all of them ends the search), and the arm solutions of approach + those
-    waypoints."""
+    waypoints.
+
+    The candidates (base poses by :func:`_swing_bases`, each with its :func:`grips`) are checked
+    in order, the first ``max_checks``; their reaches run in lockstep, up to 16 at a time
+    (:mod:`stages.simulate.clik_lanes`), and are judged in order as they complete."""
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     p0 = door_pitch(z) if vertical else drawer_pitch(z)
     best = (None, 0.0, -1, [], 0.0)
-    checks = 0
     bases = _swing_bases(part, grid, q0, qs)
     if mode == "edge":
         # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
@@ -193,20 +243,33 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
         bar = np.asarray(part.bar_axis, float)[:2]
         bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
         max_checks = 3 * max_checks
-    for base in bases:
-        for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge"):
-            approach, arc = gesture(part, q0, qs, pitch, mode, along)
-            sols = reach(d, base, approach + arc)
-            n = len(sols) - len(approach)
-            checks += 1
-            if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)]):
-                best = (base, pitch, n, sols, along)
-                if n == len(qs):
-                    return best
-            if checks >= max_checks:
-                break
-        if checks >= max_checks:
-            break
+    cands = [(base, pitch, along) for base in bases
+             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge")][:max_checks]
+    gestures: dict = {}  # the approach and arc of a grip do not depend on the base
+
+    def gesture_of(pitch: float, along: float):
+        if (pitch, along) not in gestures:
+            gestures[pitch, along] = gesture(part, q0, qs, pitch, mode, along)
+        return gestures[pitch, along]
+
+    def job(base, pitch: float, along: float):
+        approach, arc = gesture_of(pitch, along)
+        return _reach_job(d, q_robot, base, approach + arc, 0.004)
+
+    q_robot = _robot_q(d)
+    jobs = (job(*c) for c in cands)
+    checks = 0
+    # the first candidates often suffice (a full reach ends the search): 2 lanes, doubling per
+    # candidate judged, up to 16
+    for k, sols in _lockstep(d, jobs, lambda judged: min(16, 2 << judged)):
+        base, pitch, along = cands[k]
+        approach, arc = gesture_of(pitch, along)
+        n = len(sols) - len(approach)
+        checks += 1
+        if n > best[2] and _robust(d, base, part, approach + arc[:max(n, 0)], q_robot):
+            best = (base, pitch, n, sols, along)
+            if n == len(qs):
+                return best
     if best[0] is None or best[2] < 0:
         raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
     return best

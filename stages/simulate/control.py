@@ -15,10 +15,11 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+import math
 
 import numpy as np
 
+from stages.simulate.clik_lanes import IkResult, _solve1, solve_lanes
 from stages.simulate.robot import RobotDescription
 
 log = logging.getLogger(__name__)
@@ -192,18 +193,6 @@ class RobotControl(CommandBuffers):
 # --------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class IkResult:
-    """q: full Pinocchio configuration (nq,); success: within tolerance; position_error [m];
-    rotation_error [rad]; iterations."""
-
-    q: np.ndarray
-    success: bool
-    position_error: float
-    rotation_error: float
-    iterations: int
-
-
 class Clik:
     """Closed-loop IK for the robot's end-effector frame on its Pinocchio model.
 
@@ -233,6 +222,16 @@ class Clik:
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
         self._pin = pin
+        # the solver's invariants: the damping term, the Jacobian's columns as a slice where they
+        # are contiguous, and whether pin.integrate is a plain sum (1-DoF joints of one coordinate)
+        self._damp = self.damping * np.eye(6)
+        lo = int(self.v_idx[0]) if len(self.v_idx) else 0
+        contiguous = np.array_equal(self.v_idx, np.arange(lo, lo + len(self.v_idx)))
+        self._cols = slice(lo, lo + len(self.v_idx)) if contiguous else self.v_idx
+        self._additive = self.model.nq == self.model.nv and all(
+            j.nq == 1 and j.nv == 1 and ("Revolute" in j.shortname() or "Prismatic" in j.shortname()
+                                         or j.shortname()[-2:] in ("RX", "RY", "RZ", "PX", "PY", "PZ"))
+            and "Unbounded" not in j.shortname() for j in self.model.joints[1:])
 
     def neutral(self) -> np.ndarray:
         q = self._pin.neutral(self.model)
@@ -291,40 +290,63 @@ class Clik:
                 break
         return best
 
+    def solve_many(self, targets, q0s, *, max_iters: int = 300, pos_tol: float = 1e-4, rot_tol: float = 1e-3,
+                   restarts: int = 0, rngs=None, width: int = 32) -> list[IkResult]:
+        """:meth:`solve` for each (target, q0, rng) of ``targets``, ``q0s``, ``rngs`` (one
+        generator per solve, for ``restarts``), the same results computed in lockstep
+        (:mod:`stages.simulate.clik_lanes`), ``width`` at a time."""
+        return solve_lanes(self, targets, q0s, max_iters=max_iters, pos_tol=pos_tol, rot_tol=rot_tol,
+                           restarts=restarts, rngs=rngs, width=width)
+
     def _solve(self, target, q0, max_iters, pos_tol, rot_tol) -> IkResult:
+        """One damped-least-squares solve from ``q0``. The arithmetic is that of the plain loop
+        (``tests/stages/expert_reference.py``; same iterates bit for bit) with fewer Python calls:
+        one kinematics pass per iteration (``computeJointJacobians`` places the joints, the
+        end-effector frame alone is placed), the Jacobian's columns sliced (into the column-major
+        layout that fancy indexing gives, so that the products sum in the same order), norms as
+        sqrt(x . x) as ``np.linalg.norm`` computes them, the solve by its gufunc, and
+        ``pin.integrate`` as a sum where the joints are 1-DoF (checked in ``__init__``)."""
         pin = self._pin
+        model, data, frame, cols = self.model, self.data, self.frame, self._cols
+        jjt_fn, getj, local = pin.computeJointJacobians, pin.getFrameJacobian, pin.LOCAL
+        upd, log6, sqrt, lower, upper = pin.updateFramePlacement, pin.log6, math.sqrt, self.lower, self.upper
+        damp, max_step, stall, additive = self._damp, self.max_step, self.stall_iters, self._additive
         goal = pin.SE3(np.asarray(target, float))
-        q = np.clip(np.asarray(q0, float).copy(), self.lower, self.upper)
-        err = np.zeros(6)
+        q = np.minimum(np.maximum(np.asarray(q0, float), lower), upper)  # np.clip's values, a new array
+        v = np.zeros(model.nv)
         it = 0
         best, best_it = np.inf, 0
+        placed, m = False, None  # whether data (and m, the end-effector placement) hold q's kinematics
         for it in range(1, max_iters + 1):  # noqa: B007 (the count is reported)
-            pin.framesForwardKinematics(self.model, self.data, q)
-            cur = self.data.oMf[self.frame]
-            err = pin.log6(cur.actInv(goal)).vector
-            pe, re = np.linalg.norm(err[:3]), np.linalg.norm(err[3:])
+            jjt_fn(model, data, q)
+            m = upd(model, data, frame)
+            err = log6(m.actInv(goal)).vector
+            placed = True
+            ep, er = err[:3], err[3:]
+            pe, re = sqrt(ep.dot(ep)), sqrt(er.dot(er))
             if pe < pos_tol and re < rot_tol:
                 break
             # stalled (a joint limit, an unreachable target): no 0.1% progress in STALL_ITERS
             e = pe + 0.1 * re
             if e < best * (1.0 - 1e-3):
                 best, best_it = e, it
-            elif self.stall_iters and it - best_it >= self.stall_iters:
+            elif stall and it - best_it >= stall:
                 break
-            pin.computeJointJacobians(self.model, self.data, q)
-            jac = pin.getFrameJacobian(self.model, self.data, self.frame, pin.LOCAL)[:, self.v_idx]
-            jjt = jac @ jac.T + self.damping * np.eye(6)
-            dv = jac.T @ np.linalg.solve(jjt, err)
-            n = np.linalg.norm(dv)
-            if n > self.max_step:
-                dv *= self.max_step / n
-            v = np.zeros(self.model.nv)
-            v[self.v_idx] = dv
-            q = np.clip(pin.integrate(self.model, q, v), self.lower, self.upper)
-        pin.framesForwardKinematics(self.model, self.data, q)
-        m = self.data.oMf[self.frame]
-        pe = float(np.linalg.norm(m.translation - goal.translation))
-        re = float(np.linalg.norm(pin.log3(m.rotation.T @ goal.rotation)))
+            jac = np.asfortranarray(getj(model, data, frame, local)[:, cols])  # as [:, v_idx] lays it out
+            dv = jac.T @ _solve1(jac @ jac.T + damp, err, signature="dd->d")
+            n = sqrt(dv.dot(dv))
+            if n > max_step:
+                dv *= max_step / n
+            v[cols] = dv
+            q = np.minimum(np.maximum(q + v if additive else pin.integrate(model, q, v), lower), upper)
+            placed = False
+        if not placed:
+            pin.forwardKinematics(model, data, q)
+            m = upd(model, data, frame)
+        dp = m.translation - goal.translation
+        pe = sqrt(dp.dot(dp))
+        r = pin.log3(m.rotation.T @ goal.rotation)
+        re = sqrt(r.dot(r))
         return IkResult(
             q=q,
             success=pe < max(pos_tol, 1e-3) and re < max(rot_tol, 1e-2),
@@ -336,10 +358,16 @@ class Clik:
     @staticmethod
     def world_to_root(spawn_xy_yaw, pose_world: np.ndarray) -> np.ndarray:
         """A world 4x4 pose expressed in the robot root (spawn) frame."""
+        return Clik.root_from_world(spawn_xy_yaw) @ np.asarray(pose_world, float)
+
+    @staticmethod
+    def root_from_world(spawn_xy_yaw) -> np.ndarray:
+        """The 4x4 transform taking world poses into the robot root (spawn) frame (``world_to_root``
+        multiplies by it; a caller converting many poses computes it once)."""
         x, y, yaw = spawn_xy_yaw
         c, s = np.cos(yaw), np.sin(yaw)
         t = np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-        return np.linalg.inv(t) @ np.asarray(pose_world, float)
+        return np.linalg.inv(t)
 
     def from_sim(self, sim, world: int = 0) -> np.ndarray:
         """The Pinocchio configuration (nq,) of the robot's current joint positions in ``sim``."""
