@@ -127,8 +127,8 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("bottle", O.bottle, [KI, LR], SURF, M.PLASTIC, (0.06, 0.06, 0.18), (0.09, 0.09, 0.3),
        interactable=True,
        rigid_format="obj", co_occurrence=("kitchen_counter", "fridge")),
-    _s("pitcher", O.pitcher, [KI], SURF, M.CERAMIC, (0.1, 0.16, 0.17), (0.14, 0.26, 0.26), interactable=True,
-       co_occurrence=("dining_table", "kitchen_counter")),
+    _s("pitcher", O.pitcher, [KI, LR], SURF, M.CERAMIC, (0.1, 0.16, 0.17), (0.14, 0.26, 0.26), interactable=True,
+       co_occurrence=("dining_table", "kitchen_counter", "coffee_table", "cup")),
     _s("book", O.book, [LR, BR], SURF, M.PAPER, (0.15, 0.11, 0.01), (0.26, 0.19, 0.05), interactable=True,
        rigid_format="obj", co_occurrence=("bookshelf", "nightstand", "coffee_table")),
     _s("box", O.box, [LR, BR, HW, KI], SURF, M.PAPER, (0.15, 0.12, 0.08), (0.5, 0.4, 0.35), interactable=True,
@@ -156,6 +156,11 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("hanger", O.hanger, [BR, HW], SURF, M.PLASTIC, (0.13, 0.38, 0.003), (0.25, 0.47, 0.02),
        interactable=True,
        co_occurrence=("closet", "wardrobe")),
+    # open containers for the household tasks (clean the table, clean dishes)
+    _s("trash_can", O.trash_can, [LR, KI, BR, BA], FLOOR, M.PLASTIC, (0.2, 0.22, 0.26), (0.36, 0.38, 0.45),
+       interactable=True, co_occurrence=("coffee_table", "kitchen_counter", "crumpled_paper")),
+    _s("dish_rack", O.dish_rack, [KI], SURF, M.METAL, (0.26, 0.34, 0.084), (0.34, 0.44, 0.125),
+       interactable=True, co_occurrence=("kitchen_counter", "plate", "sponge")),
 )
 GENERATORS_BY_CATEGORY: dict[str, GeneratorSpec] = {s.category: s for s in GENERATORS}
 
