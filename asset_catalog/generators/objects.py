@@ -332,20 +332,23 @@ def dish_rack(b: AssetBuilder) -> float:
     along Y; a plate stands on its edge in a slot, its face across Y. Every part is a box (its own
     convex collider), so the slots stay open in simulation."""
     metal = b.choice("material", ["wire", "plastic"]) == "wire"
-    m = b.material("rack", pick_color(b, [(0.78, 0.78, 0.8), (0.15, 0.15, 0.16)] if metal else PLASTICS, 0.04),
+    colors = [(0.78, 0.78, 0.8), (0.15, 0.15, 0.16)] if metal else PLASTICS
+    m = b.material("rack", pick_color(b, colors, 0.04),
                    roughness=0.25 if metal else 0.45, metallic=1.0 if metal else 0.0)
     density = 2500.0 if metal else 1000.0
     sx, sy = b.param("depth", 0.26, 0.34), b.param("width", 0.34, 0.44)
     tray_h, t = b.param("tray_height", 0.03, 0.05), 0.004
     tine_h = b.param("tine_height", 0.08, 0.12)
-    pitch = b.param("slot_pitch", 0.045, 0.055)     # > a plate's height (rim to foot, <= 28 mm); <= 24 colliders
+    # slot pitch > a plate's height (rim to foot, <= 28 mm); at most 9 tines a row (24 colliders a link)
+    pitch = b.param("slot_pitch", 0.045, 0.055)
     tine = b.param("tine_width", 0.004, 0.006)
     b.add("base", g.box((sx, sy, t), (0, 0, t / 2)), m, density=density)
     for s in (-1, 1):
         b.add("base", g.box_between((-sx / 2, s * sy / 2 - (t if s > 0 else 0), 0.0),
                                     (sx / 2, s * sy / 2 + (t if s < 0 else 0), tray_h)), m, density=density)
         b.add("base", g.box_between((s * sx / 2 - (t if s > 0 else 0), -sy / 2 + t, 0.0),
-                                    (s * sx / 2 + (t if s < 0 else 0), sy / 2 - t, tray_h)), m, density=density)
+                                    (s * sx / 2 + (t if s < 0 else 0), sy / 2 - t, tray_h)), m,
+              density=density)
     n = int((sy - 2 * t - 0.03) // pitch) + 1
     ys = (np.arange(n) - (n - 1) / 2) * pitch
     rows = (-sx * 0.22, sx * 0.22)
