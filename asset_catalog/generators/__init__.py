@@ -143,7 +143,7 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
        rigid_format="obj", co_occurrence=("bowl", "dining_table")),
     _s("banana", O.banana, [KI, LR], SURF, M.FOOD, (0.02, 0.1, 0.028), (0.08, 0.26, 0.04), interactable=True,
        co_occurrence=("bowl", "kitchen_counter")),
-    _s("crumpled_paper", O.crumpled_paper, [LR, BR, KI, HW], SURF, M.PAPER, (0.035, 0.035, 0.035),
+    _s("crumpled_paper", O.crumpled_paper, [LR, BR, KI, HW], SURF, M.PAPER, (0.035, 0.035, 0.03),
        (0.12, 0.12, 0.12),
        interactable=True, rigid_format="obj", co_occurrence=("coffee_table", "dining_table")),
     _s("pillow", O.pillow, [BR, LR], SURF, M.FABRIC, (0.4, 0.3, 0.09), (0.65, 0.45, 0.16), interactable=True,

@@ -235,7 +235,11 @@ def crumpled_paper(b: AssetBuilder) -> float:
     def warp(p: np.ndarray) -> np.ndarray:
         n = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
         bump = (np.clip(n @ dirs.T, 0, None) ** 14) @ amps
-        return p * np.clip(1 + bump, 0.6, 1.4)[:, None]
+        q = p * np.clip(1 + bump, 0.6, 1.4)[:, None]
+        q[:, 2] = np.maximum(q[:, 2], -flat * r)   # a flat crushed side: it lies still, it does not roll
+        return q
+
+    flat = b.param("flat_bottom", 0.5, 0.65)
 
     ball = g.sphere(r, n=28).warp_batch(warp)
     lo = ball.bounding_box()[2]
