@@ -360,6 +360,5 @@ def dish_rack(b: AssetBuilder) -> float:
         for y in ys:   # tines reach 1 mm into the bottom: one solid with the tray
             b.add("base", g.box((tine, tine, tine_h + 0.001), (x, y, t - 0.001 + (tine_h + 0.001) / 2)), m,
                   density=density)
-    b.surface(t, (-sx / 2 + t, -sy / 2 + t), (sx / 2 - t, sy / 2 - t), inside=True, clear_height=tine_h)
     b.handle("base", (0.0, sy / 2 - t / 2, tray_h - 0.003), t, 0.02, (1.0, 0.0, 0.0), kind="rim")
     return b.param("mass", 0.6, 1.6) if metal else b.param("mass", 0.4, 1.0)

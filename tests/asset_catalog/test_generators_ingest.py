@@ -58,6 +58,19 @@ def test_small_default_catalog_ingests_and_behaves(tmp_path: Path):
     assert _physics(out, results) == []
 
 
+def test_household_task_assets_ingest_and_behave(tmp_path: Path):
+    """The assets issue 16's tasks add or lean on: open containers (trash can, dish rack), the two-door
+    wardrobe with its rail, paper trash; one variant each through ingest and the Newton checks."""
+    cats = ("trash_can", "dish_rack", "wardrobe", "crumpled_paper")
+    out = tmp_path / "out"
+    summary, results = _run(out, cats, variants=1)
+    _check_results(summary, results, len(cats))
+    assert {r.asset_id.rsplit("_", 1)[0]: r.n_joints for r in results.values()} == {
+        "trash_can": 0, "dish_rack": 0, "wardrobe": 2, "crumpled_paper": 0}
+    pytest.importorskip("newton_usd_schemas", reason="Newton's add_usd needs newton-usd-schemas")
+    assert _physics(out, results) == []
+
+
 @pytest.mark.slow
 def test_full_default_catalog_ingests_and_behaves(tmp_path: Path):
     """Every category x 5 variants (185 assets) through ingest and the Newton checks (~15 min)."""
