@@ -134,15 +134,20 @@ def load_rules(path: str | Path = DEFAULT_RULES) -> PlacementRules:
 
 def rule_files(path: str | Path = DEFAULT_RULES) -> tuple[Path, ...]:
     """The rule file and the files it extends, in order (inputs of a cached scene item). A file that
-    cannot be read ends the list: ``load_rules`` reports it."""
-    path = Path(path)
-    try:
-        base = _read(path).get("extends")
-    except RulesError:
-        return (path,)
-    if not isinstance(base, str) or (path.parent / base).resolve() == path.resolve():
-        return (path,)
-    return (path, *rule_files(path.parent / base))
+    cannot be read, or a cycle, ends the list: ``load_rules`` reports it."""
+    out = [Path(path)]
+    while True:
+        try:
+            base = _read(out[-1]).get("extends")
+        except RulesError:
+            break
+        if not isinstance(base, str):
+            break
+        nxt = out[-1].parent / base
+        if nxt.resolve() in {p.resolve() for p in out}:
+            break
+        out.append(nxt)
+    return tuple(out)
 
 
 def _read(path: Path) -> dict:
