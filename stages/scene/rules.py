@@ -72,6 +72,7 @@ class ObjectRule(_Entry):
 
     on: tuple[str, ...] = ()
     align: bool = False
+    inside: bool = False
 
 
 class RoomRules(_Strict):
@@ -122,7 +123,8 @@ def load_rules(path: str | Path = DEFAULT_RULES) -> PlacementRules:
     base (see ``rules/household_tasks.toml``): its ``[defaults]`` and room settings override the base's
     field by field; in each room's furniture and objects lists, an entry of a category the base lists
     replaces the base's entries of that category (at the first one's position), and an entry of a new
-    category is appended."""
+    category is appended; ``replace = ["furniture"]`` (or "objects") in a room makes the file's list
+    replace the base's whole list (to change the order)."""
     path = Path(path)
     raw = _merged_raw(path, ())
     try:
@@ -185,8 +187,15 @@ def _merged_raw(path: Path, seen: tuple[Path, ...]) -> dict:
 
 
 def _merge_room(base: dict, over: dict) -> dict:
-    out = {**base, **{k: v for k, v in over.items() if k not in _SECTIONS}}
+    whole = over.get("replace", [])
+    whole = [whole] if isinstance(whole, str) else whole
+    out = {**base, **{k: v for k, v in over.items() if k not in (*_SECTIONS, "replace")}}
+    if not isinstance(whole, list) or not set(whole) <= set(_SECTIONS):
+        out["replace"] = whole   # left for validation to name
     for sec in _SECTIONS:
+        if sec in whole:
+            out[sec] = over.get(sec, [])
+            continue
         new = [e for e in over.get(sec, []) if isinstance(e, dict)]
         by_cat: dict[object, list[dict]] = {}
         for e in new:

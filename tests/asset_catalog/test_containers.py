@@ -69,7 +69,8 @@ def test_dish_rack_slots_hold_a_catalog_plate_on_edge(variant):
     tines = [v for v, _ in pieces if v[:, 2].max() > tray_top + 0.02]
     rows: dict[float, list[tuple[float, float]]] = {}
     for v in tines:
-        rows.setdefault(round(float(v[:, 0].mean()), 3), []).append((float(v[:, 1].min()), float(v[:, 1].max())))
+        y_span = (float(v[:, 1].min()), float(v[:, 1].max()))
+        rows.setdefault(round(float(v[:, 0].mean()), 3), []).append(y_span)
     assert len(rows) == 2 and len({len(r) for r in rows.values()}) == 1, f"{a.model.name}: rows {rows.keys()}"
     plate_min, plate_max = GENERATORS_BY_CATEGORY["plate"].size_min, GENERATORS_BY_CATEGORY["plate"].size_max
     xs = sorted(rows)

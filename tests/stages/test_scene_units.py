@@ -37,16 +37,18 @@ def test_household_task_rules_require_what_the_tasks_use():
 
     base, rules = load_rules(), load_rules(HOUSEHOLD_TASK_RULES)
     assert rules.categories() <= set(GENERATORS_BY_CATEGORY)
-    req = {rt: {e.category for e in (*rules.for_room(rt).furniture, *rules.for_room(rt).objects) if e.count[0] > 0}
-           for rt in ("living_room", "kitchen", "bedroom")}
+    req = {rt: {e.category for e in (*rules.for_room(rt).furniture, *rules.for_room(rt).objects)
+                if e.count[0] > 0} for rt in ("living_room", "kitchen", "bedroom")}
     assert {"bookshelf", "book", "pitcher", "cup", "trash_can", "crumpled_paper"} <= req["living_room"]
     assert {"wardrobe", "hanger", "pillow", "alarm_clock", "bed"} <= req["bedroom"]
     assert {"dish_rack", "sponge", "plate", "microwave", "fridge"} <= req["kitchen"]
     # what the file does not name comes from the default rules unchanged
     assert rules.for_room("bathroom") == base.for_room("bathroom")
     assert rules.setting("bedroom", "door_clearance") == base.setting("bedroom", "door_clearance")
-    dflt = {e.category: e for e in base.for_room("bedroom").furniture}
-    assert {e.category: e for e in rules.for_room("bedroom").furniture}["dresser"] == dflt["dresser"]
+    dflt = {e.category: e for e in base.for_room("living_room").furniture}
+    assert {e.category: e for e in rules.for_room("living_room").furniture}["armchair"] == dflt["armchair"]
+    # the bedroom's furniture list is the file's own (replace = ["furniture"]): the wardrobe first
+    assert rules.for_room("bedroom").furniture[0].category == "wardrobe"
     assert rule_files(HOUSEHOLD_TASK_RULES) == (HOUSEHOLD_TASK_RULES, DEFAULT_RULES)
     # the hangers go where the rules put them: inside a wardrobe or closet
     assert {e.category: e.on for e in rules.for_room("bedroom").objects}["hanger"] == ("wardrobe", "closet")
@@ -61,6 +63,7 @@ def test_rule_file_extends_another(tmp_path: Path):
         '[[room.kitchen.objects]]\ncategory = "mug"\n', encoding="utf-8")
     p = tmp_path / "task.toml"
     p.write_text('extends = "base.toml"\n[defaults]\nreach = 1.1\n[room.kitchen]\nmin_gap = 0.1\n'
+                 'replace = ["objects"]\n[[room.kitchen.objects]]\ncategory = "plate"\n'
                  '[[room.kitchen.furniture]]\ncategory = "fridge"\ncount = [1, 1]\nsnap = 0.5\n'
                  '[[room.kitchen.furniture]]\ncategory = "fridge"\ncount = [0, 2]\n'
                  '[[room.kitchen.furniture]]\ncategory = "oven"\n'
@@ -72,7 +75,7 @@ def test_rule_file_extends_another(tmp_path: Path):
     # both base fridge entries are replaced by the task's two, at the first one's place; oven appended
     assert [(e.category, e.count) for e in k.furniture] == [("fridge", (1, 1)), ("fridge", (0, 2)),
                                                              ("cabinet", (0, 1)), ("oven", (1, 1))]
-    assert k.furniture[0].snap == 0.5 and [e.category for e in k.objects] == ["mug"]
+    assert k.furniture[0].snap == 0.5 and [e.category for e in k.objects] == ["plate"]
     assert [e.category for e in r.for_room("bedroom").furniture] == ["bed"]
     assert rule_files(p) == (p, tmp_path / "base.toml")
     # a cycle and a missing base are errors that name the file
