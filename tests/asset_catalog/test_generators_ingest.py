@@ -73,7 +73,7 @@ def test_household_task_assets_ingest_and_behave(tmp_path: Path):
 
 @pytest.mark.slow
 def test_full_default_catalog_ingests_and_behaves(tmp_path: Path):
-    """Every category x 5 variants (185 assets) through ingest and the Newton checks (~15 min)."""
+    """Every category x 5 variants (195 assets) through ingest and the Newton checks (~15 min)."""
     out = tmp_path / "out"
     summary, results = _run(out, tuple(s.category for s in GENERATORS), variants=5, workers=2)
     _check_results(summary, results, 5 * len(GENERATORS))
