@@ -190,8 +190,9 @@ def _merge_room(base: dict, over: dict) -> dict:
     whole = over.get("replace", [])
     whole = [whole] if isinstance(whole, str) else whole
     out = {**base, **{k: v for k, v in over.items() if k not in (*_SECTIONS, "replace")}}
-    if not isinstance(whole, list) or not set(whole) <= set(_SECTIONS):
+    if not isinstance(whole, list) or not {str(w) for w in whole} <= set(_SECTIONS):
         out["replace"] = whole   # left for validation to name
+        whole = []
     for sec in _SECTIONS:
         if sec in whole:
             out[sec] = over.get(sec, [])
