@@ -59,14 +59,14 @@ def test_small_default_catalog_ingests_and_behaves(tmp_path: Path):
 
 
 def test_household_task_assets_ingest_and_behave(tmp_path: Path):
-    """The assets issue 16's tasks add or lean on: open containers (trash can, dish rack), the two-door
-    wardrobe with its rail, paper trash; one variant each through ingest and the Newton checks."""
-    cats = ("trash_can", "dish_rack", "wardrobe", "crumpled_paper")
+    """The assets issue 16's tasks add: open containers (trash can, dish rack) and paper trash with a
+    flat side; one variant each through ingest and the Newton rest check (the wardrobe, the pitcher and
+    the hangers the tasks also use are in the full run below)."""
+    cats = ("trash_can", "dish_rack", "crumpled_paper")
     out = tmp_path / "out"
     summary, results = _run(out, cats, variants=1)
     _check_results(summary, results, len(cats))
-    assert {r.asset_id.rsplit("_", 1)[0]: r.n_joints for r in results.values()} == {
-        "trash_can": 0, "dish_rack": 0, "wardrobe": 2, "crumpled_paper": 0}
+    assert sorted(r.asset_id for r in results.values() if r.n_joints == 0) == sorted(f"{c}_00" for c in cats)
     pytest.importorskip("newton_usd_schemas", reason="Newton's add_usd needs newton-usd-schemas")
     assert _physics(out, results) == []
 
