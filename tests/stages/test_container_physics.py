@@ -97,8 +97,9 @@ def test_plate_set_into_a_dish_rack_slot_stays_on_edge(packages):
     mid = len(ys) // 2
     slot = (ys[mid - 1] + ys[mid]) / 2              # between the two middle tines
     plate = _catalog_asset("plate").params
-    radius, half = plate["radius"], plate["height"] / 2     # the plate's origin is its foot: centre at +Z half
-    on_edge = wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), math.pi / 2)   # its face across Y (local Z -> -Y)
+    radius, half = plate["radius"], plate["height"] / 2     # its origin is its foot: centre at +Z half
+    # on edge: its face across Y (local Z -> world -Y)
+    on_edge = wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), math.pi / 2)
     q = _simulate([(packages["dish_rack"], (0.0, 0.0, 0.001), wp.quat_identity()),
                    (packages["plate"], (0.0, slot + half, radius + 0.03), on_edge)])
     rack_q, plate_q = q[0], q[1]
@@ -106,5 +107,5 @@ def test_plate_set_into_a_dish_rack_slot_stays_on_edge(packages):
     tilt = _tilt(plate_q[3:])   # the plate's axis: 90 deg when it stands on edge, 0 lying flat
     assert 60.0 < tilt < 120.0, f"plate axis {tilt:.0f} deg from vertical: it fell over"
     centre = plate_q[:3] + _rot(plate_q[3:]) @ np.array([0.0, 0.0, half])
-    assert ys[mid - 1] < centre[1] < ys[mid], f"plate at y={centre[1]:.3f}, slot {ys[mid - 1]:.3f}..{ys[mid]:.3f}"
+    assert ys[mid - 1] < centre[1] < ys[mid], f"plate y={centre[1]:.3f}, slot {ys[mid - 1]:.3f}..{ys[mid]:.3f}"
     assert centre[2] > 0.6 * radius                 # standing in the slot, not lying in the tray
