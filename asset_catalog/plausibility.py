@@ -56,6 +56,7 @@ PLAUSIBLE: dict[str, PlausibleRange] = {
     "kitchen_counter": _r(0.5, 5.0, 15.0, 800.0), "rug": _r(0.4, 6.0, 0.2, 80.0),
     "floor_lamp": _r(0.6, 2.5, 0.5, 60.0), "cabinet": _CABINET, "drawer_cabinet": _CABINET,
     "door": _r(1.2, 3.2, 3.0, 150.0), "bin": _r(0.15, 1.2, 0.1, 30.0),
+    "trash_can": _r(0.15, 1.2, 0.1, 30.0),
     # appliances and fittings
     "fridge": _r(0.5, 2.4, 15.0, 400.0), "microwave": _r(0.2, 0.9, 1.0, 50.0),
     "oven": _r(0.4, 1.5, 10.0, 200.0), "dishwasher": _r(0.4, 1.2, 10.0, 150.0),
@@ -69,7 +70,8 @@ PLAUSIBLE: dict[str, PlausibleRange] = {
     "tea_set": _r(0.1, 1.5, 0.1, 10.0), "frying_pan": _r(0.15, 0.8, 0.1, 6.0),
     "cutlery": _r(0.05, 0.5, 0.002, 1.0), "kitchen_utensil": _r(0.05, 0.6, 0.002, 2.0),
     "milk_carton": _r(0.06, 0.5, 0.01, 4.0), "cereal_box": _r(0.08, 0.6, 0.01, 3.0),
-    "sponge": _r(0.03, 0.3, 0.001, 0.5), "nut": _r(0.01, 0.5, 0.001, 5.0),
+    "sponge": _r(0.03, 0.3, 0.001, 0.5),
+    "dish_rack": _r(0.15, 0.8, 0.1, 6.0), "nut": _r(0.01, 0.5, 0.001, 5.0),
     # food
     "apple": _FRUIT, "orange": _FRUIT, "fruit": _FRUIT, "banana": _r(0.06, 0.4, 0.03, 1.0),
     "bread": _r(0.03, 0.7, 0.01, 3.0),

@@ -127,8 +127,9 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("bottle", O.bottle, [KI, LR], SURF, M.PLASTIC, (0.06, 0.06, 0.18), (0.09, 0.09, 0.3),
        interactable=True,
        rigid_format="obj", co_occurrence=("kitchen_counter", "fridge")),
-    _s("pitcher", O.pitcher, [KI], SURF, M.CERAMIC, (0.1, 0.16, 0.17), (0.14, 0.26, 0.26), interactable=True,
-       co_occurrence=("dining_table", "kitchen_counter")),
+    _s("pitcher", O.pitcher, [KI, LR], SURF, M.CERAMIC, (0.1, 0.16, 0.17), (0.14, 0.26, 0.26),
+       interactable=True,
+       co_occurrence=("dining_table", "kitchen_counter", "coffee_table", "cup")),
     _s("book", O.book, [LR, BR], SURF, M.PAPER, (0.15, 0.11, 0.01), (0.26, 0.19, 0.05), interactable=True,
        rigid_format="obj", co_occurrence=("bookshelf", "nightstand", "coffee_table")),
     _s("box", O.box, [LR, BR, HW, KI], SURF, M.PAPER, (0.15, 0.12, 0.08), (0.5, 0.4, 0.35), interactable=True,
@@ -142,7 +143,7 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
        rigid_format="obj", co_occurrence=("bowl", "dining_table")),
     _s("banana", O.banana, [KI, LR], SURF, M.FOOD, (0.02, 0.1, 0.028), (0.08, 0.26, 0.04), interactable=True,
        co_occurrence=("bowl", "kitchen_counter")),
-    _s("crumpled_paper", O.crumpled_paper, [LR, BR, KI, HW], SURF, M.PAPER, (0.035, 0.035, 0.035),
+    _s("crumpled_paper", O.crumpled_paper, [LR, BR, KI, HW], SURF, M.PAPER, (0.035, 0.035, 0.03),
        (0.12, 0.12, 0.12),
        interactable=True, rigid_format="obj", co_occurrence=("coffee_table", "dining_table")),
     _s("pillow", O.pillow, [BR, LR], SURF, M.FABRIC, (0.4, 0.3, 0.09), (0.65, 0.45, 0.16), interactable=True,
@@ -156,6 +157,11 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("hanger", O.hanger, [BR, HW], SURF, M.PLASTIC, (0.13, 0.38, 0.003), (0.25, 0.47, 0.02),
        interactable=True,
        co_occurrence=("closet", "wardrobe")),
+    # open containers for the household tasks (clean the table, clean dishes)
+    _s("trash_can", O.trash_can, [LR, KI, BR, BA], FLOOR, M.PLASTIC, (0.2, 0.22, 0.26), (0.36, 0.38, 0.45),
+       interactable=True, co_occurrence=("coffee_table", "kitchen_counter", "crumpled_paper")),
+    _s("dish_rack", O.dish_rack, [KI], SURF, M.METAL, (0.26, 0.34, 0.084), (0.34, 0.44, 0.125),
+       interactable=True, co_occurrence=("kitchen_counter", "plate", "sponge")),
 )
 GENERATORS_BY_CATEGORY: dict[str, GeneratorSpec] = {s.category: s for s in GENERATORS}
 

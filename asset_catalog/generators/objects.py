@@ -1,5 +1,6 @@
 """Rigid interactables: vessels (bowl, plate, mug, cup, pitcher, bottle, can), food (apple, orange,
-banana), paper and fabric things (book, box, crumpled paper, pillow, sponge) and a clothes hanger.
+banana), paper and fabric things (book, box, crumpled paper, pillow, sponge), a clothes hanger, and two
+open containers: a trash can and a dish rack.
 
 Vessels have real open cavities; their colliders are convex wedges of the wall plus a base disc, so a
 cavity stays a cavity in simulation. Near-convex objects are written as OBJ with a convex-hull collider.
@@ -234,7 +235,11 @@ def crumpled_paper(b: AssetBuilder) -> float:
     def warp(p: np.ndarray) -> np.ndarray:
         n = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
         bump = (np.clip(n @ dirs.T, 0, None) ** 14) @ amps
-        return p * np.clip(1 + bump, 0.6, 1.4)[:, None]
+        q = p * np.clip(1 + bump, 0.6, 1.4)[:, None]
+        q[:, 2] = np.maximum(q[:, 2], -flat * r)   # a flat crushed side: it lies still, it does not roll
+        return q
+
+    flat = b.param("flat_bottom", 0.5, 0.65)
 
     ball = g.sphere(r, n=28).warp_batch(warp)
     lo = ball.bounding_box()[2]
@@ -294,3 +299,66 @@ def hanger(b: AssetBuilder) -> float | None:
     b.add("base", g.union(pieces), m, density=density, collision=pieces)
     b.handle("base", (cx - hr, 0.0, z), 2 * rod, hr, (0.0, 1.0, 0.0), kind="loop")
     return None
+
+
+def trash_can(b: AssetBuilder) -> float:
+    """An open-top bin standing on the floor: round (a revolved wall, convex wedge colliders) or square
+    (bottom + four wall boxes). The cavity stays open so objects dropped in stay inside."""
+    shape = b.choice("shape", ["round", "square"])
+    metal = b.choice("material", ["plastic", "metal"]) == "metal"
+    m = b.material("bin", pick_color(b, [(0.75, 0.75, 0.77), (0.2, 0.2, 0.21)] if metal else PLASTICS, 0.04),
+                   roughness=0.3 if metal else 0.5, metallic=1.0 if metal else 0.0)
+    h = b.param("height", 0.26, 0.45)
+    wall = b.param("wall", 0.004, 0.006)
+    density = 1200.0 if metal else 950.0   # (steel sheet is thinner than the collider wall: a lower density)
+    if shape == "round":
+        r = b.param("rim_radius", 0.11, 0.18)
+        outer, inner = _vessel_profile(r * b.param("taper", 0.82, 1.0), r, h, wall, 0.012, 0.0, k=4)
+        _vessel(b, m, density, outer, inner, n=48, wedges=16, bands=1)
+        rim_y = r
+    else:
+        sx, sy = b.param("depth", 0.2, 0.34), b.param("width", 0.22, 0.38)
+        bottom = 0.012
+        b.add("base", g.box((sx, sy, bottom), (0, 0, bottom / 2)), m, density=density)
+        for s in (-1, 1):
+            b.add("base", g.box_between((-sx / 2, s * sy / 2 - (wall if s > 0 else 0), 0.0),
+                                        (sx / 2, s * sy / 2 + (wall if s < 0 else 0), h)), m, density=density)
+            b.add("base", g.box_between((s * sx / 2 - (wall if s > 0 else 0), -sy / 2 + wall, 0.0),
+                                        (s * sx / 2 + (wall if s < 0 else 0), sy / 2 - wall, h)), m,
+                  density=density)
+        rim_y = sy / 2
+    b.handle("base", (0.0, rim_y - wall / 2, h - 0.005), wall, 0.03, (1.0, 0.0, 0.0), kind="rim")
+    return b.param("mass", 1.5, 4.0) if metal else b.param("mass", 0.5, 1.8)
+
+
+def dish_rack(b: AssetBuilder) -> float:
+    """A drying rack for plates: a shallow tray (bottom + four low walls) with two rows of upright tines
+    along Y; a plate stands on its edge in a slot, its face across Y. Every part is a box (its own
+    convex collider), so the slots stay open in simulation."""
+    metal = b.choice("material", ["wire", "plastic"]) == "wire"
+    colors = [(0.78, 0.78, 0.8), (0.15, 0.15, 0.16)] if metal else PLASTICS
+    m = b.material("rack", pick_color(b, colors, 0.04),
+                   roughness=0.25 if metal else 0.45, metallic=1.0 if metal else 0.0)
+    density = 2500.0 if metal else 1000.0
+    sx, sy = b.param("depth", 0.26, 0.34), b.param("width", 0.34, 0.44)
+    tray_h, t = b.param("tray_height", 0.03, 0.05), 0.004
+    tine_h = b.param("tine_height", 0.08, 0.12)
+    # slot pitch > a plate's height (rim to foot, <= 28 mm); at most 9 tines a row (24 colliders a link)
+    pitch = b.param("slot_pitch", 0.045, 0.055)
+    tine = b.param("tine_width", 0.004, 0.006)
+    b.add("base", g.box((sx, sy, t), (0, 0, t / 2)), m, density=density)
+    for s in (-1, 1):
+        b.add("base", g.box_between((-sx / 2, s * sy / 2 - (t if s > 0 else 0), 0.0),
+                                    (sx / 2, s * sy / 2 + (t if s < 0 else 0), tray_h)), m, density=density)
+        b.add("base", g.box_between((s * sx / 2 - (t if s > 0 else 0), -sy / 2 + t, 0.0),
+                                    (s * sx / 2 + (t if s < 0 else 0), sy / 2 - t, tray_h)), m,
+              density=density)
+    n = int((sy - 2 * t - 0.03) // pitch) + 1
+    ys = (np.arange(n) - (n - 1) / 2) * pitch
+    rows = (-sx * 0.22, sx * 0.22)
+    for x in rows:
+        for y in ys:   # tines reach 1 mm into the bottom: one solid with the tray
+            b.add("base", g.box((tine, tine, tine_h + 0.001), (x, y, t - 0.001 + (tine_h + 0.001) / 2)), m,
+                  density=density)
+    b.handle("base", (0.0, sy / 2 - t / 2, tray_h - 0.003), t, 0.02, (1.0, 0.0, 0.0), kind="rim")
+    return b.param("mass", 0.6, 1.6) if metal else b.param("mass", 0.4, 1.0)

@@ -40,7 +40,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem
-from stages.scene.rules import DEFAULT_RULES
+from stages.scene.rules import DEFAULT_RULES, rule_files
 
 log = logging.getLogger(__name__)
 
@@ -161,7 +161,7 @@ def plan_scenes(config: SceneConfig, ctx: PlanContext) -> list[WorkItem | Planne
                                 validate_usd=config.validate_usd, settle=config.settle,
                                 settle_early_exit=config.settle_early_exit)
                 items.append(WorkItem(item_id=f"{lid}_p{k}", fn=FN, params=p,
-                                      input_files=(Path(lr.plan), Path(lr.usd), index, rules),
+                                      input_files=(Path(lr.plan), Path(lr.usd), index, *rule_files(rules)),
                                       depends_on=(f"{config.layouts_step}/{lid}",)))
     return items
 

@@ -1,6 +1,7 @@
 """Placement rules as data: ``stages/scene/rules/*.toml`` read into typed, validated models.
 
-The rule file documents its own fields (see ``rules/default.toml``); the solver
+The rule file documents its own fields (see ``rules/default.toml``); a file may extend another
+(``rules/household_tasks.toml`` extends the default one, see ``load_rules``). The solver
 (``stages.scene.solver``) reads only these models. ``load_rules(path)`` raises ``RulesError``
 naming the file and every problem, so a user can fix all of them in one pass.
 """
@@ -16,6 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from asset_catalog.annotations import RoomType
 
 DEFAULT_RULES = Path(__file__).parent / "rules" / "default.toml"
+HOUSEHOLD_TASK_RULES = Path(__file__).parent / "rules" / "household_tasks.toml"
+_SECTIONS = ("furniture", "objects")
 
 
 class RulesError(ValueError):
@@ -69,6 +72,7 @@ class ObjectRule(_Entry):
 
     on: tuple[str, ...] = ()
     align: bool = False
+    inside: bool = False
 
 
 class RoomRules(_Strict):
@@ -113,16 +117,100 @@ class PlacementRules(_Strict):
 
 
 def load_rules(path: str | Path = DEFAULT_RULES) -> PlacementRules:
-    """Read and validate a rule file (TOML); raises RulesError naming the file and every problem."""
+    """Read and validate a rule file (TOML); raises RulesError naming the file and every problem.
+
+    A file may start with ``extends = "other.toml"`` (relative to the file): it is then read over that
+    base (see ``rules/household_tasks.toml``): its ``[defaults]`` and room settings override the base's
+    field by field; in each room's furniture and objects lists, an entry of a category the base lists
+    replaces the base's entries of that category (at the first one's position), and an entry of a new
+    category is appended; ``replace = ["furniture"]`` (or "objects") in a room makes the file's list
+    replace the base's whole list (to change the order)."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RulesError(f"{path}: rule file not found") from None
-    except tomllib.TOMLDecodeError as e:
-        raise RulesError(f"{path}: not valid TOML: {e}") from None
+    raw = _merged_raw(path, ())
     try:
         return PlacementRules.model_validate(raw)
     except ValidationError as e:
         msgs = [f"{'.'.join(str(x) for x in err['loc'])}: {err['msg']}" for err in e.errors()]
         raise RulesError(f"{path}: " + "; ".join(msgs)) from None
+
+
+def rule_files(path: str | Path = DEFAULT_RULES) -> tuple[Path, ...]:
+    """The rule file and the files it extends, in order (inputs of a cached scene item). A file that
+    cannot be read, or a cycle, ends the list: ``load_rules`` reports it."""
+    out = [Path(path)]
+    while True:
+        try:
+            base = _read(out[-1]).get("extends")
+        except RulesError:
+            break
+        if not isinstance(base, str):
+            break
+        nxt = out[-1].parent / base
+        if nxt.resolve() in {p.resolve() for p in out}:
+            break
+        out.append(nxt)
+    return tuple(out)
+
+
+def _read(path: Path) -> dict:
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RulesError(f"{path}: rule file not found") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RulesError(f"{path}: not valid TOML: {e}") from None
+
+
+def _merged_raw(path: Path, seen: tuple[Path, ...]) -> dict:
+    raw = _read(path)
+    base_name = raw.pop("extends", None)
+    if base_name is None:
+        return raw
+    if not isinstance(base_name, str):
+        raise RulesError(f"{path}: extends must be a file name, got {base_name!r}")
+    base_path = (path.parent / base_name).resolve()
+    if base_path in seen or base_path == path.resolve():
+        raise RulesError(f"{path}: extends {base_name!r} makes a cycle")
+    base = _merged_raw(base_path, (*seen, path.resolve()))
+    out = dict(base)
+    for key, val in raw.items():
+        if key == "defaults" and isinstance(val, dict):
+            out["defaults"] = {**base.get("defaults", {}), **val}
+        elif key == "room" and isinstance(val, dict):
+            rooms = dict(base.get("room", {}))
+            for rt, rr in val.items():
+                rooms[rt] = _merge_room(rooms.get(rt, {}), rr) if isinstance(rr, dict) else rr
+            out["room"] = rooms
+        else:
+            out[key] = val
+    return out
+
+
+def _merge_room(base: dict, over: dict) -> dict:
+    whole = over.get("replace", [])
+    whole = [whole] if isinstance(whole, str) else whole
+    out = {**base, **{k: v for k, v in over.items() if k not in (*_SECTIONS, "replace")}}
+    if not isinstance(whole, list) or not {str(w) for w in whole} <= set(_SECTIONS):
+        out["replace"] = whole   # left for validation to name
+        whole = []
+    for sec in _SECTIONS:
+        if sec in whole:
+            out[sec] = over.get(sec, [])
+            continue
+        new = [e for e in over.get(sec, []) if isinstance(e, dict)]
+        by_cat: dict[object, list[dict]] = {}
+        for e in new:
+            by_cat.setdefault(e.get("category"), []).append(e)
+        entries, done = [], set()
+        for b in base.get(sec, []):
+            cat = b.get("category") if isinstance(b, dict) else None
+            if cat not in by_cat:
+                entries.append(b)
+            elif cat not in done:       # the override's entries of a category take the base's first place
+                entries += by_cat[cat]
+                done.add(cat)
+        entries += [e for e in new if e.get("category") not in done]
+        entries += [e for e in over.get(sec, []) if not isinstance(e, dict)]   # left for validation to name
+        if entries:
+            out[sec] = entries
+    return out

@@ -551,7 +551,8 @@ class Populator:
         on = set(rule.on or rec.co_occurrence)
         supports = [(i, s) for i in self.insts if i.p.room == ctx.room.id and i.on_floor
                     and i.p.record.category in on for s in i.geo.surfaces
-                    if s.z - i.geo.lo[2] + geo.hi[2] - geo.lo[2] < ctx.height - 0.05]
+                    if s.z - i.geo.lo[2] + geo.hi[2] - geo.lo[2] < ctx.height - 0.05
+                    and (not rule.inside or s.z < i.geo.hi[2] - 0.05)]   # inside: under the support's top
         if not supports:
             rep.reject(f"{rule.category}: no support surface ({', '.join(sorted(on))})")
             return False

@@ -14,7 +14,7 @@ from stages.scene.collide import box_piece, convex_piece, find_penetrations, pen
 from stages.scene.geom import convex_hull_2d, convex_inside, convex_overlap, polygon_area, rot3, shrink_convex
 from stages.scene.lighting import KELVIN_RANGE, SCENE_EXPOSURE, LightingConfig, plan_lights
 from stages.scene.materials import FLOOR_KINDS, WALL_KINDS, planar_st, sample_looks, write_textures
-from stages.scene.rules import DEFAULT_RULES, RulesError, load_rules
+from stages.scene.rules import DEFAULT_RULES, HOUSEHOLD_TASK_RULES, RulesError, load_rules, rule_files
 
 
 def test_default_rules_cover_the_dataset_rooms():
@@ -30,6 +30,63 @@ def test_default_rules_cover_the_dataset_rooms():
     from asset_catalog.generators import GENERATORS_BY_CATEGORY
 
     assert rules.categories() <= set(GENERATORS_BY_CATEGORY)
+
+
+def test_household_task_rules_require_what_the_tasks_use():
+    from asset_catalog.generators import GENERATORS_BY_CATEGORY
+
+    base, rules = load_rules(), load_rules(HOUSEHOLD_TASK_RULES)
+    assert rules.categories() <= set(GENERATORS_BY_CATEGORY)
+    req = {rt: {e.category for e in (*rules.for_room(rt).furniture, *rules.for_room(rt).objects)
+                if e.count[0] > 0} for rt in ("living_room", "kitchen", "bedroom")}
+    assert {"bookshelf", "book", "pitcher", "cup", "trash_can", "crumpled_paper"} <= req["living_room"]
+    assert {"wardrobe", "hanger", "pillow", "alarm_clock", "bed"} <= req["bedroom"]
+    assert {"dish_rack", "sponge", "plate", "microwave", "fridge"} <= req["kitchen"]
+    # what the file does not name comes from the default rules unchanged
+    assert rules.for_room("bathroom") == base.for_room("bathroom")
+    assert rules.setting("bedroom", "door_clearance") == base.setting("bedroom", "door_clearance")
+    dflt = {e.category: e for e in base.for_room("living_room").furniture}
+    assert {e.category: e for e in rules.for_room("living_room").furniture}["armchair"] == dflt["armchair"]
+    # the bedroom's furniture list is the file's own (replace = ["furniture"]): the wardrobe first
+    assert rules.for_room("bedroom").furniture[0].category == "wardrobe"
+    assert rule_files(HOUSEHOLD_TASK_RULES) == (HOUSEHOLD_TASK_RULES, DEFAULT_RULES)
+    # the hangers go where the rules put them: inside a wardrobe or closet
+    assert {e.category: e.on for e in rules.for_room("bedroom").objects}["hanger"] == ("wardrobe", "closet")
+
+
+def test_rule_file_extends_another(tmp_path: Path):
+    (tmp_path / "base.toml").write_text(
+        '[defaults]\nreach = 0.8\nmax_tries = 10\n[room.kitchen]\nwall_gap = 0.05\n'
+        '[[room.kitchen.furniture]]\ncategory = "fridge"\n'
+        '[[room.kitchen.furniture]]\ncategory = "cabinet"\ncount = [0, 1]\n'
+        '[[room.kitchen.furniture]]\ncategory = "fridge"\ncount = [0, 1]\nmode = "floor"\n'
+        '[[room.kitchen.objects]]\ncategory = "mug"\n', encoding="utf-8")
+    p = tmp_path / "task.toml"
+    p.write_text('extends = "base.toml"\n[defaults]\nreach = 1.1\n[room.kitchen]\nmin_gap = 0.1\n'
+                 'replace = ["objects"]\n[[room.kitchen.objects]]\ncategory = "plate"\n'
+                 '[[room.kitchen.furniture]]\ncategory = "fridge"\ncount = [1, 1]\nsnap = 0.5\n'
+                 '[[room.kitchen.furniture]]\ncategory = "fridge"\ncount = [0, 2]\n'
+                 '[[room.kitchen.furniture]]\ncategory = "oven"\n'
+                 '[room.bedroom]\n[[room.bedroom.furniture]]\ncategory = "bed"\n', encoding="utf-8")
+    r = load_rules(p)
+    assert (r.defaults.reach, r.defaults.max_tries) == (1.1, 10)
+    k = r.for_room("kitchen")
+    assert (k.wall_gap, k.min_gap) == (0.05, 0.1)
+    # both base fridge entries are replaced by the task's two, at the first one's place; oven appended
+    assert [(e.category, e.count) for e in k.furniture] == [("fridge", (1, 1)), ("fridge", (0, 2)),
+                                                             ("cabinet", (0, 1)), ("oven", (1, 1))]
+    assert k.furniture[0].snap == 0.5 and [e.category for e in k.objects] == ["plate"]
+    assert [e.category for e in r.for_room("bedroom").furniture] == ["bed"]
+    assert rule_files(p) == (p, tmp_path / "base.toml")
+    # a cycle and a missing base are errors that name the file
+    (tmp_path / "a.toml").write_text('extends = "b.toml"\n', encoding="utf-8")
+    (tmp_path / "b.toml").write_text('extends = "a.toml"\n', encoding="utf-8")
+    with pytest.raises(RulesError, match="cycle"):
+        load_rules(tmp_path / "a.toml")
+    (tmp_path / "c.toml").write_text('extends = "nope.toml"\n', encoding="utf-8")
+    with pytest.raises(RulesError, match="nope.toml: rule file not found"):
+        load_rules(tmp_path / "c.toml")
+    assert rule_files(tmp_path / "a.toml")[:2] == (tmp_path / "a.toml", tmp_path / "b.toml")
 
 
 def test_bad_rule_file_names_file_and_every_problem(tmp_path: Path):
