@@ -115,6 +115,7 @@ def test_dual_arm_lifts_a_tray_10_cm_and_holds_it_level(tray_sim):
     assert fig.gripped == {"left": 2, "right": 2}, f"fingers on the tray after 2 s: {fig.gripped}"
 
 
+@pytest.mark.slow  # 60 s; the tray lift above is issue 14's CI check
 def test_dual_arm_hands_a_block_from_one_gripper_to_the_other(tmp_path, shared_assets):
     """The hand-over: the right gripper picks a 20 cm block by its end and lifts it 15 cm, the left
     takes the other end in the air, the right lets go and withdraws; after 1 s the block is in the
