@@ -29,19 +29,19 @@ class Pace:
     ``contact_speed`` (moves that end at or in contact) or ``carry_speed`` (a held object carried
     through free space) [m/s] and its rotation over ``turn_rate``
     [rad/s], at least ``min_move`` [s] and at most the duration the expert gives; it is stretched
-    where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (60% of the
+    where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (65% of the
     Panda's slowest joint limit, 2.175 rad/s). ``joint_speed`` [rad/s]: arm joint speed of
     joint-space moves (home). Waits end on conditions: a gripper once its fingers stop
     (``finger_still`` [m/s]), a settle once every arm joint is slower than ``arm_still``
     [rad/s] and within ``arm_near`` [rad] of its target; ``min_wait`` [s] before either is checked."""
 
-    free_speed: float = 0.45
+    free_speed: float = 0.6
     contact_speed: float = 0.25
-    carry_speed: float = 0.35
-    turn_rate: float = 2.0
-    min_move: float = 0.3
-    joint_speed: float = 1.3
-    max_joint_speed: float = 1.3
+    carry_speed: float = 0.4
+    turn_rate: float = 2.5
+    min_move: float = 0.25
+    joint_speed: float = 1.4
+    max_joint_speed: float = 1.4
     finger_still: float = 0.005
     arm_still: float = 0.05
     arm_near: float = 0.01

@@ -151,7 +151,7 @@ class PathFollower:
 
     path: np.ndarray
     goal_yaw: float
-    v_max: float = 0.9
+    v_max: float = 1.0
     w_max: float = 1.8
     accel: float = 1.2
     alpha: float = 4.0
