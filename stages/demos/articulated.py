@@ -47,6 +47,7 @@ from stages.demos.part_grasps import (
     lateral,
 )
 from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
+from stages.demos.part_turn import is_vertical, turn_about_hinge, turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -58,10 +59,10 @@ log = logging.getLogger(__name__)
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
-CARRY_SPEED = 0.2    # hand speed carrying a handle or pushing a leaf along its arc [m/s]
-CARRY_TURN = 0.5     # hand (and leaf) turn rate while carrying it [rad/s]
-SHIFT_SPEED = 0.35   # base speed of short straight shifts with the arm held [m/s]
-SHIFT_ACCEL = 0.8    # base acceleration of those shifts and of drawer slides [m/s^2]
+CARRY_SPEED = 0.3    # hand speed carrying a handle or pushing a leaf along its arc [m/s]
+CARRY_TURN = 0.7     # hand (and leaf) turn rate while carrying it [rad/s]
+SHIFT_SPEED = 0.5   # base speed of short straight shifts with the arm held [m/s]
+SHIFT_ACCEL = 1.2    # base acceleration of those shifts and of drawer slides [m/s^2]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
@@ -69,7 +70,7 @@ EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 
 
-def _slide(d, distance: float, speed: float = 0.2) -> None:
+def _slide(d, distance: float, speed: float = 0.3) -> None:
     """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held; closed
     on the measured displacement (velocity commands alone fall a few centimetres short)."""
     from stages.demos.record import base_pose
@@ -114,7 +115,7 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF if closing else 0.0), 1.0, segments=2, settle=0.2)
     if closing:
         q_now = d.sim.joint_q_of_path(part.joint_path)
-        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.08)
+        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.25)
         _slide(d, -0.03, speed=0.05)  # straight off the bar before the diagonal retreat drags it
     else:
         d.grip(1.0, 0.6)
@@ -269,7 +270,16 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                     raise
                 log.info("%s: %s; regrasping", part.joint_path, e)
                 n = -1
-        if n >= 0:
+        turn_to = None
+        if n >= 0 and is_vertical(part):
+            # turning with the base reaches further than the arm along the arc: do that instead
+            goal = part.closed - PUSH_OVERSHOOT if push else q1
+            q_turn = turn_limit(part, d, grid, q, goal)
+            if abs(q_turn - q) > abs((qs[n - 1] if n > 0 else q) - q) + math.radians(5.0):
+                turn_to = q_turn
+        if turn_to is not None:
+            turned = turn_about_hinge(part, d, q, turn_to)
+        elif n >= 0:
             # slow near closed: a heavy leaf driven into its stop rebounds
             durs = _carry_times(d, approach[-1], arc[:n], [abs(qw - part.closed) < math.radians(20.0)
                                                            and not opening for qw in qs[:n]])
@@ -280,7 +290,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                     break
                 _edge_push(part, d, grid, q1)
         d.settle(0.4)
-        last = qs[k - 1] if k else q
+        last = turned if turn_to is not None else qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
@@ -443,7 +453,7 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
             except ExpertFailure:
                 w = _ee_world(d)
         w = _ee_world(d)
-    _base_shift(d, -0.08 * w[:3, 2], speed=0.15)
+    _base_shift(d, -0.08 * w[:3, 2], speed=0.25)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
         e = part.rotation_at(q) @ lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
