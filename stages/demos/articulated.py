@@ -208,11 +208,11 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
-        if stage == 0:
-            _stow(d)
+        # at the start the arm tucks while the base sets off, unless it must escape a blocked spot first
+        tuck = _stow(d, on_the_way=_free_here(d, here)) if stage == 0 else None
         _escape(d, here)
         try:
-            _drive(d, base, here)
+            _drive(d, base, here, tuck=tuck)
         except ExpertFailure as e:
             if e.reason != "drive_timeout" or stage == max_stages - 1:
                 raise
@@ -235,6 +235,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if math.hypot(actual[0] - base[0], actual[1] - base[1]) > 0.005:
             # the drive stopped off the planned pose: re-solve the plan from where the base stands
             sols2 = reach(d, actual, approach + arc[:max(n, 0)])
+            if len(sols2) < na + min(n, 2):  # CLIK seeded by the plan's solutions often still reaches
+                sols2 = max(sols2, _resolve(d, approach + arc[:max(n, 0)], sols), key=len)
             if len(sols2) < na + min(n, 2) and stage < max_stages - 1:
                 log.info("%s: plan lost from the base reached (%d of %d); planning again", part.joint_path,
                          len(sols2), na + n)
@@ -295,14 +297,28 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                   d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
-        _stow(d)
         _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
         if done(q):
-            return
+            return  # the hand stays backed off the leaf (a following stage or expert tucks first)
+        _stow(d)
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
+
+
+def _resolve(d, targets, seeds, tol: float = 0.004) -> list[np.ndarray]:
+    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses) that CLIK reaches from the
+    base where it stands, each seeded by the planned solution of ``seeds`` (the plan's branch)."""
+    from stages.simulate.control import Clik
+
+    out = []
+    for t, seed in zip(targets, seeds, strict=False):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), d.ik.with_arm(d.ik.from_sim(d.sim), seed), max_iters=300)
+        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+            break
+        out.append(d.ik.arm_q(res.q))
+    return out
 
 
 def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -> None:
@@ -332,14 +348,24 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
         _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
 
 
-def _stow(d) -> None:
+def _stow(d, on_the_way: bool = False) -> np.ndarray | None:
     """Tuck the hand above the base for driving (:func:`stages.demos.driver.stow`; home hangs the
-    hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails."""
+    hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails.
+    ``on_the_way``: may return the tucked arm's joint targets for the drive instead."""
     try:
-        stow(d)
+        return stow(d, on_the_way=on_the_way)
     except ExpertFailure as e:
         log.info("stow failed (%s); tucking home", e)
         d.home(1.0)
+    return None
+
+
+def _free_here(d, grid) -> bool:
+    """Whether the base stands where the planner counts it free on ``grid``."""
+    from stages.demos.record import base_pose
+
+    x, y, _ = base_pose(d.sim)
+    return is_free(grid, grid.inflate(ROBOT_RADIUS), x, y)
 
 
 def _escape(d, grid, reach: float = 0.5) -> None:
@@ -366,14 +392,14 @@ def _escape(d, grid, reach: float = 0.5) -> None:
     _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]))
 
 
-def _drive(d, base: tuple[float, float, float], grid) -> None:
-    """``Driver.drive_to`` ``base``; a timeout with the base within DRIVE_SLACK of the goal (a
-    chassis corner grazing furniture) is accepted: the arm plans are re-solved from the actual
-    base pose."""
+def _drive(d, base: tuple[float, float, float], grid, tuck=None) -> None:
+    """``Driver.drive_to`` ``base`` (``tuck``: see there); a timeout with the base within
+    DRIVE_SLACK of the goal (a chassis corner grazing furniture) is accepted: the arm plans are
+    re-solved from the actual base pose."""
     from stages.demos.record import base_pose
 
     try:
-        d.drive_to(base, grid)
+        d.drive_to(base, grid, tuck=tuck)
     except ExpertFailure as e:
         x, y, yaw = base_pose(d.sim)
         off = math.hypot(x - base[0], y - base[1])
