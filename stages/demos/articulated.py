@@ -18,8 +18,11 @@ the experts add the part's swept area themselves):
   each from the base pose (searched on rings round the handle, checked by CLIK) that reaches the
   longest part of the remaining arc; the arm follows the planned IK branch (no random restarts
   mid-motion); opening holds the handle, closing a vertical door pushes its front face with the
-  closed hand; after each stage the hand backs off with base motions (round the free edge of an
-  opened leaf) and tucks. A fridge door of 0.7 m typically needs 2 stages; a stage lasts ~15 s.
+  closed hand. A vertically hinged leaf is turned by the base instead of the arm where the base's
+  footprint stays free turning with it about the hinge (:mod:`stages.demos.part_turn`): one
+  stage usually does a fridge or room door. After each stage the hand backs off with base
+  motions (round the free edge of an opened leaf) and, unless the part is done, tucks; a later
+  stage goes on from where the base stands when the rest is reachable from there.
   A bottom-hinged (oven) door opened past 20 deg lies with its handle under the leaf: closing
   first lifts it by pinching its free edge from beside the leaf (the base drives towards the
   front while holding when the arm runs out of reach) to below ~15 deg, where its counterbalanced
@@ -47,7 +50,7 @@ from stages.demos.part_grasps import (
     lateral,
 )
 from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
-from stages.demos.part_turn import is_vertical, turn_about_hinge, turn_limit
+from stages.demos.part_turn import is_vertical, plan_here, resolve, turn_about_hinge, turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -201,8 +204,11 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = plan_stage(d, part, plan, q, qs, mode)
-        if n < 2 and not done(qs[max(n - 1, 0)]):
+        # a later stage (or a chained expert) first tries to go on from where the base stands
+        stay = plan_here(d, part, grid, q, qs, mode, goal=part.closed - PUSH_OVERSHOOT if push else q1) \
+            if stage > 0 or not _at_home(d) else None
+        base, pitch, n, sols, along = stay or plan_stage(d, part, plan, q, qs, mode)
+        if n < 2 and not done(qs[max(n - 1, 0)]) and not stay:
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
@@ -210,9 +216,10 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         here = swept_grid(grid, part, q, q)
         # at the start the arm tucks while the base sets off, unless it must escape a blocked spot first
         tuck = _stow(d, on_the_way=_free_here(d, here)) if stage == 0 else None
-        _escape(d, here)
         try:
-            _drive(d, base, here, tuck=tuck)
+            if not stay:
+                _escape(d, here)
+                _drive(d, base, here, tuck=tuck)
         except ExpertFailure as e:
             if e.reason != "drive_timeout" or stage == max_stages - 1:
                 raise
@@ -236,7 +243,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             # the drive stopped off the planned pose: re-solve the plan from where the base stands
             sols2 = reach(d, actual, approach + arc[:max(n, 0)])
             if len(sols2) < na + min(n, 2):  # CLIK seeded by the plan's solutions often still reaches
-                sols2 = max(sols2, _resolve(d, approach + arc[:max(n, 0)], sols), key=len)
+                sols2 = max(sols2, resolve(d, approach + arc[:max(n, 0)], sols), key=len)
             if len(sols2) < na + min(n, 2) and stage < max_stages - 1:
                 log.info("%s: plan lost from the base reached (%d of %d); planning again", part.joint_path,
                          len(sols2), na + n)
@@ -307,20 +314,6 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
 
 
-def _resolve(d, targets, seeds, tol: float = 0.004) -> list[np.ndarray]:
-    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses) that CLIK reaches from the
-    base where it stands, each seeded by the planned solution of ``seeds`` (the plan's branch)."""
-    from stages.simulate.control import Clik
-
-    out = []
-    for t, seed in zip(targets, seeds, strict=False):
-        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), d.ik.with_arm(d.ik.from_sim(d.sim), seed), max_iters=300)
-        if res.position_error > tol or res.rotation_error > math.radians(2.0):
-            break
-        out.append(d.ik.arm_q(res.q))
-    return out
-
-
 def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -> None:
     """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
     by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
@@ -358,6 +351,11 @@ def _stow(d, on_the_way: bool = False) -> np.ndarray | None:
         log.info("stow failed (%s); tucking home", e)
         d.home(1.0)
     return None
+
+
+def _at_home(d) -> bool:
+    """Whether the arm's joint targets are the tucked home configuration (an episode's start)."""
+    return float(np.abs(d.ctl.arm_targets() - np.asarray(d.sim.desc.arm_home, float)).max()) < 0.05
 
 
 def _free_here(d, grid) -> bool:

@@ -4,7 +4,9 @@ circle about the hinge axis while yawing at the leaf's rate. Robot and leaf then
 the hand stays on its grip and the leaf cannot sweep into the robot; one such turn replaces
 several regrasp stages of the arm carrying the handle along its arc
 (:func:`stages.demos.articulated._swing` uses it for the part of the arc over which the base's
-footprint stays free on the room's grid, :func:`turn_limit`).
+footprint stays free on the room's grid, :func:`turn_limit`). Also the base-side shortcuts of a
+stage: going on from where the base stands (:func:`plan_here`) and re-solving a plan from a base
+stopped off its pose (:func:`resolve`).
 
 ``d`` is a :class:`~stages.demos.driver.Driver`; world frame, metres, radians.
 """
@@ -24,8 +26,8 @@ log = logging.getLogger(__name__)
 
 TURN_RATE = 0.6       # leaf (and base) turn rate bound [rad/s]
 TURN_ACCEL = 1.0      # its change [rad/s^2]
-TURN_BASE_SPEED = 0.6  # base speed bound while turning [m/s]
-TURN_HAND_SPEED = 0.35  # handle speed bound [m/s]
+TURN_BASE_SPEED = 0.75  # base speed bound while turning [m/s]
+TURN_HAND_SPEED = 0.45  # handle speed bound [m/s]
 TURN_SLOW_NEAR = math.radians(20.0)  # closing: half the rate this close to closed (a heavy leaf rebounds)
 TURN_GAIN = 3.0       # base pose feedback gain [1/s]
 TURN_LOST = 0.06      # stop when the base falls this far behind its pose [m] (blocked)
@@ -109,3 +111,42 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
     d.base((0.0, 0.0, 0.0))
     d.step(0.1)
     return d.sim.joint_q_of_path(part.joint_path)
+
+
+def resolve(d, targets, seeds, tol: float = 0.004) -> list[np.ndarray]:
+    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses) that CLIK reaches from the
+    base where it stands, each seeded by the planned solution of ``seeds`` (the plan's branch)."""
+    from stages.simulate.control import Clik
+
+    out = []
+    for t, seed in zip(targets, seeds, strict=False):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), d.ik.with_arm(d.ik.from_sim(d.sim), seed), max_iters=300)
+        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+            break
+        out.append(d.ik.arm_q(res.q))
+    return out
+
+
+def plan_here(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str, goal: float):
+    """(base, pitch, n, arm solutions, along) as :func:`stages.demos.part_planning.plan_stage`
+    returns, for the base where it stands, when from there the approach at ``q0`` and every
+    waypoint of ``qs`` are reachable (a vertically hinged leaf: the approach, and the turn with the
+    base reaches ``goal``); else None (the stage drives to a planned base)."""
+    from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips
+    from stages.demos.part_planning import reach
+    from stages.demos.record import base_pose
+
+    base = tuple(float(v) for v in base_pose(d.sim))
+    vertical = is_vertical(part)
+    z = float(part.handle_at(q0)[2])
+    p0 = door_pitch(z) if vertical else drawer_pitch(z)
+    turns = vertical and abs(turn_limit(part, d, grid, q0, goal) - goal) < math.radians(3.0)
+    for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge"):
+        approach, arc = gesture(part, q0, qs, pitch, mode, along)
+        sols = reach(d, base, approach + (arc[:1] if turns else arc))
+        n = len(sols) - len(approach)
+        if n == len(qs) or (turns and n >= 0):
+            log.info("%s: going on from the base where it stands (%d/%d arc steps)", part.joint_path,
+                     max(n, 0), len(qs))
+            return base, pitch, n, sols, along
+    return None
