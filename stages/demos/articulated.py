@@ -69,8 +69,9 @@ SHIFT_ACCEL = 1.2    # base acceleration of those shifts and of drawer slides [m
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
-EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30 deg), then by the closed hand
+EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
+EDGE_DONE = math.radians(4.0)        # a lifted bottom-hinged leaf this near closed counts as shut (tasks: 5 deg)
 
 
 def _slide(d, distance: float, speed: float = 0.3) -> None:
@@ -294,10 +295,12 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                                                            and not opening for qw in qs[:n]])
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
             # pinching an edge: the leaf slides between the fingers, push again while it is short
+            # (closing: on towards q1 even once done, sparing the closed hand's push stage)
             for _ in range(2 if edge else 0):
-                if done(d.sim.joint_q_of_path(part.joint_path)):
+                q_e = d.sim.joint_q_of_path(part.joint_path)
+                if done(q_e) and (opening or q_e - q1 < math.radians(1.0)):
                     break
-                _edge_push(part, d, grid, q1)
+                _edge_push(part, d, grid, q1 if opening else q1 - math.radians(1.5))
         d.settle(0.4)
         last = turned if turn_to is not None else qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
@@ -314,7 +317,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
 
 
-def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -> None:
+def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.08) -> None:
     """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
     by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
     travel, as far as the room allows (the leaf slides radially between the fingers)."""
@@ -587,5 +590,5 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
         q = d.sim.joint_q_of_path(part.joint_path)
     if part.front_at(q)[2] < -0.5:
         raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {q:.2f}")
-    # the last few degrees: press the front face shut with the closed hand
-    _swing(part, d, grid, q, part.closed, step_deg=3.0, mode="push")
+    # the last few degrees (unless the lift left it within EDGE_DONE): press the front face shut with the closed hand
+    _swing(part, d, grid, q, part.closed, step_deg=3.0, mode="push", done_at=part.closed + EDGE_DONE)
