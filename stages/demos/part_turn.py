@@ -32,6 +32,7 @@ TURN_SLOW_NEAR = math.radians(20.0)  # closing: half the rate this close to clos
 TURN_GAIN = 3.0       # base pose feedback gain [1/s]
 TURN_LOST = 0.06      # stop when the base falls this far behind its pose [m] (blocked)
 TURN_SLIP = 0.15      # ... or the leaf this far [rad] off the turn (grip lost)
+TURN_CMD_ACCEL = 1.5  # the base command (vx, vy) changes at most this fast [m/s^2], stops included
 
 
 def is_vertical(part: ArticulatedPart) -> bool:
@@ -85,6 +86,7 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
     dt = d.frame_dt
     d.cmd.mode = 1
     done, w = 0.0, 0.0
+    cmd = np.zeros(2)  # the last base command (vx, vy) [m/s]
     log.info("%s: turning with the base from %.2f to %.2f (base radius %.2f m, %.2f rad/s)", part.joint_path,
              q_from, q_to, r_base, w_max)
     while done < total - 1e-6:
@@ -106,11 +108,23 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
         vwy = wz * (tx - o[0]) + TURN_GAIN * (ty - y)
         wyaw = wz + TURN_GAIN * ((tyaw - yaw + math.pi) % (2 * math.pi) - math.pi)
         c, s = math.cos(yaw), math.sin(yaw)
-        d.base((c * vwx + s * vwy, -s * vwx + c * vwy, wyaw))
+        cmd = _limited(cmd, np.array([c * vwx + s * vwy, -s * vwx + c * vwy]), TURN_CMD_ACCEL * dt)
+        d.base((float(cmd[0]), float(cmd[1]), wyaw))
+        d.step(dt)
+    while np.linalg.norm(cmd) > 1e-6:  # brake to a stop (a blocked or slipping turn ends at speed)
+        cmd = _limited(cmd, np.zeros(2), TURN_CMD_ACCEL * dt)
+        d.base((float(cmd[0]), float(cmd[1]), 0.0))
         d.step(dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.1)
     return d.sim.joint_q_of_path(part.joint_path)
+
+
+def _limited(v: np.ndarray, want: np.ndarray, step: float) -> np.ndarray:
+    """``want`` reached from ``v`` by a change of at most ``step`` (norm)."""
+    dv = want - v
+    n = float(np.linalg.norm(dv))
+    return want if n <= step else v + dv * (step / n)
 
 
 def resolve(d, targets, seeds, tol: float = 0.004) -> list[np.ndarray]:
