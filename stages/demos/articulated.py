@@ -18,8 +18,11 @@ the experts add the part's swept area themselves):
   each from the base pose (searched on rings round the handle, checked by CLIK) that reaches the
   longest part of the remaining arc; the arm follows the planned IK branch (no random restarts
   mid-motion); opening holds the handle, closing a vertical door pushes its front face with the
-  closed hand; after each stage the hand backs off with base motions (round the free edge of an
-  opened leaf) and tucks. A fridge door of 0.7 m typically needs 2 stages; a stage lasts ~15 s.
+  closed hand. A vertically hinged leaf is turned by the base instead of the arm where the base's
+  footprint stays free turning with it about the hinge (:mod:`stages.demos.part_turn`): one
+  stage usually does a fridge or room door. After each stage the hand backs off with base
+  motions (round the free edge of an opened leaf) and, unless the part is done, tucks; a later
+  stage goes on from where the base stands when the rest is reachable from there.
   A bottom-hinged (oven) door opened past 20 deg lies with its handle under the leaf: closing
   first lifts it by pinching its free edge from beside the leaf (the base drives towards the
   front while holding when the arm runs out of reach) to below ~15 deg, where its counterbalanced
@@ -47,6 +50,7 @@ from stages.demos.part_grasps import (
     lateral,
 )
 from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
+from stages.demos.part_turn import is_vertical, plan_here, resolve, turn_about_hinge, turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -58,18 +62,19 @@ log = logging.getLogger(__name__)
 # a push ends this far [rad] past closed (negative: short of it; a heavy leaf pressed onto its stop rebounds)
 PUSH_OVERSHOOT = -0.01
 DRIVE_SLACK = 0.04   # a base stopped this close to its goal [m] counts as arrived
-CARRY_SPEED = 0.2    # hand speed carrying a handle or pushing a leaf along its arc [m/s]
-CARRY_TURN = 0.5     # hand (and leaf) turn rate while carrying it [rad/s]
-SHIFT_SPEED = 0.35   # base speed of short straight shifts with the arm held [m/s]
-SHIFT_ACCEL = 0.8    # base acceleration of those shifts and of drawer slides [m/s^2]
+CARRY_SPEED = 0.3    # hand speed carrying a handle or pushing a leaf along its arc [m/s]
+CARRY_TURN = 0.7     # hand (and leaf) turn rate while carrying it [rad/s]
+SHIFT_SPEED = 0.5   # base speed of short straight shifts with the arm held [m/s]
+SHIFT_ACCEL = 1.2    # base acceleration of those shifts and of drawer slides [m/s^2]
 GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
-EDGE_LIFT_TO = math.radians(6.0)      # ... towards here (it stays put below ~30 deg), then by the closed hand
+EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
+EDGE_DONE = math.radians(4.0)        # a lifted bottom-hinged leaf this near closed counts as shut (tasks: 5 deg)
 
 
-def _slide(d, distance: float, speed: float = 0.2) -> None:
+def _slide(d, distance: float, speed: float = 0.3) -> None:
     """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held; closed
     on the measured displacement (velocity commands alone fall a few centimetres short)."""
     from stages.demos.record import base_pose
@@ -114,7 +119,7 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF if closing else 0.0), 1.0, segments=2, settle=0.2)
     if closing:
         q_now = d.sim.joint_q_of_path(part.joint_path)
-        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.08)
+        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.25)
         _slide(d, -0.03, speed=0.05)  # straight off the bar before the diagonal retreat drags it
     else:
         d.grip(1.0, 0.6)
@@ -200,18 +205,22 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if push:
             qs.append(part.closed - PUSH_OVERSHOOT)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
-        base, pitch, n, sols, along = plan_stage(d, part, plan, q, qs, mode)
-        if n < 2 and not done(qs[max(n - 1, 0)]):
+        # a later stage (or a chained expert) first tries to go on from where the base stands
+        stay = plan_here(d, part, grid, q, qs, mode, goal=part.closed - PUSH_OVERSHOOT if push else q1) \
+            if stage > 0 or not _at_home(d) else None
+        base, pitch, n, sols, along = stay or plan_stage(d, part, plan, q, qs, mode)
+        if n < 2 and not done(qs[max(n - 1, 0)]) and not stay:
             raise ExpertFailure("no_base_pose",
                                 f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
-        if stage == 0:
-            _stow(d)
-        _escape(d, here)
+        # at the start the arm tucks while the base sets off, unless it must escape a blocked spot first
+        tuck = _stow(d, on_the_way=_free_here(d, here)) if stage == 0 else None
         try:
-            _drive(d, base, here)
+            if not stay:
+                _escape(d, here)
+                _drive(d, base, here, tuck=tuck)
         except ExpertFailure as e:
             if e.reason != "drive_timeout" or stage == max_stages - 1:
                 raise
@@ -234,6 +243,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if math.hypot(actual[0] - base[0], actual[1] - base[1]) > 0.005:
             # the drive stopped off the planned pose: re-solve the plan from where the base stands
             sols2 = reach(d, actual, approach + arc[:max(n, 0)])
+            if len(sols2) < na + min(n, 2):  # CLIK seeded by the plan's solutions often still reaches
+                sols2 = max(sols2, resolve(d, approach + arc[:max(n, 0)], sols), key=len)
             if len(sols2) < na + min(n, 2) and stage < max_stages - 1:
                 log.info("%s: plan lost from the base reached (%d of %d); planning again", part.joint_path,
                          len(sols2), na + n)
@@ -269,33 +280,44 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                     raise
                 log.info("%s: %s; regrasping", part.joint_path, e)
                 n = -1
-        if n >= 0:
+        turn_to = None
+        if n >= 0 and is_vertical(part):
+            # turning with the base reaches further than the arm along the arc: do that instead
+            goal = part.closed - PUSH_OVERSHOOT if push else q1
+            q_turn = turn_limit(part, d, grid, q, goal)
+            if abs(q_turn - q) > abs((qs[n - 1] if n > 0 else q) - q) + math.radians(5.0):
+                turn_to = q_turn
+        if turn_to is not None:
+            turned = turn_about_hinge(part, d, q, turn_to)
+        elif n >= 0:
             # slow near closed: a heavy leaf driven into its stop rebounds
             durs = _carry_times(d, approach[-1], arc[:n], [abs(qw - part.closed) < math.radians(20.0)
                                                            and not opening for qw in qs[:n]])
             k = track(d, arc[:n], sols[na:na + n], durs, tol=SWING_TOL)
             # pinching an edge: the leaf slides between the fingers, push again while it is short
+            # (closing: on towards q1 even once done, sparing the closed hand's push stage)
             for _ in range(2 if edge else 0):
-                if done(d.sim.joint_q_of_path(part.joint_path)):
+                q_e = d.sim.joint_q_of_path(part.joint_path)
+                if done(q_e) and (opening or q_e - q1 < math.radians(1.0)):
                     break
-                _edge_push(part, d, grid, q1)
+                _edge_push(part, d, grid, q1 if opening else q1 - math.radians(1.5))
         d.settle(0.4)
-        last = qs[k - 1] if k else q
+        last = turned if turn_to is not None else qs[k - 1] if k else q
         log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
                   d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
-        _stow(d)
         _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
         log.info("%s: stage %d ends at %.3f (goal %.3f)", part.joint_path, stage, q, q1)
         if done(q):
-            return
+            return  # the hand stays backed off the leaf (a following stage or expert tucks first)
+        _stow(d)
     raise ExpertFailure("not_reached",
                         f"{part.joint_path}: at {q:.2f} after {max_stages} stages (goal {q1:.2f})")
 
 
-def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -> None:
+def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.08) -> None:
     """Holding a bottom-hinged leaf by its edge with the arm out of reach: carry it on towards q1
     by moving the base (arm held) towards the asset's front by the edge's remaining horizontal
     travel, as far as the room allows (the leaf slides radially between the fingers)."""
@@ -322,14 +344,29 @@ def _edge_push(part: ArticulatedPart, d, grid, q1: float, speed: float = 0.05) -
         _base_shift(d, -dist * np.array([n[0], n[1], 0.0]), speed=speed)
 
 
-def _stow(d) -> None:
+def _stow(d, on_the_way: bool = False) -> np.ndarray | None:
     """Tuck the hand above the base for driving (:func:`stages.demos.driver.stow`; home hangs the
-    hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails."""
+    hand half a metre ahead, where it knocks a leaf the base drives past), home if that fails.
+    ``on_the_way``: may return the tucked arm's joint targets for the drive instead."""
     try:
-        stow(d)
+        return stow(d, on_the_way=on_the_way)
     except ExpertFailure as e:
         log.info("stow failed (%s); tucking home", e)
         d.home(1.0)
+    return None
+
+
+def _at_home(d) -> bool:
+    """Whether the arm's joint targets are the tucked home configuration (an episode's start)."""
+    return float(np.abs(d.ctl.arm_targets() - np.asarray(d.sim.desc.arm_home, float)).max()) < 0.05
+
+
+def _free_here(d, grid) -> bool:
+    """Whether the base stands where the planner counts it free on ``grid``."""
+    from stages.demos.record import base_pose
+
+    x, y, _ = base_pose(d.sim)
+    return is_free(grid, grid.inflate(ROBOT_RADIUS), x, y)
 
 
 def _escape(d, grid, reach: float = 0.5) -> None:
@@ -356,14 +393,14 @@ def _escape(d, grid, reach: float = 0.5) -> None:
     _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]))
 
 
-def _drive(d, base: tuple[float, float, float], grid) -> None:
-    """``Driver.drive_to`` ``base``; a timeout with the base within DRIVE_SLACK of the goal (a
-    chassis corner grazing furniture) is accepted: the arm plans are re-solved from the actual
-    base pose."""
+def _drive(d, base: tuple[float, float, float], grid, tuck=None) -> None:
+    """``Driver.drive_to`` ``base`` (``tuck``: see there); a timeout with the base within
+    DRIVE_SLACK of the goal (a chassis corner grazing furniture) is accepted: the arm plans are
+    re-solved from the actual base pose."""
     from stages.demos.record import base_pose
 
     try:
-        d.drive_to(base, grid)
+        d.drive_to(base, grid, tuck=tuck)
     except ExpertFailure as e:
         x, y, yaw = base_pose(d.sim)
         off = math.hypot(x - base[0], y - base[1])
@@ -443,7 +480,7 @@ def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool =
             except ExpertFailure:
                 w = _ee_world(d)
         w = _ee_world(d)
-    _base_shift(d, -0.08 * w[:3, 2], speed=0.15)
+    _base_shift(d, -0.08 * w[:3, 2], speed=0.25)
     if part.kind == "revolute" and q - part.closed > 0.3 * part.travel:
         e = part.rotation_at(q) @ lateral(part)
         blocked = grid.inflate(ROBOT_RADIUS - 0.08)
@@ -553,5 +590,5 @@ def close_part(part: ArticulatedPart, d, grid, *, start: float) -> None:
         q = d.sim.joint_q_of_path(part.joint_path)
     if part.front_at(q)[2] < -0.5:
         raise ExpertFailure("handle_faces_floor", f"{part.joint_path}: handle under the open leaf at {q:.2f}")
-    # the last few degrees: press the front face shut with the closed hand
-    _swing(part, d, grid, q, part.closed, step_deg=3.0, mode="push")
+    # the last few degrees (unless the lift left it within EDGE_DONE): press the front face shut with the closed hand
+    _swing(part, d, grid, q, part.closed, step_deg=3.0, mode="push", done_at=part.closed + EDGE_DONE)

@@ -29,19 +29,19 @@ class Pace:
     ``contact_speed`` (moves that end at or in contact) or ``carry_speed`` (a held object carried
     through free space) [m/s] and its rotation over ``turn_rate``
     [rad/s], at least ``min_move`` [s] and at most the duration the expert gives; it is stretched
-    where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (60% of the
+    where an arm joint target would move faster than ``max_joint_speed`` [rad/s] (65% of the
     Panda's slowest joint limit, 2.175 rad/s). ``joint_speed`` [rad/s]: arm joint speed of
     joint-space moves (home). Waits end on conditions: a gripper once its fingers stop
     (``finger_still`` [m/s]), a settle once every arm joint is slower than ``arm_still``
     [rad/s] and within ``arm_near`` [rad] of its target; ``min_wait`` [s] before either is checked."""
 
-    free_speed: float = 0.45
+    free_speed: float = 0.6
     contact_speed: float = 0.25
-    carry_speed: float = 0.35
-    turn_rate: float = 2.0
-    min_move: float = 0.3
-    joint_speed: float = 1.3
-    max_joint_speed: float = 1.3
+    carry_speed: float = 0.4
+    turn_rate: float = 2.5
+    min_move: float = 0.25
+    joint_speed: float = 1.4
+    max_joint_speed: float = 1.4
     finger_still: float = 0.005
     arm_still: float = 0.05
     arm_near: float = 0.01
@@ -166,9 +166,10 @@ class Driver:
             self.step(self.frame_dt)
 
     def drive_to(self, goal: tuple[float, float, float], grid: NavGrid, *, approach: float = 0.35,
-                 timeout: float = 15.0) -> None:
+                 timeout: float = 15.0, tuck: np.ndarray | None = None) -> None:
         """Drive the base to ``goal`` (x, y, yaw): A* to a staging point ``approach`` [m] behind the
-        goal (backed away from the furniture along the goal heading), then straight in."""
+        goal (backed away from the furniture along the goal heading), then straight in. ``tuck``:
+        arm joint targets (7,) [rad] the arm moves to while the base sets off (:func:`stow`)."""
         t0 = time.perf_counter()
         x, y, th = base_pose(self.sim)
         gx, gy, gyaw = goal
@@ -179,7 +180,7 @@ class Driver:
             raise ExpertFailure("no_path", str(e)) from None
         path = np.vstack([path, [gx, gy]])
         self.plan_seconds += time.perf_counter() - t0
-        self.follow(path, gyaw, timeout=timeout)
+        self.follow(path, gyaw, timeout=timeout, tuck=tuck)
 
     def drive_straight(self, goal: tuple[float, float, float], *, timeout: float = 10.0) -> None:
         """Drive the base in a straight line to ``goal`` (x, y, yaw), no planning (the last metre
@@ -187,13 +188,18 @@ class Driver:
         x, y, _ = base_pose(self.sim)
         self.follow(np.array([[x, y], goal[:2]], float), goal[2], timeout=timeout)
 
-    def follow(self, path: np.ndarray, gyaw: float, *, timeout: float = 15.0) -> None:
-        """Follow ``path`` (N, 2) [m] to its end, turning to ``gyaw`` [rad]; mode 0 (locomotion)."""
+    def follow(self, path: np.ndarray, gyaw: float, *, timeout: float = 15.0, tuck: np.ndarray | None = None) -> None:
+        """Follow ``path`` (N, 2) [m] to its end, turning to ``gyaw`` [rad]; mode 0 (locomotion).
+        ``tuck``: arm joint targets (7,) [rad] reached linearly at ``pace.joint_speed`` meanwhile
+        (from the start; a drive shorter than that waits for the arm)."""
         goal = (*path[-1], gyaw)
         follower = PathFollower(path, gyaw, dt=self.frame_dt)
         self.cmd.mode = 0
         t_end = self.sim.time + timeout
+        arm = self._arm_ramp(tuck)
         while True:
+            if arm:
+                self.ctl.set_arm_targets(arm.pop(0))
             t1 = time.perf_counter()
             v, done = follower.command(*base_pose(self.sim))
             self.plan_seconds += time.perf_counter() - t1
@@ -204,17 +210,39 @@ class Driver:
                 self.base((0.0, 0.0, 0.0))
                 raise ExpertFailure("drive_timeout", f"base at {base_pose(self.sim)}, goal {goal}")
             self.step(self.frame_dt)
+        for q in arm:
+            self.ctl.set_arm_targets(q)
+            self.step(self.frame_dt)
         self.step(0.1)
+
+    def _arm_ramp(self, q1: np.ndarray | None) -> list[np.ndarray]:
+        """Arm joint targets per frame from the current ones linearly to ``q1`` at ``pace.joint_speed``."""
+        if q1 is None:
+            return []
+        q0 = self.ctl.arm_targets()
+        n = max(1, int(math.ceil(float(np.abs(q1 - q0).max()) / self.pace.joint_speed / self.frame_dt)))
+        return [q0 + (q1 - q0) * k / n for k in range(1, n + 1)]
 
 
 STOW_REACH, STOW_Z = 0.30, 1.0  # hand while driving: this far ahead of the base centre, this high [m]
 
 
-def stow(d: Driver) -> None:
+def stow(d: Driver, *, on_the_way: bool = False) -> np.ndarray | None:
     """Raise the hand from home (0.52 m ahead at 0.75 m: table-top height, it sweeps objects off a
-    table the base drives past) to 0.30 m ahead, 1.0 m high, inside the planner's footprint disc."""
-    from stages.simulate.control import pose, top_down
+    table the base drives past) to 0.30 m ahead, 1.0 m high, inside the planner's footprint disc.
+    ``on_the_way`` with the arm at home (an episode's start, in the open): only solve the tucked
+    arm's joint targets and return them, for ``Driver.drive_to(tuck=...)`` to tuck while the base
+    sets off (it moves under 0.4 m meanwhile); else (or when CLIK misses) tuck here, return None."""
+    from stages.simulate.control import Clik, pose, top_down
 
     bx, by, th = base_pose(d.sim)
     at = np.array([bx + STOW_REACH * math.cos(th), by + STOW_REACH * math.sin(th), STOW_Z])
-    d.move(pose(at, top_down(th - math.pi / 2)), 1.0, segments=2, tol=APPROACH_TOL)
+    target = pose(at, top_down(th - math.pi / 2))
+    home = np.asarray(d.sim.desc.arm_home, float)
+    if on_the_way and float(np.abs(d.ctl.arm_targets() - home).max()) < 0.05:
+        q0 = d.ik.with_arm(d.ik.from_sim(d.sim), d.ctl.arm_targets())
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, target), q0, max_iters=600)
+        if res.position_error <= APPROACH_TOL and res.rotation_error <= math.radians(2.0):
+            return d.ik.arm_q(res.q)
+    d.move(target, 1.0, segments=2, tol=APPROACH_TOL)
+    return None

@@ -112,8 +112,8 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     body, _, h = _mug(inst)
     mug = np.asarray(inst.objects[body][:2])
     bowl = np.asarray(inst.target)
-    stow(d)
-    d.drive_to(facing_north_goal(w.table_rect[1], float((mug[0] + bowl[0]) / 2)), _grid(inst))
+    tuck = stow(d, on_the_way=True)
+    d.drive_to(facing_north_goal(w.table_rect[1], float((mug[0] + bowl[0]) / 2)), _grid(inst), tuck=tuck)
     top = w.table_z
     rot = top_down(math.pi / 2)
     grasp = np.array([mug[0], mug[1], top + 0.002 + h - RIM_CLEARANCE])
@@ -137,8 +137,8 @@ def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray
     w = inst.world
     goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
     stage = (goal[0], goal[1] - COUNTER_STAGE, goal[2])
-    stow(d)
-    d.drive_to(stage, _grid(inst), approach=0.0)
+    tuck = stow(d, on_the_way=True)
+    d.drive_to(stage, _grid(inst), approach=0.0, tuck=tuck)
     bx, by, th = base_pose(d.sim)
     ready = np.array([bx + reach * math.cos(th), by + reach * math.sin(th), w.counter_z + lift])
     d.move(_pose(ready, side_rot(0.0) if rot is None else rot), 1.5, segments=3, tol=APPROACH_TOL)
@@ -238,8 +238,8 @@ def push_object(inst: TaskInstance, d: Driver) -> None:
     x, y, _, yaw = inst.objects[body]
     b = np.array([x, y])
     dirn = np.asarray(inst.push_direction, float)
-    stow(d)
-    d.drive_to(facing_north_goal(w.table_rect[1], float(b[0])), _grid(inst))
+    tuck = stow(d, on_the_way=True)
+    d.drive_to(facing_north_goal(w.table_rect[1], float(b[0])), _grid(inst), tuck=tuck)
     rot = top_down(math.pi / 2)  # fingers close along x, across the push direction
     d.grip(PUSH_GRIP, 0.4)
     a = w.placed["pusher"].asset

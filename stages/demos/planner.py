@@ -151,9 +151,9 @@ class PathFollower:
 
     path: np.ndarray
     goal_yaw: float
-    v_max: float = 0.9
+    v_max: float = 1.0
     w_max: float = 1.8
-    accel: float = 1.2
+    accel: float = 1.5
     alpha: float = 4.0
     brake: float = 0.8
     v_corner: float = 0.25
@@ -176,8 +176,16 @@ class PathFollower:
         d_goal = float(np.linalg.norm(goal - p))
         e_yaw = wrap(self.goal_yaw - theta)
         if d_goal < self.pos_tol and abs(e_yaw) < self.yaw_tol:
-            self._v, self._w = np.zeros(2), 0.0
-            return (0.0, 0.0, 0.0), True
+            lim, n_v = self.accel * self.dt, float(np.linalg.norm(self._v))
+            if n_v <= lim and abs(self._w) <= self.alpha * self.dt:
+                self._v, self._w = np.zeros(2), 0.0
+                return (0.0, 0.0, 0.0), True
+            # arrived still moving: brake at ``accel`` (a stop from speed would jump the command)
+            self._v = self._v * max(0.0, 1.0 - lim / max(n_v, 1e-12))
+            self._w = float(np.clip(0.0, self._w - self.alpha * self.dt, self._w + self.alpha * self.dt))
+            c, s = math.cos(theta), math.sin(theta)
+            vx, vy = c * self._v[0] + s * self._v[1], -s * self._v[0] + c * self._v[1]
+            return (float(vx), float(vy), self._w), False
         target, to_vertex, v_vertex = self._lookahead_point(p)
         d = target - p
         n = float(np.linalg.norm(d))

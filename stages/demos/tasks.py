@@ -161,7 +161,7 @@ ARTICULATED = {"microwave": ("microwave", "door", "microwave"), "fridge": ("frid
                "oven": ("oven", "door", "oven"), "drawer": ("counter", "drawer", "kitchen counter"),
                "door": ("door", "door", "room")}
 OPEN_FRACTION = 0.75  # open: the joint past this fraction of its travel
-#: time limit of open/close episodes [s]: a wide door is carried in up to 4 stages of ~15-20 s
+#: time limit of open/close episodes [s]: a wide door the base cannot turn is carried in up to 4 stages of ~10-15 s
 OPEN_CLOSE_SECONDS = 90.0
 
 

@@ -48,7 +48,8 @@ def _catalog(out: Path) -> Path:
 def _motion(frames, phases=None) -> dict:
     """Peaks of an episode's recorded motion (30 fps): arm joint speed [rad/s] (the Panda's limits
     are 2.175-2.61 rad/s; with ``phases``, the expert phase of each frame, also the joint and the
-    phase of the peak), base speed command [m/s] and its change [m/s^2], base turn rate
+    phase of the peak and of the peak base command change), base speed command [m/s] and its
+    change [m/s^2] (base frame), base turn rate
     command [rad/s]."""
     import numpy as np
 
@@ -59,10 +60,12 @@ def _motion(frames, phases=None) -> dict:
     fps = 30.0
     dq = np.abs(np.diff(q, axis=0))
     k, j = np.unravel_index(int(np.argmax(dq)), dq.shape)
-    where = {"peak_joint": int(j) + 1, "peak_phase": phases[k + 1]} if phases else {}
+    acc = np.linalg.norm(np.diff(v[:, :2], axis=0), axis=1) * fps
+    where = {"peak_joint": int(j) + 1, "peak_phase": phases[k + 1],
+             "peak_accel_phase": phases[int(np.argmax(acc)) + 1]} if phases else {}
     return {**where, "peak_joint_speed": round(float(dq.max() * fps), 3),
             "peak_base_speed": round(float(np.linalg.norm(v[:, :2], axis=1).max()), 3),
-            "peak_base_accel": round(float(np.linalg.norm(np.diff(v[:, :2], axis=0), axis=1).max() * fps), 3),
+            "peak_base_accel": round(float(acc.max()), 3),
             "peak_turn_rate": round(float(np.abs(v[:, 2]).max()), 3)}
 
 
@@ -154,7 +157,8 @@ def run(seeds=(1, 2), tasks=None, catalog: Path | None = None, kitchen: int = 5,
             print(f"{ticket.task:22s} seed {ticket.seed:3d} {res.frames:5d} frames {res.sim_seconds:6.1f} s "
                   f"{'ok' if res.success else 'FAILED ' + res.reason}  ({r['wall_s']} s wall; peaks: joint "
                   f"{r.get('peak_joint_speed')} rad/s, base {r.get('peak_base_speed')} m/s "
-                  f"{r.get('peak_base_accel')} m/s^2)", flush=True)
+                  f"{r.get('peak_base_accel')} m/s^2{' in ' + str(r['peak_accel_phase']) if clock else ''}; "
+                  f"joint peak in {r.get('peak_phase')})", flush=True)
 
         eng.run(Listed(room, {0: [(t, s, None) for t in tasks for s in seeds]}), begin=begin, end=end)
     per_task = {}

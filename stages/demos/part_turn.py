@@ -1,0 +1,166 @@
+"""Turning a vertically hinged leaf (door) with the base: the hand holds the handle (or presses
+the front face) with the arm held, and the base moves as if rigidly attached to the leaf, on a
+circle about the hinge axis while yawing at the leaf's rate. Robot and leaf then turn together, so
+the hand stays on its grip and the leaf cannot sweep into the robot; one such turn replaces
+several regrasp stages of the arm carrying the handle along its arc
+(:func:`stages.demos.articulated._swing` uses it for the part of the arc over which the base's
+footprint stays free on the room's grid, :func:`turn_limit`). Also the base-side shortcuts of a
+stage: going on from where the base stands (:func:`plan_here`) and re-solving a plan from a base
+stopped off its pose (:func:`resolve`).
+
+``d`` is a :class:`~stages.demos.driver.Driver`; world frame, metres, radians.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from stages.demos.driver import ROBOT_RADIUS
+from stages.demos.part_planning import is_free
+from stages.demos.parts import ArticulatedPart, axis_angle
+
+log = logging.getLogger(__name__)
+
+TURN_RATE = 0.6       # leaf (and base) turn rate bound [rad/s]
+TURN_ACCEL = 1.0      # its change [rad/s^2]
+TURN_BASE_SPEED = 0.75  # base speed bound while turning [m/s]
+TURN_HAND_SPEED = 0.45  # handle speed bound [m/s]
+TURN_SLOW_NEAR = math.radians(20.0)  # closing: half the rate this close to closed (a heavy leaf rebounds)
+TURN_GAIN = 3.0       # base pose feedback gain [1/s]
+TURN_LOST = 0.06      # stop when the base falls this far behind its pose [m] (blocked)
+TURN_SLIP = 0.15      # ... or the leaf this far [rad] off the turn (grip lost)
+TURN_CMD_ACCEL = 1.5  # the base command (vx, vy) changes at most this fast [m/s^2], stops included
+
+
+def is_vertical(part: ArticulatedPart) -> bool:
+    return part.kind == "revolute" and abs(float(np.asarray(part.axis)[2])) > 0.7
+
+
+def turned(base, part: ArticulatedPart, dq: float) -> tuple[float, float, float]:
+    """Base pose (x, y, yaw) ``base`` carried rigidly with the leaf turning by ``dq`` [rad]."""
+    o = np.asarray(part.origin, float)
+    p = o + axis_angle(np.asarray(part.axis, float), dq) @ (np.array([base[0], base[1], o[2]]) - o)
+    yaw = float(base[2]) + dq * math.copysign(1.0, float(part.axis[2]))
+    return float(p[0]), float(p[1]), (yaw + math.pi) % (2 * math.pi) - math.pi
+
+
+def turn_limit(part: ArticulatedPart, d, grid, q_from: float, q_to: float, step: float = math.radians(2.0)) -> float:
+    """The joint value, from ``q_from`` towards ``q_to``, up to which the base turned with the
+    leaf from where it stands keeps its footprint (ROBOT_RADIUS) free on ``grid``."""
+    from stages.demos.record import base_pose
+
+    base = base_pose(d.sim)
+    blocked = grid.inflate(ROBOT_RADIUS)
+    sgn = math.copysign(1.0, q_to - q_from)
+    last = q_from
+    for dq in np.arange(step, abs(q_to - q_from) + step, step):
+        q = q_from + sgn * min(float(dq), abs(q_to - q_from))
+        x, y, _ = turned(base, part, q - q_from)
+        if not is_free(grid, blocked, x, y):
+            break
+        last = q
+    return last
+
+
+def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> float:
+    """Turn the base (arm held, hand on the leaf) with the leaf from joint value ``q_from`` to
+    ``q_to`` about the hinge: the leaf angle follows a trapezoidal profile (TURN_RATE,
+    TURN_ACCEL; bounded by the base's and the handle's speed; halved within TURN_SLOW_NEAR of
+    closed when closing), the base tracks the pose it carries by feedforward plus feedback. Stops
+    early when the base is blocked or the leaf slips. Returns the leaf's joint value then."""
+    from stages.demos.record import base_pose
+
+    start = tuple(float(v) for v in base_pose(d.sim))
+    o = np.asarray(part.origin, float)
+    r_base = math.hypot(start[0] - o[0], start[1] - o[1])
+    h = np.asarray(part.handle, float) - o
+    r_hand = float(np.linalg.norm(h - np.dot(h, part.axis) * np.asarray(part.axis)))
+    w_max = min(TURN_RATE, TURN_BASE_SPEED / max(r_base, 1e-3), TURN_HAND_SPEED / max(r_hand, 1e-3))
+    sgn = math.copysign(1.0, q_to - q_from)
+    az = math.copysign(1.0, float(part.axis[2]))
+    closing = q_to < q_from
+    total = abs(q_to - q_from)
+    dt = d.frame_dt
+    d.cmd.mode = 1
+    done, w = 0.0, 0.0
+    cmd = np.zeros(2)  # the last base command (vx, vy) [m/s]
+    log.info("%s: turning with the base from %.2f to %.2f (base radius %.2f m, %.2f rad/s)", part.joint_path,
+             q_from, q_to, r_base, w_max)
+    while done < total - 1e-6:
+        q_d = q_from + sgn * done
+        cap = w_max * (0.5 if closing and q_d - part.closed < TURN_SLOW_NEAR else 1.0)
+        w = min(cap, w + TURN_ACCEL * dt, math.sqrt(2.0 * TURN_ACCEL * max(total - done, 0.0)))
+        w = max(w, 0.02)
+        done = min(total, done + w * dt)
+        tx, ty, tyaw = turned(start, part, sgn * done)
+        x, y, yaw = base_pose(d.sim)
+        err = math.hypot(tx - x, ty - y)
+        q_now = d.sim.joint_q_of_path(part.joint_path)
+        if err > TURN_LOST or abs(q_now - (q_from + sgn * done)) > TURN_SLIP:
+            log.info("%s: turn stopped at %.2f (base %.3f m off, leaf at %.2f)", part.joint_path,
+                     q_from + sgn * done, err, q_now)
+            break
+        wz = sgn * w * az  # world yaw rate [rad/s]
+        vwx = -wz * (ty - o[1]) + TURN_GAIN * (tx - x)
+        vwy = wz * (tx - o[0]) + TURN_GAIN * (ty - y)
+        wyaw = wz + TURN_GAIN * ((tyaw - yaw + math.pi) % (2 * math.pi) - math.pi)
+        c, s = math.cos(yaw), math.sin(yaw)
+        cmd = _limited(cmd, np.array([c * vwx + s * vwy, -s * vwx + c * vwy]), TURN_CMD_ACCEL * dt)
+        d.base((float(cmd[0]), float(cmd[1]), wyaw))
+        d.step(dt)
+    while np.linalg.norm(cmd) > 1e-6:  # brake to a stop (a blocked or slipping turn ends at speed)
+        cmd = _limited(cmd, np.zeros(2), TURN_CMD_ACCEL * dt)
+        d.base((float(cmd[0]), float(cmd[1]), 0.0))
+        d.step(dt)
+    d.base((0.0, 0.0, 0.0))
+    d.step(0.1)
+    return d.sim.joint_q_of_path(part.joint_path)
+
+
+def _limited(v: np.ndarray, want: np.ndarray, step: float) -> np.ndarray:
+    """``want`` reached from ``v`` by a change of at most ``step`` (norm)."""
+    dv = want - v
+    n = float(np.linalg.norm(dv))
+    return want if n <= step else v + dv * (step / n)
+
+
+def resolve(d, targets, seeds, tol: float = 0.004) -> list[np.ndarray]:
+    """Arm solutions (7,) for the leading ``targets`` (4x4 world poses) that CLIK reaches from the
+    base where it stands, each seeded by the planned solution of ``seeds`` (the plan's branch)."""
+    from stages.simulate.control import Clik
+
+    out = []
+    for t, seed in zip(targets, seeds, strict=False):
+        res = d.ik.solve(Clik.world_to_root(d.sim.spawn, t), d.ik.with_arm(d.ik.from_sim(d.sim), seed), max_iters=300)
+        if res.position_error > tol or res.rotation_error > math.radians(2.0):
+            break
+        out.append(d.ik.arm_q(res.q))
+    return out
+
+
+def plan_here(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str, goal: float):
+    """(base, pitch, n, arm solutions, along) as :func:`stages.demos.part_planning.plan_stage`
+    returns, for the base where it stands, when from there the approach at ``q0`` and every
+    waypoint of ``qs`` are reachable (a vertically hinged leaf: the approach, and the turn with the
+    base reaches ``goal``); else None (the stage drives to a planned base)."""
+    from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips
+    from stages.demos.part_planning import reach
+    from stages.demos.record import base_pose
+
+    base = tuple(float(v) for v in base_pose(d.sim))
+    vertical = is_vertical(part)
+    z = float(part.handle_at(q0)[2])
+    p0 = door_pitch(z) if vertical else drawer_pitch(z)
+    turns = vertical and abs(turn_limit(part, d, grid, q0, goal) - goal) < math.radians(3.0)
+    for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge"):
+        approach, arc = gesture(part, q0, qs, pitch, mode, along)
+        sols = reach(d, base, approach + (arc[:1] if turns else arc))
+        n = len(sols) - len(approach)
+        if n == len(qs) or (turns and n >= 0):
+            log.info("%s: going on from the base where it stands (%d/%d arc steps)", part.joint_path,
+                     max(n, 0), len(qs))
+            return base, pitch, n, sols, along
+    return None
