@@ -9,7 +9,7 @@ One work item per (layout house x population); each writes ``scene.usda`` (+ sub
     [step.config]
     assets_step = "assets"          # an ingest step: its index <out>/catalog.sqlite lists the packages
     layouts_step = "layouts"        # a layout step: floor plans + layout layers
-    # rules = "stages/scene/rules/default.toml"   # placement rules (default: the built-in file)
+    # rules = "../stages/scene/rules/default.toml"   # placement rules, relative to the job file (default: built in)
     attempts = 4                    # populate attempts per scene (different sub-seeds) before failing
     looks = 3                       # material variants per scene (variant set "look")
     # settle_early_exit = true      # stop the 2 s settle once every body is still (see StillExit)
