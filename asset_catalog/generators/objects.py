@@ -319,16 +319,23 @@ def trash_can(b: AssetBuilder) -> float:
     else:
         sx, sy = b.param("depth", 0.2, 0.34), b.param("width", 0.22, 0.38)
         bottom = 0.012
-        b.add("base", g.box((sx, sy, bottom), (0, 0, bottom / 2)), m, density=density)
-        for s in (-1, 1):
-            b.add("base", g.box_between((-sx / 2, s * sy / 2 - (wall if s > 0 else 0), 0.0),
-                                        (sx / 2, s * sy / 2 + (wall if s < 0 else 0), h)), m, density=density)
-            b.add("base", g.box_between((s * sx / 2 - (wall if s > 0 else 0), -sy / 2 + wall, 0.0),
-                                        (s * sx / 2 + (wall if s < 0 else 0), sy / 2 - wall, h)), m,
-                  density=density)
+        _open_box(b, m, density, sx, sy, bottom, wall, h)
         rim_y = sy / 2
     b.handle("base", (0.0, rim_y - wall / 2, h - 0.005), wall, 0.03, (1.0, 0.0, 0.0), kind="rim")
     return b.param("mass", 1.5, 4.0) if metal else b.param("mass", 0.5, 1.8)
+
+
+def _open_box(b: AssetBuilder, m, density: float, sx: float, sy: float, bottom: float, wall: float,
+              h: float) -> None:
+    """An open-top box on link "base": a ``bottom`` [m] thick floor of ``sx`` x ``sy`` [m] and four
+    ``wall`` [m] thick walls ``h`` [m] high, each its own box (convex collider)."""
+    b.add("base", g.box((sx, sy, bottom), (0, 0, bottom / 2)), m, density=density)
+    for s in (-1, 1):
+        b.add("base", g.box_between((-sx / 2, s * sy / 2 - (wall if s > 0 else 0), 0.0),
+                                    (sx / 2, s * sy / 2 + (wall if s < 0 else 0), h)), m, density=density)
+        b.add("base", g.box_between((s * sx / 2 - (wall if s > 0 else 0), -sy / 2 + wall, 0.0),
+                                    (s * sx / 2 + (wall if s < 0 else 0), sy / 2 - wall, h)), m,
+              density=density)
 
 
 def dish_rack(b: AssetBuilder) -> float:
@@ -346,13 +353,7 @@ def dish_rack(b: AssetBuilder) -> float:
     # slot pitch > a plate's height (rim to foot, <= 28 mm); at most 9 tines a row (24 colliders a link)
     pitch = b.param("slot_pitch", 0.045, 0.055)
     tine = b.param("tine_width", 0.004, 0.006)
-    b.add("base", g.box((sx, sy, t), (0, 0, t / 2)), m, density=density)
-    for s in (-1, 1):
-        b.add("base", g.box_between((-sx / 2, s * sy / 2 - (t if s > 0 else 0), 0.0),
-                                    (sx / 2, s * sy / 2 + (t if s < 0 else 0), tray_h)), m, density=density)
-        b.add("base", g.box_between((s * sx / 2 - (t if s > 0 else 0), -sy / 2 + t, 0.0),
-                                    (s * sx / 2 + (t if s < 0 else 0), sy / 2 - t, tray_h)), m,
-              density=density)
+    _open_box(b, m, density, sx, sy, t, t, tray_h)
     n = int((sy - 2 * t - 0.03) // pitch) + 1
     ys = (np.arange(n) - (n - 1) / 2) * pitch
     rows = (-sx * 0.22, sx * 0.22)

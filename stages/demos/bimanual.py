@@ -83,23 +83,13 @@ def write_table_scene(path: Path, obj: TraySpec | BlockSpec, *, obj_xy=(0.46, 0.
     """Author the scene at ``path`` (.usda): floor, a table whose top centre is at ``table_xy``
     [m] with its surface at ``table_height`` [m], and ``obj`` (a rigid body of boxes) standing on
     it at ``obj_xy`` [m], turned ``obj_yaw`` [rad] about +Z."""
-    from pxr import Gf, Sdf
+    from pxr import Sdf
 
-    from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
+    from stages.demos.hand_scene import table_world
+    from stages.simulate.demo_scene import _box, _labels, _xform_attrs
 
     path = Path(path)
-    w = _Writer()
-    w.prim("/World", "Xform", meta={"kind": "assembly"})
-    w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
-        "physics:gravityDirection": (Sdf.ValueTypeNames.Vector3f, Gf.Vec3f(0, 0, -1)),
-        "physics:gravityMagnitude": (Sdf.ValueTypeNames.Float, 9.81)})
-    _box(w, "/World/Floor", (0.0, 0.0, -0.05), (6.0, 6.0, 0.1), (0.6, 0.6, 0.58), label="floor")
-    la, lv = _labels("table")
-    w.prim("/World/Table", "Xform", apis=la, attrs=lv)
-    t = 0.04
-    _box(w, "/World/Table/Top", (*table_xy, table_height - t / 2), (*table_size, t), (0.55, 0.4, 0.3))
-    _box(w, "/World/Table/Base", (*table_xy, (table_height - t) / 2),
-         (table_size[0] * 0.5, table_size[1] * 0.5, table_height - t), (0.4, 0.3, 0.25))
+    w = table_world(table_xy, table_size, table_height)
     pos = (float(obj_xy[0]), float(obj_xy[1]), float(table_height) + 0.0005)
     la, lv = _labels(obj.label)
     w.prim(OBJECT_PRIM, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI", *la],

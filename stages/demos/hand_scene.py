@@ -28,17 +28,13 @@ class TableScene:
     category: str
 
 
-def write_table_scene(path: Path, asset, *, table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55,
-                      object_xy=(0.85, 0.0), object_yaw: float = 0.0) -> TableScene:
-    """Author the scene at ``path`` (.usda) with ``asset`` (a :class:`stages.demos.packages.CatalogAsset`)
-    on the table; returns where things are."""
-    import os
-
+def table_world(table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55):
+    """A scene writer holding the world, gravity, a 6 m floor and a table: its top ``table_size`` [m]
+    centred at ``table_xy`` [m], ``table_height`` [m] high. The caller adds its objects and writes."""
     from pxr import Gf, Sdf
 
-    from stages.simulate.demo_scene import _box, _labels, _Writer, _xform_attrs
+    from stages.simulate.demo_scene import _box, _labels, _Writer
 
-    path = Path(path)
     w = _Writer()
     w.prim("/World", "Xform", meta={"kind": "assembly"})
     w.prim("/World/PhysicsScene", "PhysicsScene", attrs={
@@ -49,8 +45,23 @@ def write_table_scene(path: Path, asset, *, table_xy=(1.0, 0.0), table_size=(0.6
     w.prim("/World/Table", "Xform", apis=la, attrs=lv)
     t = 0.04
     _box(w, "/World/Table/Top", (*table_xy, table_height - t / 2), (*table_size, t), (0.55, 0.4, 0.3))
-    _box(w, "/World/Table/Base", (*table_xy, (table_height - t) / 2), (table_size[0] * 0.5, table_size[1] * 0.5,
-                                                                        table_height - t), (0.4, 0.3, 0.25))
+    _box(w, "/World/Table/Base", (*table_xy, (table_height - t) / 2),
+         (table_size[0] * 0.5, table_size[1] * 0.5, table_height - t), (0.4, 0.3, 0.25))
+    return w
+
+
+def write_table_scene(path: Path, asset, *, table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55,
+                      object_xy=(0.85, 0.0), object_yaw: float = 0.0) -> TableScene:
+    """Author the scene at ``path`` (.usda) with ``asset`` (a :class:`stages.demos.packages.CatalogAsset`)
+    on the table; returns where things are."""
+    import os
+
+    from pxr import Sdf
+
+    from stages.simulate.demo_scene import _labels, _xform_attrs
+
+    path = Path(path)
+    w = table_world(table_xy, table_size, table_height)
     pos = (float(object_xy[0]), float(object_xy[1]), float(table_height) + 0.001)
     la, lv = _labels(asset.category)
     rel = os.path.relpath(Path(asset.usd).resolve(), path.parent.resolve()).replace(os.sep, "/")

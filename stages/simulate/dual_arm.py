@@ -43,6 +43,7 @@ import numpy as np
 
 from pipeline.types import ItemError
 from stages.embodiment.spec import EmbodimentSpec
+from stages.simulate.hands import urdf_inertial
 from stages.simulate.robot import BASE_JOINTS, BaseGeometry, CameraMount, _add_base, _camera_link
 
 log = logging.getLogger(__name__)
@@ -152,13 +153,7 @@ def _arm_link(robot: ET.Element, body: ET.Element, name: str, meshes: dict[str, 
     link = ET.SubElement(robot, "link", name=name)
     ine = body.find("inertial")
     if ine is not None:
-        r = _rot(ine)
-        i3 = r @ np.diag(_vec(ine, "diaginertia")) @ r.T
-        el = ET.SubElement(link, "inertial")
-        ET.SubElement(el, "origin", xyz=_fmt(_vec(ine, "pos")), rpy="0 0 0")
-        ET.SubElement(el, "mass", value=ine.get("mass"))
-        ET.SubElement(el, "inertia", ixx=f"{i3[0, 0]:.9g}", ixy=f"{i3[0, 1]:.9g}", ixz=f"{i3[0, 2]:.9g}",
-                      iyy=f"{i3[1, 1]:.9g}", iyz=f"{i3[1, 2]:.9g}", izz=f"{i3[2, 2]:.9g}")
+        urdf_inertial(link, ine)
     else:   # the root (base plate) has no inertial in the source; it is welded to the chassis
         el = ET.SubElement(link, "inertial")
         ET.SubElement(el, "mass", value="0.5")

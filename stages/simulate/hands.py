@@ -224,17 +224,23 @@ def _geom(link: ET.Element, tag: str, xyz, r, shape: str, **attrs) -> None:
     ET.SubElement(ET.SubElement(g, "geometry"), shape, **{k: str(v) for k, v in attrs.items()})
 
 
+def urdf_inertial(link: ET.Element, ine: ET.Element) -> None:
+    """Add to URDF ``link`` the inertial of an MJCF ``<inertial>`` (mass, pos, diaginertia turned by
+    its quat / axisangle / euler into the link frame's full tensor)."""
+    r = _quat_of(ine)
+    i3 = r @ np.diag(_vec(ine, "diaginertia")) @ r.T
+    el = ET.SubElement(link, "inertial")
+    ET.SubElement(el, "origin", xyz=_fmt(_vec(ine, "pos")), rpy="0 0 0")
+    ET.SubElement(el, "mass", value=ine.get("mass"))
+    ET.SubElement(el, "inertia", ixx=f"{i3[0, 0]:.9g}", ixy=f"{i3[0, 1]:.9g}", ixz=f"{i3[0, 2]:.9g}",
+                  iyy=f"{i3[1, 1]:.9g}", iyz=f"{i3[1, 2]:.9g}", izz=f"{i3[2, 2]:.9g}")
+
+
 def _shadow_link(robot: ET.Element, body: ET.Element, name: str, stl: Path) -> None:
     link = ET.SubElement(robot, "link", name=name)
     ine = body.find("inertial")
     if ine is not None:
-        r = _quat_of(ine)
-        i3 = r @ np.diag(_vec(ine, "diaginertia")) @ r.T
-        el = ET.SubElement(link, "inertial")
-        ET.SubElement(el, "origin", xyz=_fmt(_vec(ine, "pos")), rpy="0 0 0")
-        ET.SubElement(el, "mass", value=ine.get("mass"))
-        ET.SubElement(el, "inertia", ixx=f"{i3[0, 0]:.9g}", ixy=f"{i3[0, 1]:.9g}", ixz=f"{i3[0, 2]:.9g}",
-                      iyy=f"{i3[1, 1]:.9g}", iyz=f"{i3[1, 2]:.9g}", izz=f"{i3[2, 2]:.9g}")
+        urdf_inertial(link, ine)
     for g in body.findall("geom"):
         pos, r = _vec(g, "pos"), _quat_of(g)
         if g.get("class") == "robot0:D_Vizual" and g.get("mesh"):
