@@ -83,7 +83,11 @@ class DemosConfig(_Strict):
     ``episodes_per_task`` episodes of every task round robin (:mod:`stages.demos.mixed`) instead of
     one item per (task, kitchen) running ``episodes_per_shard``; max_sim_seconds: with mixed, stop
     each engine after this much simulated time [s] (episodes still running are counted as
-    unfinished; None: run every episode to its end)."""
+    unfinished; None: run every episode to its end).
+
+    devices: on a host of several GPUs, the items' engines spread round robin over these CUDA
+    devices ("cuda:0", "cuda:1", ...; with ``workers`` items at once), each engine alone on its
+    GPU; empty: every item on ``device``."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -104,6 +108,21 @@ class DemosConfig(_Strict):
     mixed: bool = False
     episodes_per_task: int = Field(default=1, ge=1, le=10000)
     max_sim_seconds: float | None = Field(default=None, gt=0.0, le=86400.0)
+    devices: tuple[str, ...] = ()
+
+    def item_device(self, index: int) -> str:
+        """The device of item ``index``: ``devices`` round robin, else ``device``."""
+        return self.devices[index % len(self.devices)] if self.devices else self.device
+
+    @field_validator("devices")
+    @classmethod
+    def _devices(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        import re
+
+        bad = [d for d in v if not re.fullmatch(r"cuda:\d+", d)]
+        if bad or len(set(v)) != len(v):
+            raise ValueError(f"devices must be distinct 'cuda:N' names, got {list(v)}")
+        return v
 
     @field_validator("device")
     @classmethod
@@ -123,6 +142,8 @@ class DemosConfig(_Strict):
         for k in ("episodes_per_task", "max_sim_seconds"):
             if not self.mixed and k in given:
                 raise ValueError(f"{k} needs mixed = true (per-(task, kitchen) items use episodes_per_shard)")
+        if self.devices and not self.device.startswith("cuda"):
+            raise ValueError("devices (items spread over several GPUs) needs device = 'cuda'")
         if self.program_procs and not self.device.startswith("cuda"):
             raise ValueError("program_procs needs device = 'cuda' (the batched engine layout); on CPU the "
                              "experts run as threads (program_procs = 0)")
@@ -251,8 +272,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)), tasks=config.tasks,
                 episodes_per_task=config.episodes_per_task, max_sim_seconds=config.max_sim_seconds,
                 max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
-                device=config.device, record_images=config.record_images, batch_worlds=config.batch_worlds,
-                program_procs=config.program_procs, program_wait=config.program_wait,
+                device=config.item_device(w), record_images=config.record_images,
+                batch_worlds=config.batch_worlds, program_procs=config.program_procs, program_wait=config.program_wait,
                 writer_procs=config.writer_procs, generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
         return items
@@ -260,7 +281,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
         for w in range(config.worlds):
             params = ShardParams(task=t, world=w, world_seed=derive_seed(ctx.seed, "demos-world", str(w)),
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
-                                 fps=config.fps, device=config.device, record_images=config.record_images,
+                                 fps=config.fps, device=config.item_device(w),
+                                 record_images=config.record_images,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
                                  program_wait=config.program_wait, writer_procs=config.writer_procs,
                                  max_seconds=config.max_seconds,
@@ -270,7 +292,15 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
 
 
 def record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
-    """Stage function: author the world, run the episodes on the batched engine, write the shards."""
+    """Stage function: author the world, run the episodes on the batched engine, write the shards
+    (on ``params.device``: "cuda:N" keeps it on that GPU)."""
+    from stages.engine import device_scope
+
+    with device_scope(params.device):
+        return _record_shard(params, ctx)
+
+
+def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     import time
     from contextlib import ExitStack
 

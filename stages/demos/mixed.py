@@ -159,7 +159,14 @@ def contact_overflows(failed_items: dict[str, str]) -> dict[str, str]:
 
 def record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     """Stage function: author kitchen ``params.world``, run every task's episodes on one engine,
-    write one shard per engine world."""
+    write one shard per engine world (on ``params.device``: "cuda:N" keeps it on that GPU)."""
+    from stages.engine import device_scope
+
+    with device_scope(params.device):
+        return _record_mixed(params, ctx)
+
+
+def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     import time
     from contextlib import ExitStack
 

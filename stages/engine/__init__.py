@@ -7,7 +7,8 @@ Public surface::
     from stages.engine import BatchEngine, EngineConfig, EpisodeResult
 """
 
-from stages.engine.engine import BatchEngine, EngineConfig, EngineStats, EpisodeResult
+from stages.engine.engine import BatchEngine, EngineConfig, EngineStats, EpisodeResult, device_scope
 from stages.engine.lockstep import Lockstep, WorldStopped
 
-__all__ = ["BatchEngine", "EngineConfig", "EngineStats", "EpisodeResult", "Lockstep", "WorldStopped"]
+__all__ = ["BatchEngine", "EngineConfig", "EngineStats", "EpisodeResult", "Lockstep", "WorldStopped",
+           "device_scope"]

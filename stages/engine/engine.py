@@ -153,6 +153,19 @@ class EngineStats:
                 "held_steps": self.held_steps}
 
 
+def device_scope(device: str):
+    """A context in which ``device`` is Warp's default device: "cuda:N" on a host of several GPUs
+    keeps every allocation of an engine (and of the libraries under it that take Warp's default)
+    on that GPU; a no-op for "cpu" and "cuda"."""
+    import contextlib
+
+    if not device.startswith("cuda:"):
+        return contextlib.nullcontext()
+    import warp as wp
+
+    return wp.ScopedDevice(device)
+
+
 class BatchEngine:
     """``config.worlds`` worlds of one task world in one simulation (see the module docstring).
     ``panda_root``: the Panda description's package root (None: pip example-robot-data)."""

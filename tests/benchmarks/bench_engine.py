@@ -275,7 +275,10 @@ def _child(args, n: int, k: int, barrier, queue) -> None:
         work = args.work / f"proc{k:02d}"
         lib = AssetLibrary.from_folder(args.catalog / "assets", args.catalog / "catalog" / "default" / "generated.json")
         room = write_kitchen(work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
-        queue.put(bench_worlds(room, work, n, args, barrier=barrier, seed_base=k * n))
+        from stages.engine import device_scope
+
+        with device_scope(args.device):  # "cuda:N": every allocation of this engine on its GPU
+            queue.put(bench_worlds(room, work, n, args, barrier=barrier, seed_base=k * n))
     except BaseException as e:  # noqa: BLE001
         barrier.abort()
         queue.put({"error": repr(e)})
