@@ -189,13 +189,26 @@ def _pip_panda_root() -> Path | None:
     try:
         dist = metadata.distribution("example-robot-data")
     except metadata.PackageNotFoundError:
-        return None
+        return _path_panda_root()
     suffix = PANDA_URDF_REL.as_posix()
     for f in dist.files or ():
         if f.as_posix().endswith(suffix):
             urdf = Path(dist.locate_file(f))
             if urdf.is_file():
                 return urdf.parents[3].resolve()
+    return None
+
+
+def _path_panda_root() -> Path | None:
+    """Without the pip package: a ``cmeel.prefix/share/example-robot-data`` holding the Panda
+    under a ``sys.path`` entry (the package's files copied there, as the GPU machine gets them),
+    or None."""
+    import sys
+
+    for entry in sys.path:
+        root = Path(entry or ".") / "cmeel.prefix" / "share" / "example-robot-data"
+        if (root / PANDA_URDF_REL).is_file():
+            return root.resolve()
     return None
 
 

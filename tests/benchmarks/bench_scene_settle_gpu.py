@@ -24,14 +24,33 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 
-def make_scenes(n: int, work: Path, rooms: dict[str, int], progress: bool = True) -> tuple[list[Path], Path, Path]:
+def _populate(job: tuple, lib=None, rules=None) -> str | None:
+    """One house (layout plan, layout USD, library index, out folder, population seed) populated
+    with settle and validation off; its scene.usda, or None when the solver rejects it."""
+    from stages.scene.build import BuildOptions, SceneRejected, build_scene
+    from stages.scene.rules import load_rules
+    from stages.scene.solver import Library
+
+    plan, usd, index, out, seed = job
+    lib = Library.from_index(Path(index)) if lib is None else lib
+    rules = load_rules() if rules is None else rules
+    try:
+        build_scene(Path(plan), Path(usd), lib, rules, np.random.default_rng(seed), Path(out), Path(out),
+                    BuildOptions(n_looks=2, settle=False, validate=False))
+    except SceneRejected:
+        return None
+    return str(Path(out) / "scene.usda")
+
+
+def make_scenes(n: int, work: Path, rooms: dict[str, int], progress: bool = True,
+                procs: int = 1) -> tuple[list[Path], Path, Path]:
     """(n scene.usda paths, the library index, the check cache dir): houses from layout seeds
-    0.. and population seeds, built with settle and validation off (the benchmark does them)."""
+    0.. and population seeds, built with settle and validation off (the benchmark does them);
+    ``procs`` processes populate them (not timed)."""
     from tqdm import tqdm
 
     from stages.layout.build import generate_layout
     from stages.layout.spec import LayoutSpec
-    from stages.scene.build import BuildOptions, SceneRejected, build_scene
     from stages.scene.rules import load_rules
     from stages.scene.solver import Library
     from stages.scene.standin import build_library
@@ -40,27 +59,35 @@ def make_scenes(n: int, work: Path, rooms: dict[str, int], progress: bool = True
             "kitchen_counter", "fridge", "oven", "dining_table", "chair", "microwave", "bed", "nightstand",
             "wardrobe", "dresser", "pillow", "alarm_clock", "mug", "cup", "can", "book", "box", "plate", "bottle",
             "sponge", "bowl"]
-    lib = Library.from_index(build_library(work / "lib", categories=cats, variants=2))
-    rules = load_rules()
+    index = build_library(work / "lib", categories=cats, variants=2)
     layouts = [generate_layout(LayoutSpec(rooms=rooms), s, work / f"layout_{s}") for s in range(max(1, min(n, 8)))]
     scenes: list[Path] = []
     seed = 0
     with tqdm(total=n, desc="populate scenes", unit="scene", disable=not progress) as bar:
+        if procs <= 1:
+            lib, rules = Library.from_index(index), load_rules()
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            pool = ProcessPoolExecutor(procs, mp_context=mp.get_context("spawn"))
         while len(scenes) < n:
-            lay = layouts[seed % len(layouts)]
-            out = work / "scenes" / f"s{seed}"
-            seed += 1
-            try:
-                build_scene(lay.plan_json, lay.usd, lib, rules, np.random.default_rng(seed), out, out,
-                            BuildOptions(n_looks=2, settle=False, validate=False))
-            except SceneRejected:
-                continue
-            scenes.append(out / "scene.usda")
-            bar.update(1)
+            batch = range(seed, seed + (1 if procs <= 1 else max(procs, n - len(scenes))))
+            jobs = [(str(layouts[s % len(layouts)].plan_json), str(layouts[s % len(layouts)].usd), str(index),
+                     str(work / "scenes" / f"s{s}"), s + 1) for s in batch]
+            seed = batch.stop
+            done = [_populate(j, lib, rules) for j in jobs] if procs <= 1 else list(pool.map(_populate, jobs))
+            for path in done:
+                if path is not None and len(scenes) < n:
+                    scenes.append(Path(path))
+                    bar.update(1)
+        if procs > 1:
+            pool.shutdown()
     return scenes, work / "lib" / "catalog.sqlite", work / "scene_checks"
 
 
-def run(device: str, n: int, seconds: float, work: Path, rooms: dict[str, int], progress: bool = True) -> dict:
+def run(device: str, n: int, seconds: float, work: Path, rooms: dict[str, int], progress: bool = True,
+        procs: int = 1) -> dict:
     """Populate ``n`` scenes, settle them together on ``device`` for ``seconds`` [s], validate each;
     the figures as a dict."""
     import usd_schemas  # noqa: F401
@@ -68,7 +95,7 @@ def run(device: str, n: int, seconds: float, work: Path, rooms: dict[str, int], 
     from stages.scene.settle_batch import scene_layout, settle_batch
     from stages.scene.validation import validate_scene
 
-    scenes, _, cache_dir = make_scenes(n, work, rooms, progress)
+    scenes, _, cache_dir = make_scenes(n, work, rooms, progress, procs)
     cache = process_cache(cache_dir)
 
     def packages(scene: Path) -> list[Path]:
@@ -99,11 +126,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--scenes", type=int, default=64)
     ap.add_argument("--seconds", type=float, default=2.0, help="simulated seconds [s]")
     ap.add_argument("--rooms", default="living_room,kitchen,bedroom", help="room types of each house")
+    ap.add_argument("--populate-procs", type=int, default=1, help="processes populating the houses (not timed)")
     ap.add_argument("--work", type=Path, default=None, help="work folder (default: a temporary one)")
     a = ap.parse_args(argv)
     rooms = {r: 1 for r in a.rooms.split(",") if r}
     with tempfile.TemporaryDirectory(prefix="aw_settle_") as d:
-        out = run(a.device, a.scenes, a.seconds, Path(a.work or d), rooms)
+        out = run(a.device, a.scenes, a.seconds, Path(a.work or d), rooms, procs=a.populate_procs)
     dev = a.device.replace(":", "")
     path = ROOT / "bench_results" / f"scene_settle_{dev}.json"
     path.parent.mkdir(parents=True, exist_ok=True)

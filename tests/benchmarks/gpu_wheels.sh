@@ -25,4 +25,8 @@ mv .whl/av-*.whl .whl_av/
 erd=$(.venv/bin/python -c "from stages.locomotion.robot import g1_urdf_path; print(g1_urdf_path())")
 dst=.loco/erd/cmeel.prefix/share/example-robot-data/robots/g1_description/urdf
 mkdir -p "$dst" && cp "$erd" "$dst/"
+# the Panda description (URDF and meshes, 11 MB), found on sys.path by stages.simulate.robot there
+pan=$(.venv/bin/python -c "from stages.simulate.robot import _pip_panda_root; print(_pip_panda_root())")
+rm -rf .loco/erd/cmeel.prefix/share/example-robot-data/robots/panda_description
+cp -r "$pan/robots/panda_description" .loco/erd/cmeel.prefix/share/example-robot-data/robots/
 du -sh .whl .whl_av .loco/erd
