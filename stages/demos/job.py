@@ -403,6 +403,8 @@ def success_report(results: list[ShardResult | _mixed.MixedResult]) -> dict[str,
         for k, v in r.contacts.items():
             if k.startswith("peak_"):
                 peaks[k] = max(peaks[k], int(v))
+            elif k.endswith("_cap_worlds"):
+                peaks[k] += int(v)
             elif k in ("nconmax", "njmax", "naconmax"):
                 caps[k] = min(caps.get(k, int(v)), int(v))
     for name, t in tasks.items():

@@ -127,7 +127,9 @@ def contact_summary(engine) -> dict:
     """Check every Sim of ``engine`` for dropped contacts (raises ``ItemError`` "contact overflow:
     world W ...") and return the peaks against the capacities: solver; peak_contacts_per_world,
     nconmax (per world); peak_constraint_rows_per_world, njmax (per world); peak_candidate_pairs,
-    peak_contacts_all_worlds, naconmax (the shared buffer, per Sim). MuJoCo C (the CPU per-world
+    peak_contacts_all_worlds, naconmax (the shared buffer, per Sim); solver_iteration_cap_worlds,
+    linesearch_iteration_cap_worlds (worlds whose solver stopped at an iteration limit: not an
+    overflow). MuJoCo C (the CPU per-world
     layout) grows its own buffers: its arena warnings are checked, no peaks."""
     from stages.simulate.contacts import ContactOverflowError
 
@@ -149,6 +151,8 @@ def contact_summary(engine) -> dict:
                      ("peak_candidate_pairs", p["ncollision"]), ("peak_contacts_all_worlds", p["nacon"])):
             peaks[k] = max(peaks[k], int(v))
         caps = {"nconmax": mon.naconmax // mon.nworld, "njmax": mon.njmax, "naconmax": mon.naconmax}
+        for k, v in mon.iteration_caps().items():
+            peaks[k] += v
     return {"overflows": 0, "solver": solver, **dict(peaks), **caps}
 
 

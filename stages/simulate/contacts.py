@@ -32,7 +32,10 @@ worlds) with two
 small kernels: no host synchronisation in the step loop, and CUDA-graph capturable. :meth:`check`
 reads them back (every ``contact_check_every`` steps from :meth:`Sim.step
 <stages.simulate.world.Sim.step>`, or when a caller asks) and raises :class:`ContactOverflowError`
-naming the world and the count. MuJoCo's C library (one CPU world) grows its own buffers; its arena
+naming the world and the count. Two bits are not dropped data but convergence caps:
+``ITERATIONS`` (the solver stopped at ``iterations``) and ``LS_ITERATIONS`` (a linesearch stopped
+at ``ls_iterations``), which MuJoCo's C library applies silently too; they do not raise, and
+:meth:`OverflowMonitor.iteration_caps` counts the worlds that reached them. MuJoCo's C library (one CPU world) grows its own buffers; its arena
 warnings are checked instead.
 """
 
@@ -236,15 +239,28 @@ class OverflowMonitor:
         return {"contacts": self.peak_con.numpy(), "nefc": self.peak_nefc.numpy(),
                 "ncollision": int(tot[0]), "nacon": int(tot[1])}
 
+    def iteration_caps(self) -> dict[str, int]:
+        """Worlds whose solver (``solver_iteration_cap_worlds``) or linesearch
+        (``linesearch_iteration_cap_worlds``) stopped at its iteration limit at least once since
+        the monitor was made (convergence, not dropped data; host read: synchronises)."""
+        if self.cpu:
+            return {}
+        from mujoco_warp import OverflowType
+
+        sticky = self.sticky.numpy()
+        return {"solver_iteration_cap_worlds": int(np.count_nonzero(sticky & int(OverflowType.ITERATIONS))),
+                "linesearch_iteration_cap_worlds": int(np.count_nonzero(sticky & int(OverflowType.LS_ITERATIONS)))}
+
     def check(self) -> None:
         """Raise :class:`ContactOverflowError` if any step since the monitor was made dropped
-        contacts or constraint rows (host read of a few small arrays: synchronises)."""
+        contacts or constraint rows (host read of a few small arrays: synchronises). The solver's
+        iteration caps (``ITERATIONS``, ``LS_ITERATIONS``) are not errors (:meth:`iteration_caps`)."""
         if self.cpu:
             self._check_arena()
             return
         from mujoco_warp import OverflowType
 
-        sticky = self.sticky.numpy()
+        sticky = self.sticky.numpy() & ~int(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS)
         if not sticky.any():
             return
         p = self.peaks()

@@ -110,6 +110,21 @@ def test_too_few_constraint_rows_is_an_error_when_checked_while_stepping(pile, d
     assert e.value.kind == "constraints" and e.value.count > 64 and e.value.capacity == 64
 
 
+def test_iteration_caps_are_counted_not_raised(pile, desc):
+    """The solver's iteration limits (MuJoCo-Warp's ITERATIONS / LS_ITERATIONS bits) drop no data:
+    the GPU success run failed two kitchens on bit 0x400 (a linesearch cap) before this."""
+    sim = _pile_sim(pile, desc, iterations=1, ls_iterations=1)
+    sim.step(30)
+    sticky = int(sim.contact_monitor.sticky.numpy().max())
+    from mujoco_warp import OverflowType
+
+    assert sticky & int(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS), hex(sticky)
+    sim.check_contacts()  # no ContactOverflowError
+    caps = sim.contact_monitor.iteration_caps()
+    assert caps["solver_iteration_cap_worlds"] + caps["linesearch_iteration_cap_worlds"] >= 1, caps
+    assert max(caps.values()) <= 2
+
+
 # -- the demos task kitchen -----------------------------------------------------------------------
 
 KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
