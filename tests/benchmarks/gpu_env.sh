@@ -4,8 +4,10 @@
 # Installs, once per machine, the simulation stack staged in $HOME/stash by ../shared/tools/device-wheels
 # (six .carry/partNN calls), then the project's other missing wheels carried in .whl/ (lerobot, datasets,
 # rsl-rl-lib, pydantic, rich, omniverse-asset-validator, ...: pip download --no-deps of constraints.txt's
-# versions) and, when the image lacks PyAV, .whl_av/. Sets PYTHONPATH (the G1's URDF from .loco/erd when
-# carried), WARP_CACHE_PATH and unbuffered output. Says what it could not do; returns non-zero then.
+# versions) and, when the image lacks PyAV (it does: carry .whl_av once, then .whl alone), .whl_av/.
+# Sets PYTHONPATH (.loco/erd when carried: the G1's URDF and the Panda description, which the demos job
+# and bench_engine need there: carry .loco), WARP_CACHE_PATH and unbuffered output. Says what it could
+# not do; returns non-zero then. On a host of 4 GPUs: jobs/demos_success_gpu4.toml (one kitchen per GPU).
 _aw_fail() { echo "gpu_env: $*" >&2; return 3; }
 if [ ! -d "$HOME/site" ]; then
   ls "$HOME"/stash/part0* >/dev/null 2>&1 || { _aw_fail "no staged wheels in \$HOME/stash (the .carry/partNN calls)"; return 3; }
