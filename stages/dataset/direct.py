@@ -41,7 +41,7 @@ import numpy as np
 
 from ._lerobot import import_lerobot
 from .depth import encode_depth
-from .schema import ACTION_KEY, STATE_KEY, DatasetSpec, Frame
+from .schema import ACTION_KEY, STATE_KEY, SUBTASK_KEY, DatasetSpec, Frame
 
 logger = logging.getLogger(__name__)
 
@@ -128,6 +128,7 @@ class DirectBackend:
         self._videos: dict[str, _VideoStream] = {}
         self._states: list[np.ndarray] = []
         self._actions: list[np.ndarray] = []
+        self._subtasks: list[int] = []
         self._depth_png: dict[str, list[Future]] = {k: [] for k in self.spec.depth_keys().values()}
         self._samples: dict[str, list[np.ndarray]] = {}  # downsampled (C, h, w) copies for image stats
 
@@ -167,6 +168,7 @@ class DirectBackend:
             self._open_videos()
         self._states.append(frame.state())
         self._actions.append(frame.action())
+        self._subtasks.append(int(frame.subtask_index))
         for cam, key in self.spec.rgb_keys().items():
             img = frame.rgb[cam]
             self._videos[key].put(img)
@@ -211,6 +213,8 @@ class DirectBackend:
             "index": np.arange(start, start + n, dtype=np.int64),
             "task_index": np.full(n, task_index, dtype=np.int64),
         }
+        if self.spec.subtasks:
+            columns[SUBTASK_KEY] = np.asarray(self._subtasks, dtype=np.int64)
         chunk, file = divmod(self._video_file, self.spec.chunk_size)
         ep_meta: dict[str, Any] = {}
         for key, stream in self._videos.items():

@@ -60,6 +60,7 @@ STATE_KEY = "observation.state"
 ACTION_KEY = "action"
 RGB_KEY = "observation.images.{camera}"
 DEPTH_KEY = "depth.{camera}"
+SUBTASK_KEY = "subtask_index"  # per-frame stage of a multistage task (0-based; specs with subtasks)
 DEPTH_ENCODING = "png16_base64"  # info.agentworld_depth of the depth features
 EPISODE_COLUMN_PREFIX = "agentworld/"
 MODE_LOCOMOTION = 0
@@ -133,7 +134,9 @@ class DatasetSpec:
 
     arm_dof: arm joints (7 for the default arm); fps: frames per second;
     data_files_size_mb / video_files_size_mb: size after which lerobot rolls over to the next
-    ``chunk-XXX/file-YYY`` file; chunk_size: files per chunk folder.
+    ``chunk-XXX/file-YYY`` file; chunk_size: files per chunk folder; subtasks: frames carry the
+    stage of a multistage task (``subtask_index``, int64; the stages' language is the episode
+    column ``agentworld/subtasks``).
     """
 
     arm_dof: int = 7
@@ -148,6 +151,7 @@ class DatasetSpec:
     data_files_size_mb: float = 100.0
     video_files_size_mb: float = 200.0
     chunk_size: int = 1000
+    subtasks: bool = False
 
     def __post_init__(self) -> None:
         problems = []
@@ -212,6 +216,8 @@ class DatasetSpec:
                     "info": {"agentworld_depth": DEPTH_ENCODING, "height": cam.height, "width": cam.width,
                              "depth_unit": "mm"},
                 }  # fmt: skip
+        if self.subtasks:
+            feats[SUBTASK_KEY] = {"dtype": "int64", "shape": (1,), "names": None}
         return feats
 
     def to_json(self) -> dict[str, Any]:
@@ -220,7 +226,7 @@ class DatasetSpec:
             "arm_dof": self.arm_dof, "fps": self.fps, "robot_type": self.robot_type,
             "cameras": [vars(c).copy() for c in self.cameras], "video": vars(self.video).copy(),
             "data_files_size_mb": self.data_files_size_mb, "video_files_size_mb": self.video_files_size_mb,
-            "chunk_size": self.chunk_size,
+            "chunk_size": self.chunk_size, "subtasks": self.subtasks,
         }  # fmt: skip
 
     @classmethod
@@ -237,7 +243,9 @@ class EpisodeInfo:
 
     task: the language instruction (lerobot's ``task``); task_kind: the task family
     (e.g. ``pick_place``); scene_id: the scene it ran in; seed: the episode's seed;
-    asset_ids: ids of the assets involved (target object, container, ...).
+    asset_ids: ids of the assets involved (target object, container, ...); subtasks: the language
+    instruction of each stage of a multistage task (the frames' ``subtask_index`` indexes it; empty
+    for a one-stage task).
     """
 
     task: str
@@ -245,6 +253,7 @@ class EpisodeInfo:
     scene_id: str
     seed: int
     asset_ids: tuple[str, ...] = ()
+    subtasks: tuple[str, ...] = ()
 
     def problems(self) -> list[str]:
         out = []
@@ -254,6 +263,8 @@ class EpisodeInfo:
             out.append("task_kind and scene_id must be non-empty")
         if not 0 <= int(self.seed) < 2**63:
             out.append(f"seed must be in [0, 2**63), got {self.seed}")
+        if any(not t.strip() for t in self.subtasks):
+            out.append("a subtask text is empty")
         return out
 
 
@@ -263,7 +274,8 @@ class Frame:
 
     arm_joint_pos (arm_dof,); ee_pose (7,) xyz + quat wxyz; base_pose (3,) x, y, theta;
     arm_joint_target (arm_dof,); ee_target (7,); base_velocity (3,) vx, vy [m/s], vtheta [rad/s];
-    gripper in [0, 1]; mode 0 (locomotion) or 1 (manipulation);
+    gripper in [0, 1]; mode 0 (locomotion) or 1 (manipulation); subtask_index: the stage of a
+    multistage task (recorded where the spec has ``subtasks``);
     rgb: camera -> uint8 (H, W, 3); depth_mm: camera -> uint16 (H, W) or (H, W, 1)
     (use :func:`depth_m_to_mm` to convert a float depth map in metres).
     """
@@ -278,6 +290,7 @@ class Frame:
     mode: int
     rgb: Mapping[str, np.ndarray]
     depth_mm: Mapping[str, np.ndarray]
+    subtask_index: int = 0
 
     def state(self) -> np.ndarray:
         """float32 (arm_dof + 10,)."""
@@ -362,6 +375,8 @@ def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
         out.append(f"gripper must be a number in [0, 1], got {frame.gripper!r}")
     if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
         out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
+    if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
+        out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")
     out.extend(_image_problems(spec, frame))
     return out
 
@@ -382,4 +397,5 @@ def episode_columns(info: EpisodeInfo, success: bool) -> dict[str, Any]:
         f"{p}seed": int(info.seed),
         f"{p}asset_ids": list(info.asset_ids),
         f"{p}success": bool(success),
+        **({f"{p}subtasks": list(info.subtasks)} if info.subtasks else {}),
     }

@@ -41,6 +41,7 @@ from .direct import DirectBackend, stats_sample, image_stats
 from .schema import (
     ACTION_KEY,
     STATE_KEY,
+    SUBTASK_KEY,
     DatasetSpec,
     EpisodeInfo,
     Frame,
@@ -145,6 +146,8 @@ class _LerobotBackend:
 
     def add(self, frame: Frame, task: str) -> None:
         row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": task}
+        if self.spec.subtasks:
+            row[SUBTASK_KEY] = np.array([frame.subtask_index], np.int64)
         for cam, key in self.spec.rgb_keys().items():
             row[key] = frame.rgb[cam]
         for cam, key in self.spec.depth_keys().items():

@@ -154,9 +154,11 @@ class DemosConfig(_Strict):
     @field_validator("tasks")
     @classmethod
     def _known(cls, v: tuple[str, ...]) -> tuple[str, ...]:
-        bad = [t for t in v if t not in TASKS]
+        from stages.demos.multistage import MULTISTAGE, is_task
+
+        bad = [t for t in v if not is_task(t)]
         if bad:
-            raise ValueError(f"unknown task(s) {bad}; known: {sorted(TASKS)}")
+            raise ValueError(f"unknown task(s) {bad}; known: {sorted(TASKS)} and multistage {sorted(MULTISTAGE)}")
         if not v or len(set(v)) != len(v):
             raise ValueError(f"tasks must be a non-empty list without repeats, got {list(v)}")
         return v
@@ -319,7 +321,10 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id,
                           rng=np.random.default_rng(params.world_seed))
     n = min(params.batch_worlds, params.episodes)
+    from stages.demos.multistage import MULTISTAGE
+
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
+                          subtasks=params.task in MULTISTAGE,
                           device=params.device, record_images=params.record_images, max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None)
@@ -339,7 +344,7 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
 
         def begin(w: int, inst):
             shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=params.task, scene_id=scene_id,
-                                                seed=inst.seed, asset_ids=inst.asset_ids))
+                                                seed=inst.seed, asset_ids=inst.asset_ids, subtasks=inst.subtasks))
             return shards[w].add_frame
 
         def end(w: int, inst, res):

@@ -190,7 +190,10 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
                           rng=np.random.default_rng(params.world_seed))
     plan = plan_episodes(params.tasks, params.episodes_per_task, ctx.seed)
     n = min(params.batch_worlds, len(plan))
+    from stages.demos.multistage import MULTISTAGE
+
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
+                          subtasks=any(t in MULTISTAGE for t in params.tasks),
                           device=params.device, record_images=params.record_images,
                           max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
@@ -211,7 +214,7 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
         def begin(w: int, inst):
             live[w] = todo[w][0]
             shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id=scene_id,
-                                                seed=inst.seed, asset_ids=inst.asset_ids))
+                                                seed=inst.seed, asset_ids=inst.asset_ids, subtasks=inst.subtasks))
             return shards[w].add_frame
 
         def end(w: int, inst, res):

@@ -31,6 +31,7 @@ class Family(StrEnum):
     PICK_PLACE = "pick_place"
     OPEN_CLOSE = "open_close"
     PUSH_PULL = "push_pull"
+    MULTISTAGE = "multistage"  # a sequence of the basic tasks' skills (stages.demos.multistage)
 
 
 @dataclass(frozen=True, kw_only=True)

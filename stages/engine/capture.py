@@ -94,7 +94,7 @@ class FrameCapture:
                          arm_joint_target=t_all[j], ee_target=ee_all[k + j],
                          base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
             bank, i = e._where[w]
-            frames.append((rec.sink, id(bank), i, Frame(**state, rgb={}, depth_mm={})))
+            frames.append((rec.sink, id(bank), i, Frame(**state, rgb={}, depth_mm={}, subtask_index=rec.subtask)))
             rec.frames += 1
         self._pending = frames
         e.stats.timings.encoding += time.perf_counter() - t0

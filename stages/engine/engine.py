@@ -65,7 +65,8 @@ class EngineConfig:
     batched layout only); program_wait: with program_procs, how long [s] the engine waits for a
     batch of programs before it holds the worlds whose programs are still running
     (:mod:`stages.engine.hold`: the others step on, a held world's episode is unchanged) — None
-    waits for every program (one planning world then stalls all)."""
+    waits for every program (one planning world then stalls all); subtasks: frames record the stage
+    of a multistage task (``subtask_index``; set it when any task is multistage)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -83,6 +84,7 @@ class EngineConfig:
     max_seconds: float | None = None
     program_procs: int = 0
     program_wait: float | None = None
+    subtasks: bool = False
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
@@ -103,15 +105,17 @@ class EngineConfig:
 
         cams = self.cameras if self.record_images else ()
         return DatasetSpec(fps=self.fps, cameras=tuple(CameraSpec(c, height=self.height, width=self.width)
-                                                       for c in cams))
+                                                       for c in cams), subtasks=self.subtasks)
 
 
 @dataclass(eq=False)
 class _WorldRec:
-    """A world's recording on the engine's side: its frame sink and the frames captured."""
+    """A world's recording on the engine's side: its frame sink, the frames captured and the stage
+    of a multistage task its frames are in."""
 
     frames: int = 0
     sink: Callable | None = None
+    subtask: int = 0
 
 
 @dataclass(eq=False)
@@ -343,15 +347,18 @@ class BatchEngine:
         """An event of world ``w``'s program (see :mod:`stages.engine.programs`)."""
         if kind == "reset":
             self._pending_reset[w] = payload
-        elif kind in ("begin", "end"):
+        elif kind in ("begin", "end", "stage"):
             if not self.capture.defer(kind, w, payload):  # after the frames collected before it
                 self._handle_event(kind, w, payload)
         else:
             raise ValueError(f"engine: unknown event {kind!r} from world {w}")
 
     def _handle_event(self, kind: str, w: int, payload) -> None:
-        if kind == "begin":
+        if kind == "stage":  # the frames collected from here on are in stage ``payload``
+            self.recs[w].subtask = int(payload)
+        elif kind == "begin":
             self.recs[w].frames = 0
+            self.recs[w].subtask = 0
             self.recs[w].sink = self._begin(w, payload) if self._begin is not None else None
         elif kind == "end":
             ticket, res = payload

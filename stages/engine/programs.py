@@ -9,6 +9,7 @@ events, in order:
 - ``("reset", w, coords)``: world-local joint coordinates of the next instance's start; the
   program then waits for the next synchronisation point, where the engine resets the world;
 - ``("begin", w, ticket)``: an episode starts (the engine opens its frame sink);
+- ``("stage", w, k)``: a multistage episode enters stage ``k`` (its next frames record it);
 - ``("end", w, (ticket, result))``: it ended with an :class:`EpisodeResult`.
 """
 
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.demos.experts import EXPERTS, Driver, ExpertFailure
+from stages.demos.multistage import MULTISTAGE, run_stages, sample_task, task_spec
 from stages.demos.record import Commands, EpisodeTimeout
 
 log = logging.getLogger(__name__)
@@ -42,17 +44,20 @@ class EpisodeResult:
 
 @dataclass(frozen=True)
 class Ticket:
-    """What the engine's process learns of an episode: task, seed, instruction, asset ids."""
+    """What the engine's process learns of an episode: task, seed, instruction, asset ids and the
+    stages' instructions of a multistage task (empty otherwise)."""
 
     task: str
     seed: int
     instruction: str
     asset_ids: tuple[str, ...]
+    subtasks: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, inst) -> Ticket:
+        ms = MULTISTAGE.get(inst.task)
         return cls(task=inst.task, seed=int(inst.seed), instruction=inst.instruction,
-                   asset_ids=tuple(inst.asset_ids))
+                   asset_ids=tuple(inst.asset_ids), subtasks=ms.subtasks if ms else ())
 
 
 def instance_coords(inst, info, free: dict[str, int], scene_coord: dict[str, int]) -> dict[int, float]:
@@ -134,10 +139,10 @@ class WorldSide:
         return main
 
     def episode(self, w: int, inst, limit: float | None = None) -> EpisodeResult:
-        from stages.demos.tasks import task
         from stages.simulate.state import read_state
 
-        spec = task(inst.task)
+        spec = task_spec(inst.task)
+        ms = MULTISTAGE.get(inst.task)
         view, ctl = self.views[w], self.controls[w]
         cmd = self.cmds[w]
         cmd.base_velocity, cmd.gripper, cmd.mode = np.zeros(3), 0.0, 0
@@ -150,7 +155,10 @@ class WorldSide:
         self.peaks.start(w)
         reason = detail = ""
         try:
-            if self.act is None:
+            if self.act is None and ms is not None:
+                run_stages(ms, inst, drv, peaks=lambda: self.peaks.read(w),
+                           on_stage=lambda k: self.emit("stage", w, k))
+            elif self.act is None:
                 EXPERTS[inst.task](inst, drv)
                 drv.step(0.3)
             else:
@@ -186,11 +194,9 @@ class RoundRobin:
         self.count: dict[int, int] = {}
 
     def __call__(self, w: int):
-        from stages.demos.sampling import sample_instance
-
         k = self.count.get(w, 0)
         self.count[w] = k + 1
-        return sample_instance(self.tasks[(w + self.base + 7 * k) % len(self.tasks)], self.world,
+        return sample_task(self.tasks[(w + self.base + 7 * k) % len(self.tasks)], self.world,
                                1000 * (w + self.base) + k)
 
 
@@ -203,11 +209,9 @@ class Listed:
         self.queues = {w: list(q) for w, q in queues.items()}
 
     def __call__(self, w: int):
-        from stages.demos.sampling import sample_instance
-
         q = self.queues.get(w)
         if not q:
             return None
         task, seed, limit = q.pop(0)
-        inst = sample_instance(task, self.world, seed)
+        inst = sample_task(task, self.world, seed)
         return inst if limit is None else (inst, limit)

@@ -1,0 +1,236 @@
+"""Multistage household tasks as data: a task is a sequence of skills, each a basic task's expert,
+with a language instruction and a success predicate per stage and for the whole task.
+
+A task file (``stages/demos/multistage/<name>.toml``, or any folder passed to
+:func:`load_multistage_dir`)::
+
+    name = "heat_food"
+    room = "kitchen"
+    max_seconds = 150.0                    # the whole episode's time limit [s]
+    templates = ["heat the food in the microwave", ...]
+    [[stage]]
+    skill = "pick_place_microwave"         # a basic task (stages.demos.tasks.TASKS)
+    instruction = "put the mug in the microwave"
+    [[stage]]
+    skill = "close_microwave"
+    instruction = "close the microwave door"
+
+Semantics (the solver apart from the data, as the scene rules):
+
+- the episode starts from the first stage's instance (:func:`~stages.demos.sampling.sample_instance`
+  of its skill with the episode's seed): robot start, object poses, initial scene joints;
+- each stage runs its skill's expert from the state the previous stage left: its instance is the
+  skill's instance for the same seed with the *current* object poses and scene joint positions
+  (a door left open at 88 deg is closed from 88 deg), then checks the skill's success predicate
+  at once; a failure ends the episode with the reason ``s<k>_<skill>.<reason>`` (counted by stage);
+- the whole task succeeds when every stage's predicate holds on the final state (a mug put into
+  the microwave must still be inside when its button is pressed);
+- the engine records the stage of every frame (``subtask_index``) and the stages' instructions as
+  the episode's ``subtasks``.
+
+Frame: world, Z up, metres, radians.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from stages.demos.driver import Driver, ExpertFailure
+from stages.demos.experts import EXPERTS
+from stages.demos.record import EpisodeTimeout, base_pose
+from stages.demos.sampling import TaskInstance, sample_instance
+from stages.demos.tasks import TASKS, Family, TaskSpec
+
+log = logging.getLogger(__name__)
+
+TASKS_DIR = Path(__file__).with_name("multistage")
+"""folder of the shipped multistage task files"""
+ROOMS = ("kitchen", "living_room", "bedroom")
+_NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+class MultistageError(ValueError):
+    """A task file that cannot be used; the message names the file and lists every problem."""
+
+
+@dataclass(frozen=True)
+class Stage:
+    """skill: the basic task whose expert and predicate the stage uses; instruction: its language."""
+
+    skill: str
+    instruction: str
+
+
+@dataclass(frozen=True)
+class MultistageSpec:
+    """name; room: where it happens; max_seconds: episode time limit [s]; templates: the whole
+    task's instructions; stages: in order; source: the file it came from."""
+
+    name: str
+    room: str
+    max_seconds: float
+    templates: tuple[str, ...]
+    stages: tuple[Stage, ...]
+    source: str = ""
+
+    @property
+    def subtasks(self) -> tuple[str, ...]:
+        return tuple(s.instruction for s in self.stages)
+
+    def task_spec(self) -> TaskSpec:
+        """The engine's view of the task: family multistage, its time limit and whole-task predicate."""
+        return TaskSpec(name=self.name, family=Family.MULTISTAGE, templates=self.templates,
+                        max_seconds=self.max_seconds, success=lambda inst, state, peaks=None:
+                        whole_task_success(self, inst, state, peaks))
+
+
+def parse_multistage(data: dict, source: str) -> MultistageSpec:
+    """A spec from a task file's table; :class:`MultistageError` lists every problem."""
+    problems: list[str] = []
+    known = {"name", "room", "max_seconds", "templates", "stage"}
+    problems += [f"unknown key {k!r}" for k in sorted(set(data) - known)]
+    name = data.get("name")
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        problems.append(f"name must match [a-z][a-z0-9_]*, got {name!r}")
+    elif name in TASKS:
+        problems.append(f"name {name!r} is a basic task")
+    room = data.get("room")
+    if room not in ROOMS:
+        problems.append(f"room must be one of {ROOMS}, got {room!r}")
+    limit = data.get("max_seconds")
+    if not isinstance(limit, (int, float)) or isinstance(limit, bool) or not 0 < limit <= 3600:
+        problems.append(f"max_seconds must be a number in (0, 3600], got {limit!r}")
+    templates = data.get("templates")
+    if not (isinstance(templates, list) and templates and all(isinstance(t, str) and t.strip() for t in templates)):
+        problems.append("templates must be a non-empty list of non-empty strings")
+    stages = data.get("stage")
+    out: list[Stage] = []
+    if not (isinstance(stages, list) and stages):
+        problems.append("needs at least one [[stage]]")
+    else:
+        for k, st in enumerate(stages, 1):
+            if not isinstance(st, dict):
+                problems.append(f"stage {k}: must be a table")
+                continue
+            extra = sorted(set(st) - {"skill", "instruction"})
+            problems += [f"stage {k}: unknown key {x!r}" for x in extra]
+            skill, text = st.get("skill"), st.get("instruction")
+            if skill not in TASKS or skill not in EXPERTS:
+                problems.append(f"stage {k}: unknown skill {skill!r}; known: {sorted(TASKS)}")
+            if not (isinstance(text, str) and text.strip()):
+                problems.append(f"stage {k}: instruction must be a non-empty string")
+            out.append(Stage(str(skill), str(text)))
+    if problems:
+        raise MultistageError(f"{source}: " + "; ".join(problems))
+    return MultistageSpec(name=name, room=room, max_seconds=float(limit), templates=tuple(templates),
+                          stages=tuple(out), source=source)
+
+
+def load_multistage_dir(folder: Path) -> dict[str, MultistageSpec]:
+    """Every ``*.toml`` task file of ``folder`` by task name (a repeated name is an error)."""
+    specs: dict[str, MultistageSpec] = {}
+    for path in sorted(Path(folder).glob("*.toml")):
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+            raise MultistageError(f"{path}: {e}") from None
+        spec = parse_multistage(data, str(path))
+        if spec.name in specs:
+            raise MultistageError(f"{path}: task {spec.name!r} is also defined in {specs[spec.name].source}")
+        specs[spec.name] = spec
+    return specs
+
+
+MULTISTAGE: dict[str, MultistageSpec] = load_multistage_dir(TASKS_DIR)
+"""the shipped multistage tasks by name"""
+
+
+def is_task(name: str) -> bool:
+    """A basic or a shipped multistage task."""
+    return name in TASKS or name in MULTISTAGE
+
+
+def task_spec(name: str) -> TaskSpec:
+    """The :class:`TaskSpec` of a basic or multistage task (KeyError lists both kinds)."""
+    if name in MULTISTAGE:
+        return MULTISTAGE[name].task_spec()
+    if name in TASKS:
+        return TASKS[name]
+    raise KeyError(f"unknown task {name!r}; known: {sorted(TASKS) + sorted(MULTISTAGE)}")
+
+
+def sample_task(name: str, world, seed: int) -> TaskInstance:
+    """The episode of a basic or multistage task ``name`` in ``world`` from ``seed``: a multistage
+    episode starts as its first stage's instance, with the task's name and instruction."""
+    spec = MULTISTAGE.get(name)
+    if spec is None:
+        return sample_instance(name, world, seed)
+    first = sample_instance(spec.stages[0].skill, world, seed)
+    rng = np.random.default_rng([int(seed), 16])
+    text = spec.templates[int(rng.integers(len(spec.templates)))]
+    ids = tuple(dict.fromkeys(a for st in spec.stages for a in sample_instance(st.skill, world, seed).asset_ids))
+    return replace(first, task=name, instruction=text, asset_ids=ids)
+
+
+def stage_instance(stage: Stage, inst: TaskInstance, state=None, base=None) -> TaskInstance:
+    """The instance stage ``stage`` of multistage episode ``inst`` runs: its skill's instance for
+    the episode's seed, with the current object poses and scene joint positions of ``state``
+    (a :class:`~stages.simulate.state.StepState`) and the current base pose ``base`` (x, y, yaw)
+    when given (None: as sampled, i.e. the episode's start)."""
+    si = sample_instance(stage.skill, inst.world, inst.seed)
+    if state is None:
+        return replace(si, instruction=stage.instruction)
+    objects = {}
+    for body in si.objects:
+        o = state.objects[body]
+        w, x, y, z = (float(v) for v in o.orientation)
+        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        objects[body] = (*(float(v) for v in o.position), yaw)
+    joints = {p: float(state.scene_joints[p]) for p in si.joints}
+    start = tuple(float(v) for v in base) if base is not None else si.start_base
+    return replace(si, instruction=stage.instruction, objects=objects, joints=joints, start_base=start)
+
+
+def run_stages(spec: MultistageSpec, inst: TaskInstance, d: Driver, *, peaks: Callable[[], dict],
+               on_stage: Callable[[int], None]) -> None:
+    """Run the stages of ``spec`` in episode ``inst`` through driver ``d``: ``on_stage(k)`` as
+    stage ``k`` (0-based) begins, its skill's expert from the current state, its predicate at once
+    (``peaks()``: the watched joints' peaks so far). Raises :class:`ExpertFailure` with reason
+    ``s<k+1>_<skill>.<reason>`` when a stage's expert fails, runs out of time or misses its goal."""
+    from stages.simulate.state import read_state
+
+    for k, stage in enumerate(spec.stages):
+        tag = f"s{k + 1}_{stage.skill}"
+        on_stage(k)
+        si = stage_instance(stage, inst, read_state(d.sim), base_pose(d.sim)) if k else \
+            replace(sample_instance(stage.skill, inst.world, inst.seed), instruction=stage.instruction)
+        try:
+            EXPERTS[stage.skill](si, d)
+            d.step(0.3)
+        except ExpertFailure as e:
+            raise ExpertFailure(f"{tag}.{e.reason}", str(e)) from None
+        except EpisodeTimeout as e:
+            raise ExpertFailure(f"{tag}.timeout", str(e)) from None
+        ok, reason = TASKS[stage.skill].success(si, read_state(d.sim), peaks=peaks())
+        if not ok:
+            raise ExpertFailure(f"{tag}.{reason}", f"stage {k + 1} ({stage.instruction}) missed its goal")
+        log.debug("%s seed %d: stage %d (%s) done at %.1f s", spec.name, inst.seed, k + 1, stage.skill,
+                  d.sim.time)
+
+
+def whole_task_success(spec: MultistageSpec, inst: TaskInstance, state, peaks=None) -> tuple[bool, str]:
+    """Every stage's predicate on the final state (reason ``final_s<k>_<skill>.<reason>`` of the
+    first that fails)."""
+    for k, stage in enumerate(spec.stages, 1):
+        ok, reason = TASKS[stage.skill].success(stage_instance(stage, inst), state, peaks=peaks)
+        if not ok:
+            return False, f"final_s{k}_{stage.skill}.{reason}"
+    return True, ""

@@ -1,0 +1,76 @@
+"""Multistage tasks as data (issue 16): task files parse into skills with per-stage language,
+bad files fail with one message naming the file and every problem, and the demos job accepts the
+shipped tasks."""
+
+from __future__ import annotations
+
+import pytest
+
+from stages.demos.multistage import (
+    MULTISTAGE,
+    MultistageError,
+    is_task,
+    load_multistage_dir,
+    parse_multistage,
+    task_spec,
+)
+from stages.demos.tasks import TASKS, Family
+
+GOOD = """
+name = "heat_it"
+room = "kitchen"
+max_seconds = 120.0
+templates = ["heat it"]
+[[stage]]
+skill = "pick_place_microwave"
+instruction = "put the mug in the microwave"
+[[stage]]
+skill = "close_microwave"
+instruction = "close the microwave"
+"""
+
+
+def test_the_shipped_heat_food_task_is_three_basic_skills():
+    spec = MULTISTAGE["heat_food"]
+    assert [s.skill for s in spec.stages] == ["pick_place_microwave", "close_microwave", "press_button"]
+    assert spec.subtasks == ("put the mug in the microwave", "close the microwave door",
+                             "press the microwave's start button")
+    assert all(s.skill in TASKS for s in spec.stages)
+    ts = task_spec("heat_food")
+    assert ts.family is Family.MULTISTAGE and ts.max_seconds == 150.0
+    assert is_task("heat_food") and is_task("press_button") and not is_task("fly")
+
+
+def test_a_task_file_loads_from_a_folder(tmp_path):
+    (tmp_path / "a.toml").write_text(GOOD)
+    specs = load_multistage_dir(tmp_path)
+    assert list(specs) == ["heat_it"] and len(specs["heat_it"].stages) == 2
+    (tmp_path / "b.toml").write_text(GOOD)
+    with pytest.raises(MultistageError, match=r"b\.toml: task 'heat_it' is also defined in .*a\.toml"):
+        load_multistage_dir(tmp_path)
+
+
+def test_a_bad_task_file_names_the_file_and_every_problem(tmp_path):
+    bad = {"name": "Heat", "room": "garage", "max_seconds": -1, "templates": [], "colour": "red",
+           "stage": [{"skill": "juggle", "instruction": ""}, "oops"]}
+    with pytest.raises(MultistageError) as e:
+        parse_multistage(bad, "tasks/heat.toml")
+    msg = str(e.value)
+    assert msg.startswith("tasks/heat.toml: ") and "\n" not in msg
+    for part in ("unknown key 'colour'", "name must match", "room must be one of", "max_seconds",
+                 "templates must be", "stage 1: unknown skill 'juggle'", "stage 1: instruction",
+                 "stage 2: must be a table"):
+        assert part in msg, part
+    with pytest.raises(MultistageError, match="is a basic task"):
+        parse_multistage({**bad, "name": "press_button"}, "x.toml")
+    (tmp_path / "broken.toml").write_text("name = ")
+    with pytest.raises(MultistageError, match="broken.toml"):
+        load_multistage_dir(tmp_path)
+
+
+def test_the_demos_job_accepts_multistage_tasks():
+    from stages.demos.job import DemosConfig
+
+    assert DemosConfig(tasks=("heat_food", "press_button")).tasks == ("heat_food", "press_button")
+    with pytest.raises(ValueError, match="multistage"):
+        DemosConfig(tasks=("heat_the_house",))
