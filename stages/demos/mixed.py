@@ -213,8 +213,10 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
 
         def begin(w: int, inst):
             live[w] = todo[w][0]
+            # with multistage tasks in the mix every episode lists its stages (a basic task: one)
+            subtasks = inst.subtasks or ((inst.instruction,) if config.subtasks else ())
             shards[w].begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id=scene_id,
-                                                seed=inst.seed, asset_ids=inst.asset_ids, subtasks=inst.subtasks))
+                                                seed=inst.seed, asset_ids=inst.asset_ids, subtasks=subtasks))
             return shards[w].add_frame
 
         def end(w: int, inst, res):
