@@ -87,7 +87,11 @@ class DemosConfig(_Strict):
 
     devices: on a host of several GPUs, the items' engines spread round robin over these CUDA
     devices ("cuda:0", "cuda:1", ...; with ``workers`` items at once), each engine alone on its
-    GPU; empty: every item on ``device``."""
+    GPU; empty: every item on ``device``.
+
+    merge: merge the shards into ``datasets/<step>`` (False: a success-rate run keeps the items'
+    shards only; the report says ``dataset: null``; merging a thousand one-episode shards takes
+    minutes)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -109,6 +113,7 @@ class DemosConfig(_Strict):
     episodes_per_task: int = Field(default=1, ge=1, le=10000)
     max_sim_seconds: float | None = Field(default=None, gt=0.0, le=86400.0)
     devices: tuple[str, ...] = ()
+    merge: bool = True
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -448,7 +453,7 @@ def finalize_demos(config: DemosConfig, ctx: PlanContext, results: dict[str, Any
     roots = [Path(d) for r in res for d in (r.datasets or (r.dataset,)) if d]  # shards with episodes
     out = ctx.work_dir / "datasets" / step
     report["dataset"] = None
-    if roots:
+    if roots and config.merge:
         if out.exists():
             shutil.rmtree(out)  # the previous run's merge; the shards are the source of truth
         merged = merge_datasets(roots, out, repo_id=f"agentworld/{step}")

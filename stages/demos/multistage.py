@@ -18,7 +18,8 @@ A task file (``stages/demos/multistage/<name>.toml``, or any folder passed to
 Semantics (the solver apart from the data, as the scene rules):
 
 - the episode starts from the first stage's instance (:func:`~stages.demos.sampling.sample_instance`
-  of its skill with the episode's seed): robot start, object poses, initial scene joints;
+  of its skill with the episode's seed): robot start, object poses; its scene joints are every
+  stage's set-up (a close stage's part starts open), an earlier stage's value first;
 - each stage runs its skill's expert from the state the previous stage left: its instance is the
   skill's instance for the same seed with the *current* object poses and scene joint positions
   (a door left open at 88 deg is closed from 88 deg), then checks the skill's success predicate
@@ -173,11 +174,14 @@ def sample_task(name: str, world, seed: int) -> TaskInstance:
     spec = MULTISTAGE.get(name)
     if spec is None:
         return sample_instance(name, world, seed)
-    first = sample_instance(spec.stages[0].skill, world, seed)
+    stage_insts = [sample_instance(st.skill, world, seed) for st in spec.stages]
     rng = np.random.default_rng([int(seed), 16])
     text = spec.templates[int(rng.integers(len(spec.templates)))]
-    ids = tuple(dict.fromkeys(a for st in spec.stages for a in sample_instance(st.skill, world, seed).asset_ids))
-    return replace(first, task=name, instruction=text, asset_ids=ids)
+    ids = tuple(dict.fromkeys(a for si in stage_insts for a in si.asset_ids))
+    joints: dict[str, float] = {}
+    for si in reversed(stage_insts):  # every stage's scene set-up; an earlier stage's wins
+        joints.update(si.joints)
+    return replace(stage_insts[0], task=name, instruction=text, asset_ids=ids, joints=joints)
 
 
 def stage_instance(stage: Stage, inst: TaskInstance, state=None, base=None) -> TaskInstance:

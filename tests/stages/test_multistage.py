@@ -74,3 +74,4 @@ def test_the_demos_job_accepts_multistage_tasks():
     assert DemosConfig(tasks=("heat_food", "press_button")).tasks == ("heat_food", "press_button")
     with pytest.raises(ValueError, match="multistage"):
         DemosConfig(tasks=("heat_the_house",))
+
