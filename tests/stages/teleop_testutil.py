@@ -35,3 +35,16 @@ def wait_for(pred, timeout: float = 180.0, what: str = "condition") -> None:
         if time.monotonic() - t0 > timeout:
             raise TimeoutError(f"teleop test: {what} not met within {timeout} s")
         time.sleep(0.02)
+
+
+def chromium() -> str:
+    """The OS's Chromium, or a skip with the reason (``.ci/run`` installs it with apt)."""
+    import shutil
+
+    import pytest
+
+    for name in ("chromium", "chromium-browser"):
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.skip("no Chromium from the OS packages (.ci/run installs it: apt-get install chromium)")
