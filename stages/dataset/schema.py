@@ -166,8 +166,9 @@ class DatasetSpec:
         names = [c.name for c in self.cameras]
         if len(set(names)) != len(names):
             problems.append(f"camera names must be unique, got {names}")
-        if any(not _NAME_RE.match(j) for j in self.hand_joints) or len(set(self.hand_joints)) != len(self.hand_joints):
-            problems.append(f"hand_joints must be unique names matching [a-z][a-z0-9_]*, got {list(self.hand_joints)}")
+        hj = self.hand_joints
+        if any(not _NAME_RE.match(j) for j in hj) or len(set(hj)) != len(hj):
+            problems.append(f"hand_joints must be unique names matching [a-z][a-z0-9_]*, got {list(hj)}")
         if self.data_files_size_mb <= 0 or self.video_files_size_mb <= 0 or self.chunk_size <= 0:
             problems.append("file sizes and chunk_size must be positive")
         if problems:
@@ -231,7 +232,8 @@ class DatasetSpec:
             "arm_dof": self.arm_dof, "fps": self.fps, "robot_type": self.robot_type,
             "cameras": [vars(c).copy() for c in self.cameras], "video": vars(self.video).copy(),
             "data_files_size_mb": self.data_files_size_mb, "video_files_size_mb": self.video_files_size_mb,
-            "chunk_size": self.chunk_size, **({"hand_joints": list(self.hand_joints)} if self.hand_joints else {}),
+            "chunk_size": self.chunk_size,
+            **({"hand_joints": list(self.hand_joints)} if self.hand_joints else {}),
         }  # fmt: skip
 
     @classmethod

@@ -97,7 +97,8 @@ class EngineConfig:
         if self.program_wait is not None and (not self.program_procs or self.program_wait < 0):
             raise ValueError("engine: program_wait needs program_procs and must be >= 0 [s]")
         if self.gripper not in ("panda_hand", "robotiq_2f85", "allegro", "shadow"):
-            raise ValueError(f"engine: gripper must be panda_hand, robotiq_2f85, allegro or shadow, got {self.gripper!r}")
+            raise ValueError(f"engine: gripper must be panda_hand, robotiq_2f85, allegro or shadow, "
+                             f"got {self.gripper!r}")
         bad = set(self.cameras) - set(CAMERAS)
         if bad:
             raise ValueError(f"engine: unknown cameras {sorted(bad)}; known {CAMERAS}")

@@ -91,7 +91,8 @@ CONFIGS = {
         human_origin=(0,) * 10, human_task=(4, 8, 12, 16, 20, 2, 6, 10, 14, 18),
         wrist_link="shadow_palm", tip_links=_SHADOW_TIPS, scaling=1.2,
         extra_frames={"shadow_thtip": ("shadow_thdistal", (0.0, 0.0, 0.0275)),
-                      **{f"shadow_{f}tip": (f"shadow_{f}distal", (0.0, 0.0, 0.026)) for f in ("ff", "mf", "rf", "lf")}}),
+                      **{f"shadow_{f}tip": (f"shadow_{f}distal", (0.0, 0.0, 0.026))
+                         for f in ("ff", "mf", "rf", "lf")}}),
 }
 PALM_FROM_XR_WRIST = {k: np.asarray(c.palm_from_wrist, float) for k, c in CONFIGS.items()}
 """Rotation (3, 3) from a right hand's XR wrist frame to the robot palm's, per hand kind."""
@@ -107,7 +108,8 @@ def check_hand(joints) -> np.ndarray:
     d = np.linalg.norm(a[:, :3, 3] - a[0, :3, 3], axis=1)
     far = int(np.argmax(d))
     if d[far] > MAX_HAND_SPAN:
-        raise HandPoseError(f"hand joints: joint {far} is {d[far]:.2f} m from the wrist (at most {MAX_HAND_SPAN} m)")
+        raise HandPoseError(f"hand joints: joint {far} is {d[far]:.2f} m from the wrist "
+                            f"(at most {MAX_HAND_SPAN} m)")
     r = a[0, :3, :3]
     if np.abs(r.T @ r - np.eye(3)).max() > 1e-3:
         raise HandPoseError("hand joints: the wrist pose has no orthonormal rotation")
