@@ -72,6 +72,7 @@ MODE_MANIPULATION = 1
 DEPTH_MAX_MM = 65535
 
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+_JOINT_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")  # joint names (the Shadow's: shadow_FFJ3)
 
 
 class FrameError(ValueError):
@@ -167,8 +168,8 @@ class DatasetSpec:
         if len(set(names)) != len(names):
             problems.append(f"camera names must be unique, got {names}")
         hj = self.hand_joints
-        if any(not _NAME_RE.match(j) for j in hj) or len(set(hj)) != len(hj):
-            problems.append(f"hand_joints must be unique names matching [a-z][a-z0-9_]*, got {list(hj)}")
+        if any(not _JOINT_RE.match(j) for j in hj) or len(set(hj)) != len(hj):
+            problems.append(f"hand_joints must be unique names matching [A-Za-z][A-Za-z0-9_]*, got {list(hj)}")
         if self.data_files_size_mb <= 0 or self.video_files_size_mb <= 0 or self.chunk_size <= 0:
             problems.append("file sizes and chunk_size must be positive")
         if problems:

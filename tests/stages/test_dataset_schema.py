@@ -62,6 +62,8 @@ def test_hand_joints_replace_the_gripper_command_and_extend_the_state():
     assert frame_problems(DatasetSpec(cameras=()), frame)[0] == "hand_joint_pos: shape (3,), expected (0,)"
     with pytest.raises(ValueError, match="hand_joints"):
         DatasetSpec(hand_joints=("a", "a"))
+    with pytest.raises(ValueError, match="hand_joints"):
+        DatasetSpec(hand_joints=("joint 1",))
 
 
 def test_spec_rejects_bad_values_in_one_message():
