@@ -32,15 +32,18 @@ def _wait(pred, timeout: float = 240.0) -> None:
 
 
 def _operator(session, script: list) -> None:
-    """Sends (at recorded tick >= n: message) pairs once the recorded episode reaches tick n."""
-    _wait(lambda: session.status()["tick"] >= 2)
-    _send(session, type="episode", action="start", task="drive up to the table and lift the hand")
-    _wait(lambda: session.status()["recording"])
-    for at, msg in script:
-        _wait(lambda at=at: session.status()["tick"] >= at)
-        _send(session, **msg)
-    _wait(lambda: session.status()["saved"] >= 1)
-    session.stop()
+    """Sends (at recorded tick >= n: message) pairs once the recorded episode reaches tick n; the
+    session stops at the end (or when this fails, so that the test does not hang)."""
+    try:
+        _wait(lambda: session.status()["tick"] >= 2)
+        _send(session, type="episode", action="start", task="drive up to the table and lift the hand")
+        _wait(lambda: session.status()["recording"])
+        for at, msg in script:
+            _wait(lambda at=at: session.status()["tick"] >= at)
+            _send(session, **msg)
+        _wait(lambda: session.status()["saved"] >= 1)
+    finally:
+        session.stop()
 
 
 def _cmd(seq, base=(0, 0, 0), jog=(0,) * 6, mode=0, gripper=0) -> dict:
@@ -156,9 +159,9 @@ def test_hand_session_records_retargeted_fingers_and_replays_them(kitchen, tmp_p
     cfg = TeleopConfig(width=32, height=24, cameras=("head",), realtime=False, seed=3, command_timeout=None,
                        hand="allegro")
     s = TeleopSession(kitchen, task="pick_place_bowl", out=tmp_path / "live", config=cfg, world_seed=5)
-    skewed = _xr(1.2)
-    skewed["hands"]["right"][0][:3] = [1.0, 0.0, 0.0]  # unit rows, but not orthogonal: parsed, then refused
-    skewed["hands"]["right"][0][4:7] = [0.8, 0.6, 0.0]
+    skewed = _xr(1.2)  # the wrist's rotation rows (1, 0, 0), (0.6, 0, 0.8), (0, -1, 0): unit rows (the
+    skewed["hands"]["right"][0][1] = 0.6  # protocol parses it), not orthogonal (the retargeting refuses it)
+    skewed["hands"]["right"][0][9] = 0.8
     op = threading.Thread(target=_operator, args=(s, [(3, _xr(0.0)), (14, _xr(1.2)), (22, skewed),
                                                       (28, dict(type="episode", action="save"))]), daemon=True)
     op.start()
