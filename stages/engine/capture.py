@@ -177,7 +177,6 @@ class FrameCapture:
         poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
         return np.asarray(q), np.asarray(t), poses
 
-
     def hand_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """A dexterous hand's joint positions and targets (K, n) [rad] of ``worlds`` (n = 0 for a
         parallel gripper: its command is the frame's ``gripper``), from the same state read."""

@@ -339,7 +339,8 @@ class TeleopSession:
             ep.xr_hand = tuple(round(float(x), 6) for x in self.retargeter.retarget(joints, side))
         except HandPoseError as e:
             self.hand_rejected += 1
-            log.warning("teleop: %s hand joints rejected: %s", side, e)
+            if self.hand_rejected <= 5 or self.hand_rejected % 100 == 0:  # a bad stream: not every tick
+                log.warning("teleop: %s hand joints rejected (%d so far): %s", side, self.hand_rejected, e)
 
     def _control(self, ep: _Episode) -> str:
         """The episode's outcome if the operator ended it ("start", "save", "discard", "stop"),
