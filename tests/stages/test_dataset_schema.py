@@ -51,6 +51,7 @@ def test_hand_joints_replace_the_gripper_command_and_extend_the_state():
     assert spec.state_names()[-3:] == list(hand) and "gripper" not in spec.action_names()
     assert DatasetSpec.from_json(spec.to_json()) == spec
     assert "hand_joints" not in DatasetSpec().to_json()  # parallel-gripper sidecars are unchanged
+    assert frame_problems(spec, synthetic_frame(spec, 0, 0, 5)) == []
     frame = dataclasses.replace(synthetic_frame(spec, 0, 0, 5), hand_joint_pos=np.array([0.1, 0.2, 0.3]),
                                 hand_joint_target=np.array([0.4, 0.5, 0.6]))
     assert frame_problems(spec, frame) == []

@@ -87,3 +87,8 @@ def test_emulated_hand_fingers_drive_the_allegro_hand(teleop_world, tmp_path):
         assert np.abs(joint[p] - target[p]).max() < 0.15, (p, joint[p], target[p])
     meta = json.loads((root / "meta" / "teleop.json").read_text())["episodes"][0]
     assert meta["input_device"] == "webxr"
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("agentworld/teleop", root=root)  # the same LeRobot schema, 16 hand targets
+    assert ds.num_frames == meta["frames"] and tuple(ds[ends["pinch"] - 1]["action"].shape) == (7 + 7 + 3 + 16 + 1,)
+    np.testing.assert_allclose(ds[ends["pinch"] - 1]["action"][HAND].numpy(), target["pinch"], atol=1e-6)
