@@ -8,6 +8,11 @@ Layout of one frame (``fps`` frames per second, 30 by default):
 - ``action`` float32 ``(arm_dof + 12,)`` = [arm joint targets (arm_dof) [rad], end-effector target
   (7: x, y, z [m], quaternion w, x, y, z), base velocity (3: vx, vy [m/s], vtheta [rad/s]) in the base
   frame, gripper command (1: 0 open .. 1 closed), mode (1: 0 locomotion / 1 manipulation)];
+- with a dexterous hand (``DatasetSpec.hand_joints``: its n joints in control order), the state ends
+  with the hand's joint positions (n) [rad] and the action's end-effector command is the hand's
+  joint targets (n) [rad] in place of the gripper command: ``action`` = [arm targets, end-effector
+  target, base velocity, hand joint targets (n), mode] (``arm_dof + 11 + n``), ``observation.state``
+  = [arm joints, end-effector pose, base pose, hand joints (n)] (``arm_dof + 10 + n``);
 - ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec,
   :class:`VideoCodecSpec`; default x264 ultrafast, crf 23, GOP 30, chosen by measurement below);
 - ``depth.<camera>`` depth uint16 ``(H, W)`` [mm], stored WITHOUT LOSS as a 16-bit PNG, base64 text
@@ -68,6 +73,7 @@ MODE_MANIPULATION = 1
 DEPTH_MAX_MM = 65535
 
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+_JOINT_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")  # joint names (the Shadow's: shadow_FFJ3)
 
 
 class FrameError(ValueError):
@@ -134,9 +140,11 @@ class DatasetSpec:
 
     arm_dof: arm joints (7 for the default arm); fps: frames per second;
     data_files_size_mb / video_files_size_mb: size after which lerobot rolls over to the next
-    ``chunk-XXX/file-YYY`` file; chunk_size: files per chunk folder; subtasks: frames carry the
-    stage of a multistage task (``subtask_index``, int64; the stages' language is the episode
-    column ``agentworld/subtasks``).
+    ``chunk-XXX/file-YYY`` file; chunk_size: files per chunk folder; hand_joints: a dexterous
+    hand's joint names (control order; empty for a parallel gripper): the state carries their
+    positions and the action their targets in place of the gripper command (module docstring);
+    subtasks: frames carry the stage of a multistage task (``subtask_index``, int64; the stages'
+    language is the episode column ``agentworld/subtasks``).
     """
 
     arm_dof: int = 7
@@ -151,6 +159,7 @@ class DatasetSpec:
     data_files_size_mb: float = 100.0
     video_files_size_mb: float = 200.0
     chunk_size: int = 1000
+    hand_joints: tuple[str, ...] = ()
     subtasks: bool = False
 
     def __post_init__(self) -> None:
@@ -162,6 +171,9 @@ class DatasetSpec:
         names = [c.name for c in self.cameras]
         if len(set(names)) != len(names):
             problems.append(f"camera names must be unique, got {names}")
+        hj = self.hand_joints
+        if any(not _JOINT_RE.match(j) for j in hj) or len(set(hj)) != len(hj):
+            problems.append(f"hand_joints must be unique names matching [A-Za-z][A-Za-z0-9_]*, got {list(hj)}")
         if self.data_files_size_mb <= 0 or self.video_files_size_mb <= 0 or self.chunk_size <= 0:
             problems.append("file sizes and chunk_size must be positive")
         if problems:
@@ -169,17 +181,17 @@ class DatasetSpec:
 
     @property
     def state_dim(self) -> int:
-        return self.arm_dof + 7 + 3
+        return self.arm_dof + 7 + 3 + len(self.hand_joints)
 
     @property
     def action_dim(self) -> int:
-        return self.arm_dof + 7 + 3 + 1 + 1
+        return self.arm_dof + 7 + 3 + (len(self.hand_joints) or 1) + 1
 
     def state_names(self) -> list[str]:
         return [
             *(f"arm_q{i}" for i in range(self.arm_dof)),
             "ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz",
-            "base_x", "base_y", "base_theta",
+            "base_x", "base_y", "base_theta", *self.hand_joints,
         ]  # fmt: skip
 
     def action_names(self) -> list[str]:
@@ -187,7 +199,8 @@ class DatasetSpec:
             *(f"arm_q{i}_target" for i in range(self.arm_dof)),
             "ee_x_target", "ee_y_target", "ee_z_target",
             "ee_qw_target", "ee_qx_target", "ee_qy_target", "ee_qz_target",
-            "base_vx", "base_vy", "base_vtheta", "gripper", "mode",
+            "base_vx", "base_vy", "base_vtheta",
+            *([f"{j}_target" for j in self.hand_joints] or ["gripper"]), "mode",
         ]  # fmt: skip
 
     def rgb_keys(self) -> dict[str, str]:
@@ -226,7 +239,9 @@ class DatasetSpec:
             "arm_dof": self.arm_dof, "fps": self.fps, "robot_type": self.robot_type,
             "cameras": [vars(c).copy() for c in self.cameras], "video": vars(self.video).copy(),
             "data_files_size_mb": self.data_files_size_mb, "video_files_size_mb": self.video_files_size_mb,
-            "chunk_size": self.chunk_size, "subtasks": self.subtasks,
+            "chunk_size": self.chunk_size,
+            **({"hand_joints": list(self.hand_joints)} if self.hand_joints else {}),
+            **({"subtasks": True} if self.subtasks else {}),
         }  # fmt: skip
 
     @classmethod
@@ -234,6 +249,7 @@ class DatasetSpec:
         d = dict(data)
         d["cameras"] = tuple(CameraSpec(**c) for c in d["cameras"])
         d["video"] = VideoCodecSpec(**d["video"])
+        d["hand_joints"] = tuple(d.get("hand_joints", ()))
         return cls(**d)
 
 
@@ -277,7 +293,9 @@ class Frame:
     gripper in [0, 1]; mode 0 (locomotion) or 1 (manipulation); subtask_index: the stage of a
     multistage task (recorded where the spec has ``subtasks``);
     rgb: camera -> uint8 (H, W, 3); depth_mm: camera -> uint16 (H, W) or (H, W, 1)
-    (use :func:`depth_m_to_mm` to convert a float depth map in metres).
+    (use :func:`depth_m_to_mm` to convert a float depth map in metres);
+    hand_joint_pos, hand_joint_target (n,) [rad]: a dexterous hand's joints (``DatasetSpec.hand_joints``;
+    empty for a parallel gripper, whose command is ``gripper``).
     """
 
     arm_joint_pos: np.ndarray
@@ -290,16 +308,20 @@ class Frame:
     mode: int
     rgb: Mapping[str, np.ndarray]
     depth_mm: Mapping[str, np.ndarray]
+    hand_joint_pos: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hand_joint_target: np.ndarray = field(default_factory=lambda: np.zeros(0))
     subtask_index: int = 0
 
     def state(self) -> np.ndarray:
-        """float32 (arm_dof + 10,)."""
-        return np.concatenate([self.arm_joint_pos, self.ee_pose, self.base_pose]).astype(np.float32)
+        """float32 (arm_dof + 10 + n,) (n: hand joints, 0 for a parallel gripper)."""
+        return np.concatenate([self.arm_joint_pos, self.ee_pose, self.base_pose,
+                               np.ravel(self.hand_joint_pos)]).astype(np.float32)
 
     def action(self) -> np.ndarray:
-        """float32 (arm_dof + 12,)."""
+        """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets."""
+        ee_cmd = np.ravel(self.hand_joint_target) if np.size(self.hand_joint_target) else [self.gripper]
         return np.concatenate(
-            [self.arm_joint_target, self.ee_target, self.base_velocity, [self.gripper, self.mode]]
+            [self.arm_joint_target, self.ee_target, self.base_velocity, ee_cmd, [self.mode]]
         ).astype(np.float32)
 
 
@@ -369,6 +391,8 @@ def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
         *_vector_problems("ee_target", frame.ee_target, 7),
         *_quat_problems("ee_target", frame.ee_target),
         *_vector_problems("base_velocity", frame.base_velocity, 3),
+        *_vector_problems("hand_joint_pos", frame.hand_joint_pos, len(spec.hand_joints)),
+        *_vector_problems("hand_joint_target", frame.hand_joint_target, len(spec.hand_joints)),
     ]
     if not (isinstance(frame.gripper, (int, float, np.floating, np.integer)) and math.isfinite(frame.gripper)
             and 0.0 <= float(frame.gripper) <= 1.0):  # fmt: skip

@@ -43,7 +43,7 @@ def synthetic_depth_mm(cam: CameraSpec, shard: int, episode: int, i: int, cam_in
 
 def synthetic_frame(spec: DatasetSpec, shard: int, episode: int, i: int) -> Frame:
     """The frame ``i`` of ``episode`` of ``shard`` (state/action values encode their indices)."""
-    n = spec.arm_dof
+    n, h = spec.arm_dof, len(spec.hand_joints)
     base = shard * 100.0 + episode + i / 1000.0
     angle = 0.1 * i
     quat = np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
@@ -60,6 +60,8 @@ def synthetic_frame(spec: DatasetSpec, shard: int, episode: int, i: int) -> Fram
         depth_mm={
             c.name: synthetic_depth_mm(c, shard, episode, i, k) for k, c in enumerate(spec.cameras) if c.depth
         },
+        hand_joint_pos=0.01 * i + np.arange(h) * 0.1,
+        hand_joint_target=0.01 * i + 0.05 + np.arange(h) * 0.1,
     )
 
 

@@ -86,13 +86,15 @@ class FrameCapture:
         q_all, t_all, base_all = self.robot_state(worlds)
         ee_all = pose7_batch(e.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
         k = len(worlds)
+        hand_q, hand_t = self.hand_state(worlds)
         frames = []
         for j, w in enumerate(worlds):
             rec = e.recs[w]
             base_v, grip, mode = e.lockstep.commands(w) if e.config.program_procs else _cmd(e.side.cmds[w])
             state = dict(arm_joint_pos=q_all[j], ee_pose=ee_all[j], base_pose=base_all[j],
                          arm_joint_target=t_all[j], ee_target=ee_all[k + j],
-                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode))
+                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode),
+                         hand_joint_pos=hand_q[j], hand_joint_target=hand_t[j])
             bank, i = e._where[w]
             frames.append((rec.sink, id(bank), i, Frame(**state, rgb={}, depth_mm={}, subtask_index=rec.subtask)))
             rec.frames += 1
@@ -174,6 +176,22 @@ class FrameCapture:
         th = (yaw0 + lb[:, 2] + math.pi) % (2 * math.pi) - math.pi
         poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
         return np.asarray(q), np.asarray(t), poses
+
+    def hand_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """A dexterous hand's joint positions and targets (K, n) [rad] of ``worlds`` (n = 0 for a
+        parallel gripper: its command is the frame's ``gripper``), from the same state read."""
+        e = self.e
+        names = e.config.hand_joints()
+        if not names:
+            return np.zeros((len(worlds), 0)), np.zeros((len(worlds), 0))
+        sim = e.banks[0].sim
+        idx, c = np.array([sim.robot.coord[n] for n in names]), sim.coords_per_world
+        q, t = [], []
+        for w in worlds:
+            bank, i = e._where[w]
+            q.append(bank.snapshot.get("joint_q")[i * c + idx])
+            t.append(bank.ctl._targets[i * c + idx])
+        return np.asarray(q, float), np.asarray(t, float)
 
 
 def _cmd(c) -> tuple:

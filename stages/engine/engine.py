@@ -65,8 +65,11 @@ class EngineConfig:
     batched layout only); program_wait: with program_procs, how long [s] the engine waits for a
     batch of programs before it holds the worlds whose programs are still running
     (:mod:`stages.engine.hold`: the others step on, a held world's episode is unchanged) — None
-    waits for every program (one planning world then stalls all); subtasks: frames record the stage
-    of a multistage task (``subtask_index``; set it when any task is multistage)."""
+    waits for every program (one planning world then stalls all); gripper: the Panda's end effector
+    (``stages.simulate.robot.GripperKind``: panda_hand, robotiq_2f85, or a dexterous hand, allegro
+    or shadow, whose joint positions and targets the frames then carry: ``DatasetSpec.hand_joints``);
+    subtasks: frames record the stage of a multistage task (``subtask_index``; set it when any task
+    is multistage)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -84,6 +87,7 @@ class EngineConfig:
     max_seconds: float | None = None
     program_procs: int = 0
     program_wait: float | None = None
+    gripper: str = "panda_hand"
     subtasks: bool = False
 
     def __post_init__(self) -> None:
@@ -95,6 +99,9 @@ class EngineConfig:
             raise ValueError("engine: program_procs needs the batched layout (one model of all worlds)")
         if self.program_wait is not None and (not self.program_procs or self.program_wait < 0):
             raise ValueError("engine: program_wait needs program_procs and must be >= 0 [s]")
+        if self.gripper not in ("panda_hand", "robotiq_2f85", "allegro", "shadow"):
+            raise ValueError(f"engine: gripper must be panda_hand, robotiq_2f85, allegro or shadow, "
+                             f"got {self.gripper!r}")
         bad = set(self.cameras) - set(CAMERAS)
         if bad:
             raise ValueError(f"engine: unknown cameras {sorted(bad)}; known {CAMERAS}")
@@ -105,7 +112,15 @@ class EngineConfig:
 
         cams = self.cameras if self.record_images else ()
         return DatasetSpec(fps=self.fps, cameras=tuple(CameraSpec(c, height=self.height, width=self.width)
-                                                       for c in cams), subtasks=self.subtasks)
+                                                       for c in cams), hand_joints=self.hand_joints(),
+                           subtasks=self.subtasks)
+
+    def hand_joints(self) -> tuple[str, ...]:
+        """The dexterous hand's joints (control order), or () for a parallel gripper."""
+        from stages.simulate.hands import allegro_info, shadow_info
+
+        infos = {"allegro": allegro_info, "shadow": shadow_info}
+        return infos[self.gripper]().joints if self.gripper in infos else ()
 
 
 @dataclass(eq=False)
@@ -180,7 +195,8 @@ class BatchEngine:
 
         t0 = time.perf_counter()
         self.world, self.config = world, config
-        desc = write_robot_urdf(Path(work_dir) / "robot", panda_root=find_panda_description(panda_root))
+        desc = write_robot_urdf(Path(work_dir) / "robot", panda_root=find_panda_description(panda_root),
+                                gripper=config.gripper)
         n = config.worlds
         if config.resolved_layout() == "batched":
             self.banks = [self._bank(desc, n, 0, seed)]

@@ -192,5 +192,8 @@ class WorldControl:
     def set_gripper(self, command: float, world: int | None = None) -> None:
         self._ctl.set_gripper(command, world=self.world)
 
+    def set_finger_targets(self, q, world: int | None = None) -> None:
+        self._ctl.set_finger_targets(q, world=self.world)
+
     def arm_targets(self, world: int = 0) -> np.ndarray:
         return self._ctl.arm_targets(self.world)

@@ -98,6 +98,22 @@ class CommandBuffers:
                 self._targets[self._c(n, w)] = v
         self._dirty = True
 
+    def set_finger_targets(self, q: np.ndarray, world: int | None = None) -> None:
+        """Finger joint position targets (n,) [m or rad] in ``desc.gripper.finger_joints`` order (a
+        dexterous hand's retargeted posture, not its synergy); the joint limits bound the motion."""
+        g = self.desc.gripper
+        q = np.asarray(q, float)
+        if q.shape != (len(g.finger_joints),) or not np.all(np.isfinite(q)):
+            raise ValueError(f"finger targets: expected {len(g.finger_joints)} finite values, got shape {q.shape}")
+        for w in self._worlds(world):
+            for n, v in zip(g.finger_joints, q, strict=True):
+                self._targets[self._c(n, w)] = v
+        self._dirty = True
+
+    def finger_targets(self, world: int = 0) -> np.ndarray:
+        """The finger joints' current position targets (n,) [m or rad]."""
+        return np.array([self._targets[self._c(n, world)] for n in self.desc.gripper.finger_joints])
+
     def arm_targets(self, world: int = 0) -> np.ndarray:
         return np.array([self._targets[self._c(n, world)] for n in self.desc.arm_joints])
 

@@ -7,9 +7,11 @@ Public surface::
     from stages.teleop import TeleopConfig, TeleopSession, TeleopServer, read_input_log, replay_session
 
 Modules: protocol (messages from the page, validated; rate limit), control (ticks -> robot
-commands, CLIK jog), inputlog (JSON-lines input log, read back for replays), recording (episodes
-as atomic shards, merged dataset), session (the engine driven by the operator), server (HTTP +
-WebSocket, token, one operator), cli (the command). Importing this package loads no simulator.
+commands, CLIK jog), xr (WebXR wrists -> end-effector targets, pinch), hand_retarget (WebXR hand
+joints -> a dexterous hand's joint targets, dex-retargeting), inputlog (JSON-lines input log, read
+back for replays), recording (episodes as atomic shards, merged dataset), session (the engine
+driven by the operator), server (HTTP + WebSocket, token, one operator), cli (the command).
+Importing this package loads no simulator.
 """
 
 from stages.teleop.control import TeleopConfig, Tick

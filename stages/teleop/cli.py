@@ -1,4 +1,8 @@
-"""``agentworld teleop TASK --robot mobile_panda --out DIR [--replay FILE] [--host H]``.
+"""``agentworld teleop TASK --robot mobile_panda [--hand allegro|shadow] --out DIR [--replay FILE] [--host H]``.
+
+``--hand`` mounts a dexterous hand on the Panda instead of its parallel gripper; a WebXR hand's
+fingers drive it through dex-retargeting (``--retarget dexpilot|vector``,
+:mod:`stages.teleop.hand_retarget`), the keyboard's G its closing synergy.
 
 Live: builds (or reuses) the task kitchen in ``--work`` (default ``DIR/.work/world``), starts the
 session (engine on ``--device``, CPU by default) and the server, and prints the operator's URL (with
@@ -69,6 +73,10 @@ def main(argv: list[str]) -> int:
                                 description="teleoperate a task world from a browser and record episodes")
     p.add_argument("task", choices=sorted(TASKS), help="basic task (its instance: robot start, objects)")
     p.add_argument("--robot", default="mobile_panda", help=f"embodiment ({', '.join(ROBOTS)})")
+    p.add_argument("--hand", choices=("allegro", "shadow"),
+                   help="a dexterous hand instead of the parallel gripper (WebXR fingers retargeted)")
+    p.add_argument("--retarget", choices=("dexpilot", "vector"), default="dexpilot",
+                   help="dex-retargeting optimizer for --hand")
     p.add_argument("--out", required=True, type=Path, help="output folder: dataset/, shards/, logs/")
     p.add_argument("--replay", type=Path, help="an input log (JSON lines): re-run its saved episodes headless")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (not loopback: HTTPS, self-signed)")
@@ -105,7 +113,7 @@ def main(argv: list[str]) -> int:
         print(f"replayed {len(s.saved)} episode(s) of {a.replay} into {out / 'dataset'}", file=console)
         return 0
     cfg = TeleopConfig(device=a.device, seed=a.seed, width=a.width, height=a.height,
-                       episode_seconds=a.episode_seconds)
+                       episode_seconds=a.episode_seconds, hand=a.hand, retarget=a.retarget)
     log.info("building the kitchen (world seed %d) in %s", a.world_seed, work)
     world = teleop_kitchen(work, a.world_seed)
     log.info("building the simulation (%s)", a.device)

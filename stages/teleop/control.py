@@ -13,7 +13,10 @@ into commands of the engine's world through the expert's :class:`~stages.demos.d
   reach within 5 mm / 3 degrees is not taken (the hand stops at the edge of the workspace).
 - an end-effector pose (``ee``, from WebXR wrists: :mod:`stages.teleop.xr`): the base stops and
   CLIK takes the hand to that pose (4, 4, in the base frame) if it can within 5 mm / 3 degrees.
-- gripper: the command as is (the parallel gripper's finger targets).
+- gripper: the command as is (the parallel gripper's finger targets; a dexterous hand's closing
+  synergy, :mod:`stages.simulate.hands`).
+- hand (``hand``, from WebXR hand joints retargeted by :mod:`stages.teleop.hand_retarget`): a
+  dexterous hand's joint targets [rad], in place of the gripper's synergy.
 
 The applier is deterministic: the same ticks from the same reset give the same commands (this is
 what ``--replay`` relies on).
@@ -40,7 +43,10 @@ class TeleopConfig:
     the first episode's task instance (episode k: seed + k); jpeg_quality: streamed JPEG quality
     (1-95); input_device: what drives the session ("keyboard", "webxr", "replay"), recorded;
     command_timeout: controls older than this [s] count as released (axes to zero; the page repeats
-    its controls every 0.1 s, so a stalled or vanished page stops the robot; None: never)."""
+    its controls every 0.1 s, so a stalled or vanished page stops the robot; None: never); hand:
+    a dexterous hand on the Panda instead of its parallel gripper ("allegro" or "shadow"), driven
+    by the WebXR hand's fingers; retarget: dex-retargeting's optimizer for it ("dexpilot": fingertip
+    and thumb-to-finger vectors, keeps pinches; "vector": wrist-to-fingertip vectors)."""
 
     max_base_speed: float = 0.5
     max_base_turn: float = 1.0
@@ -57,6 +63,8 @@ class TeleopConfig:
     jpeg_quality: int = 80
     input_device: str = "keyboard"
     command_timeout: float | None = 1.0
+    hand: str | None = None
+    retarget: str = "dexpilot"
 
     def __post_init__(self) -> None:
         problems = []
@@ -76,6 +84,10 @@ class TeleopConfig:
             problems.append(f"seed must be in [0, 2**62), got {self.seed}")
         if self.command_timeout is not None and not (math.isfinite(self.command_timeout) and self.command_timeout > 0):
             problems.append(f"command_timeout must be a positive number or None, got {self.command_timeout}")
+        if self.hand not in (None, "allegro", "shadow"):
+            problems.append(f"hand must be allegro, shadow or None, got {self.hand!r}")
+        if self.retarget not in ("vector", "dexpilot"):
+            problems.append(f"retarget must be vector or dexpilot, got {self.retarget!r}")
         if problems:
             raise ValueError("teleop config: " + "; ".join(problems))
 
@@ -83,18 +95,22 @@ class TeleopConfig:
 @dataclass(frozen=True)
 class Tick:
     """One frame period's controls: base (3,) and jog (6,) axes in [-1, 1], mode 0/1, gripper 0/1;
-    ee: an end-effector target (16 numbers, a row-major 4x4 in the base frame [m]) or None."""
+    ee: an end-effector target (16 numbers, a row-major 4x4 in the base frame [m]) or None; hand:
+    a dexterous hand's joint targets (n numbers [rad], its joint order) or None."""
 
     base: tuple[float, float, float] = (0.0, 0.0, 0.0)
     jog: tuple[float, ...] = (0.0,) * 6
     mode: int = 0
     gripper: int = 0
     ee: tuple[float, ...] | None = None
+    hand: tuple[float, ...] | None = None
 
     def to_json(self) -> dict:
         d = {"base": list(self.base), "jog": list(self.jog), "mode": self.mode, "gripper": self.gripper}
         if self.ee is not None:
             d["ee"] = list(self.ee)
+        if self.hand is not None:
+            d["hand"] = list(self.hand)
         return d
 
 
@@ -127,6 +143,8 @@ class TickApplier:
                 self.target = None  # re-seeded from the arm targets at the next jog
         d.cmd.gripper = float(tick.gripper)
         d.ctl.set_gripper(float(tick.gripper))
+        if tick.hand is not None:
+            d.ctl.set_finger_targets(np.asarray(tick.hand, float))
 
     def _q(self) -> np.ndarray:
         ik, d = self.drv.ik, self.drv

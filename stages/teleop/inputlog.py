@@ -8,7 +8,8 @@ One JSON object per line, flushed as it is written (a crash loses at most the li
   operator presses start, not recorded);
 - ``{"kind": "tick", "episode": k, "i": i, "base": [3], "jog": [6], "mode": m, "gripper": g}``
   per frame period (the controls applied before frame ``i + 1``'s physics steps), with ``"ee":
-  [16]`` (an end-effector target, row-major 4x4 in the base frame [m]) when WebXR drove it;
+  [16]`` (an end-effector target, row-major 4x4 in the base frame [m]) when WebXR drove it, and
+  ``"hand": [n]`` (a dexterous hand's retargeted joint targets [rad]) when a WebXR hand drove it;
 - ``{"kind": "end", "episode": k, "outcome": "start"|"save"|"discard"|"stop", "reason": ...}``
   ("start": a preview the operator ended by starting a recorded episode).
 
@@ -109,6 +110,19 @@ def _ee(v) -> tuple[float, ...] | None | bool:
     return tuple(float(x) for x in v)
 
 
+def _hand(v) -> tuple[float, ...] | None | bool:
+    """A ``hand`` field: None when absent, its joint targets (1 to 64 numbers within 10 rad), or
+    False when malformed."""
+    if v is None:
+        return None
+    if not isinstance(v, list) or not 1 <= len(v) <= 64:
+        return False
+    if not all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) and abs(x) <= 10
+               for x in v):
+        return False
+    return tuple(float(x) for x in v)
+
+
 def read_input_log(path: Path, *, max_lines: int = 10_000_000) -> SessionScript:
     """Parse and validate an input log (raises ValueError naming every bad line, at most 20)."""
     path = Path(path)
@@ -155,16 +169,17 @@ def read_input_log(path: Path, *, max_lines: int = 10_000_000) -> SessionScript:
                 e = episodes.get(ep)
                 base, jog = _axes(rec.get("base"), 3), _axes(rec.get("jog"), 6)
                 mode, grip = rec.get("mode"), rec.get("gripper")
-                ee = _ee(rec.get("ee"))
+                ee, hand = _ee(rec.get("ee")), _hand(rec.get("hand"))
                 if e is None or e.outcome:
                     problems.append(f"{where}: tick outside an open episode")
                 elif rec.get("i") != len(e.ticks):
                     problems.append(f"{where}: tick index {rec.get('i')} where {len(e.ticks)} was expected")
-                elif base is None or jog is None or mode not in (0, 1) or grip not in (0, 1) or ee is False:
+                elif base is None or jog is None or mode not in (0, 1) or grip not in (0, 1) or ee is False \
+                        or hand is False:
                     problems.append(f"{where}: bad tick (base: 3 axes, jog: 6 axes in [-1, 1]; mode, gripper 0/1; "
-                                    "ee: 16 numbers within 100 m)")
+                                    "ee: 16 numbers within 100 m; hand: 1-64 numbers within 10 rad)")
                 else:
-                    e.ticks.append(Tick(base=base, jog=jog, mode=int(mode), gripper=int(grip), ee=ee))
+                    e.ticks.append(Tick(base=base, jog=jog, mode=int(mode), gripper=int(grip), ee=ee, hand=hand))
             elif kind == "end":
                 e = episodes.get(ep)
                 if e is None or rec.get("outcome") not in ("start", "save", "discard", "stop"):

@@ -11,7 +11,8 @@ Every message is one JSON object of at most :data:`MAX_MESSAGE_BYTES` bytes with
   (``task``: optional instruction text for a start, at most 200 characters).
 - ``{"type": "ack", "frame": n}``: the page displayed frame ``n`` (render-to-display latency).
 - ``{"type": "xr", "head": [16], "hands": {"left"|"right": [[16] x 25]}}``: WebXR poses (column-
-  major 4x4 matrices in the XR reference space [m]), head and up to two hands of 25 joints.
+  major 4x4 matrices in the XR reference space [m]), head and up to two hands of 25 joints, each
+  joint within :data:`MAX_HAND_SPAN` of its wrist.
 
 Anything else (not JSON, not an object, unknown type or key, a missing key, a wrong type, NaN or
 infinity, a value out of range, too large) raises :class:`ProtocolError` with the reason; the
@@ -30,6 +31,9 @@ MAX_MESSAGE_BYTES = 16384
 
 XR_JOINTS = 25
 """Joints per hand (WebXR XRHand: wrist, 4 thumb, 5 per finger)."""
+
+MAX_HAND_SPAN = 0.35
+"""Farthest a hand joint may be from its wrist [m] (a human hand: tips at about 0.2 m)."""
 
 
 class ProtocolError(ValueError):
@@ -174,6 +178,11 @@ def _xr(msg: dict, t: float) -> XrPoses:
         if not isinstance(joints, list) or len(joints) != XR_JOINTS:
             raise ProtocolError(f"xr.hands.{side} must list {XR_JOINTS} joint poses")
         out[side] = tuple(_matrix(j, f"xr.hands.{side}[{i}]") for i, j in enumerate(joints))
+        wrist = out[side][0]
+        for i, m in enumerate(out[side]):
+            d = math.dist([r[3] for r in m[:3]], [r[3] for r in wrist[:3]])
+            if d > MAX_HAND_SPAN:
+                raise ProtocolError(f"xr.hands.{side}[{i}] is {d:.2f} m from the wrist (at most {MAX_HAND_SPAN} m)")
     return XrPoses(head=head, hands=out, received=t)
 
 

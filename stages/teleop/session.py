@@ -59,6 +59,7 @@ class _Episode:
     started: float = 0.0
     xr_calib: object = None  # head pose (4, 4) at the episode's first XR message
     xr_gripper: int = 0
+    xr_hand: tuple | None = None  # the last retargeted hand joint targets [rad]
     devices: set = field(default_factory=set)  # "webxr" once XR poses drove a tick
 
 
@@ -82,9 +83,16 @@ class TeleopSession:
         self._check_task()
         self.name = datetime.now(UTC).strftime("%Y%m%dT%H%M%S") + "-" + secrets.token_hex(3)
         ecfg = EngineConfig(worlds=1, device=config.device, width=config.width, height=config.height,
-                            fps=config.fps, cameras=config.cameras)
+                            fps=config.fps, cameras=config.cameras, gripper=config.hand or "panda_hand")
         self.engine = BatchEngine(world, panda_root=panda_root, work_dir=self.out / ".work" / self.name,
                                   config=ecfg, seed=world_seed)
+        self.retargeter = None  # WebXR hand joints -> the dexterous hand's joint targets
+        if config.hand is not None and replay is None:
+            from stages.teleop.hand_retarget import HandRetargeter
+
+            self.retargeter = HandRetargeter(config.hand, self.out / ".work" / self.name / "retarget",
+                                             optimizer=config.retarget)
+        self.hand_rejected = 0  # hand joint sets the retargeting refused (logged)
         self.recorder = TeleopRecorder(self.out, ecfg.dataset_spec(), self.name)
         self.log_path = self.out / "logs" / f"{self.name}.jsonl"
         self.input_log = InputLog(self.log_path)
@@ -161,7 +169,8 @@ class TeleopSession:
                 "episode": ep.k if ep else None, "tick": ep.ticks if ep else 0, "saved": len(self.saved),
                 "mode": cmd.mode, "gripper": cmd.gripper, "task": self.task,
                 "instruction": ep.instruction if ep else "", "running": self.running,
-                "ee_pose": self.last_ee_pose}
+                "ee_pose": self.last_ee_pose, "hand": self.cfg.hand,
+                "hand_rejected": self.hand_rejected}
 
     def stop(self) -> None:
         """End the session: the episode in progress ends ("stop"; a recorded one is discarded)."""
@@ -256,6 +265,8 @@ class TeleopSession:
     def _act(self, inst, drv) -> None:
         ep = self._ep
         app = TickApplier(self.cfg, drv)
+        if self.retargeter is not None:
+            self.retargeter.reset()
         S, f = self.engine.steps_per_second, self.cfg.fps
         t0 = time.perf_counter()
         last = None
@@ -298,8 +309,9 @@ class TeleopSession:
         ep.reason = f"ik_misses={app.ik_misses}"
 
     def _xr_tick(self, ep: _Episode, timeout: float | None):
-        """The tick of the newest WebXR poses (wrist -> end-effector target, pinch -> gripper) and
-        the message it came from, or None when there is none (or it is older than ``timeout``)."""
+        """The tick of the newest WebXR poses (wrist -> end-effector target, pinch -> gripper, with
+        a dexterous hand the fingers -> its joint targets) and the message it came from, or None
+        when there is none (or it is older than ``timeout``)."""
         import numpy as np
 
         from stages.teleop.xr import pinch_gripper, wrist_to_ee_target
@@ -310,11 +322,25 @@ class TeleopSession:
         head = np.asarray(xr.head, float)
         if ep.xr_calib is None:
             ep.xr_calib = head
-        joints = np.asarray(xr.hands["right"] if "right" in xr.hands else xr.hands["left"], float)
+        side = "right" if "right" in xr.hands else "left"
+        joints = np.asarray(xr.hands[side], float)
         ep.xr_gripper = pinch_gripper(joints, ep.xr_gripper)
         ee = wrist_to_ee_target(joints[0], ep.xr_calib)
         ep.devices.add("webxr")
-        return Tick(mode=1, gripper=ep.xr_gripper, ee=tuple(float(x) for x in ee.ravel())), xr
+        if self.retargeter is not None:
+            self._retarget(ep, joints, side)
+        return Tick(mode=1, gripper=ep.xr_gripper, ee=tuple(float(x) for x in ee.ravel()), hand=ep.xr_hand), xr
+
+    def _retarget(self, ep: _Episode, joints, side: str) -> None:
+        """The hand's joint targets from the XR hand (kept as they were if it is refused)."""
+        from stages.teleop.hand_retarget import HandPoseError
+
+        try:
+            ep.xr_hand = tuple(round(float(x), 6) for x in self.retargeter.retarget(joints, side))
+        except HandPoseError as e:
+            self.hand_rejected += 1
+            if self.hand_rejected <= 5 or self.hand_rejected % 100 == 0:  # a bad stream: not every tick
+                log.warning("teleop: %s hand joints rejected (%d so far): %s", side, self.hand_rejected, e)
 
     def _control(self, ep: _Episode) -> str:
         """The episode's outcome if the operator ended it ("start", "save", "discard", "stop"),

@@ -38,6 +38,35 @@ def test_spec_is_configurable_and_round_trips_json():
     assert DatasetSpec.from_json(spec.to_json()) == spec
 
 
+def test_hand_joints_replace_the_gripper_command_and_extend_the_state():
+    """A dexterous hand (teleoperation's retargeted fingers): n joint targets in the action where
+    the gripper command was, n joint positions at the end of the state; frames are checked."""
+    import dataclasses
+
+    hand = ("allegro_joint_0", "allegro_joint_1", "allegro_joint_2")
+    spec = DatasetSpec(cameras=(), hand_joints=hand)
+    assert spec.state_dim == 17 + 3 and spec.action_dim == 7 + 7 + 3 + 3 + 1
+    assert spec.action_names()[-4:] == ["allegro_joint_0_target", "allegro_joint_1_target",
+                                        "allegro_joint_2_target", "mode"]
+    assert spec.state_names()[-3:] == list(hand) and "gripper" not in spec.action_names()
+    assert DatasetSpec.from_json(spec.to_json()) == spec
+    assert "hand_joints" not in DatasetSpec().to_json()  # parallel-gripper sidecars are unchanged
+    assert frame_problems(spec, synthetic_frame(spec, 0, 0, 5)) == []
+    frame = dataclasses.replace(synthetic_frame(spec, 0, 0, 5), hand_joint_pos=np.array([0.1, 0.2, 0.3]),
+                                hand_joint_target=np.array([0.4, 0.5, 0.6]))
+    assert frame_problems(spec, frame) == []
+    np.testing.assert_allclose(frame.state()[-3:], [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(frame.action()[-4:], [0.4, 0.5, 0.6, 1.0])
+    bad = dataclasses.replace(frame, hand_joint_target=np.array([0.4, np.nan, 0.6]), hand_joint_pos=np.zeros(2))
+    assert frame_problems(spec, bad) == ["hand_joint_pos: shape (2,), expected (3,)",
+                                         "hand_joint_target: contains NaN or inf"]
+    assert frame_problems(DatasetSpec(cameras=()), frame)[0] == "hand_joint_pos: shape (3,), expected (0,)"
+    with pytest.raises(ValueError, match="hand_joints"):
+        DatasetSpec(hand_joints=("a", "a"))
+    with pytest.raises(ValueError, match="hand_joints"):
+        DatasetSpec(hand_joints=("joint 1",))
+
+
 def test_spec_rejects_bad_values_in_one_message():
     with pytest.raises(ValueError, match="arm_dof.*fps"):
         DatasetSpec(arm_dof=0, fps=0)

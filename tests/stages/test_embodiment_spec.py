@@ -252,6 +252,15 @@ def test_state_and_action_layout_per_embodiment():
     assert len(a) == 14 + 2 * 7 + 3 + 1 and "left_gripper" not in a and a[-1] == "mode"  # fixed hands
     assert {"left_gripper", "right_gripper"} <= set(action_names(load_spec("g1_29dof_dex3")))
     assert len(set(s)) == len(s) and len(set(a)) == len(a)
+    # teleoperation's retargeted hands: the hand's joints in the state, their targets in the action
+    for kind in ("allegro", "shadow"):
+        spec = load_spec(f"mobile_panda_{kind}")
+        hd = DatasetSpec(hand_joints=spec.end_effectors[spec.arms[0].end_effector].joints)
+        assert state_names(spec, hand_targets=True) == hd.state_names()
+        assert action_names(spec, hand_targets=True) == hd.action_names()
+        assert action_names(spec) == d.action_names()  # scripted: the hand's synergy command
+    dex = action_names(load_spec("g1_29dof_dex3"), hand_targets=True)
+    assert "left_gripper" not in dex and len(dex) == 14 + 2 * 7 + 3 + 14 + 1
 
 
 def test_panda_spec_drives_equal_robot_py_drives(tmp_path):

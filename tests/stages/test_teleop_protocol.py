@@ -52,6 +52,8 @@ def test_valid_messages_parse_into_typed_values():
     (json.dumps({"type": "xr", "head": [2.0] + EYE[1:], "hands": {}}), "orthonormal"),
     (json.dumps({"type": "xr", "head": EYE, "hands": {"left": [EYE] * 24}}), "25 joint"),
     (json.dumps({"type": "xr", "head": EYE, "hands": {"tail": [EYE] * 25}}), "left and/or right"),
+    (json.dumps({"type": "xr", "head": EYE, "hands": {"right": [EYE] * 9 + [EYE[:12] + [0.1, 0.2, 2.0, 1]]
+                                                      + [EYE] * 15}}), r"right\[9\] is 0.50 m from the wrist"),
 ])
 def test_malformed_messages_are_rejected_with_a_reason(raw, reason):
     with pytest.raises(ProtocolError, match=reason):

@@ -32,15 +32,18 @@ def _wait(pred, timeout: float = 240.0) -> None:
 
 
 def _operator(session, script: list) -> None:
-    """Sends (at recorded tick >= n: message) pairs once the recorded episode reaches tick n."""
-    _wait(lambda: session.status()["tick"] >= 2)
-    _send(session, type="episode", action="start", task="drive up to the table and lift the hand")
-    _wait(lambda: session.status()["recording"])
-    for at, msg in script:
-        _wait(lambda at=at: session.status()["tick"] >= at)
-        _send(session, **msg)
-    _wait(lambda: session.status()["saved"] >= 1)
-    session.stop()
+    """Sends (at recorded tick >= n: message) pairs once the recorded episode reaches tick n; the
+    session stops at the end (or when this fails, so that the test does not hang)."""
+    try:
+        _wait(lambda: session.status()["tick"] >= 2)
+        _send(session, type="episode", action="start", task="drive up to the table and lift the hand")
+        _wait(lambda: session.status()["recording"])
+        for at, msg in script:
+            _wait(lambda at=at: session.status()["tick"] >= at)
+            _send(session, **msg)
+        _wait(lambda: session.status()["saved"] >= 1)
+    finally:
+        session.stop()
 
 
 def _cmd(seq, base=(0, 0, 0), jog=(0,) * 6, mode=0, gripper=0) -> dict:
@@ -126,6 +129,55 @@ def test_replay_command_reproduces_a_session(kitchen, tmp_path):
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     assert f"replayed 1 episode(s) of {s.log_path}" in run.stdout + run.stderr
     state, action = _columns(tmp_path / "live" / "dataset")
+    state2, action2 = _columns(tmp_path / "replay" / "dataset")
+    np.testing.assert_array_equal(action2, action)
+    np.testing.assert_allclose(state2, state, rtol=0, atol=1e-6)
+
+
+def _xr(hand_flex: float) -> dict:
+    """An XR message (column-major 4x4s) of a head and a synthetic right hand ``hand_flex`` [rad]
+    closed, the wrist 40 cm ahead of and 40 cm below the head, palm down."""
+    from teleop_testutil import synthetic_hand
+
+    head = np.eye(4)
+    head[:3, 3] = (0.0, 1.6, 0.0)
+    wrist = np.eye(4)
+    wrist[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # fingers ahead (-z), palm down
+    wrist[:3, 3] = (0.0, 1.2, -0.4)
+    cm = lambda m: [round(float(x), 6) for x in np.asarray(m).T.ravel()]  # noqa: E731
+    return dict(type="xr", head=cm(head), hands={"right": [cm(j) for j in synthetic_hand(hand_flex, wrist=wrist)]})
+
+
+def test_hand_session_records_retargeted_fingers_and_replays_them(kitchen, tmp_path):
+    """``hand="allegro"``: WebXR hand joints (validated messages, as the page sends them) are
+    retargeted each tick; the input log carries the targets, and its replay (no retargeting)
+    reproduces the episode (same actions, state within 1e-6); a hand the retargeting refuses is
+    logged and the last targets kept."""
+    pytest.importorskip("dex_retargeting", reason="dex-retargeting (pip) retargets the hands")
+    from stages.teleop import TeleopConfig, TeleopSession, read_input_log, replay_session
+
+    cfg = TeleopConfig(width=32, height=24, cameras=("head",), realtime=False, seed=3, command_timeout=None,
+                       hand="allegro")
+    s = TeleopSession(kitchen, task="pick_place_bowl", out=tmp_path / "live", config=cfg, world_seed=5)
+    skewed = _xr(1.2)  # the wrist's rotation rows (1, 0, 0), (0.6, 0, 0.8), (0, -1, 0): unit rows (the
+    skewed["hands"]["right"][0][1] = 0.6  # protocol parses it), not orthogonal (the retargeting refuses it)
+    skewed["hands"]["right"][0][9] = 0.8
+    op = threading.Thread(target=_operator, args=(s, [(3, _xr(0.0)), (14, _xr(1.2)), (22, skewed),
+                                                      (28, dict(type="episode", action="save"))]), daemon=True)
+    op.start()
+    s.run()
+    op.join(5)
+    assert len(s.saved) == 1 and s.hand_rejected >= 1
+    state, action = _columns(tmp_path / "live" / "dataset")
+    hand_t, hand_q = action[:, 17:33], state[:, 17:33]  # action: arm 7, ee 7, base 3, Allegro 16, mode
+    assert action.shape[1] == 34 and state.shape[1] == 33
+    flex = hand_t[:, [1, 2, 3, 5, 6, 7, 9, 10, 11]].sum(axis=1)  # index, middle, ring flexion [rad]
+    assert flex[20] > flex[12] + 3.0, (flex[12], flex[20])  # closed hand: the fingers flex
+    np.testing.assert_array_equal(hand_t[-1], hand_t[25])  # the refused hand (from tick 22) kept the targets
+    assert np.abs(hand_q[-1] - hand_t[-1]).max() < 0.1  # the simulated fingers follow
+    log = read_input_log(s.log_path)
+    r = replay_session(log, kitchen, out=tmp_path / "replay")
+    assert len(r.saved) == 1 and r.retargeter is None
     state2, action2 = _columns(tmp_path / "replay" / "dataset")
     np.testing.assert_array_equal(action2, action)
     np.testing.assert_allclose(state2, state, rtol=0, atol=1e-6)
