@@ -198,6 +198,11 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
 
     q = d.sim.joint_q_of_path(part.joint_path)  # a free leaf may have moved since q0 was set
     for stage in range(max_stages):
+        if done(q) and stage > 0:
+            # a leaf knocked since (tucking arm, base) may still move (off its stop): done only at rest
+            _settle_part(part, d)
+            q = d.sim.joint_q_of_path(part.joint_path)
+            log.info("%s: at rest at %.3f before stage %d", part.joint_path, q, stage)
         if done(q):  # a free leaf may have moved on by itself (an oven door past its hold drops open)
             return
         step = math.copysign(math.radians(step_deg), q1 - q)
