@@ -77,7 +77,7 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
     ``q_to`` about the hinge: the leaf angle follows a trapezoidal profile (TURN_RATE,
     TURN_ACCEL; bounded by the base's and the handle's speed; by TURN_CLOSE_RATE when closing),
     the base tracks the pose it carries by feedforward plus feedback. Stops early when the base is
-    blocked or the leaf slips. Returns the leaf's joint value then."""
+    blocked or the leaf slips. Returns (the leaf's joint value then, the one the hand carried to)."""
     from stages.demos.record import base_pose
 
     start = tuple(float(v) for v in base_pose(d.sim))
@@ -105,8 +105,8 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
         x, y, yaw = base_pose(d.sim)
         err = math.hypot(tx - x, ty - y)
         q_now = d.sim.joint_q_of_path(part.joint_path)
-        log.debug("turn t %.2f plan %.3f leaf %.3f base err %.3f w %.3f", d.sim.time, q_from + sgn * done, q_now,
-                  err, w)
+        log.debug("turn t %.2f plan %.3f leaf %.3f base err %.3f w %.3f", d.sim.time, q_from + sgn * done,
+                  q_now, err, w)
         if err > TURN_LOST or abs(q_now - (q_from + sgn * done)) > TURN_SLIP:
             log.info("%s: turn stopped at %.2f (base %.3f m off, leaf at %.2f)", part.joint_path,
                      q_from + sgn * done, err, q_now)
@@ -125,7 +125,29 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
         d.step(dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.1)
-    return d.sim.joint_q_of_path(part.joint_path)
+    return d.sim.joint_q_of_path(part.joint_path), q_from + sgn * done
+
+
+def push_on(part: ArticulatedPart, d, q_start: float, q_hand: float, goal: float, arc_sols, pitch: float,
+            along: float, track, tol: float) -> float:
+    """After a closing turn that the footprint stopped short of ``goal`` with the hand at joint
+    value ``q_hand`` (the turn began at ``q_start``): the arm pushes on along the arc, base held,
+    instead of a new stage. The base turned rigidly with the leaf, the arm held, so relative to the
+    base the k-th 6-deg step from here is the k-th planned step from ``q_start``, whose arm solution
+    (``arc_sols``) seeds the solve (``track``: :func:`stages.demos.articulated.track`, ``tol`` [m]).
+    The hand moves at TURN_CLOSE_RATE. Returns the joint value the hand reached."""
+    from stages.demos.part_grasps import gesture
+
+    step = math.copysign(math.radians(6.0), goal - q_hand)
+    qs = [float(v) for v in np.arange(q_hand + step, goal, step)] + [goal]
+    _, arc = gesture(part, q_hand, qs, pitch, "push", along)
+    seeds = [arc_sols[min(k, len(arc_sols) - 1)] for k in range(len(qs))]
+    durs = [max(d.pace.min_wait, abs(b - a) / TURN_CLOSE_RATE)
+            for a, b in zip([q_hand, *qs[:-1]], qs, strict=True)]
+    k = track(d, arc, seeds, durs, tol=tol)
+    log.info("%s: pushed on with the arm from %.2f to %.2f (%d/%d steps)", part.joint_path, q_hand,
+             qs[k - 1] if k else q_hand, k, len(qs))
+    return qs[k - 1] if k else q_hand
 
 
 def _limited(v: np.ndarray, want: np.ndarray, step: float) -> np.ndarray:
