@@ -6,7 +6,8 @@ several regrasp stages of the arm carrying the handle along its arc
 (:func:`stages.demos.articulated._swing` uses it for the part of the arc over which the base's
 footprint stays free on the room's grid, :func:`turn_limit`). Also the base-side shortcuts of a
 stage: going on from where the base stands (:func:`plan_here`) and re-solving a plan from a base
-stopped off its pose (:func:`resolve`).
+stopped off its pose (:func:`resolve`). Closing, a turn the footprint stops short of closed goes
+on as an arm push from where the base stands (:func:`push_on`).
 
 ``d`` is a :class:`~stages.demos.driver.Driver`; world frame, metres, radians.
 """
