@@ -50,7 +50,7 @@ from stages.demos.part_grasps import (
     lateral,
 )
 from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
-from stages.demos.part_turn import is_vertical, plan_here, resolve, turn_about_hinge, turn_limit
+from stages.demos.part_turn import is_vertical, plan_here, push_on, resolve, turn_about_hinge, turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -198,6 +198,11 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
 
     q = d.sim.joint_q_of_path(part.joint_path)  # a free leaf may have moved since q0 was set
     for stage in range(max_stages):
+        if done(q) and stage > 0:
+            # a leaf knocked since (tucking arm, base) may still move (off its stop): done only at rest
+            _settle_part(part, d)
+            q = d.sim.joint_q_of_path(part.joint_path)
+            log.info("%s: at rest at %.3f before stage %d", part.joint_path, q, stage)
         if done(q):  # a free leaf may have moved on by itself (an oven door past its hold drops open)
             return
         step = math.copysign(math.radians(step_deg), q1 - q)
@@ -288,7 +293,9 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             if abs(q_turn - q) > abs((qs[n - 1] if n > 0 else q) - q) + math.radians(5.0):
                 turn_to = q_turn
         if turn_to is not None:
-            turned = turn_about_hinge(part, d, q, turn_to)
+            turned, hand = turn_about_hinge(part, d, q, turn_to)
+            if push and n > 0 and not done(hand):  # stopped short by the footprint: the arm pushes on
+                push_on(part, d, q, hand, goal, sols[na:na + n], pitch, along, track, SWING_TOL)
         elif n >= 0:
             # slow near closed: a heavy leaf driven into its stop rebounds
             durs = _carry_times(d, approach[-1], arc[:n], [abs(qw - part.closed) < math.radians(20.0)
@@ -303,8 +310,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 _edge_push(part, d, grid, q1 if opening else q1 - math.radians(1.5))
         d.settle(0.4)
         last = turned if turn_to is not None else qs[k - 1] if k else q
-        log.debug("%s: swing to %.3f of %.3f -> %.3f", part.joint_path, last, qs[n - 1] if n > 0 else q,
-                  d.sim.joint_q_of_path(part.joint_path))
+        log.debug("%s: swing to %.3f -> %.3f", part.joint_path, last, d.sim.joint_q_of_path(part.joint_path))
         _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         _settle_part(part, d)

@@ -6,7 +6,8 @@ several regrasp stages of the arm carrying the handle along its arc
 (:func:`stages.demos.articulated._swing` uses it for the part of the arc over which the base's
 footprint stays free on the room's grid, :func:`turn_limit`). Also the base-side shortcuts of a
 stage: going on from where the base stands (:func:`plan_here`) and re-solving a plan from a base
-stopped off its pose (:func:`resolve`).
+stopped off its pose (:func:`resolve`). Closing, a turn the footprint stops short of closed goes
+on as an arm push from where the base stands (:func:`push_on`).
 
 ``d`` is a :class:`~stages.demos.driver.Driver`; world frame, metres, radians.
 """
@@ -28,7 +29,14 @@ TURN_RATE = 0.6       # leaf (and base) turn rate bound [rad/s]
 TURN_ACCEL = 1.0      # its change [rad/s^2]
 TURN_BASE_SPEED = 0.75  # base speed bound while turning [m/s]
 TURN_HAND_SPEED = 0.45  # handle speed bound [m/s]
-TURN_SLOW_NEAR = math.radians(20.0)  # closing: half the rate this close to closed (a heavy leaf rebounds)
+# closing (the closed hand pushes the front face): one rate bound over the whole arc [rad/s]. A
+# pushed leaf cannot be braked: slowed down, the hand only falls behind while the leaf coasts on at
+# its peak rate (catalog doors: hinge friction 0.3 N m, damping 1 N m s/rad) into its stop, off
+# which it rebounds (the joint limit gives back ~85 % of the speed). At this rate the hand, braking
+# only over the last ~4 deg, is still within ~1.5 deg of closed when the leaf hits its stop, and
+# holds the rebound; a step down in the rate (halving it near closed) also outran the base's
+# command limits, which stopped the turn as blocked and let the leaf slam free (issue 12).
+TURN_CLOSE_RATE = 0.35
 TURN_GAIN = 3.0       # base pose feedback gain [1/s]
 TURN_LOST = 0.06      # stop when the base falls this far behind its pose [m] (blocked)
 TURN_SLIP = 0.15      # ... or the leaf this far [rad] off the turn (grip lost)
@@ -68,9 +76,9 @@ def turn_limit(part: ArticulatedPart, d, grid, q_from: float, q_to: float, step:
 def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> float:
     """Turn the base (arm held, hand on the leaf) with the leaf from joint value ``q_from`` to
     ``q_to`` about the hinge: the leaf angle follows a trapezoidal profile (TURN_RATE,
-    TURN_ACCEL; bounded by the base's and the handle's speed; halved within TURN_SLOW_NEAR of
-    closed when closing), the base tracks the pose it carries by feedforward plus feedback. Stops
-    early when the base is blocked or the leaf slips. Returns the leaf's joint value then."""
+    TURN_ACCEL; bounded by the base's and the handle's speed; by TURN_CLOSE_RATE when closing),
+    the base tracks the pose it carries by feedforward plus feedback. Stops early when the base is
+    blocked or the leaf slips. Returns (the leaf's joint value then, the one the hand carried to)."""
     from stages.demos.record import base_pose
 
     start = tuple(float(v) for v in base_pose(d.sim))
@@ -78,10 +86,11 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
     r_base = math.hypot(start[0] - o[0], start[1] - o[1])
     h = np.asarray(part.handle, float) - o
     r_hand = float(np.linalg.norm(h - np.dot(h, part.axis) * np.asarray(part.axis)))
-    w_max = min(TURN_RATE, TURN_BASE_SPEED / max(r_base, 1e-3), TURN_HAND_SPEED / max(r_hand, 1e-3))
+    closing = q_to < q_from
+    w_max = min(TURN_CLOSE_RATE if closing else TURN_RATE, TURN_BASE_SPEED / max(r_base, 1e-3),
+                TURN_HAND_SPEED / max(r_hand, 1e-3))
     sgn = math.copysign(1.0, q_to - q_from)
     az = math.copysign(1.0, float(part.axis[2]))
-    closing = q_to < q_from
     total = abs(q_to - q_from)
     dt = d.frame_dt
     d.cmd.mode = 1
@@ -90,15 +99,15 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
     log.info("%s: turning with the base from %.2f to %.2f (base radius %.2f m, %.2f rad/s)", part.joint_path,
              q_from, q_to, r_base, w_max)
     while done < total - 1e-6:
-        q_d = q_from + sgn * done
-        cap = w_max * (0.5 if closing and q_d - part.closed < TURN_SLOW_NEAR else 1.0)
-        w = min(cap, w + TURN_ACCEL * dt, math.sqrt(2.0 * TURN_ACCEL * max(total - done, 0.0)))
+        w = min(w_max, w + TURN_ACCEL * dt, math.sqrt(2.0 * TURN_ACCEL * max(total - done, 0.0)))
         w = max(w, 0.02)
         done = min(total, done + w * dt)
         tx, ty, tyaw = turned(start, part, sgn * done)
         x, y, yaw = base_pose(d.sim)
         err = math.hypot(tx - x, ty - y)
         q_now = d.sim.joint_q_of_path(part.joint_path)
+        log.debug("turn t %.2f plan %.3f leaf %.3f base err %.3f w %.3f", d.sim.time, q_from + sgn * done,
+                  q_now, err, w)
         if err > TURN_LOST or abs(q_now - (q_from + sgn * done)) > TURN_SLIP:
             log.info("%s: turn stopped at %.2f (base %.3f m off, leaf at %.2f)", part.joint_path,
                      q_from + sgn * done, err, q_now)
@@ -117,7 +126,29 @@ def turn_about_hinge(part: ArticulatedPart, d, q_from: float, q_to: float) -> fl
         d.step(dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.1)
-    return d.sim.joint_q_of_path(part.joint_path)
+    return d.sim.joint_q_of_path(part.joint_path), q_from + sgn * done
+
+
+def push_on(part: ArticulatedPart, d, q_start: float, q_hand: float, goal: float, arc_sols, pitch: float,
+            along: float, track, tol: float) -> float:
+    """After a closing turn that the footprint stopped short of ``goal`` with the hand at joint
+    value ``q_hand`` (the turn began at ``q_start``): the arm pushes on along the arc, base held,
+    instead of a new stage. The base turned rigidly with the leaf, the arm held, so relative to the
+    base the k-th 6-deg step from here is the k-th planned step from ``q_start``, whose arm solution
+    (``arc_sols``) seeds the solve (``track``: :func:`stages.demos.articulated.track`, ``tol`` [m]).
+    The hand moves at TURN_CLOSE_RATE. Returns the joint value the hand reached."""
+    from stages.demos.part_grasps import gesture
+
+    step = math.copysign(math.radians(6.0), goal - q_hand)
+    qs = [float(v) for v in np.arange(q_hand + step, goal, step)] + [goal]
+    _, arc = gesture(part, q_hand, qs, pitch, "push", along)
+    seeds = [arc_sols[min(k, len(arc_sols) - 1)] for k in range(len(qs))]
+    durs = [max(d.pace.min_wait, abs(b - a) / TURN_CLOSE_RATE)
+            for a, b in zip([q_hand, *qs[:-1]], qs, strict=True)]
+    k = track(d, arc, seeds, durs, tol=tol)
+    log.info("%s: pushed on with the arm from %.2f to %.2f (%d/%d steps)", part.joint_path, q_hand,
+             qs[k - 1] if k else q_hand, k, len(qs))
+    return qs[k - 1] if k else q_hand
 
 
 def _limited(v: np.ndarray, want: np.ndarray, step: float) -> np.ndarray:
