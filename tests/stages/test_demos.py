@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from kitchen_testutil import PACKAGES, kitchen_job
+
 from stages.demos.planner import NavGrid, NoPathError, PathFollower, plan_path
 
 
@@ -75,45 +77,20 @@ def test_follower_drives_a_holonomic_base_to_the_goal_pose():
 
 # -- the kitchen world and sampling -------------------------------------------------------------
 
-KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
-# one package per category; mug_04 is the variant of catalog seed 0 the hand's 80 mm stroke grasps
-PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
-            "mug_04", "bowl_00", "can_00")
 
-
-def _catalog_job(out: Path, extra_steps: list | None = None) -> dict:
-    return {"job": {"name": "demos_catalog", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-            "step": [{"name": "catalog", "kind": "default_catalog",
-                      "config": {"variants": 5, "categories": list(KITCHEN)}},
-                     {"name": "assets", "kind": "ingest",
-                      "config": {"catalog_step": "catalog", "only": list(PACKAGES)}},
-                     *(extra_steps or [])]}
+@pytest.fixture(scope="module")
+def catalog(kitchen_catalog) -> Path:
+    """The kitchen packages generated and ingested by the real job steps (tests/stages/conftest.py,
+    shared by the session); the work dir."""
+    return kitchen_catalog
 
 
 @pytest.fixture(scope="module")
-def catalog(tmp_path_factory) -> Path:
-    """The kitchen packages generated and ingested by the real job steps (~20 s); the work dir."""
-    from pipeline import build_job, run_job
-
-    out = tmp_path_factory.mktemp("kitchen_catalog") / "out"
-    summary = run_job(build_job(_catalog_job(out), source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
-    return out
-
-
-@pytest.fixture(scope="module")
-def library(catalog):
-    from stages.demos.kitchen import AssetLibrary
-
-    return AssetLibrary.from_folder(catalog / "assets", catalog / "catalog" / "default" / "generated.json")
-
-
-@pytest.fixture(scope="module")
-def worlds(library, tmp_path_factory):
+def worlds(kitchen_library, tmp_path_factory):
     from stages.demos.kitchen import write_kitchen
 
     d = tmp_path_factory.mktemp("worlds")
-    return [write_kitchen(d / name, library, scene_id=name, rng=np.random.default_rng(seed))
+    return [write_kitchen(d / name, kitchen_library, scene_id=name, rng=np.random.default_rng(seed))
             for name, seed in (("a", 5), ("b", 5), ("c", 6))]
 
 
@@ -351,7 +328,7 @@ def test_demos_job_records_every_task_and_reports_success(tmp_path):
 
     out = tmp_path / "out"
     demos = {"name": "demos", "kind": "demos", "config": {"episodes_per_shard": 1, "width": 64, "height": 48}}
-    data = _catalog_job(out, [demos])
+    data = kitchen_job(out, [demos], name="demos_catalog")
     data["job"].update(executor="local", workers=2)
     summary = run_job(build_job(data, source="<test>", base_dir=tmp_path), progress=False)
     assert summary.status == "ok", summary

@@ -2,8 +2,8 @@
 default-catalog packages and the lights, drawn from the world's seed, written as overs in the scene
 layer, and seen by Newton (shape colours of the model) and by the camera light mapping.
 
-The catalog fixture generates the kitchen categories of the default catalog and ingests one package
-of each through the real job steps (as tests/stages/test_demos.py does, ~10 s).
+The kitchen catalog (the default catalog's kitchen categories, one package of each ingested by the
+real job steps) is the session's, from tests/stages/conftest.py.
 """
 
 from __future__ import annotations
@@ -13,24 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
-PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
-            "mug_04", "bowl_00", "can_00")
-
 
 @pytest.fixture(scope="module")
-def library(tmp_path_factory):
-    from pipeline import build_job, run_job
-    from stages.demos.kitchen import AssetLibrary
-
-    out = tmp_path_factory.mktemp("looks_catalog") / "out"
-    job = {"job": {"name": "looks_catalog", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": list(KITCHEN)}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
-    return AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+def library(kitchen_library):
+    """The kitchen catalog's packages (tests/stages/conftest.py, built once per session)."""
+    return kitchen_library
 
 
 @pytest.fixture(scope="module")

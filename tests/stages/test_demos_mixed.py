@@ -1,7 +1,8 @@
 """The demos job's mixed-task mode (``mixed = true``): one engine per kitchen runs every task.
 
-The catalog fixture generates the kitchen categories of the default catalog and ingests one package
-of each through the real job steps (~20 s). The fast job test runs one kitchen's engine of 2 worlds
+The catalog fixture is the session's kitchen catalog (tests/stages/conftest.py: the kitchen
+categories of the default catalog, one package of each ingested by the real job steps); each demos
+step runs in a copy of it. The fast job test runs one kitchen's engine of 2 worlds
 (CPU, MuJoCo C per world, no cameras) over 3 tasks with a 1 s episode limit and a 1.5 s bound on
 simulated time: world 0 runs episodes 0 and 2 (the second one cut), world 1 episode 1, so the
 report counts timeouts and an unfinished episode. The slow test runs 2 tasks to success in 2 worlds,
@@ -16,19 +17,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
-PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
-            "mug_04", "bowl_00", "can_00")
+from kitchen_testutil import copy_kitchen_catalog, kitchen_job
 
 
 def _job(out: Path, demos: dict | None = None) -> dict:
-    steps = [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": list(KITCHEN)}},
-             {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}}]
-    if demos is not None:
-        steps.append({"name": "demos", "kind": "demos", "config": demos})
-    return {"job": {"name": "demos_mixed", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-            "step": steps}
+    extra = None if demos is None else [{"name": "demos", "kind": "demos", "config": demos}]
+    return kitchen_job(out, extra, name="demos_mixed")
 
 
 def _run(out: Path, demos: dict | None = None):
@@ -38,22 +32,12 @@ def _run(out: Path, demos: dict | None = None):
 
 
 @pytest.fixture(scope="module")
-def catalog(tmp_path_factory) -> Path:
-    """The job's work dir after its catalog and ingest steps (the demos steps of the tests add to it)."""
+def catalog(kitchen_catalog) -> Path:
+    """The job's work dir after its catalog and ingest steps (the session's, tests/stages/conftest.py;
+    the demos steps of the tests run in copies of it)."""
     pytest.importorskip("newton")
     pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
-    out = tmp_path_factory.mktemp("mixed") / "out"
-    summary = _run(out)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
-    return out
-
-
-def _copy_catalog(catalog: Path, dst: Path) -> Path:
-    """A fresh work dir holding the catalog's results (the demos step of each test runs there)."""
-    import shutil
-
-    shutil.copytree(catalog, dst, symlinks=True)
-    return dst
+    return kitchen_catalog
 
 
 # -- configuration and planning (no simulation) -------------------------------------------------
@@ -101,7 +85,7 @@ def test_one_engine_runs_every_task_and_the_report_counts_timeouts_and_unfinishe
     from pipeline.types import derive_seed
     from stages.demos.mixed import MixedResult, plan_episodes
 
-    out = _copy_catalog(catalog, tmp_path / "out")
+    out = copy_kitchen_catalog(catalog, tmp_path / "out")
     tasks = ["push_object", "press_button", "open_drawer"]
     summary = _run(out, {"mixed": True, "tasks": tasks, "batch_worlds": 2, "episodes_per_task": 1,
                          "record_images": False, "max_seconds": 1.0, "max_sim_seconds": 1.5})
@@ -140,7 +124,7 @@ def test_mixed_episodes_succeed_load_with_lerobot_and_replay_from_their_seeds(ca
     from stages.demos.job import DemosConfig, plan_demos
     from stages.demos.mixed import record_mixed
 
-    out = _copy_catalog(catalog, tmp_path / "out")
+    out = copy_kitchen_catalog(catalog, tmp_path / "out")
     demos = {"mixed": True, "tasks": ["push_object", "pick_place_bowl"], "batch_worlds": 2, "episodes_per_task": 1,
              "record_images": False}
     summary = _run(out, demos)

@@ -42,9 +42,14 @@ def _train(policy: str, dataset: Path, out: Path):
 
 
 @pytest.fixture(scope="session")
-def eval_work(tmp_path_factory) -> Path:
-    """Where the evaluation kitchens are built (shared: built once)."""
-    return tmp_path_factory.mktemp("eval_work")
+def eval_work(kitchen_catalog, tmp_path_factory) -> Path:
+    """Where the evaluation kitchens are built (shared: built once); their catalog job is the session's
+    kitchen catalog (linked: its items come from the runner's cache)."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    work = tmp_path_factory.mktemp("eval_work")
+    link_kitchen_catalog(kitchen_catalog, work / "kitchens")
+    return work
 
 
 @pytest.fixture(scope="session")

@@ -127,25 +127,11 @@ def test_iteration_caps_are_counted_not_raised(pile, desc):
 
 # -- the demos task kitchen -----------------------------------------------------------------------
 
-KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
-PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
-            "mug_04", "bowl_00", "can_00")  # as tests/stages/test_demos.py
-
 
 @pytest.fixture(scope="module")
-def kitchen(tmp_path_factory):
-    from pipeline import build_job, run_job
-    from stages.demos.kitchen import AssetLibrary, write_kitchen
-
-    out = tmp_path_factory.mktemp("kitchen_catalog") / "out"
-    job = {"job": {"name": "contacts_kitchen", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": list(KITCHEN)}},
-                    {"name": "assets", "kind": "ingest",
-                     "config": {"catalog_step": "catalog", "only": list(PACKAGES)}}]}
-    run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
-    return write_kitchen(tmp_path_factory.mktemp("kitchen") / "a", lib, scene_id="a", rng=np.random.default_rng(5))
+def kitchen(kitchen_room):
+    """The kitchen of world seed 5 from the session's kitchen catalog (tests/stages/conftest.py)."""
+    return kitchen_room
 
 
 def test_the_demos_kitchen_default_sizing_does_not_overflow(kitchen, desc):
