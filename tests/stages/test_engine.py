@@ -52,6 +52,18 @@ def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: 
     return out
 
 
+# two worlds of one MuJoCo-Warp model: world 1 ends an episode at 0.1 s and is reset (at the next
+# sync point, 0.2 s) to a new one while world 0 is mid-episode until 0.4 s
+TWO_WORLDS = {0: [("press_button", 3, 0.4)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
+
+
+@pytest.fixture(scope="module")
+def batched_two(room, tmp_path_factory) -> dict:
+    """TWO_WORLDS run once in the ``batched`` layout, programs in threads, no holds: the reference
+    of the reset, worker-process and hold tests (the engine is deterministic)."""
+    return _run(room, tmp_path_factory.mktemp("batched_two"), "batched", TWO_WORLDS)
+
+
 def _assert_same_episode(a: dict, b: dict, key, *, exact_images: bool = True) -> None:
     """Same result, state and action; images equal. With ``exact_images`` False (one batched model):
     state and action within 1e-5 (MuJoCo-Warp keeps all worlds' contacts in one buffer, and another
@@ -76,10 +88,11 @@ def _assert_same_episode(a: dict, b: dict, key, *, exact_images: bool = True) ->
 
 
 def test_four_worlds_record_what_single_world_replays_record(room, tmp_path):
-    queues = {0: [("press_button", 3, 1.0), ("pick_place_bowl", 8, 0.8)],
-              1: [("pick_place_bowl", 4, 1.4)],
-              2: [("push_object", 5, 1.2)],
-              3: [("press_button", 6, 0.6)]}
+    # world 0's second episode starts from a reset (at about 0.6 s) while world 1 runs on to 1.0 s
+    queues = {0: [("press_button", 3, 0.6), ("pick_place_bowl", 8, 0.5)],
+              1: [("pick_place_bowl", 4, 1.0)],
+              2: [("push_object", 5, 0.7)],
+              3: [("press_button", 6, 0.4)]}
     batched = _run(room, tmp_path / "b", "per_world", queues)
     assert {k: v["world"] for k, v in batched.items()} == {
         ("press_button", 3): 0, ("pick_place_bowl", 8): 0, ("pick_place_bowl", 4): 1,
@@ -99,12 +112,11 @@ def test_four_worlds_record_what_single_world_replays_record(room, tmp_path):
         _assert_same_episode(batched[key], single[key], key)
 
 
-def test_a_world_reset_mid_run_leaves_the_other_world_of_a_batched_model_untouched(room, tmp_path):
-    # one MuJoCo-Warp model of 2 worlds: world 1 ends an episode at 0.1 s and is reset (at the
-    # next sync point, 0.2 s) to a new one while world 0 is mid-episode until 0.5 s
-    queues = {0: [("press_button", 3, 0.5)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
-    batched = _run(room, tmp_path / "b", "batched", queues)
-    alone_0 = _run(room, tmp_path / "s0", "batched", {0: [("press_button", 3, 0.5)]})
+def test_a_world_reset_mid_run_leaves_the_other_world_of_a_batched_model_untouched(room, batched_two,
+                                                                                   tmp_path):
+    # TWO_WORLDS: world 1 is reset to a new episode at 0.2 s while world 0 is mid-episode until 0.4 s
+    batched = batched_two
+    alone_0 = _run(room, tmp_path / "s0", "batched", {0: [("press_button", 3, 0.4)]})
     alone_1 = _run(room, tmp_path / "s1", "batched", {0: [("press_button", 6, 0.2)]})
     _assert_same_episode(batched[("press_button", 3)], alone_0[("press_button", 3)], "world 0",
                          exact_images=False)
@@ -114,38 +126,37 @@ def test_a_world_reset_mid_run_leaves_the_other_world_of_a_batched_model_untouch
                   - batched[("press_button", 3)]["frames"][0].state()).max() > 0.01
 
 
-def test_world_programs_in_worker_processes_record_what_threads_record(room, tmp_path):
+def test_world_programs_in_worker_processes_record_what_threads_record(room, batched_two, tmp_path):
     # the experts run in 2 worker processes (shared-memory state and commands); same episodes
-    queues = {0: [("press_button", 3, 0.3)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
-    threads = _run(room, tmp_path / "t", "batched", queues)
-    procs = _run(room, tmp_path / "p", "batched", queues, program_procs=2)
+    threads = batched_two
+    procs = _run(room, tmp_path / "p", "batched", TWO_WORLDS, program_procs=2)
     assert set(threads) == set(procs)
     for key in threads:
         _assert_same_episode(threads[key], procs[key], key)
 
 
 @pytest.mark.parametrize("layout", ["per_world", "batched"])
-def test_held_worlds_record_what_unheld_worlds_record(room, tmp_path, layout):
+def test_held_worlds_record_what_unheld_worlds_record(room, batched_two, tmp_path, layout):
     # a world held while its program "plans" (here: held by a fixed policy for 1-3 sync periods at
     # chosen requests) stands still while the other steps on; its episode is unchanged
-    queues = {0: [("press_button", 3, 0.4)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
     plan = {(0, 2): 1, (0, 5): 3, (1, 3): 2}
     stats: list = []
-    held = _run(room, tmp_path / "h", layout, queues, hold_policy=lambda w, k: plan.get((w, k), 0),
+    held = _run(room, tmp_path / "h", layout, TWO_WORLDS, hold_policy=lambda w, k: plan.get((w, k), 0),
                 stats_out=stats)
-    free = _run(room, tmp_path / "f", layout, queues)
+    free = batched_two if layout == "batched" else _run(room, tmp_path / "f", layout, TWO_WORLDS)
     assert stats[0].holds == 3 and stats[0].held_steps >= 6 * 50  # 6 sync periods of 50 steps
     assert set(held) == set(free)
     for key in free:
         _assert_same_episode(held[key], free[key], key, exact_images=layout == "per_world")
 
 
-def test_late_programs_in_worker_processes_are_held_and_record_what_threads_record(room, tmp_path):
+def test_late_programs_in_worker_processes_are_held_and_record_what_threads_record(room, batched_two,
+                                                                                   tmp_path):
     # program_wait=0: every world whose program has not answered at once is held until it has
-    queues = {0: [("press_button", 3, 0.3)], 1: [("push_object", 5, 0.1), ("press_button", 6, 0.2)]}
-    threads = _run(room, tmp_path / "t", "batched", queues)
+    threads = batched_two
     stats: list = []
-    procs = _run(room, tmp_path / "p", "batched", queues, program_procs=2, program_wait=0.0, stats_out=stats)
+    procs = _run(room, tmp_path / "p", "batched", TWO_WORLDS, program_procs=2, program_wait=0.0,
+                 stats_out=stats)
     assert stats[0].holds > 0
     assert set(threads) == set(procs)
     for key in threads:

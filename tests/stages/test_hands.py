@@ -44,18 +44,13 @@ def test_hand_spec_describes_what_robot_py_builds(tmp_path, shared_assets, kind)
 
 
 @pytest.fixture(scope="module")
-def packages(tmp_path_factory) -> dict:
-    """A mug and a can generated and ingested by the real catalog and ingest steps (~4 s)."""
-    from pipeline import build_job, run_job
+def packages(kitchen_catalog) -> dict:
+    """The mug and can of the session's kitchen catalog (tests/stages/conftest.py: generated and
+    ingested by the real catalog and ingest steps; the default catalog's variants do not depend on
+    which categories a job selects)."""
     from stages.demos.packages import CatalogAsset
 
-    out = tmp_path_factory.mktemp("hand_catalog") / "out"
-    job = {"job": {"name": "hands", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": ["mug", "can"]}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog",
-                                                                   "only": ["mug_04", "can_00"]}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
+    out = kitchen_catalog
     info = json.loads((out / "catalog" / "default" / "generated.json").read_text())
     return {a.category: a for a in (CatalogAsset(asset_id=i, category=info[i]["category"],
                                                  usd=out / "assets" / i / f"{i}.usda", info=info[i])

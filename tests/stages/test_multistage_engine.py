@@ -11,25 +11,12 @@ import pytest
 
 pytestmark = pytest.mark.slow
 
-KITCHEN = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table", "mug", "bowl", "can")
-PACKAGES = ("kitchen_counter_00", "microwave_00", "fridge_00", "oven_00", "door_00", "dining_table_00",
-            "mug_04", "bowl_00", "can_00")
-
 
 @pytest.fixture(scope="module")
-def room(tmp_path_factory):
+def room(kitchen_room):
+    """The kitchen of world seed 5 from the session's kitchen catalog (tests/stages/conftest.py)."""
     pytest.importorskip("newton")
-    from pipeline import build_job, run_job
-    from stages.demos.kitchen import AssetLibrary, write_kitchen
-
-    out = tmp_path_factory.mktemp("ms_catalog") / "out"
-    job = {"job": {"name": "ms", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": list(KITCHEN)}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}}]}
-    run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
-    return write_kitchen(out.parent / "kitchen", lib, scene_id="k", rng=np.random.default_rng(5))
+    return kitchen_room
 
 
 def test_heat_food_records_its_stages_and_succeeds(room, tmp_path):

@@ -142,7 +142,7 @@ def test_agentworld_eval_runs_one_episode_on_cpu(trained_act, eval_work, tmp_pat
 
     out = tmp_path / "eval"
     cmd = [sys.executable, "-m", "pipeline.cli", "eval", str(trained_act.checkpoint.parents[2].parent),
-           "--tasks", "push_object", "--scenes", "6", "--seeds", "9", "--worlds", "1", "--max-seconds", "1.0",
+           "--tasks", "push_object", "--scenes", "6", "--seeds", "9", "--worlds", "1", "--max-seconds", "0.5",
            "--videos", "1", "--out", str(out), "--work", str(eval_work)]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=REPO)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
@@ -150,10 +150,10 @@ def test_agentworld_eval_runs_one_episode_on_cpu(trained_act, eval_work, tmp_pat
     r = json.loads((out / "eval.json").read_text())
     (ep,) = r["episodes"]
     assert (ep["task"], ep["scene"], ep["seed"]) == ("push_object", "kitchen_ws6", 9)
-    assert ep["frames"] == 30 and ep["sim_seconds"] == pytest.approx(1.0, abs=1e-6)
+    assert ep["frames"] == 15 and ep["sim_seconds"] == pytest.approx(0.5, abs=1e-6)
     row = r["tasks"]["push_object"]
     assert row["episodes"] == 1 and row["successes"] == int(ep["success"])
-    if not ep["success"]:  # a 3-step policy in 1 s: the push predicate's reason is reported
+    if not ep["success"]:  # a 3-step policy in 0.5 s: the push predicate's reason is reported
         assert ep["reason"] and row["failures"] == {ep["reason"]: 1}
     assert r["families"] and r["policy"]["type"] == "act" and r["policy"]["temporal_ensemble_coeff"] == 0.01
     with av.open(ep["video"]) as c:
