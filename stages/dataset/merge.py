@@ -127,18 +127,27 @@ def _common_spec(shards: list[ShardInfo]) -> DatasetSpec:
 
 def _aggregate(shards: list[ShardInfo], tmp: Path, repo_id: str, spec: DatasetSpec,
                data_mb: float | None, video_mb: float | None) -> None:  # fmt: skip
+    import contextlib
+    import io
+    import logging
+
     import_lerobot()
     from lerobot.datasets.aggregate import aggregate_datasets
 
-    aggregate_datasets(
-        repo_ids=[f"agentworld/shard-{k:04d}" for k in range(len(shards))],
-        aggr_repo_id=repo_id,
-        roots=[s.path for s in shards],
-        aggr_root=tmp,
-        data_files_size_in_mb=data_mb or spec.data_files_size_mb,
-        video_files_size_in_mb=video_mb or spec.video_files_size_mb,
-        chunk_size=spec.chunk_size,
-    )
+    # lerobot's progress bars (tqdm on stderr) are third-party chatter: the job's log, not the console
+    with contextlib.redirect_stderr(io.StringIO()) as bars:
+        aggregate_datasets(
+            repo_ids=[f"agentworld/shard-{k:04d}" for k in range(len(shards))],
+            aggr_repo_id=repo_id,
+            roots=[s.path for s in shards],
+            aggr_root=tmp,
+            data_files_size_in_mb=data_mb or spec.data_files_size_mb,
+            video_files_size_in_mb=video_mb or spec.video_files_size_mb,
+            chunk_size=spec.chunk_size,
+        )
+    lines = [ln for ln in bars.getvalue().replace("\r", "\n").splitlines() if ln.strip()]
+    if lines:
+        logging.getLogger("lerobot.aggregate").info("%s", lines[-1])
 
 
 def _merged_sidecar(result: MergeResult, spec: DatasetSpec, shards: list[ShardInfo], repo_id: str) -> dict:

@@ -282,9 +282,10 @@ def test_render_contact_sheet_command(merged, tmp_path):
     assert cli([str(base / "merged"), "--out", str(out), "--episodes", "9"]) == 2
 
 
-def test_merge_datasets_of_runner_items(tmp_path):
+def test_merge_datasets_of_runner_items(tmp_path, capsys):
     """The runner-item pattern: each item writes <item>/dataset with EpisodeWriter (the runner renames the
-    item folder atomically); merge_datasets merges them in the given order."""
+    item folder atomically); merge_datasets merges them in the given order, quietly (lerobot's
+    progress bars do not reach the console)."""
     from stages.dataset import EpisodeWriter, merge_datasets
 
     spec = DatasetSpec(cameras=(CameraSpec("wrist", 16, 24),))
@@ -298,7 +299,9 @@ def test_merge_datasets_of_runner_items(tmp_path):
                     w.add_frame(synthetic_frame(spec, k, e, i))
                 w.end_episode(success=True)
         roots.append(root)
+    capsys.readouterr()
     result = merge_datasets(roots, tmp_path / "merged")
+    assert "Copy data and videos" not in capsys.readouterr().err
     assert result.shards == ("shard-0000", "shard-0001") and result.episodes == 3
     scenes = [r["scene_id"] for r in read_episode_columns(result.root)]
     assert scenes == ["scene-001", "scene-001", "scene-000"]
