@@ -185,7 +185,7 @@ class HandRetargeter:
                     "target_link_human_indices": [list(c.human_origin), list(c.human_task)]}
         else:
             cfg |= {"wrist_link_name": c.wrist_link, "finger_tip_link_names": list(c.tip_links)}
-        self.seq = RetargetingConfig.from_dict(cfg).build()
+        self.seq = _build_in_scratch(RetargetingConfig.from_dict(cfg))
         idx = np.asarray(self.seq.optimizer.target_link_human_indices)
         self._origin, self._task = idx[0], idx[1]
         self._pin_idx = np.asarray(self.seq.optimizer.idx_pin2target)
@@ -208,3 +208,16 @@ class HandRetargeter:
         q = self.seq.retarget(ref)  # (robot dof,) in Pinocchio's order
         self.calls += 1
         return np.asarray(q, float)[self._pin_idx]
+
+
+def _build_in_scratch(config):
+    """``config.build()`` with dex-retargeting's scratch copy of the URDF (a ``mkdtemp`` it never
+    removes) made in a temporary folder of ours, removed once the model is loaded."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="aw-retarget-") as scratch:
+        before, tempfile.tempdir = tempfile.tempdir, scratch
+        try:
+            return config.build()
+        finally:
+            tempfile.tempdir = before

@@ -5,6 +5,8 @@ hand onto the right, stay within the joint limits; malformed joint sets are reje
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -65,6 +67,16 @@ def test_targets_stay_within_the_hand_joint_limits(allegro):
     for flex in (-0.5, 0.0, 0.8, 1.6, 2.5):  # past what a hand can do, too
         q = _solve(allegro, synthetic_hand(flex), n=2)
         assert np.all(q >= lo - 2e-3) and np.all(q <= hi + 2e-3), (flex, q)
+
+
+def test_building_a_retargeter_leaves_no_scratch_folder(tmp_path):
+    import tempfile
+
+    root = Path(tempfile.gettempdir())
+    before = set(root.glob("dex_retargeting-*")) | set(root.glob("aw-retarget-*"))
+    HandRetargeter("allegro", tmp_path)
+    after = set(root.glob("dex_retargeting-*")) | set(root.glob("aw-retarget-*"))
+    assert after <= before, sorted(after - before)
 
 
 def test_shadow_fingers_flex_when_the_hand_closes(tmp_path, shared_assets):
