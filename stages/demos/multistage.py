@@ -46,7 +46,7 @@ import numpy as np
 
 from stages.demos.driver import Driver, ExpertFailure
 from stages.demos.experts import EXPERTS
-from stages.demos.record import EpisodeTimeout, base_pose
+from stages.demos.record import EpisodeTimeout
 from stages.demos.sampling import TaskInstance, sample_instance
 from stages.demos.tasks import TASKS, Family, TaskSpec
 
@@ -184,11 +184,11 @@ def sample_task(name: str, world, seed: int) -> TaskInstance:
     return replace(stage_insts[0], task=name, instruction=text, asset_ids=ids, joints=joints)
 
 
-def stage_instance(stage: Stage, inst: TaskInstance, state=None, base=None) -> TaskInstance:
+def stage_instance(stage: Stage, inst: TaskInstance, state=None) -> TaskInstance:
     """The instance stage ``stage`` of multistage episode ``inst`` runs: its skill's instance for
     the episode's seed, with the current object poses and scene joint positions of ``state``
-    (a :class:`~stages.simulate.state.StepState`) and the current base pose ``base`` (x, y, yaw)
-    when given (None: as sampled, i.e. the episode's start)."""
+    (a :class:`~stages.simulate.state.StepState`) when given (None: as sampled). Its
+    ``start_base`` stays as sampled: only a reset reads it, and a stage does not reset."""
     si = sample_instance(stage.skill, inst.world, inst.seed)
     if state is None:
         return replace(si, instruction=stage.instruction)
@@ -199,8 +199,7 @@ def stage_instance(stage: Stage, inst: TaskInstance, state=None, base=None) -> T
         yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         objects[body] = (*(float(v) for v in o.position), yaw)
     joints = {p: float(state.scene_joints[p]) for p in si.joints}
-    start = tuple(float(v) for v in base) if base is not None else si.start_base
-    return replace(si, instruction=stage.instruction, objects=objects, joints=joints, start_base=start)
+    return replace(si, instruction=stage.instruction, objects=objects, joints=joints)
 
 
 def run_stages(spec: MultistageSpec, inst: TaskInstance, d: Driver, *, peaks: Callable[[], dict],
@@ -214,8 +213,7 @@ def run_stages(spec: MultistageSpec, inst: TaskInstance, d: Driver, *, peaks: Ca
     for k, stage in enumerate(spec.stages):
         tag = f"s{k + 1}_{stage.skill}"
         on_stage(k)
-        si = stage_instance(stage, inst, read_state(d.sim), base_pose(d.sim)) if k else \
-            replace(sample_instance(stage.skill, inst.world, inst.seed), instruction=stage.instruction)
+        si = stage_instance(stage, inst, read_state(d.sim) if k else None)
         try:
             EXPERTS[stage.skill](si, d)
             d.step(0.3)

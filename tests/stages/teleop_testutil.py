@@ -52,6 +52,16 @@ def chromium() -> str:
     pytest.skip("no Chromium from the OS packages (.ci/run installs it: apt-get install chromium)")
 
 
+def launch_page(pw):
+    """(browser, page, errors) in the OS's Chromium under Playwright ``pw``: a new page whose
+    uncaught script errors collect in ``errors``."""
+    browser = pw.chromium.launch(executable_path=chromium(), args=["--no-sandbox"])
+    page = browser.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    return browser, page, errors
+
+
 # finger: (knuckle x, knuckle z) in the XR wrist frame of a right hand [m] (-z along the fingers,
 # +y out of the back of the hand, thumb toward -x), phalanx lengths [m]
 FINGERS = {"index": (-0.022, -0.090, (0.045, 0.026, 0.022)), "middle": (0.0, -0.092, (0.048, 0.029, 0.023)),

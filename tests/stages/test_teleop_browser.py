@@ -13,15 +13,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from teleop_testutil import ServerThread, wait_for
-
-
-def _chromium() -> str:
-    for name in ("chromium", "chromium-browser"):
-        path = shutil.which(name)
-        if path:
-            return path
-    pytest.skip("no Chromium from the OS packages (.ci/run installs it: apt-get install chromium)")
+from teleop_testutil import ServerThread, chromium, launch_page, wait_for
 
 
 @pytest.fixture
@@ -38,7 +30,7 @@ def _status(url: str) -> int:
 
 
 def test_browser_drives_the_robot_and_saves_an_episode(kitchen, tmp_path):
-    chromium = _chromium()
+    chromium()  # skips without the OS's Chromium
     sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright (pip) drives the browser")
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
@@ -56,10 +48,7 @@ def test_browser_drives_the_robot_and_saves_an_episode(kitchen, tmp_path):
             assert _status(base + path + "?token=wrong") == 401, path
         assert _status(srv.url) == 200
         with sync_api.sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
-            page = browser.new_page()
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
+            browser, page, errors = launch_page(pw)
             assert page.goto(base).status == 401
             assert page.goto(srv.url).status == 200
             # polled with evaluate (the page's content policy forbids the eval of wait_for_function)
@@ -182,7 +171,7 @@ def test_emulated_headset_wrist_drives_the_hand_and_a_pinch_closes_the_gripper(k
     """IWER (vendored from npm) emulates a Quest 3 with hand tracking in the page: the page's WebXR
     session streams head and 25 hand-joint poses; the wrist moves the end effector to the commanded
     pose (within 1 cm and 5 degrees), a pinch closes the gripper, and the episode is saved as webxr."""
-    chromium = _chromium()
+    chromium()  # skips without the OS's Chromium
     sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright (pip) drives the browser")
     from scipy.spatial.transform import Rotation
 
@@ -200,10 +189,7 @@ def test_emulated_headset_wrist_drives_the_hand_and_a_pinch_closes_the_gripper(k
               "h.quaternion.z, h.quaternion.w]})"
     try:
         with sync_api.sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
-            page = browser.new_page()
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
+            browser, page, errors = launch_page(pw)
             page.goto(srv.url + "&emulate=1")
             wait_for(lambda: page.evaluate("() => window.teleopState.frames > 1"), what="the first frames")
             page.click("#btn-start")

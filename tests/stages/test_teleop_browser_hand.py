@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from teleop_testutil import ServerThread, chromium, wait_for
+from teleop_testutil import ServerThread, chromium, launch_page, wait_for
 
 pytest.importorskip("dex_retargeting", reason="dex-retargeting (pip) retargets the hands")
 
@@ -20,7 +20,7 @@ HAND = slice(17, 33)  # the Allegro's 16 joints: state after arm (7), ee pose (7
 
 
 def test_emulated_hand_fingers_drive_the_allegro_hand(teleop_world, tmp_path):
-    exe = chromium()
+    chromium()  # skips without the OS's Chromium
     sync_api = pytest.importorskip("playwright.sync_api", reason="Playwright (pip) drives the browser")
     import pyarrow.parquet as pq
 
@@ -37,10 +37,7 @@ def test_emulated_hand_fingers_drive_the_allegro_hand(teleop_world, tmp_path):
     ends = {}
     try:
         with sync_api.sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=exe, args=["--no-sandbox"])
-            page = browser.new_page()
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
+            browser, page, errors = launch_page(pw)
             page.goto(srv.url + "&emulate=1")
             wait_for(lambda: page.evaluate("() => window.teleopState.frames > 1"), what="the first frames")
             page.click("#btn-start")
