@@ -294,6 +294,9 @@ class BatchEngine:
         ``program_procs``)."""
         stop_at = None if max_steps is None else self.global_step + max_steps
         self._begin, self._end = begin, end
+        self.rec_active[:] = 0  # episodes a previous run abandoned (max_steps) record no more frames
+        for rec in self.recs:
+            rec.sink = None
         self.__dict__.pop("_views", None)
         if act is not None and self.config.program_procs:
             raise ValueError("engine: act (a custom episode driver) runs in threads, not with program_procs")

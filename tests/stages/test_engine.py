@@ -261,3 +261,24 @@ def test_shards_written_by_writer_processes_equal_shards_written_by_the_engine(r
                         for p in sorted(root.rglob("*")) if p.is_file() and p.name != "agentworld.json"}
     assert files[0] == files[2]
     assert sum(k.endswith(".mp4") for k in files[0]) == 3 * 3  # 3 episodes x 3 cameras
+
+
+def test_a_run_cut_by_max_steps_leaves_no_recording_to_the_next_run(room, tmp_path):
+    """An episode a run abandons (``max_steps``) records nothing more. With worker processes and
+    holds, the next run's first frame steps (its world still planning, not yet held) went to the
+    abandoned episode's sink: a closed shard in the GPU benchmark, whose timed run then failed."""
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path / "e",
+                      config=EngineConfig(worlds=1, width=64, height=48, layout="batched", program_procs=1,
+                                          program_wait=0.01))
+    first: list = []
+    eng.run(Listed(room, {0: [("press_button", 3, 2.0)]}), begin=lambda w, inst: first.append,
+            max_steps=8 * eng.sync_period)
+    assert first, "the first run recorded frames before it was cut"
+    cut = len(first)
+    second: list = []
+    eng.run(Listed(room, {0: [("push_object", 5, 0.2)]}), begin=lambda w, inst: second.append)
+    assert len(first) == cut
+    assert second
