@@ -38,6 +38,8 @@ log = logging.getLogger(__name__)
 CONTACTS_PER_BODY = 24  # contact capacity per body (multi-CCD: up to 4 points per touching pair)
 ROWS_PER_CONTACT = 6    # constraint rows per contact (elliptic cone, condim 3) plus joint/limit rows
 SPACING = 40.0  # [m] between neighbouring scenes of a batch (a house is at most ~25 m across)
+CAPACITY_STEP = 1024  # contact / constraint capacities are rounded up to a power of two times this:
+# MuJoCo-Warp specialises (compiles) kernels on njmax, so models of similar size share their kernels
 _PARSED: dict[str, object] = {}  # usd path -> ModelBuilder of that package / layout (this process)
 
 
@@ -119,10 +121,23 @@ def offset(k: int, side: int) -> tuple[float, float]:
     return (c - (side - 1) / 2) * SPACING, (r - (side - 1) / 2) * SPACING
 
 
+def capacity(n: int) -> int:
+    """``n`` rounded up to ``CAPACITY_STEP`` times a power of two."""
+    c = CAPACITY_STEP
+    while c < n:
+        c *= 2
+    return c
+
+
 def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: float = 2.0, tolerance: float = 0.01,
-                 dt: float = 1.0 / 250.0, progress: bool = True) -> BatchSettle:
-    """Settle ``scenes`` together (one world each) for ``seconds`` [s] on ``device`` and report per
-    scene which instances moved more than ``tolerance`` [m] (see the module docstring)."""
+                 dt: float = 1.0 / 250.0, progress: bool = True, cuda_graph: bool = False) -> BatchSettle:
+    """Settle ``scenes`` together (side by side in one world) for ``seconds`` [s] on ``device`` and
+    report per scene which instances moved more than ``tolerance`` [m] (see the module docstring).
+
+    Cost grows faster than the number of scenes (MuJoCo-Warp's model upload enumerates every geom
+    pair, the Newton solver factorises a dense nv x nv matrix per world): settle many scenes in
+    chunks of a few (``stages.scene.settle_pool``). ``cuda_graph``: step through a captured CUDA
+    graph of two steps (CUDA devices only; fewer launches from the CPU)."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
     from tqdm import tqdm
@@ -146,14 +161,29 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         model = builder.finalize(device=device)
         solver = SolverMuJoCo(model, use_mujoco_cpu=False, iterations=50, ls_iterations=20, integrator="implicitfast",
                               cone="elliptic", impratio=IMPRATIO, use_mujoco_contacts=True, enable_multiccd=True,
-                              separate_worlds=False, nconmax=CONTACTS_PER_BODY * model.body_count + 64,
-                              njmax=ROWS_PER_CONTACT * (CONTACTS_PER_BODY * model.body_count + 64))
+                              separate_worlds=False, nconmax=capacity(CONTACTS_PER_BODY * model.body_count + 64),
+                              njmax=capacity(ROWS_PER_CONTACT * (CONTACTS_PER_BODY * model.body_count + 64)))
         s0, s1, control = model.state(), model.state(), model.control()
         secs["finalize"] = time.perf_counter() - t
         t = time.perf_counter()
         q0 = s0.body_q.numpy().astype(np.float64)
         steps = max(1, round(seconds / dt))
-        for _ in tqdm(range(steps), desc="settle worlds", unit="step", disable=not progress, leave=False):
+        graph = None
+        if cuda_graph and wp.get_device(device).is_cuda and steps >= 2:
+            solver.step(s0, s1, control, None, dt)  # the first step outside the capture (lazy allocations)
+            s0, s1 = s1, s0
+            steps_left = steps - 1
+            with wp.ScopedCapture(device=device) as cap:
+                solver.step(s0, s1, control, None, dt)
+                solver.step(s1, s0, control, None, dt)
+            graph = cap.graph
+            for _ in range(steps_left // 2):  # the capture itself ran nothing
+                wp.capture_launch(graph)
+            if steps_left % 2:
+                solver.step(s0, s1, control, None, dt)
+                s0, s1 = s1, s0
+        for _ in tqdm(range(0 if graph is not None else steps), desc="settle worlds", unit="step",
+                      disable=not progress, leave=False):
             solver.step(s0, s1, control, None, dt)
             s0, s1 = s1, s0
         q1 = s0.body_q.numpy().astype(np.float64)
