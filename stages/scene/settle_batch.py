@@ -40,6 +40,8 @@ ROWS_PER_CONTACT = 6    # constraint rows per contact (elliptic cone, condim 3) 
 SPACING = 40.0  # [m] between neighbouring scenes of a batch (a house is at most ~25 m across)
 CAPACITY_STEP = 1024  # contact / constraint capacities are rounded up to a power of two times this:
 # MuJoCo-Warp specialises (compiles) kernels on njmax, so models of similar size share their kernels
+DOF_STEP = 32  # degrees of freedom are padded up to a multiple of this (kernels are specialised on nv)
+PAD_PREFIX = "/Padding/"
 _PARSED: dict[str, object] = {}  # usd path -> ModelBuilder of that package / layout (this process)
 
 
@@ -115,6 +117,25 @@ def build_worlds(scenes: Sequence[Path]):
     return main, starts
 
 
+def pad_dofs(builder, step: int = DOF_STEP) -> int:
+    """Add bodies of one revolute degree of freedom each (no shapes, centre of mass on the vertical
+    axis: gravity leaves them at rest) until the builder's degrees of freedom are a multiple of
+    ``step``, so that chunks of different sizes share MuJoCo-Warp's nv-specialised kernels (each new
+    nv is a kernel compile); the number of bodies added."""
+    import warp as wp
+
+    n = (-builder.joint_dof_count) % step if step > 0 else 0
+    for k in range(n):
+        b = builder.add_link(xform=wp.transform(wp.vec3(0.0, 0.0, -100.0 - k), wp.quat_identity()), mass=1.0,
+                             inertia=wp.mat33(0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.01),
+                             label=f"{PAD_PREFIX}body_{k}")
+        j = builder.add_joint_revolute(-1, b, parent_xform=wp.transform(wp.vec3(0.0, 0.0, -100.0 - k),
+                                                                       wp.quat_identity()),
+                                       axis=(0.0, 0.0, 1.0), label=f"{PAD_PREFIX}joint_{k}")
+        builder.add_articulation([j], label=f"{PAD_PREFIX}articulation_{k}")
+    return n
+
+
 def offset(k: int, side: int) -> tuple[float, float]:
     """(x, y) offset [m] of scene k on a grid of ``side`` columns, centred on the origin."""
     r, c = divmod(k, side)
@@ -130,14 +151,16 @@ def capacity(n: int) -> int:
 
 
 def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: float = 2.0, tolerance: float = 0.01,
-                 dt: float = 1.0 / 250.0, progress: bool = True, cuda_graph: bool = False) -> BatchSettle:
+                 dt: float = 1.0 / 250.0, progress: bool = True, cuda_graph: bool = False,
+                 dof_step: int = DOF_STEP) -> BatchSettle:
     """Settle ``scenes`` together (side by side in one world) for ``seconds`` [s] on ``device`` and
     report per scene which instances moved more than ``tolerance`` [m] (see the module docstring).
 
     Cost grows faster than the number of scenes (MuJoCo-Warp's model upload enumerates every geom
     pair, the Newton solver factorises a dense nv x nv matrix per world): settle many scenes in
     chunks of a few (``stages.scene.settle_pool``). ``cuda_graph``: step through a captured CUDA
-    graph of two steps (CUDA devices only; fewer launches from the CPU)."""
+    graph of two steps (CUDA devices only; fewer launches from the CPU). ``dof_step``: see
+    ``pad_dofs`` (0: no padding); ``bodies`` counts the scenes' bodies only."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
     from tqdm import tqdm
@@ -147,6 +170,7 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     secs: dict[str, float] = {}
     t = time.perf_counter()
     builder, starts = build_worlds(scenes)
+    padding = pad_dofs(builder, dof_step)
     secs["build"] = time.perf_counter() - t
     labels = list(builder.body_label)
     body_world = np.searchsorted(np.asarray(starts), np.arange(builder.body_count), side="right") - 1
@@ -196,8 +220,8 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         moved[w][inst] = max(moved[w].get(inst, 0.0), d)
     offenders = tuple(tuple(sorted(k for k, v in m.items() if v > tolerance)) for m in moved)
     return BatchSettle(scenes=tuple(Path(s) for s in scenes), moved=tuple(moved), offenders=offenders,
-                       passed=tuple(not o for o in offenders), bodies=model.body_count, shapes=model.shape_count,
-                       simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
+                       passed=tuple(not o for o in offenders), bodies=model.body_count - padding,
+                       shapes=model.shape_count, simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
 
 
 def _apply(q: np.ndarray, p: np.ndarray) -> np.ndarray:

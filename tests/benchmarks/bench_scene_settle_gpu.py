@@ -162,10 +162,10 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
              f"{max(0.0, deadline - time.perf_counter()):.0f} s more")
         opts["warmup_s"] = round(warmup, 2)
         results: list = []
-        t0 = last = time.perf_counter()
+        t0 = last = t_end = time.perf_counter()
         for r in pool.run(scenes, chunk, deadline):
             results.append(r)
-            now = time.perf_counter()
+            now = t_end = time.perf_counter()
             if now - last >= 5.0 or len(results) * chunk >= n:
                 last = now
                 out = _figures(results, n, now - t0, opts)
@@ -174,7 +174,7 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
                      f"passed {out['passed']}, validation errors {out['validation_errors']}")
                 if out_json is not None:
                     out_json.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    out = _figures(results, n, (time.perf_counter() - t0) if results else 0.0, opts)
+    out = _figures(results, n, t_end - t0, opts)  # to the last chunk's end (not the workers' exit)
     out["complete"] = out["scenes"] == n
     if out_json is not None:
         out_json.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")

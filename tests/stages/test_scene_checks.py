@@ -270,3 +270,22 @@ def test_settle_pool_workers_agree_with_the_serial_path(world, tmp_path):
             assert m.keys() == s.settle.moved[0].keys()
             assert all(abs(m[i] - v) < 1e-4 for i, v in s.settle.moved[0].items()), (m, s.settle.moved[0])
     assert serial[1].settle.offenders == ((lifted["name"],),)
+
+
+@needs_newton_usd
+def test_dof_padding_leaves_the_settle_unchanged(world, tmp_path):
+    """Padding a model's degrees of freedom to a multiple of 32 (shared kernels across chunk sizes)
+    adds only bodies that stay still: the same bodies counted, the same displacements."""
+    from stages.scene.settle_batch import build_worlds, pad_dofs, settle_batch
+
+    _scene(world, 5, tmp_path / "s5")
+    scenes = [tmp_path / "s5" / "scene.usda"]
+    builder, _ = build_worlds(scenes)
+    n = builder.body_count
+    added = pad_dofs(builder, 32)
+    assert builder.joint_dof_count % 32 == 0 and builder.body_count == n + added
+    padded = settle_batch(scenes, device="cpu", seconds=0.2, progress=False)
+    plain = settle_batch(scenes, device="cpu", seconds=0.2, progress=False, dof_step=0)
+    assert padded.bodies == plain.bodies == n and padded.offenders == plain.offenders
+    assert padded.moved[0].keys() == plain.moved[0].keys()
+    assert all(abs(padded.moved[0][k] - v) < 1e-5 for k, v in plain.moved[0].items())
