@@ -123,11 +123,12 @@ def _figures(results: list, n_asked: int, elapsed: float, opts: dict) -> dict:
 
 def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str, int], progress: bool = True,
         procs: int = 1, *, chunk: int = 1, per_device: int = 1, max_seconds: float = 180.0,
-        cuda_graph: bool = False, out_json: Path | None = None) -> dict:
+        cuda_graph: bool = False, out_json: Path | None = None, reuse: bool = False) -> dict:
     """Populate ``n`` scenes (not timed), fill the package check cache (not timed), warm the workers
-    up on one chunk each (kernel compile, package parse; timed apart), then settle + validate all
-    ``n`` in chunks of ``chunk`` on ``devices`` with ``per_device`` workers each (0: in this process),
-    starting no chunk after ``max_seconds`` [s] from the warm-up's start. Prints progress and the
+    up (one chunk alone: kernel compile; then one chunk per worker: package parse; not timed), then
+    settle + validate all ``n`` in chunks of ``chunk`` on ``devices`` with ``per_device`` workers each
+    (0: in this process), starting no chunk after ``max_seconds`` [s] of that. ``reuse``: scenes
+    already in ``work`` (an earlier run's) are used instead of populating. Prints progress and the
     figures as it goes, writes them to ``out_json`` each time; returns them."""
     from concurrent.futures import ProcessPoolExecutor
     import multiprocessing as mp
@@ -135,7 +136,11 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
     from stages.scene.settle_pool import SettlePool, scene_packages
 
     t = time.perf_counter()
-    scenes, _, cache_dir = make_scenes(n, work, rooms, progress, procs)
+    have = sorted(work.glob("scenes/s*/scene.json"), key=lambda p: int(p.parent.name[1:]))
+    if reuse and len(have) >= n:
+        scenes, cache_dir = [p.parent / "scene.usda" for p in have[:n]], work / "scene_checks"
+    else:
+        scenes, _, cache_dir = make_scenes(n, work, rooms, progress, procs)
     _say(f"[populate] {len(scenes)} scenes in {time.perf_counter() - t:.1f} s (not timed)")
     t = time.perf_counter()
     pkgs = sorted({str(p) for s in scenes for p in scene_packages(s)})
@@ -150,19 +155,20 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
             "cuda_graph": cuda_graph, "max_seconds": max_seconds}
     out: dict = {}
     t_start = time.perf_counter()
-    deadline = t_start + max_seconds
     with SettlePool(devices, per_device, seconds=seconds, cache_dir=cache_dir, cuda_graph=cuda_graph) as pool:
-        warm = scenes[:pool.workers * chunk]
-        _say(f"[warmup] {pool.workers} workers on {devices}: one chunk of {chunk} each ({len(warm)} scenes)")
-        for r in pool.run(warm, chunk, deadline):
-            _say(f"[warmup] pid {r.pid} {r.device}: {len(r.settle.scenes)} scenes, {r.settle.bodies} bodies, "
-                 f"split {r.seconds} at {time.perf_counter() - t_start:.1f} s")
+        # one chunk alone first (it compiles the kernels into Warp's disk cache), then one per worker
+        for stage, warm in (("compile", scenes[:chunk]), ("workers", scenes[:pool.workers * chunk])):
+            _say(f"[warmup {stage}] {len(warm)} scenes on {pool.workers} workers ({devices})")
+            for r in pool.run(warm, chunk):
+                _say(f"[warmup {stage}] pid {r.pid} {r.device}: {len(r.settle.scenes)} scenes, "
+                     f"{r.settle.bodies} bodies, split {r.seconds} at {time.perf_counter() - t_start:.1f} s")
         warmup = time.perf_counter() - t_start
-        _say(f"[warmup] done in {warmup:.1f} s; timed: {n} scenes, no chunk starts after "
-             f"{max(0.0, deadline - time.perf_counter()):.0f} s more")
+        _say(f"[warmup] done in {warmup:.1f} s (not timed); timed: {n} scenes, no chunk starts after "
+             f"{max_seconds:.0f} s")
         opts["warmup_s"] = round(warmup, 2)
         results: list = []
         t0 = last = t_end = time.perf_counter()
+        deadline = t0 + max_seconds
         for r in pool.run(scenes, chunk, deadline):
             results.append(r)
             now = t_end = time.perf_counter()
@@ -201,9 +207,10 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--procs-per-device", type=int, default=1,
                     help="settling worker processes per device (0: settle in this process)")
     ap.add_argument("--max-seconds", type=float, default=180.0,
-                    help="no chunk starts after this many seconds from the warm-up's start [s]")
+                    help="no chunk of the timed part starts after this many seconds of it [s]")
     ap.add_argument("--cuda-graph", action="store_true", help="step through a captured CUDA graph")
     ap.add_argument("--work", type=Path, default=None, help="work folder (default: a temporary one)")
+    ap.add_argument("--reuse", action="store_true", help="use the scenes an earlier run left in --work")
     a = ap.parse_args(argv)
     rooms = {r: 1 for r in a.rooms.split(",") if r}
     devices = _devices(a.device)
@@ -212,7 +219,8 @@ def main(argv: list[str] | None = None) -> dict:
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="aw_settle_") as d:
         out = run(devices, a.scenes, a.seconds, Path(a.work or d), rooms, procs=a.populate_procs, chunk=a.chunk,
-                  per_device=a.procs_per_device, max_seconds=a.max_seconds, cuda_graph=a.cuda_graph, out_json=path)
+                  per_device=a.procs_per_device, max_seconds=a.max_seconds, cuda_graph=a.cuda_graph, out_json=path,
+                  reuse=a.reuse)
     print(json.dumps(out, indent=1))
     print(f"{out['scenes_per_hour']:.0f} settled + validated scenes per hour on {','.join(devices)} "
           f"({out['scenes']}/{a.scenes} scenes, chunks of {a.chunk}, {a.procs_per_device} workers per device; "
