@@ -6,7 +6,8 @@ per-package cache filled once, as a job's work dir keeps it). Prints, as chunks 
 hour and the workers' split per scene (model build, finalize, simulate, validate), and writes
 bench_results/scene_settle_<device>.json each time; no chunk starts after ``--max-seconds``.
 
-    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 256 --procs-per-device 4
+    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 128 --populate-procs 56 \
+        --procs-per-device 8 --max-seconds 90
     python tests/benchmarks/bench_scene_settle_gpu.py --device cpu --scenes 2 --seconds 0.2
 """
 
@@ -157,7 +158,8 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
     t_start = time.perf_counter()
     with SettlePool(devices, per_device, seconds=seconds, cache_dir=cache_dir, cuda_graph=cuda_graph) as pool:
         # one chunk alone first (it compiles the kernels into Warp's disk cache), then one per worker
-        for stage, warm in (("compile", scenes[:chunk]), ("workers", scenes[:pool.workers * chunk])):
+        stages = [("compile", scenes[:chunk])] + ([("workers", scenes[:pool.workers * chunk])] if pool.workers > 1 else [])
+        for stage, warm in stages:
             _say(f"[warmup {stage}] {len(warm)} scenes on {pool.workers} workers ({devices})")
             for r in pool.run(warm, chunk):
                 _say(f"[warmup {stage}] pid {r.pid} {r.device}: {len(r.settle.scenes)} scenes, "
