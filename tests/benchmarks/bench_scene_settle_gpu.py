@@ -158,7 +158,9 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
     t_start = time.perf_counter()
     with SettlePool(devices, per_device, seconds=seconds, cache_dir=cache_dir, cuda_graph=cuda_graph) as pool:
         # one chunk alone first (it compiles the kernels into Warp's disk cache), then one per worker
-        stages = [("compile", scenes[:chunk])] + ([("workers", scenes[:pool.workers * chunk])] if pool.workers > 1 else [])
+        stages = [("compile", scenes[:chunk])]
+        if pool.workers > 1:
+            stages.append(("workers", scenes[:pool.workers * chunk]))
         for stage, warm in stages:
             _say(f"[warmup {stage}] {len(warm)} scenes on {pool.workers} workers ({devices})")
             for r in pool.run(warm, chunk):
