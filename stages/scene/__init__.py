@@ -14,7 +14,9 @@ Public surface (pxr/newton are imported inside the functions, never at import ti
     rest.analytic_rest(populator, needs_package_check) -> RestProof  # rest proven by statics (COM in contact)
     validation.validate_scene(scene_usd, packages, CheckCache) -> SceneValidation
         # packages once per content hash (checkcache), per scene only what composition adds
-    settle_batch.settle_batch(scenes, device="cuda:0") -> BatchSettle   # many scenes, one MuJoCo-Warp model
+    settle_batch.settle_batch(scenes, device="cuda:0") -> BatchSettle   # a few scenes, one MuJoCo-Warp model
+    settle_pool.SettlePool(devices, procs_per_device).run(scenes, chunk) -> Iterator[ChunkResult]
+        # many scenes: chunks settled + validated by worker processes per device, as they finish
     settle.settle_check(scene_usd, seconds=2.0, tolerance=0.01, early_exit=StillExit(), instances=None)
         # Newton add_usd + MuJoCo; stops early only once every body is still (see StillExit) (None: full 2 s)
     render.contact_sheet(scene_usds, out_png) -> Path                # `agentworld render-scenes`

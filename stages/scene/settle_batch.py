@@ -38,7 +38,12 @@ log = logging.getLogger(__name__)
 CONTACTS_PER_BODY = 24  # contact capacity per body (multi-CCD: up to 4 points per touching pair)
 ROWS_PER_CONTACT = 6    # constraint rows per contact (elliptic cone, condim 3) plus joint/limit rows
 SPACING = 40.0  # [m] between neighbouring scenes of a batch (a house is at most ~25 m across)
+CAPACITY_STEP = 1024  # contact / constraint capacities are rounded up to a power of two times this:
+# MuJoCo-Warp specialises (compiles) kernels on njmax, so models of similar size share their kernels
+DOF_STEP = 32  # degrees of freedom are padded up to a multiple of this (kernels are specialised on nv)
+PAD_PREFIX = "/Padding/"
 _PARSED: dict[str, object] = {}  # usd path -> ModelBuilder of that package / layout (this process)
+_HULLS: dict[tuple[int, bool], object] = {}  # (mesh content hash, certify) -> Newton's hull adjacency
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,27 @@ def _parsed(usd: Path):
         b.add_usd(key, load_visual_shapes=False, load_static_visual_shapes=False)
         _PARSED[key] = b
     return _PARSED[key]
+
+
+def _keep_hull_adjacency() -> None:
+    """Newton's ``finalize`` derives each convex collider's hull adjacency (pure Python, a third of a
+    one-house model's CPU time) once per finalize, keyed by the mesh's content hash; a process that
+    finalizes chunk after chunk of houses built from the same packages keeps them here under the
+    same key (the result depends only on the mesh's vertices and indices)."""
+    from newton._src.sim import builder as nb
+
+    f = getattr(nb, "_convex_hull_adjacency", None)
+    if f is None or getattr(f, "_kept", False):
+        return
+
+    def kept(source, *, certify: bool = True):
+        k = (hash(source), bool(certify))
+        if k not in _HULLS:
+            _HULLS[k] = f(source, certify=certify)
+        return _HULLS[k]
+
+    kept._kept = True
+    nb._convex_hull_adjacency = kept
 
 
 def scene_layout(scene_usd: Path) -> Path:
@@ -113,16 +139,50 @@ def build_worlds(scenes: Sequence[Path]):
     return main, starts
 
 
+def pad_dofs(builder, step: int = DOF_STEP) -> int:
+    """Add bodies of one revolute degree of freedom each (no shapes, centre of mass on the vertical
+    axis: gravity leaves them at rest) until the builder's degrees of freedom are a multiple of
+    ``step``, so that chunks of different sizes share MuJoCo-Warp's nv-specialised kernels (each new
+    nv is a kernel compile); the number of bodies added."""
+    import warp as wp
+
+    n = (-builder.joint_dof_count) % step if step > 0 else 0
+    for k in range(n):
+        b = builder.add_link(xform=wp.transform(wp.vec3(0.0, 0.0, -100.0 - k), wp.quat_identity()), mass=1.0,
+                             inertia=wp.mat33(0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.01),
+                             label=f"{PAD_PREFIX}body_{k}")
+        j = builder.add_joint_revolute(-1, b, parent_xform=wp.transform(wp.vec3(0.0, 0.0, -100.0 - k),
+                                                                       wp.quat_identity()),
+                                       axis=(0.0, 0.0, 1.0), label=f"{PAD_PREFIX}joint_{k}")
+        builder.add_articulation([j], label=f"{PAD_PREFIX}articulation_{k}")
+    return n
+
+
 def offset(k: int, side: int) -> tuple[float, float]:
     """(x, y) offset [m] of scene k on a grid of ``side`` columns, centred on the origin."""
     r, c = divmod(k, side)
     return (c - (side - 1) / 2) * SPACING, (r - (side - 1) / 2) * SPACING
 
 
+def capacity(n: int) -> int:
+    """``n`` rounded up to ``CAPACITY_STEP`` times a power of two."""
+    c = CAPACITY_STEP
+    while c < n:
+        c *= 2
+    return c
+
+
 def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: float = 2.0, tolerance: float = 0.01,
-                 dt: float = 1.0 / 250.0, progress: bool = True) -> BatchSettle:
-    """Settle ``scenes`` together (one world each) for ``seconds`` [s] on ``device`` and report per
-    scene which instances moved more than ``tolerance`` [m] (see the module docstring)."""
+                 dt: float = 1.0 / 250.0, progress: bool = True, cuda_graph: bool = False,
+                 dof_step: int = DOF_STEP) -> BatchSettle:
+    """Settle ``scenes`` together (side by side in one world) for ``seconds`` [s] on ``device`` and
+    report per scene which instances moved more than ``tolerance`` [m] (see the module docstring).
+
+    Cost grows faster than the number of scenes (MuJoCo-Warp's model upload enumerates every geom
+    pair, the Newton solver factorises a dense nv x nv matrix per world): settle many scenes in
+    chunks of a few (``stages.scene.settle_pool``). ``cuda_graph``: step through a captured CUDA
+    graph of two steps (CUDA devices only; fewer launches from the CPU). ``dof_step``: see
+    ``pad_dofs`` (0: no padding); ``bodies`` counts the scenes' bodies only."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
     from tqdm import tqdm
@@ -132,6 +192,7 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     secs: dict[str, float] = {}
     t = time.perf_counter()
     builder, starts = build_worlds(scenes)
+    padding = pad_dofs(builder, dof_step)
     secs["build"] = time.perf_counter() - t
     labels = list(builder.body_label)
     body_world = np.searchsorted(np.asarray(starts), np.arange(builder.body_count), side="right") - 1
@@ -141,19 +202,35 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
             pts.setdefault(b, []).append(p)
     bodies = sorted(pts)
     points = [np.vstack(pts[b]) for b in bodies]
+    _keep_hull_adjacency()
     with wp.ScopedDevice(device):
         t = time.perf_counter()
         model = builder.finalize(device=device)
         solver = SolverMuJoCo(model, use_mujoco_cpu=False, iterations=50, ls_iterations=20, integrator="implicitfast",
                               cone="elliptic", impratio=IMPRATIO, use_mujoco_contacts=True, enable_multiccd=True,
-                              separate_worlds=False, nconmax=CONTACTS_PER_BODY * model.body_count + 64,
-                              njmax=ROWS_PER_CONTACT * (CONTACTS_PER_BODY * model.body_count + 64))
+                              separate_worlds=False, nconmax=capacity(CONTACTS_PER_BODY * model.body_count + 64),
+                              njmax=capacity(ROWS_PER_CONTACT * (CONTACTS_PER_BODY * model.body_count + 64)))
         s0, s1, control = model.state(), model.state(), model.control()
         secs["finalize"] = time.perf_counter() - t
         t = time.perf_counter()
         q0 = s0.body_q.numpy().astype(np.float64)
         steps = max(1, round(seconds / dt))
-        for _ in tqdm(range(steps), desc="settle worlds", unit="step", disable=not progress, leave=False):
+        graph = None
+        if cuda_graph and wp.get_device(device).is_cuda and steps >= 2:
+            solver.step(s0, s1, control, None, dt)  # the first step outside the capture (lazy allocations)
+            s0, s1 = s1, s0
+            steps_left = steps - 1
+            with wp.ScopedCapture(device=device) as cap:
+                solver.step(s0, s1, control, None, dt)
+                solver.step(s1, s0, control, None, dt)
+            graph = cap.graph
+            for _ in range(steps_left // 2):  # the capture itself ran nothing
+                wp.capture_launch(graph)
+            if steps_left % 2:
+                solver.step(s0, s1, control, None, dt)
+                s0, s1 = s1, s0
+        for _ in tqdm(range(0 if graph is not None else steps), desc="settle worlds", unit="step",
+                      disable=not progress, leave=False):
             solver.step(s0, s1, control, None, dt)
             s0, s1 = s1, s0
         q1 = s0.body_q.numpy().astype(np.float64)
@@ -166,8 +243,8 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         moved[w][inst] = max(moved[w].get(inst, 0.0), d)
     offenders = tuple(tuple(sorted(k for k, v in m.items() if v > tolerance)) for m in moved)
     return BatchSettle(scenes=tuple(Path(s) for s in scenes), moved=tuple(moved), offenders=offenders,
-                       passed=tuple(not o for o in offenders), bodies=model.body_count, shapes=model.shape_count,
-                       simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
+                       passed=tuple(not o for o in offenders), bodies=model.body_count - padding,
+                       shapes=model.shape_count, simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
 
 
 def _apply(q: np.ndarray, p: np.ndarray) -> np.ndarray:

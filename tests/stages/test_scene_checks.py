@@ -229,3 +229,63 @@ def test_structure_signature_keeps_checked_values_exact(tmp_path) -> None:
     assert _scene_sigs(tmp_path, "b", tint="(0.2, 0.9, 0.1, 1)", light=1200.0) == base
     assert _scene_sigs(tmp_path, "c", scale="(3, 3, 3, 1)") != base
     assert _scene_sigs(tmp_path, "d", mpu=0.01) != base
+
+
+@needs_newton_usd
+def test_settle_pool_workers_agree_with_the_serial_path(world, tmp_path):
+    """Two scenes (one with an object lifted 5 cm) settled one per model by two worker processes,
+    one per model in this process, and both in one model: the same bodies, shapes, offenders and
+    displacements (per scene, within 0.1 mm between one- and two-scene models)."""
+    from stages.scene.settle_batch import settle_batch
+    from stages.scene.settle_pool import SettlePool
+
+    scenes = []
+    for seed in (5, 6):
+        _scene(world, seed, tmp_path / f"s{seed}")
+        scenes.append(tmp_path / f"s{seed}" / "scene.usda")
+    info = json.loads((tmp_path / "s6" / "scene.json").read_text())
+    lifted = next(i for i in info["instances"] if i["support"])
+    lifted["position"][2] += 0.05
+    (tmp_path / "s6" / "scene.json").write_text(json.dumps(info))
+
+    def per_scene(pool: SettlePool):
+        out = {}
+        for r in pool.run(scenes, chunk=1):
+            assert len(r.settle.scenes) == 1 and r.errors == (0,), r
+            out[r.settle.scenes[0]] = r
+        return [out[s] for s in scenes]
+
+    with SettlePool(["cpu"], 0, seconds=0.3) as pool:
+        serial = per_scene(pool)
+    with SettlePool(["cpu"], 2, seconds=0.3) as pool:
+        parallel = per_scene(pool)
+    assert len({r.pid for r in parallel}) == 2 and all(r.pid != serial[0].pid for r in parallel)
+    one = settle_batch(scenes, device="cpu", seconds=0.3, progress=False)
+    assert one.bodies == sum(r.settle.bodies for r in serial) == sum(r.settle.bodies for r in parallel)
+    assert one.shapes == sum(r.settle.shapes for r in serial) == sum(r.settle.shapes for r in parallel)
+    for k, (s, p) in enumerate(zip(serial, parallel)):
+        assert (s.settle.bodies, s.settle.shapes) == (p.settle.bodies, p.settle.shapes)
+        assert s.settle.offenders == p.settle.offenders == (one.offenders[k],)
+        for m in (p.settle.moved[0], one.moved[k]):
+            assert m.keys() == s.settle.moved[0].keys()
+            assert all(abs(m[i] - v) < 1e-4 for i, v in s.settle.moved[0].items()), (m, s.settle.moved[0])
+    assert serial[1].settle.offenders == ((lifted["name"],),)
+
+
+@needs_newton_usd
+def test_dof_padding_leaves_the_settle_unchanged(world, tmp_path):
+    """Padding a model's degrees of freedom to a multiple of 32 (shared kernels across chunk sizes)
+    adds only bodies that stay still: the same bodies counted, the same displacements."""
+    from stages.scene.settle_batch import build_worlds, pad_dofs, settle_batch
+
+    _scene(world, 5, tmp_path / "s5")
+    scenes = [tmp_path / "s5" / "scene.usda"]
+    builder, _ = build_worlds(scenes)
+    n = builder.body_count
+    added = pad_dofs(builder, 32)
+    assert builder.joint_dof_count % 32 == 0 and builder.body_count == n + added
+    padded = settle_batch(scenes, device="cpu", seconds=0.2, progress=False)
+    plain = settle_batch(scenes, device="cpu", seconds=0.2, progress=False, dof_step=0)
+    assert padded.bodies == plain.bodies == n and padded.offenders == plain.offenders
+    assert padded.moved[0].keys() == plain.moved[0].keys()
+    assert all(abs(padded.moved[0][k] - v) < 1e-5 for k, v in plain.moved[0].items())
