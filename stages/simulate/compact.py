@@ -10,8 +10,9 @@ reads may follow the launch at once; the next launch of the same rig must wait f
 
 On the CPU the render runs in the caller's thread before the launch returns, or, for a rig with
 ``background`` set, in a thread of the rig's own from a copy of the body poses taken at the launch
-(the same images: the renderer reads the state only through ``body_q``), so that the physics steps
-that follow the launch run beside it (the kernels release the GIL). The first render of a rig runs
+(the same images: of the state the renderer reads only the rigid bodies' poses, ``body_q``; our
+scenes have no particles), so that the physics steps that follow the launch run beside it (the
+kernels release the GIL). The first render of a rig runs
 in the caller's thread (it loads the kernels); a launch waits for the rig's render in flight.
 """
 
