@@ -127,6 +127,19 @@ class FrameCapture:
         for kind, w, payload in queued:
             self._handle(kind, w, payload)
 
+    @property
+    def pending(self) -> bool:
+        """Frames collected and waiting for their images."""
+        return self._pending is not None
+
+    def deliver_ready(self) -> bool:
+        """:meth:`deliver` now if every render in flight is done and no begin/end event waits behind
+        the frames (those run at the next frame step, as without this); True if it delivered."""
+        if self._pending is None or self._queued or not all(r.done for r in self._renders.values()):
+            return False
+        self.deliver()
+        return True
+
     def images_now(self, bank) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The images of the current frame step for a Sim's worlds (by camera: RGB (W, H, Wd, 3)
         uint8, depth (W, H, Wd) uint16 [mm]; views: copy what you keep), for world programs that

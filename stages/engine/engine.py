@@ -69,7 +69,10 @@ class EngineConfig:
     (``stages.simulate.robot.GripperKind``: panda_hand, robotiq_2f85, or a dexterous hand, allegro
     or shadow, whose joint positions and targets the frames then carry: ``DatasetSpec.hand_joints``);
     subtasks: frames record the stage of a multistage task (``subtask_index``; set it when any task
-    is multistage)."""
+    is multistage); background_render: on the CPU, render each frame in a thread of its own from a
+    copy of the body poses while the physics steps run on (:mod:`stages.simulate.compact`: the same
+    images), and deliver the frame as soon as its render is done (teleop: the frames reach the page
+    sooner; False: each render runs in the engine's thread)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -89,6 +92,7 @@ class EngineConfig:
     program_wait: float | None = None
     gripper: str = "panda_hand"
     subtasks: bool = False
+    background_render: bool = False
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
@@ -276,7 +280,7 @@ class BatchEngine:
             eye, target = (0.3, 0.3, 2.3), (0.6 * sx, 0.6 * sy, 0.6)
             cams.append(CameraSpec(name="third_person", width=c.width, height=c.height, vertical_fov=1.0,
                                    pose=look_at(eye, target)))
-        return CameraRig(sim, cams, segmentation=False)
+        return CameraRig(sim, cams, segmentation=False, background=c.background_render)
 
     # -- the run ----------------------------------------------------------------------------
     def run(self, next_instance: Callable, *, begin: Callable | None = None,
@@ -402,13 +406,23 @@ class BatchEngine:
         if ready:
             k = min(k, int((P - (self.global_step - self.held_at[ready]) % P).min()))
         k = max(1, min(k, self._next_frame_step() - self.global_step))
-        t0 = time.perf_counter()
-        for b in self.banks:
-            if b.hold is None and held[b.first:b.first + b.count].all():
-                continue  # per-world layout: a held world's model simply does not step
-            b.sim.step(k)
-            b.snapshot.invalidate()
-        self.stats.timings.simulation += time.perf_counter() - t0
+        # a frame rendering in the background (background_render): steps one at a time until its
+        # render is done, then the frame is delivered and the rest of the steps run at once
+        left, sim_s = k, 0.0
+        while left:
+            bg = self.config.background_render and self.capture.pending
+            n = 1 if bg else left
+            t0 = time.perf_counter()
+            for b in self.banks:
+                if b.hold is None and held[b.first:b.first + b.count].all():
+                    continue  # per-world layout: a held world's model simply does not step
+                b.sim.step(n)
+                b.snapshot.invalidate()
+            sim_s += time.perf_counter() - t0
+            left -= n
+            if bg:
+                self.capture.deliver_ready()
+        self.stats.timings.simulation += sim_s
         self.stats.steps += k
         self.global_step += k
         self.steps[~held] += k

@@ -7,6 +7,13 @@ buffers, and returns at once with a :class:`CompactRender`; its :meth:`CompactRe
 until the images are on the host. On CUDA the render runs on a stream of its own from a copy of
 the body poses taken at the launch (in the simulation stream's order), so physics steps and state
 reads may follow the launch at once; the next launch of the same rig must wait for this one.
+
+On the CPU the render runs in the caller's thread before the launch returns, or, for a rig with
+``background`` set, in a thread of the rig's own from a copy of the body poses taken at the launch
+(the same images: of the state the renderer reads only the rigid bodies' poses, ``body_q``; our
+scenes have no particles), so that the physics steps that follow the launch run beside it (the
+kernels release the GIL). The first render of a rig runs
+in the caller's thread (it loads the kernels); a launch waits for the rig's render in flight.
 """
 
 from __future__ import annotations
@@ -26,15 +33,21 @@ class CompactRender:
     (W, H, Wd) uint16 [mm] (0 where no surface, at most 65,535). On CUDA the arrays are views of
     pinned buffers that the rig's next launch overwrites: copy what you keep."""
 
-    def __init__(self, out: dict[str, tuple[np.ndarray, np.ndarray]], event) -> None:
+    def __init__(self, out: dict[str, tuple[np.ndarray, np.ndarray]] | None, event, future=None) -> None:
         self._out = out
         self._event = event
+        self._future = future  # a background CPU render (concurrent.futures.Future)
 
     @property
     def done(self) -> bool:
+        """The images are ready (CUDA: only once waited for; a background CPU render: finished)."""
+        if self._future is not None:
+            return self._future.done()
         return self._event is None
 
     def wait(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        if self._future is not None:
+            self._out, self._future = self._future.result(), None
         if self._event is not None:
             import warp as wp
 
@@ -54,6 +67,8 @@ def launch_compact(rig) -> CompactRender:
     cuda = str(model.device).startswith("cuda")
     # the camera poses are read from the host before anything is enqueued (a read waits for the stream)
     tfs = {cam.name: rig._transforms(cam)[0] for cam in rig.cameras}
+    if not cuda and getattr(rig, "background", False):
+        return _launch_background(rig, state, tfs)
     if not cuda or not OWN_STREAM:
         out = _render(rig, state, tfs, cuda)
         event = wp.get_device(model.device).stream.record_event() if cuda else None
@@ -72,6 +87,28 @@ def launch_compact(rig) -> CompactRender:
         out = _render(rig, rstate, tfs, cuda)
         event = render_stream.record_event()
     return CompactRender(out, event)
+
+
+def _launch_background(rig, state, tfs) -> CompactRender:
+    """A CPU render in the rig's thread from a copy of ``state``'s body poses (see the module doc)."""
+    import warp as wp
+
+    d = rig.__dict__
+    pool = d.get("_bg_pool")
+    if pool is None:  # the first render here: the kernels load in the caller's thread
+        from concurrent.futures import ThreadPoolExecutor
+
+        out = _render(rig, state, tfs, False)
+        d["_bg_pool"] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render")
+        d["_bg_state"] = rig.sim.model.state()
+        return CompactRender(out, None)
+    prev = d.get("_bg_inflight")
+    if prev is not None:
+        prev.wait()  # its copy of the poses is about to be overwritten
+    rstate = d["_bg_state"]
+    wp.copy(rstate.body_q, state.body_q)
+    r = d["_bg_inflight"] = CompactRender(None, None, pool.submit(_render, rig, rstate, tfs, False))
+    return r
 
 
 def _render(rig, state, tfs, cuda: bool) -> dict:

@@ -378,7 +378,9 @@ class CameraRig:
     exposure_lux: illuminance shown as white (None: automatic, see the module doc); shadows:
     shadow rays for distant lights (without them sunlight reaches through roofs and walls);
     textures: load and render the shapes' textures (a missing texture file raises); tile: (width,
-    height) [px] of the pixel tiles rendered together (images do not depend on it)."""
+    height) [px] of the pixel tiles rendered together (images do not depend on it); background: on
+    the CPU, :meth:`render_compact_async` renders in a thread of the rig's own, beside the caller's
+    physics steps (the same images, :mod:`stages.simulate.compact`)."""
 
     sim: object
     cameras: list[CameraSpec]
@@ -389,6 +391,7 @@ class CameraRig:
     shadows: bool = True
     textures: bool = True
     tile: tuple[int, int] = (8, 8)
+    background: bool = False
     lights_used: list[RendererLight] = field(default_factory=list)
 
     def __post_init__(self) -> None:

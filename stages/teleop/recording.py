@@ -88,6 +88,14 @@ class TeleopRecorder:
     def recording(self) -> bool:
         return self._writer is not None
 
+    @staticmethod
+    def preload() -> None:
+        """Import what writing an episode needs (lerobot, datasets, PyAV: 10-30 s on the shared
+        2-core machine), so that the first :meth:`begin` does not stall the session's thread."""
+        from stages.dataset._lerobot import import_lerobot
+
+        import_lerobot()
+
     def begin(self, k: int, info) -> None:
         """Open episode ``k``'s shard (an :class:`~stages.dataset.EpisodeInfo`)."""
         from stages.dataset import open_shard

@@ -82,8 +82,11 @@ class TeleopSession:
         self.out = Path(out)
         self._check_task()
         self.name = datetime.now(UTC).strftime("%Y%m%dT%H%M%S") + "-" + secrets.token_hex(3)
+        # on the CPU each frame renders in a thread of its own while the next frame's physics steps
+        # run, and reaches the page as soon as it is rendered (the same frames: stages.engine)
         ecfg = EngineConfig(worlds=1, device=config.device, width=config.width, height=config.height,
-                            fps=config.fps, cameras=config.cameras, gripper=config.hand or "panda_hand")
+                            fps=config.fps, cameras=config.cameras, gripper=config.hand or "panda_hand",
+                            background_render=not config.device.startswith("cuda"))
         self.engine = BatchEngine(world, panda_root=panda_root, work_dir=self.out / ".work" / self.name,
                                   config=ecfg, seed=world_seed)
         self.retargeter = None  # WebXR hand joints -> the dexterous hand's joint targets
@@ -94,6 +97,7 @@ class TeleopSession:
                                              optimizer=config.retarget)
         self.hand_rejected = 0  # hand joint sets the retargeting refused (logged)
         self.recorder = TeleopRecorder(self.out, ecfg.dataset_spec(), self.name)
+        self.recorder.preload()  # not at the first Start: the import stalled the stream 10-30 s
         self.log_path = self.out / "logs" / f"{self.name}.jsonl"
         self.input_log = InputLog(self.log_path)
         self.input_log.write({"kind": "session", "version": VERSION, "task": task, "world_seed": int(world_seed),

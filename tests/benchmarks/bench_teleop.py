@@ -13,7 +13,10 @@ W for 1 s, releases it for 1 s, and so on, in one recorded episode, then saves i
   acknowledgement that it has decoded and shown it [ms] (JPEG encoding, WebSocket, decoding, the
   acknowledgement's way back: an upper bound);
 - sim_fps: frames the simulation captured per wall second; display_fps: frames the page showed per
-  second; the engine's wall time split (simulation, rendering, control, encoding).
+  second (the page's count over its last 2 s, read every 2 s: median, min, max); the engine's wall
+  time split (simulation, rendering, control, encoding);
+- load_average: the machine's 1-minute load average at the start and the end (the figures above
+  depend on what else runs on a shared machine).
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ def test_teleop_latency_on_localhost():
                 page.click("#btn-start")
                 wait_for(lambda: session.status()["recording"], what="recording")
                 page.click("#views")
+                load0 = os.getloadavg()[0]
                 t0 = time.monotonic()
                 fps = []
                 while time.monotonic() - t0 < seconds:
@@ -86,6 +90,8 @@ def test_teleop_latency_on_localhost():
                   "frames": frames, "sim_seconds": meta["sim_seconds"],
                   "sim_fps": round(frames / meta["wall_seconds"], 2),
                   "display_fps_median": round(sorted(fps)[len(fps) // 2], 2) if fps else None,
+                  "display_fps_min": min(fps, default=None), "display_fps_max": max(fps, default=None),
+                  "load_average": [round(load0, 2), round(os.getloadavg()[0], 2)],
                   "realtime_factor": round(meta["sim_seconds"] / meta["wall_seconds"], 3),
                   "latency": meta["latency"], "engine_seconds": stats["timings"], "cpu_count": os.cpu_count()}
         dest = REPO / "bench_results" / "teleop.json"
@@ -96,7 +102,8 @@ def test_teleop_latency_on_localhost():
               f"({result['realtime_factor']}x real time), display {result['display_fps_median']} fps; "
               f"input->command p50 {lat['input_to_command']['p50_ms']} ms p95 {lat['input_to_command']['p95_ms']} ms; "
               f"render->display p50 {lat['render_to_display']['p50_ms']} ms p95 {lat['render_to_display']['p95_ms']} ms"
-              f"\nengine wall split [s]: {stats['timings']}\n-> {dest}")
+              f"\nengine wall split [s]: {stats['timings']}; load average {result['load_average']} on "
+              f"{os.cpu_count()} cores\n-> {dest}")
         assert lat["render_to_display"]["count"] > 0 and lat["input_to_command"]["count"] > 0
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
