@@ -338,8 +338,12 @@ def timestep_cost(frames: int = 60, episodes: int = 2, repeats: int = REPEATS, p
 
     base = Path(tempfile.mkdtemp(prefix="bench-timestep-"))
     full = SPECS["full"]
-    per_spec = {name: render_like_frames_for(SPECS[name], frames)
-                for name in ("full", "rgb_only", "depth_only", "state_only")}  # fmt: skip
+    import dataclasses
+
+    fr = render_like_frames_for(full, frames)  # the other specs take the same frames' parts
+    per_spec = {"full": fr, "rgb_only": [dataclasses.replace(f, depth_mm={}) for f in fr],
+                "depth_only": [dataclasses.replace(f, rgb={}) for f in fr],
+                "state_only": [dataclasses.replace(f, rgb={}, depth_mm={}) for f in fr]}
     _cpu_write(full, per_spec["full"][:2], base / "warm", 1)  # imports (lerobot, PyAV) are not writing
     runs: dict[str, list[float]] = {k: [] for k in ("full", "rgb_only", "depth_only", "state_only", "validation",
                                                    "pool_engine", "pool_writer")}  # fmt: skip
