@@ -266,7 +266,8 @@ def render_like_frames_for(spec: DatasetSpec, n: int) -> list:
         sys.path.insert(0, str(Path(__file__).parent))
     from bench_encode import render_like_frames  # a sibling benchmark module
 
-    rgb = {c.name: render_like_frames(n, c.height, c.width, seed=k) for k, c in enumerate(spec.cameras) if c.rgb}
+    rgb = {c.name: render_like_frames(n, c.height, c.width, seed=k)
+           for k, c in enumerate(spec.cameras) if c.rgb}  # fmt: skip
     depth = {c.name: render_like_depth(n, c.height, c.width, seed=k) for k, c in enumerate(spec.cameras)
              if c.depth}  # fmt: skip
     return [dataclasses.replace(synthetic_frame(spec, 0, 0, i), rgb={k: v[i] for k, v in rgb.items()},
@@ -295,7 +296,8 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _cpu_pool(spec: DatasetSpec, frames: list, base: Path, episodes: int, shards: int = 4) -> tuple[float, float]:
+def _cpu_pool(spec: DatasetSpec, frames: list, base: Path, episodes: int,
+              shards: int = 4) -> tuple[float, float]:  # fmt: skip
     """(engine-side CPU s per timestep in ``ShardPool.add_frame``, writer-process CPU s per timestep
     with its start-up subtracted) of a pool of one writer process and ``shards`` shards."""
     from stages.dataset.pool import PoolConfig, ShardPool
@@ -345,8 +347,8 @@ def timestep_cost(frames: int = 60, episodes: int = 2, repeats: int = REPEATS, p
                 "depth_only": [dataclasses.replace(f, rgb={}) for f in fr],
                 "state_only": [dataclasses.replace(f, rgb={}, depth_mm={}) for f in fr]}
     _cpu_write(full, per_spec["full"][:2], base / "warm", 1)  # imports (lerobot, PyAV) are not writing
-    runs: dict[str, list[float]] = {k: [] for k in ("full", "rgb_only", "depth_only", "state_only", "validation",
-                                                   "pool_engine", "pool_writer")}  # fmt: skip
+    parts = ("full", "rgb_only", "depth_only", "state_only", "validation", "pool_engine", "pool_writer")
+    runs: dict[str, list[float]] = {k: [] for k in parts}
     for _ in range(repeats):  # interleaved, so that a busy moment of the machine hits every part alike
         for name, fr in per_spec.items():
             runs[name].append(_cpu_write(SPECS[name], fr, base / name, episodes))
@@ -360,7 +362,8 @@ def timestep_cost(frames: int = 60, episodes: int = 2, repeats: int = REPEATS, p
             runs["pool_writer"].append(w)
     shutil.rmtree(base, ignore_errors=True)
     med = {k: 1000.0 * statistics.median(v) for k, v in runs.items() if v}
-    split = {"rgb_video": med["rgb_only"] - med["state_only"], "depth_png": med["depth_only"] - med["state_only"],
+    split = {"rgb_video": med["rgb_only"] - med["state_only"],
+             "depth_png": med["depth_only"] - med["state_only"],
              "numeric_parquet": med["state_only"], "validation": med["validation"]}  # fmt: skip
     if pool:
         split["pool_engine_side"] = med["pool_engine"]
@@ -373,8 +376,9 @@ def timestep_cost(frames: int = 60, episodes: int = 2, repeats: int = REPEATS, p
     for k, v in med.items():
         print(f"  {k:12s} {v:7.2f} ms")
     print("  split: " + ", ".join(f"{k} {v:.2f}" for k, v in split.items()))
+    pool_rate = out.get("pool_writer_timesteps_per_core_s")
     print(f"  one core: inline writer {out['inline_writer_timesteps_per_core_s']:.0f} timesteps/s"
-          + (f", pool writer process {out['pool_writer_timesteps_per_core_s']:.0f} timesteps/s" if pool else ""))
+          + (f", pool writer process {pool_rate:.0f} timesteps/s" if pool else ""))
     dest = REPO / "bench_results" / "dataset_timestep.json"
     dest.parent.mkdir(exist_ok=True)
     dest.write_text(json.dumps(out, indent=2))

@@ -184,8 +184,9 @@ def test_image_stats_quantiles_equal_numpys_bit_for_bit():
     from stages.dataset.direct import QUANTILES, image_stats
 
     rng = np.random.default_rng(5)
-    for n, c, dtype, top, scale in ((1, 1, np.uint8, 1, 255.0), (7, 3, np.uint8, 256, 255.0), (3, 3, np.uint8, 40, 255.0),
-                                    (5, 1, np.uint16, 65536, 1.0), (2, 1, np.uint16, 300, 1.0)):
+    cases = ((1, 1, np.uint8, 1, 255.0), (7, 3, np.uint8, 256, 255.0), (3, 3, np.uint8, 40, 255.0),
+             (5, 1, np.uint16, 65536, 1.0), (2, 1, np.uint16, 300, 1.0))
+    for n, c, dtype, top, scale in cases:
         sampled = rng.integers(0, top, (n, c, 13, 17)).astype(dtype)
         x = sampled.transpose(1, 0, 2, 3).reshape(c, -1).astype(np.float64) / scale
         want = np.quantile(x, QUANTILES, axis=1)
