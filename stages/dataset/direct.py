@@ -31,6 +31,7 @@ The tests prove the result by loading it with ``LeRobotDataset`` and a torch Dat
 from __future__ import annotations
 
 import logging
+import os
 import queue
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -111,18 +112,20 @@ class _VideoStream:
 
 
 _DEPTH_THREADS = 2
-_depth_pool: ThreadPoolExecutor | None = None
+_depth_pool: tuple[int, ThreadPoolExecutor] | None = None  # (pid that made it, executor)
 _depth_pool_lock = threading.Lock()
 
 
 def _depth_executor() -> ThreadPoolExecutor:
     """The process's depth PNG threads, shared by every writer of the process (a writer process
-    holds a hundred shards: two threads each made hundreds of threads)."""
+    holds a hundred shards: two threads each made hundreds of threads). A forked child makes its
+    own (the parent's threads do not exist there)."""
     global _depth_pool
     with _depth_pool_lock:
-        if _depth_pool is None:
-            _depth_pool = ThreadPoolExecutor(max_workers=_DEPTH_THREADS, thread_name_prefix="depth-png")
-        return _depth_pool
+        if _depth_pool is None or _depth_pool[0] != os.getpid():
+            _depth_pool = (os.getpid(), ThreadPoolExecutor(max_workers=_DEPTH_THREADS,
+                                                           thread_name_prefix="depth-png"))
+        return _depth_pool[1]
 
 
 class DirectBackend:

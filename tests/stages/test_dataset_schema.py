@@ -196,3 +196,28 @@ def test_image_stats_quantiles_equal_numpys_bit_for_bit():
         np.testing.assert_array_equal(stats["min"].ravel(), x.min(1))
         np.testing.assert_array_equal(stats["max"].ravel(), x.max(1))
         assert stats["count"].tolist() == [n]
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_forked_child_encodes_depth_with_threads_of_its_own():
+    """The process-wide depth PNG threads: a forked child (the parent's threads are not there) gets
+    its own pool instead of waiting forever on the parent's."""
+    import os
+    import warnings
+
+    from stages.dataset.depth import encode_depth
+    from stages.dataset.direct import _depth_executor
+
+    d = np.arange(12, dtype=np.uint16).reshape(3, 4)
+    assert _depth_executor().submit(encode_depth, d).result(timeout=10) == encode_depth(d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork of a multi-threaded process
+        pid = os.fork()
+    if pid == 0:  # the child reports by its exit code
+        code = 1
+        try:
+            code = 0 if _depth_executor().submit(encode_depth, d).result(timeout=10) == encode_depth(d) else 2
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
