@@ -22,14 +22,16 @@ What differs (all inside the v3.0 format, which maps every episode to a chunk/fi
 each episode's video is its own mp4 file (``videos/<key>/chunk-XXX/file-YYY.mp4``, from_timestamp 0),
 so a failed episode is deleted without touching others and nothing is re-muxed; merging with
 lerobot's aggregation packs them into size-limited files. Depth frames are 16-bit PNG (lossless,
-zlib level 1, :mod:`stages.dataset.depth`) in ``depth.<camera>`` string columns, encoded by two
-threads as the frames come; their stats are image stats in millimetres, like lerobot's depth maps'.
+zlib level 1, :mod:`stages.dataset.depth`) in ``depth.<camera>`` string columns, encoded as the
+frames come by two threads shared by the process's writers; their stats are image stats in
+millimetres, like lerobot's depth maps'.
 The tests prove the result by loading it with ``LeRobotDataset`` and a torch DataLoader.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import queue
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -73,12 +75,9 @@ class _VideoStream:
         self._thread.start()
 
     def _run(self) -> None:
-        import av
-
         pts = 0
         try:
-            while (img := self._queue.get()) is not None:
-                frame = av.VideoFrame.from_ndarray(img, format="rgb24")
+            while (frame := self._queue.get()) is not None:
                 frame.pts = pts
                 pts += 1
                 for packet in self._stream.encode(frame):
@@ -93,9 +92,12 @@ class _VideoStream:
             self._container.close()
 
     def put(self, img: np.ndarray) -> None:
+        """Queue ``img`` (uint8 (H, W, 3)); it is copied (into the video frame) before this returns."""
+        import av
+
         if self._error is not None:
             raise RuntimeError(f"{self.path}: video encoding failed: {self._error}") from self._error
-        self._queue.put(np.array(img, copy=True))
+        self._queue.put(av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24"))
 
     def close(self) -> None:
         self._queue.put(None)
@@ -109,6 +111,23 @@ class _VideoStream:
         self.path.unlink(missing_ok=True)
 
 
+_DEPTH_THREADS = 2
+_depth_pool: tuple[int, ThreadPoolExecutor] | None = None  # (pid that made it, executor)
+_depth_pool_lock = threading.Lock()
+
+
+def _depth_executor() -> ThreadPoolExecutor:
+    """The process's depth PNG threads, shared by every writer of the process (a writer process
+    holds a hundred shards: two threads each made hundreds of threads). A forked child makes its
+    own (the parent's threads do not exist there)."""
+    global _depth_pool
+    with _depth_pool_lock:
+        if _depth_pool is None or _depth_pool[0] != os.getpid():
+            _depth_pool = (os.getpid(), ThreadPoolExecutor(max_workers=_DEPTH_THREADS,
+                                                           thread_name_prefix="depth-png"))
+        return _depth_pool[1]
+
+
 class DirectBackend:
     """Backend of :class:`~stages.dataset.writer.EpisodeWriter` (same calls as its lerobot backend)."""
 
@@ -117,7 +136,6 @@ class DirectBackend:
         self.root, self.spec, self.repo_id = root, spec, repo_id
         self._encoder_threads, self._queue_frames = encoder_threads, queue_frames
         self.meta: Any = None
-        self._pool: ThreadPoolExecutor | None = None
         self._pq: Any = None
         self._data_file = 0  # running data file number (chunk = n // chunk_size)
         self._file_start_frame = 0
@@ -150,15 +168,11 @@ class DirectBackend:
         self._encoder = RGBEncoderConfig(
             vcodec=v.codec, pix_fmt=v.pix_fmt, g=v.gop, crf=v.crf, preset=v.preset
         )
-        self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="depth-png")
 
     def finalize(self) -> None:
         if self._pq is not None:
             self._pq.close()
             self._pq = None
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
         if self.meta is not None:
             self.meta.finalize()
 
@@ -175,7 +189,7 @@ class DirectBackend:
             self._samples.setdefault(key, []).append(stats_sample(img.transpose(2, 0, 1)))
         for cam, key in self.spec.depth_keys().items():
             d = frame.depth_mm[cam].reshape(frame.depth_mm[cam].shape[:2])
-            self._depth_png[key].append(self._pool.submit(encode_depth, d.copy()))
+            self._depth_png[key].append(_depth_executor().submit(encode_depth, d.copy()))
             self._samples.setdefault(key, []).append(stats_sample(d[None]))
 
     def _open_videos(self) -> None:
@@ -295,12 +309,48 @@ def stats_sample(chw: np.ndarray) -> np.ndarray:
 
 def image_stats(sampled: np.ndarray, scale: float) -> dict[str, np.ndarray]:
     """Per-channel stats of (N, C, h, w) frames in lerobot's layout: (C, 1, 1) arrays divided by
-    ``scale`` for min/max/mean/std/q01..q99, and ``count`` = [N]."""
+    ``scale`` for min/max/mean/std/q01..q99, and ``count`` = [N].
+
+    The quantiles are ``np.quantile``'s (method linear), bit for bit; for uint8/uint16 frames (RGB,
+    depth in mm) their order statistics come from a histogram of each channel instead of a
+    partition of the float values (2 ms instead of 80 ms per feature and episode)."""
     n, c = sampled.shape[:2]
-    x = sampled.transpose(1, 0, 2, 3).reshape(c, -1).astype(np.float64) / scale
-    qs = np.quantile(x, QUANTILES, axis=1)
+    raw = sampled.transpose(1, 0, 2, 3).reshape(c, -1)
+    x = raw.astype(np.float64) / scale
+    if raw.dtype in (np.uint8, np.uint16) and raw.shape[1] > 0:
+        qs = _histogram_quantiles(raw, scale)
+    else:
+        qs = np.quantile(x, QUANTILES, axis=1)
     out = {"min": x.min(1), "max": x.max(1), "mean": x.mean(1), "std": x.std(1)}
     out.update({f"q{round(q * 100):02d}": qs[i] for i, q in enumerate(QUANTILES)})
     stats = {k: v.reshape(c, 1, 1) for k, v in out.items()}
     stats["count"] = np.array([n])
     return stats
+
+
+def _histogram_quantiles(raw: np.ndarray, scale: float) -> np.ndarray:
+    """``np.quantile(raw / scale, QUANTILES, axis=1)`` of unsigned integer rows (C, M), exactly:
+    the same order statistics (read from cumulative histograms) and numpy's linear interpolation
+    (virtual index (M - 1) q, ``_lerp``: a + (b - a) t, or b - (b - a)(1 - t) where t >= 0.5)."""
+    m = raw.shape[1]
+    q = np.asarray(QUANTILES, np.float64)
+    virtual = (m - 1) * q
+    lo = np.floor(virtual)
+    hi = lo + 1
+    top = virtual >= m - 1
+    lo[top] = hi[top] = m - 1
+    t = (virtual - lo)[:, None]
+    lo_i, hi_i = lo.astype(np.intp), hi.astype(np.intp)
+    bins = 256 if raw.dtype == np.uint8 else 65536
+    a = np.empty((len(q), raw.shape[0]))
+    b = np.empty_like(a)
+    for ch, row in enumerate(raw):
+        cum = np.cumsum(np.bincount(row, minlength=bins))
+        a[:, ch] = np.searchsorted(cum, lo_i, side="right")  # the lo-th smallest value (0-based)
+        b[:, ch] = np.searchsorted(cum, hi_i, side="right")
+    a /= scale
+    b /= scale
+    diff = b - a
+    out = a + diff * t
+    np.subtract(b, diff * (1 - t), out=out, where=np.broadcast_to(t >= 0.5, out.shape))
+    return out

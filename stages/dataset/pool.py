@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from .schema import DatasetSpec, EpisodeInfo, Frame, validate_frame
+from .schema import DatasetSpec, EpisodeInfo, Frame, frame_problems, validate_frame
 
 _IMAGE_FIELDS = ("rgb", "depth_mm")
 _NUMERIC = tuple(f.name for f in dataclasses.fields(Frame) if f.name not in _IMAGE_FIELDS)
@@ -131,6 +131,9 @@ def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: in
 
     shm = SharedMemory(name=shm_name)
     layout = _layout(spec)
+    # the direct backend copies what it keeps, so it reads the images in place and the slot is freed
+    # after add_frame; lerobot's writer keeps the arrays it is given: they are copied out first
+    in_place = writer_kwargs.get("backend", "direct") == "direct"
     writers: dict[int, Any] = {}
     where = "opening"
     try:
@@ -148,11 +151,16 @@ def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: in
                 rgb, depth = {}, {}
                 for b, (cam, field, shape, dtype, off) in enumerate(layout):
                     if mask >> b & 1:
-                        a = np.ndarray(shape, dtype, buffer=shm.buf, offset=base + off).copy()
-                        (rgb if field == "rgb" else depth)[cam] = a
-                conn_out.send_bytes(b"R" + struct.pack("<i", slot))  # the slot is free again
+                        a = np.ndarray(shape, dtype, buffer=shm.buf, offset=base + off)
+                        (rgb if field == "rgb" else depth)[cam] = a if in_place else a.copy()
+                if not in_place:
+                    conn_out.send_bytes(b"R" + struct.pack("<i", slot))  # the slot is free again
                 fields = _unpack_numeric(msg[1 + _HEAD.size:])
-                writers[i].add_frame(Frame(**fields, rgb=rgb, depth_mm=depth))
+                # validated by the engine's process (ShardPool.add_frame) against the same spec
+                writers[i].add_frame(Frame(**fields, rgb=rgb, depth_mm=depth), validated=True)
+                if in_place:
+                    rgb = depth = None  # no view of the slot outlives it
+                    conn_out.send_bytes(b"R" + struct.pack("<i", slot))
             elif kind == b"B":
                 i, info = json.loads(msg[1:])
                 where = ids[i]
@@ -188,7 +196,10 @@ def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: in
                 w.abort()
             except Exception:  # noqa: BLE001 - best effort: the next open cleans its temps
                 pass
-        shm.close()
+        try:
+            shm.close()
+        except BufferError:  # a failed frame's traceback still holds views of the slot: the exit frees it
+            pass
 
 
 class _Worker:
@@ -303,7 +314,8 @@ class ShardPool:
 
     def add_frame(self, i: int, frame: Frame) -> None:
         """Validate the frame here (errors are raised at once, naming the shard), then hand it over."""
-        validate_frame(self.spec, frame, where=f"{self.shards_dir / self.ids[i]} frame {self._frames[i]}")
+        if frame_problems(self.spec, frame):  # the message (and its path) is made only for a bad frame
+            validate_frame(self.spec, frame, where=f"{self.shards_dir / self.ids[i]} frame {self._frames[i]}")
         w = self._owner(i)
         self._receive(w, block=False)
         if not w.free:

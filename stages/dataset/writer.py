@@ -298,10 +298,13 @@ class EpisodeWriter:
         self._episode, self._episode_frames = info, 0
         self._state = _State.IN_EPISODE
 
-    def add_frame(self, frame: Frame) -> None:
-        """Validate and append one frame (timestamp = frame_index / fps)."""
+    def add_frame(self, frame: Frame, *, validated: bool = False) -> None:
+        """Validate and append one frame (timestamp = frame_index / fps). ``validated``: the caller
+        has checked it against this writer's spec already (a ShardPool does, in the engine's process).
+        The direct backend copies what it keeps: the frame's arrays may be reused once this returns."""
         self._require(_State.IN_EPISODE, "add_frame")
-        validate_frame(self.spec, frame, where=f"{self.root} frame {self._episode_frames}")
+        if not validated:
+            validate_frame(self.spec, frame, where=f"{self.root} frame {self._episode_frames}")
         t0 = time.perf_counter()
         self._impl.add(frame, self._episode.task)
         self.stats.add_frame_s += time.perf_counter() - t0

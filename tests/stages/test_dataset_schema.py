@@ -146,3 +146,78 @@ def test_measured_codec_presets_round_trip_and_the_default_is_x264_ultrafast():
         feats = spec.features()
         assert feats["observation.images.head"]["dtype"] == "video"
         assert feats["depth.head"]["dtype"] == "string"
+
+
+def test_depth_png_is_a_standard_16_bit_png_that_decoders_read_back_exactly():
+    """encode_depth writes its own PNG (Up filter, zlib level 1): PIL and OpenCV read every value back."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    from stages.dataset.depth import decode_depth, encode_depth, encode_depth_png
+
+    rng = np.random.default_rng(3)
+    frames = [rng.integers(0, 65536, (37, 53), dtype=np.uint16),  # odd sizes, every byte pattern
+              np.full((1, 1), 65535, np.uint16), np.zeros((4, 300), np.uint16),
+              rng.integers(0, 65536, (24, 32, 1), dtype=np.uint16),  # (H, W, 1) as cameras give it
+              rng.integers(0, 65536, (40, 60), dtype=np.uint16)[::2, 1::2]]  # a strided view
+    for d in frames:
+        want = d.reshape(d.shape[:2])
+        raw = encode_depth_png(d)
+        assert raw[:8] == b"\x89PNG\r\n\x1a\n" and raw[-12:] == b"\x00\x00\x00\x00IEND\xaeB`\x82"
+        np.testing.assert_array_equal(decode_depth(raw), want)
+        np.testing.assert_array_equal(decode_depth(encode_depth(d)), want)
+        assert base64.b64decode(encode_depth(d)) == raw
+        with Image.open(io.BytesIO(raw)) as im:
+            im.load()  # PIL checks the chunks' CRCs and the zlib stream
+            assert im.size == (want.shape[1], want.shape[0]) and im.mode.startswith("I;16")
+            np.testing.assert_array_equal(np.asarray(im).astype(np.uint16), want)
+    with pytest.raises(ValueError, match="uint16"):
+        encode_depth(np.zeros((4, 4), np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        encode_depth(np.zeros((4, 4, 2), np.uint16))
+
+
+def test_image_stats_quantiles_equal_numpys_bit_for_bit():
+    """Image stats read the quantiles of uint8/uint16 frames from histograms: np.quantile's values exactly."""
+    from stages.dataset.direct import QUANTILES, image_stats
+
+    rng = np.random.default_rng(5)
+    cases = ((1, 1, np.uint8, 1, 255.0), (7, 3, np.uint8, 256, 255.0), (3, 3, np.uint8, 40, 255.0),
+             (5, 1, np.uint16, 65536, 1.0), (2, 1, np.uint16, 300, 1.0))
+    for n, c, dtype, top, scale in cases:
+        sampled = rng.integers(0, top, (n, c, 13, 17)).astype(dtype)
+        x = sampled.transpose(1, 0, 2, 3).reshape(c, -1).astype(np.float64) / scale
+        want = np.quantile(x, QUANTILES, axis=1)
+        stats = image_stats(sampled, scale)
+        for i, q in enumerate(QUANTILES):
+            np.testing.assert_array_equal(stats[f"q{round(q * 100):02d}"].ravel(), want[i])
+        np.testing.assert_array_equal(stats["min"].ravel(), x.min(1))
+        np.testing.assert_array_equal(stats["max"].ravel(), x.max(1))
+        assert stats["count"].tolist() == [n]
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_forked_child_encodes_depth_with_threads_of_its_own():
+    """The process-wide depth PNG threads: a forked child (the parent's threads are not there) gets
+    its own pool instead of waiting forever on the parent's."""
+    import os
+    import warnings
+
+    from stages.dataset.depth import encode_depth
+    from stages.dataset.direct import _depth_executor
+
+    d = np.arange(12, dtype=np.uint16).reshape(3, 4)
+    assert _depth_executor().submit(encode_depth, d).result(timeout=10) == encode_depth(d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork of a multi-threaded process
+        pid = os.fork()
+    if pid == 0:  # the child reports by its exit code
+        code = 1
+        try:
+            code = 0 if _depth_executor().submit(encode_depth, d).result(timeout=10) == encode_depth(d) else 2
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
