@@ -139,6 +139,9 @@ class Joint:
     max_effort [N m] or [N]; max_velocity [rad/s] or [m/s]; friction: joint friction [N m] or [N];
     damping [N m s/rad] or [N s/m]; stiffness: drive stiffness [N m/rad] or [N/m] (0: no drive);
     armature: added inertia of the joint's mechanism [kg m^2] or [kg] (hinge springs, linkages).
+    limit_solref: the limit stops as MuJoCo's solref (time constant [s], damping ratio), None: the
+    simulator's default (Newton's force-space limit ke/kd, which leave a heavy leaf's stop nearly
+    elastic); authored as ``mjc:solreflimit``.
     """
 
     name: str
@@ -155,6 +158,7 @@ class Joint:
     damping: float = 0.0
     stiffness: float = 0.0
     armature: float = 0.0
+    limit_solref: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -492,7 +492,7 @@ def joint_limit_check(usd_path: Path, *, device: str = "cpu", seconds_per_limit:
 
     usd_path = Path(usd_path)
     settings = _settings(device)
-    builder = _load(usd_path, floating=False, self_collisions=self_collisions)
+    builder = _load(usd_path, floating=False, self_collisions=self_collisions, mujoco_attributes=True)  # mjc:solreflimit
     movable = [j for j in range(builder.joint_count)
                if builder.joint_type[j] in (newton.JointType.REVOLUTE, newton.JointType.PRISMATIC)]
     if not movable:

@@ -262,3 +262,6 @@ def _joint(layer, j: JointPlan) -> None:
         _attr(spec, "newton:armature", T.Float, float(j.armature), custom=True)
     if j.max_velocity is not None:
         _attr(spec, "newton:velocityLimit", T.Float, float(j.max_velocity), custom=True)
+    if j.limit_solref is not None:   # MuJoCo's MjcJointAPI attribute: Newton's SolverMuJoCo passes it on as is
+        _attr(spec, "mjc:solreflimit", T.DoubleArray, Vt.DoubleArray([float(x) for x in j.limit_solref]),
+              uniform=True, custom=True)

@@ -29,7 +29,8 @@ the minimal rotation taking X onto the model's unit axis and authors ``physics:a
 Revolute limits are degrees, drive gains per degree (USD); prismatic in meters. A joint with
 stiffness, damping or an effort limit gets a DriveAPI (force type, target 0; damping with zero
 stiffness is the portable form of passive joint damping); joint friction and velocity limit are
-authored as Newton's ``newton:friction`` and ``newton:velocityLimit``.
+authored as Newton's ``newton:friction`` and ``newton:velocityLimit``; a joint's limit stops, where
+the model gives them, as MuJoCo's ``mjc:solreflimit`` (time constant [s], damping ratio).
 """
 
 from __future__ import annotations

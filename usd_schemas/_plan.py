@@ -94,6 +94,7 @@ class JointPlan:
     max_velocity: float | None = None
     source_name: str = ""
     armature: float = 0.0
+    limit_solref: tuple[float, float] | None = None   # mjc:solreflimit (time constant [s], damping ratio)
 
 
 @dataclass(frozen=True)
@@ -294,7 +295,9 @@ def _joint_plans(model: AssetModel, body_paths: dict[str, str], root: str, namer
             path=f"{root}/joints/{namer(j.name)}", usd_type=usd_type, body0=body_paths[j.parent],
             body1=body_paths[j.child], local_pos0=p0, local_rot0=r0, local_pos1=p1, local_rot1=r1,
             lower=lower, upper=upper, drive=drive, friction=float(j.friction), armature=float(j.armature),
-            max_velocity=None if j.max_velocity is None else j.max_velocity * scale, source_name=j.name))
+            max_velocity=None if j.max_velocity is None else j.max_velocity * scale, source_name=j.name,
+            limit_solref=None if j.type == JointType.FIXED or j.limit_solref is None
+            else (float(j.limit_solref[0]), float(j.limit_solref[1]))))
     return plans
 
 

@@ -102,8 +102,10 @@ def urdf_text(gen: GeneratedAsset) -> str:
                 f'    <parent link="{j.parent}"/>', f'    <child link="{j.child}"/>',
                 f'    <origin xyz="{x:.6f} {y:.6f} {z:.6f}" rpy="0 0 0"/>', f'    <axis xyz="{ax}"/>']
         if j.type != JointType.FIXED:
+            stop = (f' solreflimit="{j.limit_solref[0]:.4f} {j.limit_solref[1]:.4f}"'   # our URDF extension
+                    if j.limit_solref is not None else "")
             out.append(f'    <limit lower="{j.lower:.6f}" upper="{j.upper:.6f}" effort="{j.max_effort:.3f}" '
-                       f'velocity="{j.max_velocity:.3f}"/>')
+                       f'velocity="{j.max_velocity:.3f}"{stop}/>')
             extra = f' spring_stiffness="{j.stiffness:.4f}"' if j.stiffness > 0 else ""  # our URDF extensions
             extra += f' armature="{j.armature:.4f}"' if j.armature > 0 else ""
             out.append(f'    <dynamics damping="{j.damping:.4f}" friction="{j.friction:.4f}"{extra}/>')

@@ -7,7 +7,8 @@ box, cylinder, sphere and the common ``capsule`` extension), origins, materials 
 fixed joints with axis, limits (lower, upper, effort, velocity) and dynamics (damping, friction, and
 the extensions ``spring_stiffness``: a hinge spring towards joint value 0 [N m/rad or N/m], as
 Gazebo's ``spring_stiffness`` with ``spring_reference`` 0, and ``armature``: the mechanism's added
-inertia [kg m^2 or kg], as MuJoCo's joint armature).
+inertia [kg m^2 or kg], as MuJoCo's joint armature), and on ``<limit>`` the extension ``solreflimit``
+("time_constant damping_ratio", both > 0): the limit stops as MuJoCo's joint ``solreflimit``.
 ``mimic`` is ignored (logged); floating and planar joints are rejected. A link's ``<contact>`` (the
 common URDF extension of PyBullet and others) gives it its own contact properties (``Link.contact``):
 ``lateral_friction`` [-], ``spinning_friction`` (torsional) [m], ``rolling_friction`` [m] and
@@ -153,6 +154,7 @@ class _SrcJoint:
     friction: float
     stiffness: float = 0.0
     armature: float = 0.0
+    limit_solref: tuple[float, float] | None = None
     floating: bool = False     # a 'floating' joint, kept only as world -> root (a movable base)
 
     def to_joint(self, name: str, parent: str, child: str) -> Joint:
@@ -160,7 +162,7 @@ class _SrcJoint:
                      frame=g.pose_of(self.frame_matrix),
                      axis=self.axis, lower=self.lower, upper=self.upper, max_effort=self.effort,
                      max_velocity=self.velocity, friction=self.friction, damping=self.damping,
-                     stiffness=self.stiffness, armature=self.armature)
+                     stiffness=self.stiffness, armature=self.armature, limit_solref=self.limit_solref)
 
 
 def _origin(el: ET.Element | None, path: Path, what: str) -> np.ndarray:
@@ -207,6 +209,12 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
         if lower > upper:
             raise ItemError(f"{path}: {what} has lower limit {lower} > upper limit {upper}")
     dyn = el.find("dynamics")
+    solref = None
+    if limit is not None and limit.get("solreflimit") is not None and jt != JointType.FIXED:
+        tc, dr = g.parse_floats(limit.get("solreflimit"), 2, file=path, what=f"{what} solreflimit")
+        if not (tc > 0 and dr > 0):
+            raise ItemError(f"{path}: {what} solreflimit must be two positive numbers (got {tc}, {dr})")
+        solref = (float(tc), float(dr))
     if el.find("mimic") is not None:
         log.info("%s: %s: <mimic> ignored (the joint is kept as an independent joint)", path, what)
     effort = _opt_float(limit, "effort", path, what) if jt != JointType.FIXED else None
@@ -219,7 +227,8 @@ def _joint(el: ET.Element, path: Path) -> _SrcJoint:
                      damping=max(_opt_float(dyn, "damping", path, what) or 0.0, 0.0),
                      friction=max(_opt_float(dyn, "friction", path, what) or 0.0, 0.0),
                      stiffness=max(_opt_float(dyn, "spring_stiffness", path, what) or 0.0, 0.0),
-                     armature=max(_opt_float(dyn, "armature", path, what) or 0.0, 0.0), floating=floating)
+                     armature=max(_opt_float(dyn, "armature", path, what) or 0.0, 0.0), limit_solref=solref,
+                     floating=floating)
 
 
 def _tree(links: dict[str, ET.Element], joints: list[_SrcJoint], path: Path

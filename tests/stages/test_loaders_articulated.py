@@ -309,6 +309,19 @@ def test_urdf_contact_extension(tmp_path):
     _expect(load_urdf, _urdf(tmp_path, bad), tmp_path, "spinning_friction", "no value")
 
 
+def test_urdf_solreflimit_extension(tmp_path):
+    """<limit solreflimit="time_constant damping_ratio">: the joint's limit stops (Joint.limit_solref);
+    a joint without one keeps None; a non-positive value is a one-line error."""
+    ab = _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
+    m = load_urdf(_urdf(tmp_path, ab + _joint("j", "a", "b", limit='lower="0" upper="1" solreflimit="0.02 2"')),
+                  _ann("r.urdf"), catalog_dir=tmp_path)
+    assert m.joints[0].limit_solref == (0.02, 2.0)
+    m = load_urdf(_urdf(tmp_path, ab + _joint("j", "a", "b")), _ann("r.urdf"), catalog_dir=tmp_path)
+    assert m.joints[0].limit_solref is None
+    _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", limit='lower="0" upper="1" solreflimit="0.02 0"')),
+            tmp_path, "'j'", "solreflimit", "positive")
+
+
 def test_urdf_limits_axis_duplicates_roots(tmp_path):
     ab = _BOX_LINK.format(n="a") + _BOX_LINK.format(n="b")
     _expect(load_urdf, _urdf(tmp_path, ab + _joint("j", "a", "b", limit='lower="1" upper="-1"')), tmp_path,

@@ -269,12 +269,14 @@ def test_drives_friction_and_velocity_limits(written):
     assert not drive.GetMaxForceAttr().HasAuthoredValue()
     assert door.GetAttribute("newton:friction").Get() == pytest.approx(0.05)
     assert door.GetAttribute("newton:velocityLimit").Get() == pytest.approx(3.0 * 180.0 / math.pi, rel=1e-6)
+    assert list(door.GetAttribute("mjc:solreflimit").Get()) == [0.02, 2.0]   # the stops, as MuJoCo's solref
     drawer = stage.GetPrimAtPath("/cabinet_01/joints/drawer_slide")
     ddrive = UsdPhysics.DriveAPI(drawer, "linear")
     assert ddrive.GetDampingAttr().Get() == pytest.approx(2.0)
     assert ddrive.GetMaxForceAttr().Get() == pytest.approx(50.0)
     assert ddrive.GetTypeAttr().Get() == "force"
     assert not drawer.GetAttribute("newton:friction").IsValid()
+    assert not drawer.GetAttribute("mjc:solreflimit").IsValid()   # none given: the simulator's default
 
 
 def test_articulation_root_and_bases(written):

@@ -112,7 +112,8 @@ def cabinet_model(asset_id: str = "cabinet_01", fixed_base: bool = False) -> Ass
     hinge = Pose((depth / 2 + 0.011, -(width - 0.02) / 2, 0.48))
     joints = (
         Joint(name="door_hinge", type=JointType.REVOLUTE, parent="body", child="door", frame=hinge,
-              axis=(0.0, 0.0, 1.0), lower=0.0, upper=1.4, friction=0.05, damping=0.5, max_velocity=3.0),
+              axis=(0.0, 0.0, 1.0), lower=0.0, upper=1.4, friction=0.05, damping=0.5, max_velocity=3.0,
+              limit_solref=(0.02, 2.0)),
         Joint(name="drawer_slide", type=JointType.PRISMATIC, parent="body", child="drawer",
               frame=Pose((depth / 2 - 0.14, 0.0, 0.14)), axis=(1.0, 0.0, 0.0), lower=0.0, upper=0.25,
               damping=2.0, max_effort=50.0),
