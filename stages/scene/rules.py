@@ -73,6 +73,12 @@ class ObjectRule(_Entry):
     on: tuple[str, ...] = ()
     align: bool = False
     inside: bool = False
+    max_width: float | None = Field(default=None, gt=0.0)
+
+    def fits(self, record) -> bool:
+        """Whether a catalog record's narrower horizontal extent [m] is at most ``max_width`` (a
+        hand grasps it across)."""
+        return self.max_width is None or min(record.dimensions[:2]) <= self.max_width
 
 
 class RoomRules(_Strict):

@@ -209,12 +209,12 @@ class Populator:
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
         keep = (self._compact_keep(rule.category, self._compact) if self._compact else None) if furniture else (
-            lambda r: self._geo(r).rests_flat)
+            lambda r: self._geo(r).rests_flat and rule.fits(r))
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
             if rec is None:
                 if not furniture and self.library.records.get(rule.category):
-                    rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll)")
+                    rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll) that fits")
                     return
                 if k < rule.count[0]:
                     raise PlacementFailure(f"{ctx.room.id}: no catalog asset of category {rule.category!r}")
