@@ -48,7 +48,6 @@ SPOT_BESIDE = 0.17      # mug spot: from the microwave's side to the spot [m] (a
 SPOT_BACK = 0.07        # mug spot: behind the counter's front edge [m]
 CLEAR_HALF = 0.15       # counter objects from the microwave to this beyond the spot are cut away [m]
 FLOOR_MIN_HEIGHT = 0.03  # floor furniture lower than this (rugs) is no obstacle [m]
-START_COUNTER_GAP = 0.9  # a start pose is at least this far before the counter's front [m]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -80,8 +79,10 @@ class HouseKitchen(KitchenWorld):
         return (x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2)
 
     def start_area(self) -> tuple[float, float, float, float]:
+        """The kitchen's floor less 0.3 m along the walls (a house's kitchen is smaller than the task
+        kitchen: no band before the counter is kept free of starts)."""
         x0, y0, x1, y1 = self.area
-        return (x0 + 0.4, y0 + 0.4, x1 - 0.4, self.counter_rect[1] - START_COUNTER_GAP)
+        return (x0 + 0.3, y0 + 0.3, x1 - 0.3, y1 - 0.3)
 
     def start_boxes(self) -> np.ndarray:
         return self.nav_boxes()
