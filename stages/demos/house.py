@@ -102,6 +102,39 @@ def _rel(target: Path, layer_dir: Path) -> str:
     return r if r.startswith(".") else f"./{r}"
 
 
+def _reachable_y(cnt: Placed, seg: dict, ma: CatalogAsset, side: float, span: tuple[float, float], y0: float,
+                 walls, boxes) -> float | None:
+    """The microwave's position along the counter top ``seg`` (counter frame y, within ``span``) nearest
+    ``y0`` from which the experts' base poses before the counter are free (the staging pose, COUNTER_STAGE
+    behind the pose at the counter, of the pick into the microwave and of the button press; the base
+    inflated by its radius as the planner does), None if there is none."""
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.experts import COUNTER_STAGE, facing_north_goal
+    from stages.demos.planner import NavGrid
+
+    xs = [b[0] for b in walls] + [b[2] for b in walls]
+    ys = [b[1] for b in walls] + [b[3] for b in walls]
+    grid = NavGrid.from_boxes((min(xs), min(ys), max(xs), max(ys)), np.asarray(list(walls) + list(boxes), float))
+    blocked = grid.inflate(ROBOT_RADIUS)
+    front = cnt.footprint()[1]
+    cav = _cavity(ma)
+    blo, bhi = link_bounds(ma.usd, "button")
+
+    def free(ly: float) -> bool:
+        x = float(cnt.to_world((seg["hi"][0], ly, 0.0))[0])
+        gx, gy, _ = facing_north_goal(front, x)
+        cells = [grid.cell_of(gx + dx, gy - COUNTER_STAGE) for dx in (-0.05, 0.0, 0.05)]
+        return all(0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix]
+                   for iy, ix in cells)
+
+    for y in sorted(np.arange(span[0], span[1] + 1e-9, 0.02).tolist() + [y0], key=lambda v: abs(v - y0)):
+        spot = y + (ma.hi[1] + SPOT_BESIDE if side > 0 else ma.lo[1] - SPOT_BESIDE)
+        pick = 0.5 * (spot + y + 0.5 * (cav["lo"][1] + cav["hi"][1]))
+        if free(pick) and free(y + 0.5 * (blo[1] + bhi[1])):
+            return float(y)
+    return None
+
+
 def floor_plan_of(scene_usd: Path) -> Path:
     """The ``floorplan.json`` beside the layout layer that a scene's ``/World/Layout`` references."""
     from pxr import Sdf
@@ -121,7 +154,8 @@ def _asset(rec: dict, info: dict[str, dict]) -> CatalogAsset:
     gen = info.get(rec["asset_id"])
     if gen is None:
         raise ItemError(f"{rec['asset_id']}: not in the catalog's generated.json")
-    return CatalogAsset(asset_id=rec["asset_id"], category=rec["category"], usd=Path(rec["usd"]).resolve(), info=gen)
+    return CatalogAsset(asset_id=rec["asset_id"], category=rec["category"], usd=Path(rec["usd"]).resolve(),
+                        info=gen)
 
 
 def _write_task_scene(path: Path, house: Path, frame: tuple[float, float, float], cut: list[str],
@@ -144,7 +178,8 @@ def _write_task_scene(path: Path, house: Path, frame: tuple[float, float, float]
     t.default = Gf.Vec3d(tx, ty, 0.0)
     r = Sdf.AttributeSpec(world, "xformOp:rotateZ", Sdf.ValueTypeNames.Double)
     r.default = math.degrees(th)
-    o = Sdf.AttributeSpec(world, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, variability=Sdf.VariabilityUniform)
+    o = Sdf.AttributeSpec(world, "xformOpOrder", Sdf.ValueTypeNames.TokenArray,
+                          variability=Sdf.VariabilityUniform)
     o.default = ["xformOp:translate", "xformOp:rotateZ"]
     objs = Sdf.PrimSpec(world, "Objects", Sdf.SpecifierOver)
     for name in sorted(cut):
@@ -207,8 +242,8 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
 
     def placed(rec: dict) -> Placed:
         xy = R @ np.asarray(rec["position"][:2]) + t
-        return Placed(f"Objects/{rec['name']}", _asset(rec, info), (float(xy[0]), float(xy[1]), float(rec["position"][2])),
-                      _wrap(rec["yaw"] + theta))
+        pos = (float(xy[0]), float(xy[1]), float(rec["position"][2]))
+        return Placed(f"Objects/{rec['name']}", _asset(rec, info), pos, _wrap(rec["yaw"] + theta))
 
     def box(b) -> tuple[float, float, float, float]:
         pts = np.array([[b[0], b[1]], [b[2], b[3]]]) @ R.T + t
@@ -216,7 +251,8 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
 
     walls = tuple(box(w.box) for w in plan.floors[rm.floor].walls)
     furniture = {n: placed(r) for n, r in mine.items() if r["support"] is None}
-    pl: dict[str, Placed] = {"counter": furniture[counter["name"]], "microwave": placed(micro), "mug": placed(mug)}
+    pl: dict[str, Placed] = {"counter": furniture[counter["name"]], "microwave": placed(micro),
+                             "mug": placed(mug)}
     for cat, role in FURNITURE_ROLES.items():
         r = one(cat)
         if r is not None and role not in pl:
@@ -237,16 +273,22 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         return (lo, min(hi, s["hi"][1] - need)) if side > 0 else (max(lo, s["lo"][1] - need), hi)
 
     tops = sorted((s for s in cnt.info.get("surfaces", []) if not s["inside"] and s["link"] == "base"),
-                  key=lambda s: (not s["lo"][1] - 0.01 <= mloc[1] <= s["hi"][1] + 0.01, s["lo"][1] - s["hi"][1]))
+                  key=lambda s: (not s["lo"][1] - 0.01 <= mloc[1] <= s["hi"][1] + 0.01,
+                                 s["lo"][1] - s["hi"][1]))
     tops = [s for s in tops if span(s)[0] <= span(s)[1]]
     if not tops:
         raise ItemError(f"{scene_dir}: no counter top has room for the microwave and the mug beside it "
                         f"on its handle side")
     seg = tops[0]
     lo_y, hi_y = span(seg)
+    my = _reachable_y(cnt, seg, ma, side, (lo_y, hi_y), float(np.clip(mloc[1], lo_y, hi_y)), walls,
+                      [p.footprint() for p in furniture.values() if p.asset.hi[2] - p.asset.lo[2] >= FLOOR_MIN_HEIGHT])
+    if my is None:
+        raise ItemError(f"{scene_dir}: the robot's base cannot stand before the counter where the microwave "
+                        f"and the mug's spot are (furniture or a wall beside it)")
     moved = None
-    if not lo_y <= mloc[1] <= hi_y:
-        mloc = np.array([mloc[0], float(np.clip(mloc[1], lo_y, hi_y))])
+    if abs(my - mloc[1]) > 1e-9:
+        mloc = np.array([mloc[0], my])
         xy = np.asarray(cnt.position[:2]) + _rot2(cnt.yaw) @ mloc
         mwp = pl["microwave"] = Placed(mwp.name, ma, (float(xy[0]), float(xy[1]), mwp.position[2]), mwp.yaw)
         hxy = _rot2(-theta) @ (xy - t)
@@ -279,7 +321,8 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         table_z, table_rect = float(table.position[2] + ttop["z"]), table.rect(ttop["lo"], ttop["hi"])
         pl["table"] = table
     # the mug's rest pose in the task frame, on its support (the non-pick tasks' start)
-    pl["mug"] = Placed(pl["mug"].name, pl["mug"].asset, (*pl["mug"].position[:2], table_z + 0.002), pl["mug"].yaw)
+    m = pl["mug"]
+    pl["mug"] = Placed(m.name, m.asset, (*m.position[:2], table_z + 0.002), m.yaw)
 
     cav = _cavity(ma)
     blo, bhi = link_bounds(ma.usd, "button")
@@ -295,7 +338,7 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         cavity_height=float(cav["clear_height"]), button=tuple(float(v) for v in button),
         button_travel=float(ma.params.get("button_travel", 0.005)),
         button_push=tuple(float(v) for v in mwp.dir_to_world((-1.0, 0.0, 0.0))),
-        mug_radius=float(pl["mug"].asset.params["radius"]), mug_height=float(pl["mug"].asset.params["height"]),
+        mug_radius=float(m.asset.params["radius"]), mug_height=float(m.asset.params["height"]),
         bowl_radius=0.0, materials={}, look=None, house=house.resolve(), room=room, frame=frame, area=area,
         walls=walls, furniture=furniture, cut=tuple(sorted(cut)), moved=moved)
     from stages.demos.sampling import free_start

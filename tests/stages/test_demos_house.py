@@ -19,6 +19,16 @@ PACKAGES = ("fridge_00", "kitchen_counter_00", "kitchen_counter_04", "microwave_
             "plate_00", "mug_04", "mug_00")
 
 
+def test_nav_grid_ignores_boxes_beyond_its_bounds():
+    """A house's walls beyond the kitchen (left of and below the grid) mark no cell; a box across
+    the grid's edge marks its part inside."""
+    from stages.demos.planner import NavGrid
+
+    g = NavGrid.from_boxes((0.0, 0.0, 2.0, 1.0), np.array([(-1.0, 0.5, -0.5, 0.6), (0.5, -0.6, 0.6, -0.4),
+                                                           (-1.0, 0.2, 0.25, 0.3)]))
+    assert g.occupied.sum() == 5 * 2 and g.occupied[4:6, 0:5].all()
+
+
 @pytest.fixture(scope="module")
 def house(tmp_path_factory):
     """(scene folder, generated.json) of one generated flat whose kitchen the scene job populated."""
