@@ -131,10 +131,25 @@ class KitchenWorld:
         boxes += [self.placed[k].footprint() for k in ("fridge", "counter", "oven", "table", "door")]
         return np.asarray(boxes, float)
 
+    def nav_bounds(self) -> tuple[float, float, float, float]:
+        """The planning grid's extent (xmin, ymin, xmax, ymax) [m]: the room and 0.2 m around it."""
+        return (-0.2, -0.2, self.size[0] + 0.2, self.size[1] + 0.2)
+
     def grid(self):
         from stages.demos.planner import NavGrid
 
-        return NavGrid.from_boxes((-0.2, -0.2, self.size[0] + 0.2, self.size[1] + 0.2), self.nav_boxes())
+        return NavGrid.from_boxes(self.nav_bounds(), self.nav_boxes())
+
+    def start_area(self) -> tuple[float, float, float, float]:
+        """Where a robot start pose is drawn (xmin, ymin, xmax, ymax) [m]: 0.6 m from the walls, up to
+        1.3 m before the counter's front (an open fridge door reaches ~0.8 m out)."""
+        return (0.6, 0.6, self.size[0] - 0.6, self.counter_rect[1] - 1.3)
+
+    def start_boxes(self) -> np.ndarray:
+        """Footprints (K, 4) [m] a start pose keeps 0.5 m from: :meth:`nav_boxes` and the room
+        door's swing (1.1 m around the opening: the leaf may stand open, close_door)."""
+        dx, dy = self.placed["door"].position[:2]
+        return np.vstack([self.nav_boxes(), [(dx - 1.1, dy, dx + 1.1, dy + 1.1)]])
 
     def asset_ids(self) -> dict[str, str]:
         return {k: p.asset.asset_id for k, p in self.placed.items()}

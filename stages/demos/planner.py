@@ -43,7 +43,8 @@ class NavGrid:
         for bx0, by0, bx1, by1 in np.asarray(boxes, float).reshape(-1, 4):
             i0, i1 = max(0, int(math.floor((bx0 - x0) / cell))), min(nx, int(math.ceil((bx1 - x0) / cell)))
             j0, j1 = max(0, int(math.floor((by0 - y0) / cell))), min(ny, int(math.ceil((by1 - y0) / cell)))
-            occ[j0:j1, i0:i1] = True
+            if i1 > i0 and j1 > j0:  # a box beyond the grid's low side would wrap round (negative ends)
+                occ[j0:j1, i0:i1] = True
         return NavGrid((x0, y0), cell, occ)
 
     @staticmethod

@@ -51,22 +51,19 @@ class TaskInstance:
 
 
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
-    """A start pose on the free floor between the south wall and the counter front (y in the band
-    0.6 m .. counter front - 1.3 m), clear of every obstacle and of the room door's swing by 0.5 m,
-    random heading."""
+    """A start pose in the world's start area (:meth:`~stages.demos.kitchen.KitchenWorld.start_area`:
+    the free floor between the south wall and the counter front), clear of every footprint of its
+    ``start_boxes`` by 0.5 m, random heading."""
     from stages.demos.planner import NavGrid
 
-    # the room door's leaf may stand open (close_door): keep its swing (1.1 m around the opening) free
-    dx, dy = world.placed["door"].position[:2]
-    boxes = np.vstack([world.nav_boxes(), [(dx - 1.1, dy, dx + 1.1, dy + 1.1)]])
-    grid = NavGrid.from_boxes((-0.2, -0.2, world.size[0] + 0.2, world.size[1] + 0.2), boxes)
+    grid = NavGrid.from_boxes(world.nav_bounds(), world.start_boxes())
     blocked = grid.inflate(0.5)
-    y_hi = world.counter_rect[1] - 1.3  # an open fridge door reaches ~0.8 m out
+    x0, y0, x1, y1 = world.start_area()
     for _ in range(400):
-        x = float(rng.uniform(0.6, world.size[0] - 0.6))
-        y = float(rng.uniform(0.6, y_hi))
+        x = float(rng.uniform(x0, x1))
+        y = float(rng.uniform(y0, y1))
         iy, ix = grid.cell_of(x, y)
-        if not blocked[iy, ix]:
+        if 0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix]:
             return x, y, float(rng.uniform(-np.pi, np.pi))
     raise ItemError(f"{world.usd}: no free start pose for the robot")
 
@@ -82,18 +79,23 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     spec = task(task_name)
     rng = np.random.default_rng(seed)
     pl = world.placed
-    mug, bowl, pusher = pl["mug"].body(), pl["bowl"].body(), pl["pusher"].body()
+    # a world without a table (a house's kitchen, stages.demos.house) has no bowl or object to push
+    mug = pl["mug"].body()
+    bowl, pusher = (pl[k].body() if k in pl else None for k in ("bowl", "pusher"))
     mug_yaw = float(rng.uniform(-0.25, 0.25))  # the handle (+Y of the mug) points away from the robot
-    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw), bowl: (*_on_table(world, rng, "bowl"), 0.0),
-               pusher: (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))}
+    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)}
+    if bowl:
+        objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
+    if pusher:
+        objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
     joints: dict[str, float] = {}
     cav = world.cavity
     cav_c = ((cav[0] + cav[2]) / 2, (cav[1] + cav[3]) / 2)
     spot = (world.counter_spot[0] + float(rng.uniform(-0.02, 0.02)),
             world.counter_spot[1] + float(rng.uniform(-0.02, 0.02)))
-    target = (float(objects[bowl][0]), float(objects[bowl][1]))
+    target = (float(objects[bowl][0]), float(objects[bowl][1])) if bowl else spot
     names = {"object": "mug", "container": "bowl", "panel": "microwave"}
-    ids = [pl["mug"], pl["bowl"]]
+    ids = [pl[k] for k in ("mug", "bowl") if k in pl]
     if task_name in ("pick_place_microwave", "pick_from_microwave"):
         joints[pl["microwave"].joint("door_joint")] = MICROWAVE_OPEN
         names["container"] = "microwave"

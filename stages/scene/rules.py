@@ -12,6 +12,7 @@ import tomllib
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from asset_catalog.annotations import RoomType
@@ -35,6 +36,10 @@ class _Entry(_Strict):
     probability: float = Field(default=1.0, ge=0.0, le=1.0)
     requires: tuple[str, ...] = ()
 
+    def fits(self, record, geo) -> bool:
+        """Whether a catalog record (its package geometry ``geo``) may serve this entry (any, here)."""
+        return True
+
     def problems(self) -> list[str]:
         lo, hi = self.count
         return [f"count {list(self.count)} must be [min, max] with 0 <= min <= max"] if lo < 0 or hi < lo else []
@@ -57,6 +62,17 @@ class FurnitureRule(_Entry):
     yaw_jitter: float = Field(default=0.0, ge=0.0, le=180.0)
     tall_ok_at_window: bool = False
     snap: float = Field(default=0.0, ge=0.0, le=1.0)
+    min_top: float | None = Field(default=None, gt=0.0)
+
+    def fits(self, record, geo) -> bool:
+        """Whether the longest top surface of the package (within 2 cm of its highest surface), along
+        its back (asset y), is at least ``min_top`` [m]."""
+        if self.min_top is None:
+            return True
+        if not geo.surfaces:
+            return False
+        z = max(s.z for s in geo.surfaces)
+        return max(float(np.ptp(s.polygon[:, 1])) for s in geo.surfaces if s.z >= z - 0.02) >= self.min_top
 
     def problems(self) -> list[str]:
         errs = super().problems()
@@ -73,6 +89,12 @@ class ObjectRule(_Entry):
     on: tuple[str, ...] = ()
     align: bool = False
     inside: bool = False
+    max_width: float | None = Field(default=None, gt=0.0)
+
+    def fits(self, record, geo=None) -> bool:
+        """Whether a catalog record's narrower horizontal extent [m] is at most ``max_width`` (a
+        hand grasps it across)."""
+        return self.max_width is None or min(record.dimensions[:2]) <= self.max_width
 
 
 class RoomRules(_Strict):

@@ -208,13 +208,13 @@ class Populator:
                 rep.skipped.append(f"{rule.category}: requires {', '.join(missing)}")
             return
         n = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
-        keep = (self._compact_keep(rule.category, self._compact) if self._compact else None) if furniture else (
-            lambda r: self._geo(r).rests_flat)
+        keep = (self._compact_keep(rule, self._compact) if self._compact else (lambda r: rule.fits(r, self._geo(r)))
+                ) if furniture else (lambda r: self._geo(r).rests_flat and rule.fits(r, self._geo(r)))
         for k in range(n):
             rec = self.library.pick(rule.category, str(ctx.room.type), self.rng, keep)
             if rec is None:
                 if not furniture and self.library.records.get(rule.category):
-                    rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll)")
+                    rep.skipped.append(f"{rule.category}: no variant with a flat base (it would roll) that fits")
                     return
                 if k < rule.count[0]:
                     raise PlacementFailure(f"{ctx.room.id}: no catalog asset of category {rule.category!r}")
@@ -228,13 +228,13 @@ class Populator:
                 worst = max(own.items(), key=lambda kv: kv[1])[0] if own else "no candidate"
                 raise PlacementFailure(f"{ctx.room.id}: could not place required {rule.category} ({worst})")
 
-    def _compact_keep(self, category: str, fraction: float):
-        """Predicate on records: the variant is among the ``fraction`` (at least one) of the
-        category's variants that are narrowest along their back."""
-        widths = {r.id: float(g.hi[1] - g.lo[1]) for r in self.library.records.get(category, ())
-                  for g in (self._geo(r),)}
+    def _compact_keep(self, rule, fraction: float):
+        """Predicate on records: the variant fits the rule (``rule.fits``) and is among the
+        ``fraction`` (at least one) of the category's fitting variants that are narrowest along their back."""
+        widths = {r.id: float(g.hi[1] - g.lo[1]) for r in self.library.records.get(rule.category, ())
+                  for g in (self._geo(r),) if rule.fits(r, g)}
         if not widths:
-            return None
+            return lambda r: False
         order = sorted(widths.values())
         limit = order[max(1, math.ceil(len(order) * fraction)) - 1]
         return lambda r: widths.get(r.id, math.inf) <= limit + 1e-9
@@ -263,16 +263,16 @@ class Populator:
     # -- furniture ------------------------------------------------------------------------------
 
     def _narrower(self, rule: FurnitureRule, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext):
-        """Another variant of the category, narrower (along its back) than ``rec`` if there is one,
-        else any other: (record, geometry)."""
+        """Another variant of the category that fits the rule, narrower (along its back) than ``rec`` if
+        there is one, else any other: (record, geometry)."""
         width = geo.hi[1] - geo.lo[1]
 
         def narrower(r: CatalogRecord) -> bool:
             g = self._geo(r)
-            return r.id != rec.id and g.hi[1] - g.lo[1] < width - 1e-6
+            return r.id != rec.id and g.hi[1] - g.lo[1] < width - 1e-6 and rule.fits(r, g)
 
-        new = (self.library.pick(rule.category, str(ctx.room.type), self.rng, narrower)
-               or self.library.pick(rule.category, str(ctx.room.type), self.rng) or rec)
+        new = (self.library.pick(rule.category, str(ctx.room.type), self.rng, narrower) or self.library.pick(
+            rule.category, str(ctx.room.type), self.rng, lambda r: rule.fits(r, self._geo(r))) or rec)
         return new, self._geo(new)
 
     def _place_furniture(self, rule: FurnitureRule, rec: CatalogRecord, ctx: RoomContext, grid: PathGrid,

@@ -41,7 +41,12 @@ def house(tmp_path_factory):
     from stages.scene.standin import build_library
 
     root = tmp_path_factory.mktemp("household")
-    lib = Library.from_index(build_library(root / "lib", categories=CATEGORIES, variants=1, seed=0))
+    # one variant of each category; the kitchen's mug entry takes only mugs the hand grasps across
+    # (max_width): mug_04 is the default catalog's one, so every mug variant is built
+    base = Library.from_index(build_library(root / "lib", categories=[c for c in CATEGORIES if c != "mug"],
+                                            variants=1, seed=0))
+    mugs = Library.from_index(build_library(root / "lib", categories=["mug"], variants=5, seed=0))
+    lib = Library({**base.records, **mugs.records}, base.root)
     lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), LAYOUT_SEED,
                           root / "layout")
     plan = load_floor_plan(lay.plan_json)
@@ -76,13 +81,14 @@ def test_task_objects_sit_where_the_tasks_look_for_them(house):
     pop, _ = house
     by_inst = {i.p.inst: i for i in pop.insts}
 
-    def on(category: str) -> set[str]:
+    def on(category: str, room: str = "") -> set[str]:
         return {by_inst[i.p.support].p.record.category if i.p.support else "floor"
-                for i in pop.insts if i.p.record.category == category}
+                for i in pop.insts if i.p.record.category == category and room in i.p.room}
 
     assert on("hanger") <= {"wardrobe", "closet"} and on("hanger")
     assert on("dish_rack") == {"kitchen_counter"} and on("sponge") == {"kitchen_counter"}
-    assert on("pitcher") == {"coffee_table"} and "coffee_table" in on("book")
+    assert on("pitcher", "living_room") == {"coffee_table"} and "coffee_table" in on("book")
+    assert on("mug", "kitchen") and {i.p.record.id for i in pop.insts if i.p.record.category == "mug"} == {"mug_04"}
     assert on("crumpled_paper") == {"coffee_table"} and on("trash_can") == {"floor"}
     assert on("pillow") >= {"bed"} and on("alarm_clock") == {"nightstand"}
     # a hanger lies inside its wardrobe: within its footprint, below its top

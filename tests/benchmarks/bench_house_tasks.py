@@ -1,0 +1,98 @@
+"""Scripted success of tasks in generated houses (issue 16), CPU: ``--houses`` 3-room flats from the
+layout stage, their kitchens populated by the scene stage with the household-task rules from the
+default catalog's kitchen categories (all 5 variants, ingested by the real job steps), each turned
+into a task world (:func:`stages.demos.house.house_kitchen`) and run on the batched engine
+(``layout="per_world"``, one world, no cameras) for every task and seed.
+
+Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``
+(``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
+whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+CATEGORIES = ("fridge", "kitchen_counter", "microwave", "dish_rack", "sponge", "plate", "mug", "oven")
+
+
+def build_houses(out: Path, n: int) -> list[Path]:
+    """The populated flats' scene folders in work dir ``out`` (the job's items are cached there)."""
+    from pipeline import build_job, run_job
+    from stages.scene.rules import HOUSEHOLD_TASK_RULES
+
+    job = {"job": {"name": "house_tasks", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog",
+                     "config": {"variants": 5, "categories": list(CATEGORIES)}},
+                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}},
+                    {"name": "layouts", "kind": "layout", "config": {"house": [
+                        {"id": "flat", "count": n, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
+                    {"name": "scenes", "kind": "scene", "config": {
+                        "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
+                        "looks": 1, "validate_usd": False,
+                        "group": [{"id": "flat", "layouts": ["flat_*"], "rooms": ["kitchen"]}]}}]}
+    run_job(build_job(job, source="<bench>", base_dir=out.parent), progress=False)
+    return sorted(p for p in (out / "scenes").iterdir() if (p / "scene.json").is_file())
+
+
+def run(work: Path, houses: int, tasks: list[str], seeds: list[int]) -> dict:
+    from stages.demos.house import house_kitchen
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    rows = []
+    for scene in build_houses(work / "out", houses):
+        try:
+            w = house_kitchen(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",
+                              scene_id=scene.name)
+        except Exception as e:  # noqa: BLE001 - counted with its reason
+            rows += [{"house": scene.name, "task": t, "seed": s, "success": False, "reason": f"conversion: {e}",
+                      "frames": 0} for t in tasks for s in seeds]
+            print(rows[-1], flush=True)
+            continue
+        cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
+        eng = BatchEngine(w, panda_root=None, work_dir=work / "engine" / scene.name, config=cfg)
+
+        def end(_w, t, r, name=scene.name):
+            rows.append({"house": name, "task": t.task, "seed": t.seed, "success": r.success, "reason": r.reason,
+                         "frames": r.frames})
+            print(rows[-1], flush=True)
+
+        eng.run(Listed(w, {0: [(t, s, None) for t in tasks for s in seeds]}), begin=lambda *_: None, end=end)
+    per = {t: f"{sum(r['success'] for r in rows if r['task'] == t)}/{sum(r['task'] == t for r in rows)}" for t in tasks}
+    print("success per task:", per)
+    return {"episodes": rows, "success": per}
+
+
+@pytest.mark.benchmark
+def test_house_tasks(tmp_path):
+    res = run(tmp_path, 2, ["heat_food"], [1])
+    Path("bench_results").mkdir(exist_ok=True)
+    Path("bench_results/house_tasks.json").write_text(json.dumps(res, indent=1))
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--houses", type=int, default=4)
+    ap.add_argument("--tasks", nargs="+", default=["heat_food"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1])
+    ap.add_argument("--work", type=Path, default=None)
+    a = ap.parse_args()
+    t0 = time.time()
+    work = a.work or Path(tempfile.mkdtemp(prefix="house_tasks_"))
+    res = run(work, a.houses, a.tasks, a.seeds)
+    res["wall_seconds"] = round(time.time() - t0, 1)
+    Path("bench_results").mkdir(exist_ok=True)
+    Path("bench_results/house_tasks.json").write_text(json.dumps(res, indent=1))
