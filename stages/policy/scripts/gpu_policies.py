@@ -137,6 +137,7 @@ def evaluate(a) -> int:
 
 def table(a) -> int:
     rows = []
+    a.out.mkdir(parents=True, exist_ok=True)
     for fam, pol, run in _runs(None, a.runs):
         ev = run / "eval" / "eval.json"
         tr = run / "train.json"
@@ -151,7 +152,6 @@ def table(a) -> int:
             r.update(episodes=e["episodes"], successes=e["successes"],
                      success_rate=round(e["successes"] / max(1, e["episodes"]), 3))
         rows.append(r)
-        a.out.mkdir(parents=True, exist_ok=True)
         for name in ("curve.csv", "curve.png", "train.json"):
             if (run / name).is_file():
                 shutil.copy(run / name, a.out / f"{run.name}_{name}")
