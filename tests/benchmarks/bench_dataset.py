@@ -88,15 +88,20 @@ def _folder_mb(path: Path, sub: str) -> float:
     return sum(f.stat().st_size for f in (path / sub).rglob("*") if f.is_file()) / 2**20
 
 
+def _write_episodes(shard, frames: list, episodes: int, index: int = 0) -> None:
+    """``episodes`` successful episodes of ``frames`` into an open shard (episode info of writer ``index``)."""
+    for e in range(episodes):
+        shard.begin_episode(synthetic_episode_info(index, e))
+        for f in frames:
+            shard.add_frame(f)
+        shard.end_episode(success=True)
+
+
 def _write_once(spec: DatasetSpec, backend: str, frames: list, base: Path) -> dict:
     shutil.rmtree(base, ignore_errors=True)
     t0 = time.perf_counter()
     with open_shard(base, "bench", spec, backend=backend) as shard:
-        for e in range(EPISODES):
-            shard.begin_episode(synthetic_episode_info(0, e))
-            for f in frames:
-                shard.add_frame(f)
-            shard.end_episode(success=True)
+        _write_episodes(shard, frames, EPISODES)
     wall = time.perf_counter() - t0
     n = EPISODES * len(frames)
     return {
@@ -189,11 +194,7 @@ def _parallel_worker(shards_dir: str, index: int, episodes: int, barrier, result
     barrier.wait()
     t0 = time.time()
     with open_shard(Path(shards_dir), f"w{index:02d}", spec) as shard:
-        for e in range(episodes):
-            shard.begin_episode(synthetic_episode_info(index, e))
-            for f in frames:
-                shard.add_frame(f)
-            shard.end_episode(success=True)
+        _write_episodes(shard, frames, episodes, index)
     results.put((t0, time.time(), episodes * len(frames)))
 
 
@@ -279,11 +280,7 @@ def _cpu_write(spec: DatasetSpec, frames: list, base: Path, episodes: int) -> fl
     shutil.rmtree(base, ignore_errors=True)
     t0 = time.process_time()
     with open_shard(base, "bench", spec) as shard:
-        for e in range(episodes):
-            shard.begin_episode(synthetic_episode_info(0, e))
-            for f in frames:
-                shard.add_frame(f)
-            shard.end_episode(success=True)
+        _write_episodes(shard, frames, episodes)
     cpu = time.process_time() - t0
     shutil.rmtree(base, ignore_errors=True)
     return cpu / (episodes * len(frames))

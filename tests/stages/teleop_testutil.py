@@ -62,6 +62,22 @@ def launch_page(pw):
     return browser, page, errors
 
 
+def enter_xr(page, session, what: str = "XR poses at the server") -> None:
+    """Click the page's XR button (a user gesture; the emulated headset of ``&emulate=1``) and wait
+    until the server holds the right hand's poses."""
+    page.click("#btn-xr")
+    wait_for(lambda: page.evaluate("() => window.teleopState.xrSent > 5") and session.xr is not None
+             and "right" in session.xr.hands, what=what)
+
+
+def save_episode(page, session, out) -> None:
+    """Save the episode from the page and wait until it is merged into ``out/dataset``. A DOM click:
+    the emulated headset's canvas covers the page (as a headset's view would)."""
+    page.dispatch_event("#btn-save", "click")
+    wait_for(lambda: session.status()["saved"] >= 1, what="the saved episode")
+    wait_for(lambda: (out / "dataset" / "meta" / "teleop.json").is_file(), what="the merge")
+
+
 # finger: (knuckle x, knuckle z) in the XR wrist frame of a right hand [m] (-z along the fingers,
 # +y out of the back of the hand, thumb toward -x), phalanx lengths [m]
 FINGERS = {"index": (-0.022, -0.090, (0.045, 0.026, 0.022)), "middle": (0.0, -0.092, (0.048, 0.029, 0.023)),

@@ -146,19 +146,26 @@ def test_rest_is_not_proven_without_authored_mass(world, tmp_path):
     assert "mass" in proof.unproven[obj.p.inst]
 
 
-@needs_newton_usd
-def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
-    from stages.scene.settle_batch import settle_batch
-
+def _two_scenes_one_lifted(world, tmp_path: Path) -> tuple[list[Path], dict]:
+    """Scenes of seeds 5 and 6 (their scene.usda paths); in the second one object on a support
+    lifted 5 cm in its scene.json (that instance's entry is returned)."""
     scenes = []
     for seed in (5, 6):
         _scene(world, seed, tmp_path / f"s{seed}")
         scenes.append(tmp_path / f"s{seed}" / "scene.usda")
-    # one scene with an object lifted 5 cm: it must be the only one that moves more than 1 cm
     info = json.loads((tmp_path / "s6" / "scene.json").read_text())
     lifted = next(i for i in info["instances"] if i["support"])
     lifted["position"][2] += 0.05
     (tmp_path / "s6" / "scene.json").write_text(json.dumps(info))
+    return scenes, lifted
+
+
+@needs_newton_usd
+def test_batched_settle_of_two_scenes_on_cpu(world, tmp_path):
+    from stages.scene.settle_batch import settle_batch
+
+    # one scene with an object lifted 5 cm: it must be the only one that moves more than 1 cm
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
     res = settle_batch(scenes, device="cpu", seconds=0.3, progress=False)
     assert res.passed[0] and not res.passed[1], res.moved
     assert res.offenders[1] == (lifted["name"],)
@@ -239,14 +246,7 @@ def test_settle_pool_workers_agree_with_the_serial_path(world, tmp_path):
     from stages.scene.settle_batch import settle_batch
     from stages.scene.settle_pool import SettlePool
 
-    scenes = []
-    for seed in (5, 6):
-        _scene(world, seed, tmp_path / f"s{seed}")
-        scenes.append(tmp_path / f"s{seed}" / "scene.usda")
-    info = json.loads((tmp_path / "s6" / "scene.json").read_text())
-    lifted = next(i for i in info["instances"] if i["support"])
-    lifted["position"][2] += 0.05
-    (tmp_path / "s6" / "scene.json").write_text(json.dumps(info))
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
 
     def per_scene(pool: SettlePool):
         out = {}

@@ -13,7 +13,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from teleop_testutil import ServerThread, chromium, launch_page, wait_for
+from teleop_testutil import ServerThread, chromium, enter_xr, launch_page, save_episode, wait_for
 
 
 @pytest.fixture
@@ -195,9 +195,7 @@ def test_emulated_headset_wrist_drives_the_hand_and_a_pinch_closes_the_gripper(k
             page.click("#btn-start")
             wait_for(lambda: session.status()["recording"] and session.status()["ee_pose"], what="recording")
             ee0 = np.asarray(session.status()["ee_pose"])  # the hand at the reset, base frame
-            page.click("#btn-xr")  # enter the emulated immersive session (a user gesture)
-            wait_for(lambda: page.evaluate("() => window.teleopState.xrSent > 5") and session.xr is not None
-                     and "right" in session.xr.hands, what="XR poses at the server")
+            enter_xr(page, session)  # the emulated immersive session
             # IWER's right hand: its transform -> its wrist joint's pose (what the page reports)
             hand = page.evaluate(f"() => ({js_pose})(window.teleopXrDevice.hands.right)")
             hand_m = np.eye(4)
@@ -221,10 +219,7 @@ def test_emulated_headset_wrist_drives_the_hand_and_a_pinch_closes_the_gripper(k
             page.evaluate("() => window.teleopXrDevice.hands.right.updatePinchValue(1)")
             wait_for(lambda: session.status()["tick"] >= before_pinch + 20, what="the pinch")
             pinch = np.asarray(session.xr.hands["right"])
-            # the emulated headset's canvas covers the page (as a headset's view would): a DOM click
-            page.dispatch_event("#btn-save", "click")
-            wait_for(lambda: session.status()["saved"] >= 1, what="the saved episode")
-            wait_for(lambda: (tmp_path / "out" / "dataset" / "meta" / "teleop.json").is_file(), what="the merge")
+            save_episode(page, session, tmp_path / "out")
             browser.close()
         assert not errors, errors
     finally:

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from teleop_testutil import ServerThread, chromium, launch_page, wait_for
+from teleop_testutil import ServerThread, chromium, enter_xr, launch_page, save_episode, wait_for
 
 pytest.importorskip("dex_retargeting", reason="dex-retargeting (pip) retargets the hands")
 
@@ -60,9 +60,7 @@ def _drive_hand(teleop_world, tmp_path, hand: str) -> None:
             wait_for(lambda: page.evaluate("() => window.teleopState.frames > 1"), what="the first frames")
             page.click("#btn-start")
             wait_for(lambda: session.status()["recording"], what="recording")
-            page.click("#btn-xr")
-            wait_for(lambda: page.evaluate("() => window.teleopState.xrSent > 5") and session.xr is not None
-                     and "right" in session.xr.hands, what="XR hand joints at the server")
+            enter_xr(page, session, what="XR hand joints at the server")
             for phase, js in (("open", "h.poseId = 'default'; h.updatePinchValue(0);"),
                               ("pinch", "h.updatePinchValue(1);"),
                               ("point", "h.poseId = 'point'; h.updatePinchValue(0);")):
@@ -70,9 +68,7 @@ def _drive_hand(teleop_world, tmp_path, hand: str) -> None:
                 t0 = session.status()["tick"]
                 wait_for(lambda t0=t0: session.status()["tick"] >= t0 + 24, what=f"24 ticks of the {phase} hand")
                 ends[phase] = session.status()["tick"]
-            page.dispatch_event("#btn-save", "click")
-            wait_for(lambda: session.status()["saved"] >= 1, what="the saved episode")
-            wait_for(lambda: (tmp_path / "out" / "dataset" / "meta" / "teleop.json").is_file(), what="the merge")
+            save_episode(page, session, tmp_path / "out")
             browser.close()
         assert not errors, errors
     finally:

@@ -59,12 +59,13 @@ def _runs(data: Path | None, runs: Path) -> list[tuple[str, str, Path]]:
     return [(f, p, runs / f"{f}_{p}") for f in fams for p in POLICIES]
 
 
-def _train_all(data: Path, runs: Path, steps: dict[str, int], tag: str, gpus: list[str],
+def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus: list[str],
                extra: dict[str, list[str]]) -> dict[str, float]:
-    """Start one train-policy per (family, policy) with ``steps[policy]`` steps; wait; wall [s] per run."""
+    """Start one train-policy per (family, policy) with ``steps[policy]`` steps (``probe``: into
+    ``RUNS/.probe_<family>_<policy>``); wait; wall [s] per run folder."""
     procs = {}
     for k, (fam, pol, run) in enumerate(_runs(data, runs)):
-        out = run if tag == "" else runs / f".probe_{fam}_{pol}"
+        out = runs / f".probe_{fam}_{pol}" if probe else run
         shutil.rmtree(out, ignore_errors=True)
         argv = ["train-policy", str(data / "datasets" / fam), "--policy", pol, "--out", str(out),
                 "--steps", str(steps[pol]), "--device", gpus[0].split(":")[0], "--num-workers", "3",
@@ -94,7 +95,7 @@ def train(a) -> int:
     extra = {"act": [f"--lerobot-arg={x}" for x in a.act_arg],
              "diffusion": [f"--lerobot-arg={x}" for x in a.diffusion_arg]}
     t0 = time.perf_counter()
-    walls = _train_all(a.data, runs, {p: a.probe_steps for p in POLICIES}, "probe", gpus, extra)
+    walls = _train_all(a.data, runs, {p: a.probe_steps for p in POLICIES}, True, gpus, extra)
     plan = {}
     for fam, pol, _ in _runs(a.data, runs):
         probe = runs / f".probe_{fam}_{pol}"
@@ -110,7 +111,7 @@ def train(a) -> int:
           f"steps {steps} in {budget:.0f} s", flush=True)
     (runs / "plan.json").write_text(json.dumps({"seconds_per_step_and_startup": plan, "steps": steps,
                                                 "gpus": gpus, "budget_s": budget}, indent=2))
-    walls = _train_all(a.data, runs, steps, "", gpus, extra)
+    _train_all(a.data, runs, steps, False, gpus, extra)
     ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs))
     print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
     return 0 if ok else 1
