@@ -43,6 +43,17 @@ def fast_cpu_step(sim) -> MujocoCpuStep | None:
         return None
 
 
+def cpu_stepper(sim) -> MujocoCpuStep | None:
+    """``sim``'s fast step, recorded for its current state and control buffers (again after one
+    was replaced), or None (``sim._cpu_step`` becomes False: Newton's step from then on)."""
+    f = sim._cpu_step
+    if f is not None and f is not False and f.covers(sim):
+        return f
+    f = fast_cpu_step(sim) if sim.solver_settings.fast_cpu_step and f is not False else None
+    sim._cpu_step = False if f is None else f
+    return f
+
+
 def _unsupported(sim) -> str:
     s, m = sim.solver, sim.model
     if s._update_data_interval != 1:
@@ -189,4 +200,4 @@ class MujocoCpuStep:
         self.sim.solver._step += 1
 
 
-__all__ = ["MujocoCpuStep", "fast_cpu_step"]
+__all__ = ["MujocoCpuStep", "cpu_stepper", "fast_cpu_step"]

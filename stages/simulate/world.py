@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
+from stages.simulate.mujoco_cpu import cpu_stepper
 from stages.simulate.robot import RobotDescription
 from stages.simulate.robot_load import DriveGains, RobotIndices, add_robot
 
@@ -370,33 +371,17 @@ class Sim:
 
     def _substep(self, h: float) -> None:
         """One solver step of ``h`` [s] from ``state_0`` into ``state_1``."""
+        fast = None if self._cpu_step is False else cpu_stepper(self)
+        if fast is not None:  # MuJoCo C: Newton's step without its per-step overhead (no observables)
+            return fast.step(self.state_0, self.state_1, h)
+        self.state_0.clear_forces()
+        if self.pipeline is not None:
+            self.pipeline.collide(self.state_0, self.contacts)
         mon = self.contact_monitor
-        fast = self._fast_cpu_step()
-        if fast is not None:  # MuJoCo C (its contact monitor has no observables)
-            fast.step(self.state_0, self.state_1, h)
-        else:
-            self.state_0.clear_forces()
-            if self.pipeline is not None:
-                self.pipeline.collide(self.state_0, self.contacts)
-            self.solver.step(self.state_0, self.state_1, self.control,
-                             None if self.pipeline is None else self.contacts, h,
-                             observables=None if mon is None else mon.observables)
+        self.solver.step(self.state_0, self.state_1, self.control, None if self.pipeline is None else self.contacts,
+                         h, observables=None if mon is None else mon.observables)
         if mon is not None:
             mon.after_step()
-
-    def _fast_cpu_step(self):
-        """The MuJoCo C step without Newton's per-step overhead (:mod:`stages.simulate.mujoco_cpu`),
-        made for the current state and control buffers, or None (Newton's step)."""
-        f = self._cpu_step
-        if f is False:
-            return None
-        if f is not None and f.covers(self):
-            return f
-        from stages.simulate.mujoco_cpu import fast_cpu_step
-
-        f = fast_cpu_step(self) if self.solver_settings.fast_cpu_step else None
-        self._cpu_step = False if f is None else f
-        return f
 
     def _use_graphs(self) -> bool:
         """CUDA graph replay applies to MuJoCo-Warp on a CUDA device (no Newton pipeline)."""
@@ -600,24 +585,8 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
         scenes=tuple(str(s) for s in cfg.scenes),
     )
     log.info("simulation built: %s", settings)
-    return Sim(
-        model=model,
-        solver=solver,
-        state_0=state_0,
-        state_1=state_1,
-        control=control,
-        contacts=contacts,
-        pipeline=pipeline,
-        robot=robot,
-        desc=desc,
-        settings=settings,
-        scene=loaded,
-        shape_label=np.asarray(all_labels),
-        bodies_per_world=tpl.body_count,
-        shapes_per_world=tpl.shape_count,
-        dofs_per_world=tpl.joint_dof_count,
-        coords_per_world=tpl.joint_coord_count,
-        spawn=tuple(spawn),
-        solver_settings=cfg.solver,
-        contact_monitor=monitor,
-    )
+    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control, contacts=contacts,
+               pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
+               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count, shapes_per_world=tpl.shape_count,
+               dofs_per_world=tpl.joint_dof_count, coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn),
+               solver_settings=cfg.solver, contact_monitor=monitor)
