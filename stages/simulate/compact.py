@@ -116,8 +116,8 @@ def _launch_background(rig, state, tfs) -> CompactRender:
     wp.copy(rstate.body_q, state.body_q)
     rig.sim.model.bvh_refit_shapes(rstate)
     sensors = d["_bg_sensors"]
-    futures = {cam.name: pool.submit(_render_camera, rig, sensors[cam.name], rstate, tfs[cam.name], cam, False)
-               for cam in rig.cameras}
+    futures = {cam.name: pool.submit(_render_camera, rig, sensors[cam.name], rstate, tfs[cam.name], cam,
+                                     False) for cam in rig.cameras}
     r = d["_bg_inflight"] = CompactRender(None, None, futures)
     return r
 
@@ -126,7 +126,8 @@ def _render(rig, state, tfs, cuda: bool) -> dict:
     """Enqueue the renders, the conversion and (CUDA) the copies to pinned buffers on the current
     stream; the arrays by camera name (see :class:`CompactRender`)."""
     rig.sim.model.bvh_refit_shapes(state)
-    return {cam.name: _render_camera(rig, rig._sensor, state, tfs[cam.name], cam, cuda) for cam in rig.cameras}
+    return {cam.name: _render_camera(rig, rig._sensor, state, tfs[cam.name], cam, cuda)
+            for cam in rig.cameras}
 
 
 def _render_camera(rig, sensor, state, tf, cam, cuda: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -128,7 +128,8 @@ class MujocoCpuStep:
             rec = dict(device=dev, record_cmd=True)
             self._cmds[id(st_in)] = ([
                 wp.launch(sm.apply_mjc_control_kernel, dim=(1, nu), inputs=[
-                    s.mjc_actuator_ctrl_source, s.mjc_actuator_to_newton_idx, s.mjc_actuator_to_newton_target_q_idx,
+                    s.mjc_actuator_ctrl_source, s.mjc_actuator_to_newton_idx,
+                    s.mjc_actuator_to_newton_target_q_idx,
                     s.mjc_actuator_to_target_q_axis_idx, s.mjc_actuator_to_newton_ball_jnt, m.joint_X_c,
                     c.joint_target_q, c.joint_target_qd, st_in.joint_q, None, dof_ref,
                     c.joint_target_q.shape[0], m.joint_coord_count, m.joint_dof_count, 0, jpw],
@@ -145,18 +146,21 @@ class MujocoCpuStep:
                     outputs=[self.xfrc], **rec),
                 wp.launch(sm.convert_warp_coords_to_mj_kernel, dim=(1, jpw), inputs=[
                     st_in.joint_q, st_in.joint_qd, None, jpw, m.joint_type, m.joint_q_start, m.joint_qd_start,
-                    m.joint_dof_dim, m.joint_child, m.joint_X_p, m.joint_X_c, m.joint_axis, m.body_com, dof_ref,
+                    m.joint_dof_dim, m.joint_child, m.joint_X_p, m.joint_X_c, m.joint_axis, m.body_com,
+                    dof_ref,
                     s.mj_q_start, s.mj_qd_start, mocap, True],
                     outputs=[self.qpos_out, self.qvel_out, None if mocap is None else mjw.mocap_pos,
                              None if mocap is None else mjw.mocap_quat, None], **rec),
             ], [
                 wp.launch(sm.convert_mj_coords_to_warp_kernel, dim=(1, jpw), inputs=[
                     self.qpos_in, self.qvel_in, jpw, m.joint_type, m.joint_q_start, m.joint_qd_start,
-                    m.joint_dof_dim, m.joint_child, m.joint_X_p, m.joint_X_c, m.body_com, dof_ref, m.body_flags,
+                    m.joint_dof_dim, m.joint_child, m.joint_X_p, m.joint_X_c, m.body_com, dof_ref,
+                    m.body_flags,
                     st_in.joint_q, st_in.joint_qd, s.mj_q_start, s.mj_qd_start],
                     outputs=[st_out.joint_q, st_out.joint_qd], **rec),
                 wp.launch(eval_articulation_fk, dim=m.articulation_count, inputs=[
-                    m.articulation_start, m.articulation_end, m._fk_joint_order, m.articulation_count, None, None,
+                    m.articulation_start, m.articulation_end, m._fk_joint_order, m.articulation_count,
+                    None, None,
                     m.joint_articulation, st_out.joint_q, st_out.joint_qd, m.joint_q_start, m.joint_qd_start,
                     m.joint_type, m.joint_parent, m.joint_child, m.joint_X_p, m.joint_X_c, m.joint_axis,
                     m.joint_dof_dim, m.body_com, m.body_flags, int(newton.BodyFlags.ALL), None],

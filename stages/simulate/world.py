@@ -585,8 +585,9 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
         scenes=tuple(str(s) for s in cfg.scenes),
     )
     log.info("simulation built: %s", settings)
-    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control, contacts=contacts,
-               pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
-               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count, shapes_per_world=tpl.shape_count,
+    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control,
+               contacts=contacts, pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
+               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count,
+               shapes_per_world=tpl.shape_count,
                dofs_per_world=tpl.joint_dof_count, coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn),
                solver_settings=cfg.solver, contact_monitor=monitor)

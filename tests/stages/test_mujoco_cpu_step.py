@@ -15,9 +15,10 @@ def _snapshot(sim):
 
     d = mujoco.MjData(sim.solver.mj_model)
     mujoco.mj_copyData(d, sim.solver.mj_model, sim.solver.mj_data)
-    states = [{k: getattr(st, k).numpy().copy() for k in ("joint_q", "joint_qd", "body_q", "body_qd", "body_f")}
-              for st in (sim.state_0, sim.state_1)]
-    ctl = {k: getattr(sim.control, k).numpy().copy() for k in ("joint_target_q", "joint_target_qd", "joint_f")}
+    keys = ("joint_q", "joint_qd", "body_q", "body_qd", "body_f")
+    states = [{k: getattr(st, k).numpy().copy() for k in keys} for st in (sim.state_0, sim.state_1)]
+    names = ("joint_target_q", "joint_target_qd", "joint_f")
+    ctl = {k: getattr(sim.control, k).numpy().copy() for k in names}
     return d, (sim.state_0, sim.state_1), states, ctl, (sim.solver._step, sim.steps, sim.time)
 
 
