@@ -9,11 +9,13 @@ the body poses taken at the launch (in the simulation stream's order), so physic
 reads may follow the launch at once; the next launch of the same rig must wait for this one.
 
 On the CPU the render runs in the caller's thread before the launch returns, or, for a rig with
-``background`` set, in a thread of the rig's own from a copy of the body poses taken at the launch
-(the same images: of the state the renderer reads only the rigid bodies' poses, ``body_q``; our
-scenes have no particles), so that the physics steps that follow the launch run beside it (the
-kernels release the GIL). The first render of a rig runs
-in the caller's thread (it loads the kernels); a launch waits for the rig's render in flight.
+``background`` set, from a copy of the body poses taken at the launch (the same images: of the
+state the renderer reads only the rigid bodies' poses, ``body_q``; our scenes have no particles),
+each camera in a thread of the rig's own with a Newton sensor of its own, so that the cameras render
+beside each other and beside the physics steps that follow the launch (the kernels release the
+GIL; a CPU kernel runs on one core, so one thread for all cameras left the render of a frame on
+one core). The first render of a rig runs in the caller's thread (it loads the kernels); a launch
+waits for the rig's render in flight.
 """
 
 from __future__ import annotations
@@ -33,21 +35,21 @@ class CompactRender:
     (W, H, Wd) uint16 [mm] (0 where no surface, at most 65,535). On CUDA the arrays are views of
     pinned buffers that the rig's next launch overwrites: copy what you keep."""
 
-    def __init__(self, out: dict[str, tuple[np.ndarray, np.ndarray]] | None, event, future=None) -> None:
+    def __init__(self, out: dict[str, tuple[np.ndarray, np.ndarray]] | None, event, futures=None) -> None:
         self._out = out
         self._event = event
-        self._future = future  # a background CPU render (concurrent.futures.Future)
+        self._futures = futures  # a background CPU render: {camera: concurrent.futures.Future}
 
     @property
     def done(self) -> bool:
         """The images are ready (CUDA: only once waited for; a background CPU render: finished)."""
-        if self._future is not None:
-            return self._future.done()
+        if self._futures is not None:
+            return all(f.done() for f in self._futures.values())
         return self._event is None
 
     def wait(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        if self._future is not None:
-            self._out, self._future = self._future.result(), None
+        if self._futures is not None:
+            self._out, self._futures = {k: f.result() for k, f in self._futures.items()}, None
         if self._event is not None:
             import warp as wp
 
@@ -90,7 +92,8 @@ def launch_compact(rig) -> CompactRender:
 
 
 def _launch_background(rig, state, tfs) -> CompactRender:
-    """A CPU render in the rig's thread from a copy of ``state``'s body poses (see the module doc)."""
+    """A CPU render from a copy of ``state``'s body poses, each camera in a thread of the rig's own
+    with a sensor of its own (see the module doc)."""
     import warp as wp
 
     d = rig.__dict__
@@ -99,7 +102,11 @@ def _launch_background(rig, state, tfs) -> CompactRender:
         from concurrent.futures import ThreadPoolExecutor
 
         out = _render(rig, state, tfs, False)
-        d["_bg_pool"] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render")
+        d["_bg_sensors"] = sensors = {cam.name: rig._sensor if k == 0 else rig.new_sensor()
+                                      for k, cam in enumerate(rig.cameras)}
+        for cam in rig.cameras[1:]:  # each sensor compiles or loads its render kernel once, here
+            _render_camera(rig, sensors[cam.name], state, tfs[cam.name], cam, False)
+        d["_bg_pool"] = ThreadPoolExecutor(max_workers=len(rig.cameras), thread_name_prefix="render")
         d["_bg_state"] = rig.sim.model.state()
         return CompactRender(out, None)
     prev = d.get("_bg_inflight")
@@ -107,44 +114,51 @@ def _launch_background(rig, state, tfs) -> CompactRender:
         prev.wait()  # its copy of the poses is about to be overwritten
     rstate = d["_bg_state"]
     wp.copy(rstate.body_q, state.body_q)
-    r = d["_bg_inflight"] = CompactRender(None, None, pool.submit(_render, rig, rstate, tfs, False))
+    rig.sim.model.bvh_refit_shapes(rstate)
+    sensors = d["_bg_sensors"]
+    futures = {cam.name: pool.submit(_render_camera, rig, sensors[cam.name], rstate, tfs[cam.name], cam,
+                                     False) for cam in rig.cameras}
+    r = d["_bg_inflight"] = CompactRender(None, None, futures)
     return r
 
 
 def _render(rig, state, tfs, cuda: bool) -> dict:
     """Enqueue the renders, the conversion and (CUDA) the copies to pinned buffers on the current
     stream; the arrays by camera name (see :class:`CompactRender`)."""
+    rig.sim.model.bvh_refit_shapes(state)
+    return {cam.name: _render_camera(rig, rig._sensor, state, tfs[cam.name], cam, cuda)
+            for cam in rig.cameras}
+
+
+def _render_camera(rig, sensor, state, tf, cam, cuda: bool) -> tuple[np.ndarray, np.ndarray]:
+    """One camera of :func:`_render` with ``sensor`` (shape BVH refitted for ``state``): RGB
+    (W, H, Wd, 3) uint8 and depth (W, H, Wd) uint16 [mm]."""
     import warp as wp
 
     model = rig.sim.model
-    model.bvh_refit_shapes(state)
     nw = rig.sim.world_count
+    img = rig._images[cam.name]
+    sensor.update(state, tf, rig._rays[cam.name], color_image=img["color"], forward_depth_image=img["depth"],
+                  shape_index_image=img["shape"], world_indices=rig._world_ids)
+    n = nw * cam.height * cam.width
     bufs = rig.__dict__.setdefault("_compact", {})
-    pinned = rig.__dict__.setdefault("_pinned", {})
-    out = {}
-    for cam in rig.cameras:
-        img = rig._images[cam.name]
-        rig._sensor.update(state, tfs[cam.name], rig._rays[cam.name], color_image=img["color"],
-                           forward_depth_image=img["depth"], shape_index_image=img["shape"],
-                           world_indices=rig._world_ids)
-        n = nw * cam.height * cam.width
-        if cam.name not in bufs:
-            bufs[cam.name] = (wp.zeros(3 * n, dtype=wp.uint8, device=model.device),
-                              wp.zeros(n, dtype=wp.uint16, device=model.device))
-        rgb, mm = bufs[cam.name]
-        wp.launch(_compact_kernel(), dim=n, device=model.device,
-                  inputs=[img["color"].flatten(), img["depth"].flatten(), rgb, mm])
-        if cuda:
-            host = pinned.get(cam.name)
-            if host is None:
-                host = pinned[cam.name] = tuple(wp.empty_like(a, device="cpu", pinned=True) for a in (rgb, mm))
-            for h, a in zip(host, (rgb, mm), strict=True):
-                wp.copy(h, a)
-            r, d = (h.numpy() for h in host)
-        else:  # .numpy() is a view of the buffer the next render overwrites: copy it
-            r, d = (a.numpy().copy() for a in (rgb, mm))
-        out[cam.name] = (r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width))
-    return out
+    if cam.name not in bufs:
+        bufs[cam.name] = (wp.zeros(3 * n, dtype=wp.uint8, device=model.device),
+                          wp.zeros(n, dtype=wp.uint16, device=model.device))
+    rgb, mm = bufs[cam.name]
+    wp.launch(_compact_kernel(), dim=n, device=model.device,
+              inputs=[img["color"].flatten(), img["depth"].flatten(), rgb, mm])
+    if cuda:
+        pinned = rig.__dict__.setdefault("_pinned", {})
+        host = pinned.get(cam.name)
+        if host is None:
+            host = pinned[cam.name] = tuple(wp.empty_like(a, device="cpu", pinned=True) for a in (rgb, mm))
+        for h, a in zip(host, (rgb, mm), strict=True):
+            wp.copy(h, a)
+        r, d = (h.numpy() for h in host)
+    else:  # .numpy() is a view of the buffer the next render overwrites: copy it
+        r, d = (a.numpy().copy() for a in (rgb, mm))
+    return r.reshape(nw, cam.height, cam.width, 3), d.reshape(nw, cam.height, cam.width)
 
 
 _COMPACT = None

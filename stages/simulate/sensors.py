@@ -399,17 +399,7 @@ class CameraRig:
         from newton.sensors import SensorCamera
 
         model = self.sim.model
-        # both faces: generated meshes with inward winding (ceilings seen from below) must still
-        # occlude the camera and the sun
-        # tiles of neighbouring pixels of one view per thread block: rays of a warp share a world
-        # and a BVH path (Newton's default order puts the same pixel of every world side by side,
-        # 3.6 times slower for 256 differing worlds on an H100: tests/benchmarks/bench_render.py)
-        config = SensorCamera.RenderConfig(
-            enable_shadows=self.shadows, enable_backface_culling=False, enable_textures=self.textures,
-            render_order=SensorCamera.RenderOrder.TILED, tile_width=self.tile[0], tile_height=self.tile[1],
-        )
-        self._sensor = SensorCamera(model, load_textures=self.textures, default_render_config=config)
-        self.lights_used = apply_lights(self._sensor, self.sim.scene.lights, self.exposure_lux)
+        self._sensor = self.new_sensor()
         dev = model.device
         self._rays = {}
         self._images = {}
@@ -428,6 +418,24 @@ class CameraRig:
                 else None,
             )
         self._world_ids = wp.array(np.arange(nw, dtype=np.int32), dtype=wp.int32, device=dev)
+
+    def new_sensor(self):
+        """A Newton ``SensorCamera`` of the rig's model with its render settings and lights (the
+        background render gives each camera one of its own: they render in parallel threads)."""
+        from newton.sensors import SensorCamera
+
+        # both faces: generated meshes with inward winding (ceilings seen from below) must still
+        # occlude the camera and the sun
+        # tiles of neighbouring pixels of one view per thread block: rays of a warp share a world
+        # and a BVH path (Newton's default order puts the same pixel of every world side by side,
+        # 3.6 times slower for 256 differing worlds on an H100: tests/benchmarks/bench_render.py)
+        config = SensorCamera.RenderConfig(
+            enable_shadows=self.shadows, enable_backface_culling=False, enable_textures=self.textures,
+            render_order=SensorCamera.RenderOrder.TILED, tile_width=self.tile[0], tile_height=self.tile[1],
+        )
+        sensor = SensorCamera(self.sim.model, load_textures=self.textures, default_render_config=config)
+        self.lights_used = apply_lights(sensor, self.sim.scene.lights, self.exposure_lux)
+        return sensor
 
     def camera_to_world(self, cam: CameraSpec) -> np.ndarray:
         """(W, 4, 4) camera-to-world per world for the current state."""

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
+from stages.simulate.mujoco_cpu import cpu_stepper
 from stages.simulate.robot import RobotDescription
 from stages.simulate.robot_load import DriveGains, RobotIndices, add_robot
 
@@ -49,7 +50,9 @@ class SolverSettings:
     contact_check_every: steps between overflow checks (a small host read; an overflow raises
     ``ContactOverflowError`` naming the world and the count; 0: at :meth:`Sim.check_contacts` only);
     cuda_graph: on CUDA, replay MuJoCo-Warp's step as a captured CUDA graph (one graph per
-    state-buffer parity) instead of launching its kernels one by one from Python.
+    state-buffer parity) instead of launching its kernels one by one from Python; fast_cpu_step: on
+    the MuJoCo C library, Newton's step from recorded kernel launches into buffers allocated once (the
+    same states; a teleop frame's 17 steps 43 -> 28 ms of CPU: :mod:`stages.simulate.mujoco_cpu`).
     """
 
     kind: SolverKind = SolverKind.MUJOCO
@@ -65,6 +68,7 @@ class SolverSettings:
     nconmax: int | None = None
     contact_check_every: int = 250
     cuda_graph: bool = True
+    fast_cpu_step: bool = True
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
@@ -331,6 +335,7 @@ class Sim:
     _graphs: dict = field(default_factory=dict, repr=False)  # (state_0 id, h) -> captured CUDA graph
     _graphs_warm: bool = field(default=False, repr=False)
     contact_monitor: object | None = field(default=None, repr=False)  # contacts.OverflowMonitor
+    _cpu_step: object | None = field(default=None, repr=False)  # mujoco_cpu.MujocoCpuStep (False: none)
 
     @property
     def world_count(self) -> int:
@@ -366,6 +371,9 @@ class Sim:
 
     def _substep(self, h: float) -> None:
         """One solver step of ``h`` [s] from ``state_0`` into ``state_1``."""
+        fast = None if self._cpu_step is False else cpu_stepper(self)
+        if fast is not None:  # MuJoCo C: Newton's step without its per-step overhead (no observables)
+            return fast.step(self.state_0, self.state_1, h)
         self.state_0.clear_forces()
         if self.pipeline is not None:
             self.pipeline.collide(self.state_0, self.contacts)
@@ -577,24 +585,9 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
         scenes=tuple(str(s) for s in cfg.scenes),
     )
     log.info("simulation built: %s", settings)
-    return Sim(
-        model=model,
-        solver=solver,
-        state_0=state_0,
-        state_1=state_1,
-        control=control,
-        contacts=contacts,
-        pipeline=pipeline,
-        robot=robot,
-        desc=desc,
-        settings=settings,
-        scene=loaded,
-        shape_label=np.asarray(all_labels),
-        bodies_per_world=tpl.body_count,
-        shapes_per_world=tpl.shape_count,
-        dofs_per_world=tpl.joint_dof_count,
-        coords_per_world=tpl.joint_coord_count,
-        spawn=tuple(spawn),
-        solver_settings=cfg.solver,
-        contact_monitor=monitor,
-    )
+    return Sim(model=model, solver=solver, state_0=state_0, state_1=state_1, control=control,
+               contacts=contacts, pipeline=pipeline, robot=robot, desc=desc, settings=settings, scene=loaded,
+               shape_label=np.asarray(all_labels), bodies_per_world=tpl.body_count,
+               shapes_per_world=tpl.shape_count,
+               dofs_per_world=tpl.joint_dof_count, coords_per_world=tpl.joint_coord_count, spawn=tuple(spawn),
+               solver_settings=cfg.solver, contact_monitor=monitor)
