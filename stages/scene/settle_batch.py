@@ -1,10 +1,15 @@
 """Batched settle: many composed scenes in one Newton model, stepped together by MuJoCo-Warp
 (``SolverMuJoCo(use_mujoco_cpu=False)``) on a GPU (or, slowly, on the CPU).
 
-MuJoCo-Warp batches only identical worlds (same bodies and shapes), and no two populated scenes are
-identical; so the scenes lie side by side in one Newton world on a grid ``SPACING`` [m] apart
-(they cannot touch), one MuJoCo world whose bodies, contacts and constraints MuJoCo-Warp processes in
-parallel; the bodies of scene k are a contiguous range of the model's bodies.
+Each scene is one world of the model (``build_separate_worlds``): MuJoCo-Warp steps all worlds of a
+model with one launch per kernel, and a world's cost (geom pairs, the dense nv x nv factorisation)
+stays that of one house. Its worlds must share one structure (same bodies, joints and joint types
+in the same order, same non-mesh shapes per body; mesh shapes may differ per world, Newton pads
+those slots), which no two populated houses do: each world's instances are grouped by package
+structure and the world is padded to the chunk's largest count of each, by copies that do not
+collide, far below the floor. ``build_worlds`` instead lays scenes side by side in one world on a
+grid ``SPACING`` [m] apart (cost growing faster than the number of scenes). Either way the bodies
+of scene k are a contiguous range of the model's bodies.
 
 The per-scene CPU check (``stages.scene.rest`` + ``stages.scene.settle``) proves rest analytically
 and simulates only what it cannot prove; this module simulates every instance of every scene, for a
@@ -331,7 +336,6 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     ``pad_dofs`` (0: no padding); ``bodies`` counts the scenes' bodies only."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
-    from tqdm import tqdm
 
     from stages.physics_checks import _collider_points_in_bodies
 
@@ -369,24 +373,10 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         t = time.perf_counter()
         q0 = s0.body_q.numpy().astype(np.float64)
         steps = max(1, round(seconds / dt))
-        graph = None
-        if cuda_graph and wp.get_device(device).is_cuda and steps >= 2:
-            solver.step(s0, s1, control, None, dt)  # the first step outside the capture (lazy allocations)
-            s0, s1 = s1, s0
-            steps_left = steps - 1
-            with wp.ScopedCapture(device=device) as cap:
-                solver.step(s0, s1, control, None, dt)
-                solver.step(s1, s0, control, None, dt)
-            graph = cap.graph
-            for _ in range(steps_left // 2):  # the capture itself ran nothing
-                wp.capture_launch(graph)
-            if steps_left % 2:
-                solver.step(s0, s1, control, None, dt)
-                s0, s1 = s1, s0
-        for _ in tqdm(range(0 if graph is not None else steps), desc="settle worlds", unit="step",
-                      disable=not progress, leave=False):
-            solver.step(s0, s1, control, None, dt)
-            s0, s1 = s1, s0
+        s0, captured = _run_steps(solver, s0, s1, control, dt, steps, cuda_graph and wp.get_device(device).is_cuda,
+                                  progress)
+        if captured is not None:
+            secs["capture"] = captured
         q1 = s0.body_q.numpy().astype(np.float64)
         secs["simulate"] = time.perf_counter() - t
     moved: list[dict[str, float]] = [{} for _ in scenes]
@@ -399,6 +389,39 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     return BatchSettle(scenes=tuple(Path(s) for s in scenes), moved=tuple(moved), offenders=offenders,
                        passed=tuple(not o for o in offenders), bodies=model.body_count - len(padding),
                        shapes=model.shape_count, simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
+
+
+def _run_steps(solver, s0, s1, control, dt: float, steps: int, graph: bool, progress: bool):
+    """(the state after ``steps`` steps of ``dt`` [s], seconds the CUDA graph capture took or None).
+
+    ``graph``: one step eagerly (module loads, lazy allocations), then two steps captured as a CUDA
+    graph and replayed: MuJoCo-Warp's solver loop (``wp.capture_while``) reads its condition back
+    to the host at every iteration when run eagerly, a conditional graph node in a graph; a capture
+    that fails (e.g. a driver without conditional nodes) is logged and the steps run eagerly."""
+    import warp as wp
+    from tqdm import tqdm
+
+    captured = None
+    if graph and steps >= 3:
+        t = time.perf_counter()
+        solver.step(s0, s1, control, None, dt)
+        s0, s1 = s1, s0
+        steps -= 1
+        try:
+            with wp.ScopedCapture() as cap:
+                solver.step(s0, s1, control, None, dt)
+                solver.step(s1, s0, control, None, dt)
+        except Exception as e:  # noqa: BLE001 - any capture failure: step eagerly instead
+            log.warning("settle: CUDA graph capture failed (%s); stepping eagerly", str(e).splitlines()[0])
+        else:
+            captured = time.perf_counter() - t
+            for _ in range(steps // 2):  # the capture itself ran nothing
+                wp.capture_launch(cap.graph)
+            steps %= 2
+    for _ in tqdm(range(steps), desc="settle worlds", unit="step", disable=not progress, leave=False):
+        solver.step(s0, s1, control, None, dt)
+        s0, s1 = s1, s0
+    return s0, captured
 
 
 def _apply(q: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -289,3 +289,25 @@ def test_dof_padding_leaves_the_settle_unchanged(world, tmp_path):
     assert padded.bodies == plain.bodies == n and padded.offenders == plain.offenders
     assert padded.moved[0].keys() == plain.moved[0].keys()
     assert all(abs(padded.moved[0][k] - v) < 1e-5 for k, v in plain.moved[0].items())
+
+
+@needs_newton_usd
+def test_scenes_as_worlds_of_one_model_settle_as_each_alone(world, tmp_path):
+    """Three bedrooms (one with an object lifted 5 cm) as the three worlds of one model, padded to
+    one structure, settle as each alone: the same instances, offenders and displacements (within
+    0.1 mm); the worlds have equal body counts and padding is not reported."""
+    from stages.scene.settle_batch import build_separate_worlds, settle_batch
+
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
+    _scene(world, 9, tmp_path / "s9")
+    scenes.append(tmp_path / "s9" / "scene.usda")
+    builder, starts, pads = build_separate_worlds(scenes)
+    assert builder.world_count == 3 and len(set(np.diff(starts))) == 1 and pads
+    together = settle_batch(scenes, device="cpu", seconds=0.3, progress=False)
+    alone = [settle_batch([s], device="cpu", seconds=0.3, progress=False) for s in scenes]
+    assert together.bodies == sum(a.bodies for a in alone) == len(builder.body_label) - len(pads)
+    assert together.offenders[1] == (lifted["name"],) and together.passed == (True, False, True)
+    for k, a in enumerate(alone):
+        assert a.offenders[0] == together.offenders[k]
+        assert a.moved[0].keys() == together.moved[k].keys() and a.moved[0]
+        assert all(abs(together.moved[k][i] - v) < 1e-4 for i, v in a.moved[0].items()), (k, a.moved[0])
