@@ -331,9 +331,10 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     as one batch: one launch per kernel steps every scene, and per-world costs (geom pairs, the
     dense nv x nv factorisation) stay those of one house. False: side by side in one world
     (``build_worlds``), whose cost grows faster than the number of scenes (MuJoCo-Warp's model
-    upload enumerates every geom pair, the factorisation is of all scenes' dofs together). ``cuda_graph``: step through a captured CUDA
-    graph of two steps (CUDA devices only; fewer launches from the CPU). ``dof_step``: see
-    ``pad_dofs`` (0: no padding); ``bodies`` counts the scenes' bodies only."""
+    upload enumerates every geom pair, the factorisation is of all scenes' dofs together).
+    ``cuda_graph``: step through a captured CUDA graph (``_run_steps``; CUDA devices only; its
+    capture [s] is ``seconds["capture"]``). ``dof_step``: see ``pad_dofs`` (0: no padding);
+    ``bodies`` counts the scenes' bodies only (not padding)."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
 

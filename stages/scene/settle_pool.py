@@ -5,8 +5,9 @@ over the host's devices, results streamed as chunks finish.
 Why chunks: a chunk's scenes are the worlds of one model, padded to a common structure (see
 ``settle_batch``), so a chunk of K houses costs about K times one house's GPU work but one house's
 kernel launches; too large a chunk pads more and builds its model (CPU, one process) for longer.
-Side by side in one world (``worlds=False``) a model costs more than linearly in its scenes; the chunks of a worker run one after another, and the workers (several
-per GPU) overlap one chunk's CPU part (model build, upload, validation) with others' GPU steps.
+Side by side in one world (``worlds=False``) a model costs more than linearly in its scenes. The
+chunks of a worker run one after another, and the workers (several per GPU) overlap one chunk's
+CPU part (model build, upload, validation) with others' GPU steps.
 
 Workers are spawned processes (``procs_per_device`` per device); a task sends scene paths and
 gets back a ``ChunkResult`` (paths, numbers, instance names: results we made, between our own
