@@ -40,7 +40,10 @@ from stages.scene.settle import CONTACT_KD, CONTACT_KE, IMPRATIO, OBJECTS_PREFIX
 
 log = logging.getLogger(__name__)
 
-CONTACTS_PER_BODY = 24  # contact capacity per body (multi-CCD: up to 4 points per touching pair)
+CONTACTS_PER_BODY = 24  # contacts per body the constraint rows are sized for (multi-CCD: up to 4 points a pair)
+CONTACT_SLOTS_PER_BODY = 64  # contact capacity per body: MuJoCo's first collision of a house finds
+# ~70 per body (most beyond the margin; MuJoCo-Warp keeps ~40), and Newton raises a smaller
+# nconmax to that count with a warning (a capacity then different for every chunk)
 ROWS_PER_CONTACT = 6    # constraint rows per contact (elliptic cone, condim 3) plus joint/limit rows
 SPACING = 40.0  # [m] between neighbouring scenes of a batch (a house is at most ~25 m across)
 CAPACITY_STEP = 1024  # contact / constraint capacities are rounded up to a power of two times this:
@@ -59,7 +62,8 @@ _HULLS: dict[tuple[int, bool], object] = {}  # (mesh content hash, certify) -> N
 @dataclass(frozen=True)
 class BatchSettle:
     """Per scene: moved (instance -> largest collider point displacement [m]), offenders (over
-    tolerance), passed; timings [s]: build (assembling the model), finalize, simulate."""
+    tolerance), passed; bodies and shapes of the scenes (padding not counted); timings [s]: build
+    (assembling the model), finalize, simulate (and capture, when stepped by a CUDA graph)."""
 
     scenes: tuple[Path, ...]
     moved: tuple[dict[str, float], ...]
@@ -365,7 +369,7 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         per_world = model.body_count // max(1, model.world_count)  # capacities are per MuJoCo world
         solver = SolverMuJoCo(model, use_mujoco_cpu=False, iterations=50, ls_iterations=20, integrator="implicitfast",
                               cone="elliptic", impratio=IMPRATIO, use_mujoco_contacts=True, enable_multiccd=True,
-                              separate_worlds=worlds, nconmax=capacity(CONTACTS_PER_BODY * per_world + 64),
+                              separate_worlds=worlds, nconmax=capacity(CONTACT_SLOTS_PER_BODY * per_world + 64),
                               njmax=capacity(ROWS_PER_CONTACT * (CONTACTS_PER_BODY * per_world + 64)))
         if worlds:
             check_parent_filter(solver.mj_model)
@@ -387,9 +391,10 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         w, inst = int(body_world[b]), _instance_of(labels[b])
         moved[w][inst] = max(moved[w].get(inst, 0.0), d)
     offenders = tuple(tuple(sorted(k for k, v in m.items() if v > tolerance)) for m in moved)
+    shapes = sum(1 for lb in builder.shape_label if not lb.startswith(PAD_PREFIX))
     return BatchSettle(scenes=tuple(Path(s) for s in scenes), moved=tuple(moved), offenders=offenders,
                        passed=tuple(not o for o in offenders), bodies=model.body_count - len(padding),
-                       shapes=model.shape_count, simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
+                       shapes=shapes, simulated=steps * dt, seconds={k: round(v, 3) for k, v in secs.items()})
 
 
 def _run_steps(solver, s0, s1, control, dt: float, steps: int, graph: bool, progress: bool):
