@@ -1,13 +1,14 @@
 """Benchmark: settled + validated scenes per hour with the batched settle (``stages.scene.settle_pool``):
 ``--scenes`` scenes (3-room houses populated beforehand, not timed) settled in chunks of ``--chunk``
-scenes per Newton model by MuJoCo-Warp on ``--device`` (several: comma list or 'cuda'), by
-``--procs-per-device`` worker processes each, then validated (``stages.scene.validation``, the
+scenes per Newton model (one world each, ``--side-by-side``: one world) by MuJoCo-Warp on
+``--device`` (several: comma list or 'cuda'), by ``--procs-per-device`` worker processes each,
+then validated (``stages.scene.validation``, the
 per-package cache filled once, as a job's work dir keeps it). Prints, as chunks finish, scenes per
 hour and the workers' split per scene (model build, finalize, simulate, validate), and writes
 bench_results/scene_settle_<device>.json each time; no chunk starts after ``--max-seconds``.
 
-    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 128 --populate-procs 56 \
-        --procs-per-device 8 --max-seconds 90
+    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 1024 --populate-procs 56 \
+        --procs-per-device 8 --chunk 16 --cuda-graph --max-seconds 120 --work /tmp/aw_settle
     python tests/benchmarks/bench_scene_settle_gpu.py --device cpu --scenes 2 --seconds 0.2
 """
 
