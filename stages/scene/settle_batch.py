@@ -336,8 +336,8 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
     dense nv x nv factorisation) stay those of one house. False: side by side in one world
     (``build_worlds``), whose cost grows faster than the number of scenes (MuJoCo-Warp's model
     upload enumerates every geom pair, the factorisation is of all scenes' dofs together).
-    ``cuda_graph``: step through a captured CUDA graph (``_run_steps``; CUDA devices only; its
-    capture [s] is ``seconds["capture"]``). ``dof_step``: see ``pad_dofs`` (0: no padding);
+    ``cuda_graph``: step through a captured graph (``_run_steps``; a CUDA graph, or on the CPU
+    Warp's CPU capture; its capture [s] is ``seconds["capture"]``). ``dof_step``: see ``pad_dofs`` (0: no padding);
     ``bodies`` counts the scenes' bodies only (not padding)."""
     import warp as wp
     from newton.solvers import SolverMuJoCo
@@ -378,8 +378,7 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
         t = time.perf_counter()
         q0 = s0.body_q.numpy().astype(np.float64)
         steps = max(1, round(seconds / dt))
-        s0, captured = _run_steps(solver, s0, s1, control, dt, steps, cuda_graph and wp.get_device(device).is_cuda,
-                                  progress)
+        s0, captured = _run_steps(solver, s0, s1, control, dt, steps, cuda_graph, progress)
         if captured is not None:
             secs["capture"] = captured
         q1 = s0.body_q.numpy().astype(np.float64)
@@ -400,10 +399,12 @@ def settle_batch(scenes: Sequence[Path], *, device: str = "cuda:0", seconds: flo
 def _run_steps(solver, s0, s1, control, dt: float, steps: int, graph: bool, progress: bool):
     """(the state after ``steps`` steps of ``dt`` [s], seconds the CUDA graph capture took or None).
 
-    ``graph``: one step eagerly (module loads, lazy allocations), then two steps captured as a CUDA
-    graph and replayed: MuJoCo-Warp's solver loop (``wp.capture_while``) reads its condition back
-    to the host at every iteration when run eagerly, a conditional graph node in a graph; a capture
-    that fails (e.g. a driver without conditional nodes) is logged and the steps run eagerly."""
+    ``graph``: one step eagerly (module loads, lazy allocations), then two steps captured as a graph
+    (CUDA; on the CPU Warp's CPU capture, same results to the bit) and replayed: run eagerly,
+    MuJoCo-Warp's solver loop (``wp.capture_while``) copies its condition to the host and waits
+    for the stream at every iteration, besides ~235 launches from Python per step; in a CUDA graph
+    it is a conditional node. A capture that fails (e.g. a driver without conditional nodes, CUDA
+    < 12.4) is logged and the steps run eagerly."""
     import warp as wp
     from tqdm import tqdm
 

@@ -313,3 +313,18 @@ def test_scenes_as_worlds_of_one_model_settle_as_each_alone(world, tmp_path):
         assert a.offenders[0] == together.offenders[k]
         assert a.moved[0].keys() == together.moved[k].keys() and a.moved[0]
         assert all(abs(together.moved[k][i] - v) < 5e-4 for i, v in a.moved[0].items()), (k, a.moved[0])
+
+
+@needs_newton_usd
+def test_graph_stepping_settles_as_eager_stepping(world, tmp_path):
+    """The settle stepped through a captured graph (here Warp's CPU capture; a CUDA graph on a GPU)
+    ends where eager stepping does: the same displacements to 1 um, and the capture is timed."""
+    from stages.scene.settle_batch import settle_batch
+
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
+    eager = settle_batch(scenes, device="cpu", seconds=0.1, progress=False)
+    graph = settle_batch(scenes, device="cpu", seconds=0.1, progress=False, cuda_graph=True)
+    assert "capture" in graph.seconds and "capture" not in eager.seconds
+    assert graph.offenders == eager.offenders and graph.moved[1][lifted["name"]] > 0.003
+    for g, e in zip(graph.moved, eager.moved):
+        assert g.keys() == e.keys() and all(abs(g[k] - v) < 1e-6 for k, v in e.items()), (g, e)
