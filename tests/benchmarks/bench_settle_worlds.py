@@ -1,6 +1,7 @@
 """Benchmark: the same houses settled one model each (chunk 1) and as the K worlds of one model
 (``settle_batch(worlds=True)``), in one process: per-scene seconds (build, finalize, simulate),
-Warp kernel launches per step, and the largest difference of an instance's displacement between
+Warp kernel launches per step and model (all launches of the run, model setup included, over the
+steps: an upper bound), and the largest difference of an instance's displacement between
 the two. Each configuration runs once untimed first (kernel compile). Houses: ``--work`` of an
 earlier ``bench_scene_settle_gpu.py --work DIR`` run (its scenes/s*/scene.usda), else populated.
 
