@@ -2,11 +2,12 @@
 by ``settle_batch`` and then validated (``stages.scene.validation``), in worker processes spread
 over the host's devices, results streamed as chunks finish.
 
-Why chunks: one model of all scenes costs more than linearly in the number of scenes (MuJoCo-Warp's
-model upload enumerates every pair of geoms in Python; the Newton solver factorises a dense
-nv x nv matrix per world), so 128 houses in one model never finish. A chunk of one to a few houses
-keeps those costs small; the chunks of a worker run one after another, and the workers (several
-per GPU) overlap one chunk's CPU part (model build, upload, validation) with others' GPU steps.
+Why chunks: a chunk's scenes are the worlds of one model, padded to a common structure (see
+``settle_batch``), so a chunk of K houses costs about K times one house's GPU work but one house's
+kernel launches; too large a chunk pads more and builds its model (CPU, one process) for longer.
+Side by side in one world (``worlds=False``) a model costs more than linearly in its scenes. The
+chunks of a worker run one after another, and the workers (several per GPU) overlap one chunk's
+CPU part (model build, upload, validation) with others' GPU steps.
 
 Workers are spawned processes (``procs_per_device`` per device); a task sends scene paths and
 gets back a ``ChunkResult`` (paths, numbers, instance names: results we made, between our own
@@ -48,16 +49,18 @@ def scene_packages(scene: Path) -> list[Path]:
 
 
 def settle_validate(scenes: Sequence[Path], device: str, seconds: float, cache_dir: Path | None,
-                    cuda_graph: bool = False) -> ChunkResult:
-    """Settle ``scenes`` as one model on ``device`` for ``seconds`` [s], then validate each with the
-    per-package check cache in ``cache_dir`` (None: memory only)."""
+                    cuda_graph: bool = False, worlds: bool = True) -> ChunkResult:
+    """Settle ``scenes`` as one model on ``device`` for ``seconds`` [s] (``worlds``: one world per
+    scene, see ``settle_batch``), then validate each with the per-package check cache in
+    ``cache_dir`` (None: memory only)."""
     import os
 
     from stages.scene.checkcache import process_cache
     from stages.scene.settle_batch import settle_batch
     from stages.scene.validation import validate_scene
 
-    res = settle_batch(scenes, device=device, seconds=seconds, progress=False, cuda_graph=cuda_graph)
+    res = settle_batch(scenes, device=device, seconds=seconds, progress=False, cuda_graph=cuda_graph,
+                       worlds=worlds)
     t = time.perf_counter()
     cache = process_cache(cache_dir)
     errors = tuple(len(validate_scene(s, scene_packages(s), cache).errors) for s in scenes)
@@ -84,10 +87,10 @@ class SettlePool:
     ``devices``: e.g. ["cuda:0", "cuda:1"] or ["cpu"]; ``procs_per_device`` workers each."""
 
     def __init__(self, devices: Sequence[str], procs_per_device: int = 1, *, seconds: float = 2.0,
-                 cache_dir: Path | None = None, cuda_graph: bool = False):
+                 cache_dir: Path | None = None, cuda_graph: bool = False, worlds: bool = True):
         self.devices = list(devices)
         self.procs = max(0, int(procs_per_device))
-        self.seconds, self.cache_dir, self.cuda_graph = seconds, cache_dir, cuda_graph
+        self.seconds, self.cache_dir, self.cuda_graph, self.worlds = seconds, cache_dir, cuda_graph, worlds
         ctx = mp.get_context("spawn")
         self._pools = [ProcessPoolExecutor(self.procs, mp_context=ctx, initializer=_worker_init, initargs=(d,))
                        for d in self.devices] if self.procs else []
@@ -105,7 +108,7 @@ class SettlePool:
             for part in parts:
                 if deadline is not None and time.perf_counter() > deadline:
                     return
-                yield settle_validate(part, self.devices[0], self.seconds, self.cache_dir, self.cuda_graph)
+                yield settle_validate(part, self.devices[0], self.seconds, self.cache_dir, self.cuda_graph, self.worlds)
             return
         todo = list(reversed(parts))
         running: dict = {}
@@ -113,7 +116,7 @@ class SettlePool:
         def submit(slot: int) -> None:
             fut = self._pools[slot % len(self._pools)].submit(
                 settle_validate, todo.pop(), self.devices[slot % len(self._pools)], self.seconds, self.cache_dir,
-                self.cuda_graph)
+                self.cuda_graph, self.worlds)
             running[fut] = slot
 
         # keep each worker busy with one chunk and one queued (no more: the deadline stays close)

@@ -1,13 +1,14 @@
 """Benchmark: settled + validated scenes per hour with the batched settle (``stages.scene.settle_pool``):
 ``--scenes`` scenes (3-room houses populated beforehand, not timed) settled in chunks of ``--chunk``
-scenes per Newton model by MuJoCo-Warp on ``--device`` (several: comma list or 'cuda'), by
-``--procs-per-device`` worker processes each, then validated (``stages.scene.validation``, the
+scenes per Newton model (one world each, ``--side-by-side``: one world) by MuJoCo-Warp on
+``--device`` (several: comma list or 'cuda'), by ``--procs-per-device`` worker processes each,
+then validated (``stages.scene.validation``, the
 per-package cache filled once, as a job's work dir keeps it). Prints, as chunks finish, scenes per
 hour and the workers' split per scene (model build, finalize, simulate, validate), and writes
 bench_results/scene_settle_<device>.json each time; no chunk starts after ``--max-seconds``.
 
-    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 128 --populate-procs 56 \
-        --procs-per-device 8 --max-seconds 90
+    python tests/benchmarks/bench_scene_settle_gpu.py --device cuda --scenes 1024 --populate-procs 56 \
+        --procs-per-device 8 --chunk 16 --cuda-graph --max-seconds 120 --work /tmp/aw_settle
     python tests/benchmarks/bench_scene_settle_gpu.py --device cpu --scenes 2 --seconds 0.2
 """
 
@@ -103,6 +104,19 @@ def _say(msg: str) -> None:
     print(msg, flush=True)
 
 
+def _offenders(results: list) -> dict:
+    """Instances that moved more than the tolerance, by category (the instance name without its
+    number): count and largest move [m]."""
+    out: dict[str, list] = {}
+    for r in results:
+        for moved, names in zip(r.settle.moved, r.settle.offenders):
+            for name in names:
+                cat = name.rsplit("_", 1)[0]
+                n, m = out.get(cat, (0, 0.0))
+                out[cat] = [n + 1, round(max(m, moved[name]), 4)]
+    return out
+
+
 def _figures(results: list, n_asked: int, elapsed: float, opts: dict) -> dict:
     split: dict[str, float] = {}
     for r in results:
@@ -119,12 +133,13 @@ def _figures(results: list, n_asked: int, elapsed: float, opts: dict) -> dict:
             "passed": sum(sum(r.settle.passed) for r in results),
             "validation_errors": sum(sum(r.errors) for r in results),
             "max_move_m": max((max(m.values(), default=0.0) for m in moved), default=0.0),
+            "offenders": _offenders(results),
             "host": platform.node(), "cpu": platform.processor() or platform.machine()}
 
 
 def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str, int], progress: bool = True,
         procs: int = 1, *, chunk: int = 1, per_device: int = 1, max_seconds: float = 180.0,
-        cuda_graph: bool = False, out_json: Path | None = None, reuse: bool = False) -> dict:
+        cuda_graph: bool = False, out_json: Path | None = None, reuse: bool = False, worlds: bool = True) -> dict:
     """Populate ``n`` scenes (not timed), fill the package check cache (not timed), warm the workers
     up (one chunk alone: kernel compile; then one chunk per worker: package parse; not timed), then
     settle + validate all ``n`` in chunks of ``chunk`` on ``devices`` with ``per_device`` workers each
@@ -153,10 +168,11 @@ def run(devices: list[str], n: int, seconds: float, work: Path, rooms: dict[str,
         [_fill(j) for j in jobs]
     _say(f"[package cache] {len(pkgs)} packages validated in {time.perf_counter() - t:.1f} s (not timed)")
     opts = {"devices": devices, "rooms": rooms, "chunk": chunk, "workers_per_device": per_device,
-            "cuda_graph": cuda_graph, "max_seconds": max_seconds}
+            "cuda_graph": cuda_graph, "worlds": worlds, "max_seconds": max_seconds}
     out: dict = {}
     t_start = time.perf_counter()
-    with SettlePool(devices, per_device, seconds=seconds, cache_dir=cache_dir, cuda_graph=cuda_graph) as pool:
+    with SettlePool(devices, per_device, seconds=seconds, cache_dir=cache_dir, cuda_graph=cuda_graph,
+                    worlds=worlds) as pool:
         # one chunk alone first (it compiles the kernels into Warp's disk cache), then one per worker
         stages = [("compile", scenes[:chunk])]
         if pool.workers > 1:
@@ -213,6 +229,8 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--max-seconds", type=float, default=180.0,
                     help="no chunk of the timed part starts after this many seconds of it [s]")
     ap.add_argument("--cuda-graph", action="store_true", help="step through a captured CUDA graph")
+    ap.add_argument("--side-by-side", action="store_true",
+                    help="a chunk's scenes side by side in one world (default: one world each)")
     ap.add_argument("--work", type=Path, default=None, help="work folder (default: a temporary one)")
     ap.add_argument("--reuse", action="store_true", help="use the scenes an earlier run left in --work")
     a = ap.parse_args(argv)
@@ -224,7 +242,7 @@ def main(argv: list[str] | None = None) -> dict:
     with tempfile.TemporaryDirectory(prefix="aw_settle_") as d:
         out = run(devices, a.scenes, a.seconds, Path(a.work or d), rooms, procs=a.populate_procs, chunk=a.chunk,
                   per_device=a.procs_per_device, max_seconds=a.max_seconds, cuda_graph=a.cuda_graph, out_json=path,
-                  reuse=a.reuse)
+                  reuse=a.reuse, worlds=not a.side_by_side)
     print(json.dumps(out, indent=1))
     print(f"{out['scenes_per_hour']:.0f} settled + validated scenes per hour on {','.join(devices)} "
           f"({out['scenes']}/{a.scenes} scenes, chunks of {a.chunk}, {a.procs_per_device} workers per device; "

@@ -289,3 +289,42 @@ def test_dof_padding_leaves_the_settle_unchanged(world, tmp_path):
     assert padded.bodies == plain.bodies == n and padded.offenders == plain.offenders
     assert padded.moved[0].keys() == plain.moved[0].keys()
     assert all(abs(padded.moved[0][k] - v) < 1e-5 for k, v in plain.moved[0].items())
+
+
+@needs_newton_usd
+def test_scenes_as_worlds_of_one_model_settle_as_each_alone(world, tmp_path):
+    """Three bedrooms (one with an object lifted 5 cm) as the three worlds of one model, padded to
+    one structure, settle as each alone: the same instances, offenders and displacements within
+    0.5 mm, a twentieth of the settle tolerance (a padded world enumerates its contacts in another
+    order than a model alone and the solver iterates to a tolerance: an alarm clock that rocks 6 mm
+    differs by 0.13 mm); the worlds have equal body counts and padding is not reported."""
+    from stages.scene.settle_batch import build_separate_worlds, settle_batch
+
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
+    _scene(world, 9, tmp_path / "s9")
+    scenes.append(tmp_path / "s9" / "scene.usda")
+    builder, starts, pads = build_separate_worlds(scenes)
+    assert builder.world_count == 3 and len(set(np.diff(starts))) == 1 and pads
+    together = settle_batch(scenes, device="cpu", seconds=0.3, progress=False)
+    alone = [settle_batch([s], device="cpu", seconds=0.3, progress=False) for s in scenes]
+    assert together.bodies == sum(a.bodies for a in alone) == len(builder.body_label) - len(pads)
+    assert together.offenders[1] == (lifted["name"],) and together.passed == (True, False, True)
+    for k, a in enumerate(alone):
+        assert a.offenders[0] == together.offenders[k]
+        assert a.moved[0].keys() == together.moved[k].keys() and a.moved[0]
+        assert all(abs(together.moved[k][i] - v) < 5e-4 for i, v in a.moved[0].items()), (k, a.moved[0])
+
+
+@needs_newton_usd
+def test_graph_stepping_settles_as_eager_stepping(world, tmp_path):
+    """The settle stepped through a captured graph (here Warp's CPU capture; a CUDA graph on a GPU)
+    ends where eager stepping does: the same displacements to 1 um, and the capture is timed."""
+    from stages.scene.settle_batch import settle_batch
+
+    scenes, lifted = _two_scenes_one_lifted(world, tmp_path)
+    eager = settle_batch(scenes, device="cpu", seconds=0.1, progress=False)
+    graph = settle_batch(scenes, device="cpu", seconds=0.1, progress=False, cuda_graph=True)
+    assert "capture" in graph.seconds and "capture" not in eager.seconds
+    assert graph.offenders == eager.offenders and graph.moved[1][lifted["name"]] > 0.003
+    for g, e in zip(graph.moved, eager.moved):
+        assert g.keys() == e.keys() and all(abs(g[k] - v) < 1e-6 for k, v in e.items()), (g, e)
