@@ -26,7 +26,11 @@ the engine's batched array work.
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+
+from stages.simulate.cooperative import set_hook
 
 
 class WorldStopped(BaseException):
@@ -44,14 +48,23 @@ class _Slot:
     done: bool = True
     error: BaseException | None = None
     stop: bool = False
+    busy: bool = False  # parked at a checkpoint, mid-computation (``yield_check``)
+    resumed_at: float = 0.0  # perf_counter() of the last resume
 
 
 class Lockstep:
-    """World programs as cooperatively scheduled threads (see the module docstring)."""
+    """World programs as cooperatively scheduled threads (see the module docstring).
+    ``yield_check(world, seconds)``: asked at every checkpoint of a program
+    (:func:`stages.simulate.cooperative.checkpoint`) with the wall time since its resume; True
+    parks the program there, mid-computation (:attr:`_Slot.busy`), and :meth:`_resume` returns
+    as if it had blocked: its scheduler may run other worlds first, then resume it where it
+    stopped (None: programs never park at checkpoints)."""
 
-    def __init__(self, world_count: int) -> None:
+    def __init__(self, world_count: int, yield_check: Callable[[int, float], bool] | None = None) -> None:
         self.slots = [_Slot() for _ in range(world_count)]
         self._local = threading.local()
+        self.yield_check = yield_check
+        self.yields = 0  # programs parked at checkpoints
 
     # -- program side ---------------------------------------------------------------------
     def current_world(self) -> int | None:
@@ -71,6 +84,14 @@ class Lockstep:
         s.sync = True
         self._park(s)
 
+    def _checkpoint(self, world: int) -> None:
+        s = self.slots[world]
+        if self.yield_check(world, time.perf_counter() - s.resumed_at):
+            self.yields += 1
+            s.busy = True
+            self._park(s)
+            s.busy = False
+
     def _park(self, s: _Slot) -> None:
         s.parked.release()
         s.go.acquire()
@@ -87,6 +108,8 @@ class Lockstep:
 
         def main() -> None:
             self._local.world = world
+            if self.yield_check is not None:
+                set_hook(lambda: self._checkpoint(world))
             s.go.acquire()
             try:
                 if not s.stop:
@@ -104,6 +127,7 @@ class Lockstep:
 
     def _resume(self, w: int) -> None:
         s = self.slots[w]
+        s.resumed_at = time.perf_counter()
         s.go.release()
         s.parked.acquire()
         if s.error is not None:

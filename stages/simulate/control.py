@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from stages.simulate.clik_lanes import IkResult, _solve1, solve_lanes
+from stages.simulate.cooperative import checkpoint
 from stages.simulate.robot import RobotDescription
 
 log = logging.getLogger(__name__)
@@ -289,6 +290,7 @@ class Clik:
 
         When a solve ends in a local minimum (a joint limit), up to ``restarts`` more solves start
         from random in-limit arm configurations drawn from ``rng``; the best result is returned."""
+        checkpoint()  # between solves: a cooperative scheduler may run another world here
         best = self._solve(target, q0, max_iters, pos_tol, rot_tol)
         for _ in range(restarts if not best.success else 0):
             if rng is None:

@@ -26,7 +26,8 @@ def room(kitchen_room):
 
 
 def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: int = 0, *,
-         program_wait: float | None = None, hold_policy=None, stats_out: list | None = None) -> dict:
+         program_wait: float | None = None, program_yield: float | None = 0.002, hold_policy=None,
+         stats_out: list | None = None) -> dict:
     """Run an engine of len(queues) worlds; queues: world -> [(task, seed, max_seconds)].
     Returns (task, seed) -> dict(frames=[...], result=EpisodeResult, world=w)."""
     from stages.engine import BatchEngine, EngineConfig
@@ -34,7 +35,8 @@ def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: 
 
     eng = BatchEngine(room, panda_root=None, work_dir=work,
                       config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout,
-                                          program_procs=program_procs, program_wait=program_wait))
+                                          program_procs=program_procs, program_wait=program_wait,
+                                          program_yield=program_yield))
     eng.hold_policy = hold_policy
     out: dict = {}
 
@@ -158,6 +160,22 @@ def test_late_programs_in_worker_processes_are_held_and_record_what_threads_reco
     procs = _run(room, tmp_path / "p", "batched", TWO_WORLDS, program_procs=2, program_wait=0.0,
                  stats_out=stats)
     assert stats[0].holds > 0
+    assert set(threads) == set(procs)
+    for key in threads:
+        _assert_same_episode(threads[key], procs[key], key, exact_images=False)
+
+
+def test_planning_programs_parked_at_checkpoints_are_held_at_once_and_record_what_threads_record(
+        room, batched_two, tmp_path):
+    # one worker runs both worlds' programs; program_yield=0 parks a program at its first
+    # checkpoint (an IK solve, a path search) of every resume: the worker tells the engine, which
+    # holds that world without waiting (program_wait 30 s would otherwise wait for it), and runs
+    # the other world's request before it goes on with the parked one; episodes are unchanged
+    threads = batched_two
+    stats: list = []
+    procs = _run(room, tmp_path / "p", "batched", TWO_WORLDS, program_procs=1, program_wait=30.0,
+                 program_yield=0.0, stats_out=stats)
+    assert stats[0].yields > 0 and stats[0].holds >= stats[0].yields
     assert set(threads) == set(procs)
     for key in threads:
         _assert_same_episode(threads[key], procs[key], key, exact_images=False)
