@@ -467,12 +467,10 @@ class BatchEngine:
         if not self.held.any():
             return
         g, P = self.global_step, self.sync_period
+        held = np.nonzero(self.held)[0]
+        since = g - self.held_at[held]
         due = []
-        for w in np.nonzero(self.held)[0]:
-            w = int(w)
-            since = g - int(self.held_at[w])
-            if since <= 0 or since % P:
-                continue
+        for w in held[(since > 0) & (since % P == 0)].tolist():  # at whole periods of holding
             if w in self._release_at:
                 if g >= self._release_at[w]:
                     due.append(w)

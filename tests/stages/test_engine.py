@@ -233,6 +233,62 @@ def test_lockstep_resumes_worlds_in_order_and_counts_steps():
     assert log[:3] == [(0, 0), (1, 0), (2, 0)]
 
 
+def test_a_program_parks_at_a_checkpoint_only_when_its_scheduler_says_so_and_goes_on_from_there():
+    from stages.engine import Lockstep
+    from stages.simulate.cooperative import checkpoint
+
+    trace: list = []
+
+    def program(w):
+        def fn():
+            trace.append((w, "plan"))
+            checkpoint()
+            trace.append((w, "planned"))
+            ls.wait_steps(w, 3)
+            trace.append((w, "stepped"))
+        return fn
+
+    ls = Lockstep(2, yield_check=lambda w, seconds: w == 0 and seconds >= 0.0)
+    for w in (0, 1):
+        ls.start(w, program(w))
+    ls._resume(0)  # world 0 parks at its checkpoint, mid-computation; world 1 runs meanwhile
+    assert ls.slots[0].busy and trace == [(0, "plan")]
+    ls._resume(1)
+    assert not ls.slots[1].busy and ls.pending(1) == 3 and trace[-1] == (1, "planned")
+    ls._resume(0)
+    assert not ls.slots[0].busy and ls.pending(0) == 3 and trace[-1] == (0, "planned")
+    assert ls.yields == 1
+    ls.shutdown()
+    checkpoint()  # the engine's thread has no scheduler: a no-op
+
+
+def test_command_buffers_write_and_read_the_joints_by_name():
+    from types import SimpleNamespace
+
+    from stages.simulate.control import CommandBuffers
+
+    arm = [f"a{i}" for i in range(7)]
+    grip = SimpleNamespace(finger_joints=["f0", "f1"], finger_targets=lambda c: np.full(2, 0.04 * (1 - c)))
+    desc = SimpleNamespace(arm_joints=arm, gripper=grip)
+    coord = {n: i for i, n in enumerate(["x", "y", "f1", *arm[::-1], "f0"])}  # not in control order
+    c, worlds = len(coord) + 2, 3
+    buf = CommandBuffers(desc, coord, c, -np.ones(7), np.ones(7), np.zeros(worlds * c, np.float32),
+                         np.zeros((worlds, 3), np.float32))
+    q = np.array([0.1, -0.2, 0.3, 1.7, -0.5, 0.6, -3.0])
+    buf.set_arm_targets(q, world=1)
+    buf.set_gripper(0.5, world=2)
+    expect = np.zeros(worlds * c, np.float32)
+    for i, n in enumerate(arm):
+        expect[c + coord[n]] = np.clip(q[i], -1, 1)
+    for n in grip.finger_joints:
+        expect[2 * c + coord[n]] = 0.02
+    np.testing.assert_array_equal(buf._targets, expect)
+    np.testing.assert_array_equal(buf.arm_targets(1), np.clip(q, -1, 1).astype(np.float32))
+    np.testing.assert_array_equal(buf.finger_targets(2), np.float32([0.02, 0.02]))
+    buf.set_arm_targets(np.zeros(7))  # every world
+    assert not buf._targets[[w * c + coord[n] for w in range(worlds) for n in arm]].any()
+
+
 def test_a_failing_program_names_its_world():
     from stages.engine import Lockstep
 
