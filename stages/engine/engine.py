@@ -61,7 +61,7 @@ class EngineConfig:
     (one single-world model per world, the MuJoCo C library: on a CPU it is several times faster
     than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
     max_seconds: episode time limit [s] (None: the task's); program_procs: run the worlds' programs
-    (experts: planning, IK) in this many worker processes (0: threads of the engine's process; the
+    (experts: planning, IK) in this many worker processes (0: coroutines in the engine's process; the
     batched layout only); program_wait: with program_procs, how long [s] the engine waits for a
     batch of programs before it holds the worlds whose programs are still running
     (:mod:`stages.engine.hold`: the others step on, a held world's episode is unchanged) — None
@@ -361,7 +361,7 @@ class BatchEngine:
         return True
 
     def _local_side(self, ls) -> WorldSide:
-        """The world programs as threads of this process."""
+        """The world programs as coroutines of this process (:class:`Lockstep`)."""
         n = self.config.worlds
         views = {w: WorldView(None, w, b, i, b.model, self.steps) for w, (b, i) in enumerate(self._where)}
         side = WorldSide(info=self.info, views=views,

@@ -159,7 +159,7 @@ class Lockstep:
         return len(ws)
 
     def running(self, world: int) -> bool:
-        """Whether world ``world``'s program is running now (never, seen from the engine: threads
+        """Whether world ``world``'s program is running now (never, seen from the engine: programs
         run one at a time while the engine waits)."""
         return False
 

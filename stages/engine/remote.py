@@ -2,7 +2,7 @@
 
 With ``EngineConfig(program_procs=K)`` the engine's process keeps the simulation, the cameras and
 the recording, and K worker processes run the worlds' programs (blocks of worlds each: a world's
-program always runs in the same process, its threads one at a time). They share, in shared memory:
+program always runs in the same process, its programs one at a time). They share, in shared memory:
 
 - the state snapshot (joint_q, joint_qd, body_q, the watched joints' peaks), written by the
   engine once before every batch of resumes;
