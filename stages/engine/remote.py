@@ -258,6 +258,13 @@ class RemotePrograms:
                 out.append((w, events))
         return out
 
+    def _waited(self, ready: list[int], limit: float | None) -> np.ndarray:
+        """Which of ``ready`` the engine still waits for: in flight, and with a ``limit`` not busy
+        (a planning world is held at once)."""
+        if limit is None:
+            return self.in_flight[ready]
+        return self.in_flight[ready] & ~self.busy[ready]
+
     def _write_snapshot(self) -> None:
         bank = self.engine.banks[0]
         snap = bank.snapshot  # read once per step (before a render is enqueued at frame steps)
@@ -295,8 +302,7 @@ class RemotePrograms:
             self.in_flight[ready] = True
             limit = self.engine.config.program_wait
             t_end = None if limit is None else time.perf_counter() + limit
-            # with a limit, planning (busy) worlds are not waited for: they are held at once
-            while (self.in_flight[ready] & ~self.busy[ready] if limit is not None else self.in_flight[ready]).any():
+            while self._waited(ready, limit).any():
                 timeout = None if t_end is None else t_end - time.perf_counter()
                 if timeout is not None and timeout <= 0:
                     break

@@ -83,6 +83,10 @@ class CommandBuffers:
     def _c(self, name: str, world: int) -> int:
         return self.coord[name] + world * self.coords_per_world
 
+    def _per_world(self, q: np.ndarray, world: int | None) -> np.ndarray:
+        """Values ``q`` for the indices :meth:`_at` gives (repeated for every world when None)."""
+        return q if world is not None else np.tile(q, len(self._cmd_np))
+
     def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
         """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""
         sel = slice(None) if world is None else world
@@ -92,7 +96,7 @@ class CommandBuffers:
     def set_arm_targets(self, q: np.ndarray, world: int | None = None) -> None:
         """Arm joint position targets (7,) [rad], clipped to the limits."""
         q = np.clip(np.asarray(q, float), self.arm_lower, self.arm_upper)
-        self._targets[self._at(self._arm_idx, world)] = q if world is not None else np.tile(q, len(self._cmd_np))
+        self._targets[self._at(self._arm_idx, world)] = self._per_world(q, world)
         self._dirty = True
 
     def set_gripper(self, command: float, world: int | None = None) -> None:
@@ -100,7 +104,7 @@ class CommandBuffers:
         from open to closed, and at 1 ``squeeze`` past closed so that the drive pushes with up to
         its force limit on whatever is between the fingers (joint limits stop empty fingers)."""
         q = np.asarray(self.desc.gripper.finger_targets(command), float)
-        self._targets[self._at(self._finger_idx, world)] = q if world is not None else np.tile(q, len(self._cmd_np))
+        self._targets[self._at(self._finger_idx, world)] = self._per_world(q, world)
         self._dirty = True
 
     def set_finger_targets(self, q: np.ndarray, world: int | None = None) -> None:

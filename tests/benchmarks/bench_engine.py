@@ -317,7 +317,8 @@ def bench_pool(n: int, args) -> dict:
            "recorded_timesteps_per_second": round(e2e, 1), "standalone_timesteps_per_second": maxima,
            "fraction_of_slowest_component": round(e2e / min(maxima.values()), 3),
            "split_seconds_per_process": [r["split_seconds"] for r in parts],
-           "control_ms_per_world_step_median": statistics.median(r["control_ms_per_world_step"] for r in parts),
+           "control_ms_per_world_step_median": statistics.median(r["control_ms_per_world_step"]
+                                                                 for r in parts),
            "episodes_completed": sum(r["episodes_completed"] for r in parts),
            "successes": sum(r["successes"] for r in parts),
            "successful_episodes_per_hour": round(sum(r["successes"] for r in parts) / wall * 3600, 1),
