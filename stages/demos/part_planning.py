@@ -20,6 +20,7 @@ import numpy as np
 from stages.demos.driver import ROBOT_RADIUS, ExpertFailure
 from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips, heading, lateral, toward_hinge
 from stages.demos.parts import ArticulatedPart
+from stages.simulate.cooperative import checkpoint
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +97,7 @@ def swept_grid(grid, part: ArticulatedPart, q_lo: float, q_hi: float, margin: fl
     slides out by q_hi)."""
     from stages.demos.planner import NavGrid
 
+    checkpoint()  # a sweep of milliseconds: a cooperative scheduler may run another world first
     occ = grid.occupied.copy()
     o = np.asarray(part.origin, float)
     h = np.asarray(part.handle, float)

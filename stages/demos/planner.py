@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stages.simulate.cooperative import checkpoint
+
 
 class NoPathError(RuntimeError):
     """Start or goal is blocked, or no free path joins them."""
@@ -119,6 +121,7 @@ def plan_path(grid: NavGrid, start_xy, goal_xy, robot_radius: float) -> np.ndarr
     """Waypoints (N, 2) [m] from ``start_xy`` to ``goal_xy`` for a robot of footprint radius
     ``robot_radius`` [m]: A* on the inflated grid, shortcut to line-of-sight segments, with the exact
     start and goal as first and last points. Raises NoPathError."""
+    checkpoint()  # a search of milliseconds: a cooperative scheduler may run another world first
     blocked = grid.inflate(robot_radius)
     s, g = grid.cell_of(*start_xy), grid.cell_of(*goal_xy)
     cells = astar(blocked, s, g)

@@ -87,13 +87,13 @@ class FrameCapture:
         ee_all = pose7_batch(e.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
         k = len(worlds)
         hand_q, hand_t = self.hand_state(worlds)
+        base_v, grip, mode = self.commands(worlds)
         frames = []
         for j, w in enumerate(worlds):
             rec = e.recs[w]
-            base_v, grip, mode = e.lockstep.commands(w) if e.config.program_procs else _cmd(e.side.cmds[w])
             state = dict(arm_joint_pos=q_all[j], ee_pose=ee_all[j], base_pose=base_all[j],
                          arm_joint_target=t_all[j], ee_target=ee_all[k + j],
-                         base_velocity=np.asarray(base_v, float), gripper=float(grip), mode=int(mode),
+                         base_velocity=base_v[j], gripper=grip[j], mode=mode[j],
                          hand_joint_pos=hand_q[j], hand_joint_target=hand_t[j])
             bank, i = e._where[w]
             frames.append((rec.sink, id(bank), i, Frame(**state, rgb={}, depth_mm={}, subtask_index=rec.subtask)))
@@ -163,32 +163,43 @@ class FrameCapture:
         """Worlds that record a frame at this step: recording, within their limit, not held, and
         not reset after this step's render was launched (its images show the state before)."""
         e = self.e
-        return [w for w in range(e.config.worlds) if e.rec_active[w] and e.steps[w] <= e.rec_max[w]
-                and not e.held[w] and w not in self.stale]
+        m = (e.rec_active != 0) & (e.steps <= e.rec_max) & ~e.held
+        if self.stale:
+            m[list(self.stale)] = False
+        return np.nonzero(m)[0].tolist()
+
+    def _rows(self, worlds: list[int], idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions and drive targets (K, len(idx)) at world-local coordinates ``idx`` of
+        ``worlds``: one fancy index of each Sim's state read and command buffer."""
+        e = self.e
+        c = e.banks[0].sim.coords_per_world
+        if len(e.banks) == 1:  # the batched layout: every world in one Sim
+            bank = e.banks[0]
+            at = np.asarray(worlds)[:, None] * c + idx
+            return bank.snapshot.get("joint_q")[at], bank.ctl._targets[at]
+        q, t = [], []
+        for w in worlds:
+            bank, i = e._where[w]
+            q.append(bank.snapshot.get("joint_q")[i * c + idx])
+            t.append(bank.ctl._targets[i * c + idx])
+        return np.asarray(q).reshape(len(worlds), len(idx)), np.asarray(t).reshape(len(worlds), len(idx))
 
     def robot_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Arm joint positions (K, 7), arm joint targets (K, 7) and base poses (K, 3) (x, y, theta
         in the world [m, rad], as ``record.base_pose``) of ``worlds``, from one state read per Sim."""
         import math
 
-        e = self.e
-        sim = e.banks[0].sim
-        desc, c = sim.desc, sim.coords_per_world
+        sim = self.e.banks[0].sim
+        desc = sim.desc
         arm = np.array([sim.robot.coord[n] for n in desc.arm_joints])
         base = np.array([sim.robot.coord[n] for n in desc.base_joints])
-        q, t, b = [], [], []
-        for w in worlds:
-            bank, i = e._where[w]
-            jq = bank.snapshot.get("joint_q")
-            q.append(jq[i * c + arm])
-            t.append(bank.ctl._targets[i * c + arm])
-            b.append(jq[i * c + base])
+        q, t = self._rows(worlds, arm)
+        lb = self._rows(worlds, base)[0].astype(float)
         x0, y0, yaw0 = sim.spawn
         cs, sn = math.cos(yaw0), math.sin(yaw0)
-        lb = np.asarray(b, float).reshape(-1, 3)
         th = (yaw0 + lb[:, 2] + math.pi) % (2 * math.pi) - math.pi
         poses = np.stack([x0 + cs * lb[:, 0] - sn * lb[:, 1], y0 + sn * lb[:, 0] + cs * lb[:, 1], th], axis=1)
-        return np.asarray(q), np.asarray(t), poses
+        return q, t, poses
 
     def hand_state(self, worlds: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """A dexterous hand's joint positions and targets (K, n) [rad] of ``worlds`` (n = 0 for a
@@ -198,14 +209,17 @@ class FrameCapture:
         if not names:
             return np.zeros((len(worlds), 0)), np.zeros((len(worlds), 0))
         sim = e.banks[0].sim
-        idx, c = np.array([sim.robot.coord[n] for n in names]), sim.coords_per_world
-        q, t = [], []
-        for w in worlds:
-            bank, i = e._where[w]
-            q.append(bank.snapshot.get("joint_q")[i * c + idx])
-            t.append(bank.ctl._targets[i * c + idx])
-        return np.asarray(q, float), np.asarray(t, float)
+        q, t = self._rows(worlds, np.array([sim.robot.coord[n] for n in names]))
+        return q.astype(float), t.astype(float)
 
-
-def _cmd(c) -> tuple:
-    return c.base_velocity, c.gripper, c.mode
+    def commands(self, worlds: list[int]) -> tuple[np.ndarray, list[float], list[int]]:
+        """The commands in force of ``worlds``: base velocities (K, 3) [m/s, m/s, rad/s], gripper
+        commands and modes (K each), from the worker processes' shared record in one read, or
+        from the threads' :class:`~stages.demos.record.Commands`."""
+        e = self.e
+        if e.config.program_procs:
+            c = e.lockstep.a["cmdrec"][worlds]
+            return c[:, :3].copy(), c[:, 3].tolist(), c[:, 4].astype(int).tolist()
+        cmds = [e.side.cmds[w] for w in worlds]
+        return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
+                [float(c.gripper) for c in cmds], [int(c.mode) for c in cmds])

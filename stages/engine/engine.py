@@ -61,11 +61,16 @@ class EngineConfig:
     (one single-world model per world, the MuJoCo C library: on a CPU it is several times faster
     than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
     max_seconds: episode time limit [s] (None: the task's); program_procs: run the worlds' programs
-    (experts: planning, IK) in this many worker processes (0: threads of the engine's process; the
+    (experts: planning, IK) in this many worker processes (0: coroutines in the engine's process; the
     batched layout only); program_wait: with program_procs, how long [s] the engine waits for a
     batch of programs before it holds the worlds whose programs are still running
     (:mod:`stages.engine.hold`: the others step on, a held world's episode is unchanged) — None
-    waits for every program (one planning world then stalls all); gripper: the Panda's end effector
+    waits for every program (one planning world then stalls all); program_yield: with
+    program_procs, a program that has run this long [s] since it was resumed parks at its next
+    checkpoint (:mod:`stages.simulate.cooperative`: between IK solves, before a path search) and its
+    worker tells the engine, which then holds its world without waiting ``program_wait`` for it;
+    the worker runs its other worlds' requests first and goes on with the parked program when
+    none is left (None: programs run to their next request); gripper: the Panda's end effector
     (``stages.simulate.robot.GripperKind``: panda_hand, robotiq_2f85, or a dexterous hand, allegro
     or shadow, whose joint positions and targets the frames then carry: ``DatasetSpec.hand_joints``);
     subtasks: frames record the stage of a multistage task (``subtask_index``; set it when any task
@@ -90,6 +95,7 @@ class EngineConfig:
     max_seconds: float | None = None
     program_procs: int = 0
     program_wait: float | None = None
+    program_yield: float | None = 0.002
     gripper: str = "panda_hand"
     subtasks: bool = False
     background_render: bool = False
@@ -103,6 +109,8 @@ class EngineConfig:
             raise ValueError("engine: program_procs needs the batched layout (one model of all worlds)")
         if self.program_wait is not None and (not self.program_procs or self.program_wait < 0):
             raise ValueError("engine: program_wait needs program_procs and must be >= 0 [s]")
+        if self.program_yield is not None and self.program_yield < 0:
+            raise ValueError(f"engine: program_yield must be >= 0 [s] or None, got {self.program_yield}")
         if self.gripper not in ("panda_hand", "robotiq_2f85", "allegro", "shadow"):
             raise ValueError(f"engine: gripper must be panda_hand, robotiq_2f85, allegro or shadow, "
                              f"got {self.gripper!r}")
@@ -168,12 +176,13 @@ class EngineStats:
     startup_seconds: float = 0.0  # starting worker processes (program_procs)
     holds: int = 0  # worlds held while their programs ran (stages.engine.hold)
     held_steps: int = 0  # global steps those worlds stood still, summed
+    yields: int = 0  # programs that parked planning (program_yield), held without a wait
 
     def to_json(self) -> dict:
         return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
                 "episodes": self.episodes, "worlds": self.worlds,
                 "startup_seconds": round(self.startup_seconds, 3), "holds": self.holds,
-                "held_steps": self.held_steps}
+                "held_steps": self.held_steps, "yields": self.yields}
 
 
 def device_scope(device: str):
@@ -352,7 +361,7 @@ class BatchEngine:
         return True
 
     def _local_side(self, ls) -> WorldSide:
-        """The world programs as threads of this process."""
+        """The world programs as coroutines of this process (:class:`Lockstep`)."""
         n = self.config.worlds
         views = {w: WorldView(None, w, b, i, b.model, self.steps) for w, (b, i) in enumerate(self._where)}
         side = WorldSide(info=self.info, views=views,
@@ -458,12 +467,10 @@ class BatchEngine:
         if not self.held.any():
             return
         g, P = self.global_step, self.sync_period
+        held = np.nonzero(self.held)[0]
+        since = g - self.held_at[held]
         due = []
-        for w in np.nonzero(self.held)[0]:
-            w = int(w)
-            since = g - int(self.held_at[w])
-            if since <= 0 or since % P:
-                continue
+        for w in held[(since > 0) & (since % P == 0)].tolist():  # at whole periods of holding
             if w in self._release_at:
                 if g >= self._release_at[w]:
                     due.append(w)

@@ -1,13 +1,14 @@
 """Lockstep scheduling of per-world programs over one batched simulation.
 
-Each world runs a *program* (a scripted expert, a teleop replay, a policy driver) in a thread of
-its own; a program never steps the simulation itself. It asks for ``n`` physics steps
-(:meth:`Lockstep.wait_steps`) or for the next synchronisation point (:meth:`Lockstep.wait_sync`)
-and blocks; the engine advances every world together and resumes each program when its request
-is met. Exactly one thread runs at a time (the engine hands control to one program and waits until
-it blocks again), always in world order, so a world's program sees the same states and issues the
-same commands whatever the other worlds do: a world's episode equals a single-world run of the same
-seed.
+Each world runs a *program* (a scripted expert, a teleop replay, a policy driver) as a coroutine of
+its own (a greenlet: its own stack, switched to and from in the engine's thread, a few
+microseconds a switch where a thread's hand-over through the OS took tens to hundreds); a program
+never steps the simulation itself. It asks for ``n`` physics steps (:meth:`Lockstep.wait_steps`)
+or for the next synchronisation point (:meth:`Lockstep.wait_sync`) and blocks; the engine
+advances every world together and resumes each program when its request is met. Exactly one
+program runs at a time (the engine hands control to one program and goes on when it blocks again),
+always in world order, so a world's program sees the same states and issues the same commands
+whatever the other worlds do: a world's episode equals a single-world run of the same seed.
 
 Programs only touch their own world's buffers (commands, targets) between requests, and their
 planning (A*, IK solves at waypoints, grasp choice) happens then: off the per-step loop, which is
@@ -16,7 +17,7 @@ the engine's batched array work.
 ::
 
     ls = Lockstep(world_count=4)
-    ls.start(w, fn)                       # fn() runs in world w's thread, calls ls.wait_steps(w, n)
+    ls.start(w, fn)                       # fn() runs as world w's program, calls ls.wait_steps(w, n)
     while ls.alive():
         ls.resume_ready()                 # every world whose request is met runs until it blocks
         k = ls.min_pending()              # the engine steps k physics steps for all worlds
@@ -25,8 +26,13 @@ the engine's batched array work.
 
 from __future__ import annotations
 
-import threading
-from dataclasses import dataclass, field
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import greenlet
+
+from stages.simulate.cooperative import set_hook
 
 
 class WorldStopped(BaseException):
@@ -36,27 +42,35 @@ class WorldStopped(BaseException):
 
 @dataclass(eq=False)
 class _Slot:
-    go: threading.Semaphore = field(default_factory=lambda: threading.Semaphore(0))
-    parked: threading.Semaphore = field(default_factory=lambda: threading.Semaphore(0))
-    thread: threading.Thread | None = None
+    glet: greenlet.greenlet | None = None  # the program's coroutine
+    caller: greenlet.greenlet | None = None  # who resumed it (where it switches back to)
     pending: int = 0  # physics steps still to run before the program resumes
     sync: bool = False  # waiting for the next synchronisation point
     done: bool = True
     error: BaseException | None = None
     stop: bool = False
+    busy: bool = False  # parked at a checkpoint, mid-computation (``yield_check``)
+    resumed_at: float = 0.0  # perf_counter() of the last resume
 
 
 class Lockstep:
-    """World programs as cooperatively scheduled threads (see the module docstring)."""
+    """World programs as cooperatively scheduled coroutines (see the module docstring), run in
+    the thread that starts and resumes them. ``yield_check(world, seconds)``: asked at every
+    checkpoint of a program (:func:`stages.simulate.cooperative.checkpoint`) with the wall time
+    since its resume; True parks the program there, mid-computation (:attr:`_Slot.busy`), and
+    :meth:`_resume` returns as if it had blocked: its scheduler may run other worlds first, then
+    resume it where it stopped (None: programs never park at checkpoints)."""
 
-    def __init__(self, world_count: int) -> None:
+    def __init__(self, world_count: int, yield_check: Callable[[int, float], bool] | None = None) -> None:
         self.slots = [_Slot() for _ in range(world_count)]
-        self._local = threading.local()
+        self._current: int | None = None
+        self.yield_check = yield_check
+        self.yields = 0  # programs parked at checkpoints
 
     # -- program side ---------------------------------------------------------------------
     def current_world(self) -> int | None:
-        """The world whose program is running in this thread (None in the engine's thread)."""
-        return getattr(self._local, "world", None)
+        """The world whose program is running now (None: the engine's own code)."""
+        return self._current
 
     def wait_steps(self, world: int, n: int) -> None:
         """Block world ``world``'s program until ``n`` >= 1 physics steps have run."""
@@ -71,9 +85,19 @@ class Lockstep:
         s.sync = True
         self._park(s)
 
+    def _checkpoint(self) -> None:
+        w = self._current
+        if w is None or greenlet.getcurrent() is not self.slots[w].glet:
+            return  # not inside one of these programs
+        s = self.slots[w]
+        if self.yield_check(w, time.perf_counter() - s.resumed_at):
+            self.yields += 1
+            s.busy = True
+            self._park(s)
+            s.busy = False
+
     def _park(self, s: _Slot) -> None:
-        s.parked.release()
-        s.go.acquire()
+        s.caller.switch()
         if s.stop:
             raise WorldStopped()
 
@@ -83,11 +107,11 @@ class Lockstep:
         s = self.slots[world]
         if not s.done:
             raise RuntimeError(f"world {world}: a program is already running")
-        s.done, s.error, s.pending, s.sync, s.stop = False, None, 0, False, False
+        s.done, s.error, s.pending, s.sync, s.stop, s.busy = False, None, 0, False, False, False
+        if self.yield_check is not None:
+            set_hook(self._checkpoint)
 
         def main() -> None:
-            self._local.world = world
-            s.go.acquire()
             try:
                 if not s.stop:
                     fn()
@@ -97,15 +121,25 @@ class Lockstep:
                 s.error = e
             finally:
                 s.done = True
-                s.parked.release()
 
-        s.thread = threading.Thread(target=main, name=f"world-{world}", daemon=True)
-        s.thread.start()
+        s.glet = greenlet.greenlet(main)
+
+    def _switch(self, w: int) -> None:
+        """Run world ``w``'s program until it blocks, parks or ends."""
+        s = self.slots[w]
+        s.resumed_at = time.perf_counter()
+        s.caller = cur = greenlet.getcurrent()
+        if s.glet.parent is not cur:
+            s.glet.parent = cur  # an ended program returns here too
+        prev, self._current = self._current, w
+        try:
+            s.glet.switch()
+        finally:
+            self._current = prev
 
     def _resume(self, w: int) -> None:
         s = self.slots[w]
-        s.go.release()
-        s.parked.acquire()
+        self._switch(w)
         if s.error is not None:
             err, s.error = s.error, None
             raise RuntimeError(f"world {w}: its program failed: {err!r}") from err
@@ -125,7 +159,7 @@ class Lockstep:
         return len(ws)
 
     def running(self, world: int) -> bool:
-        """Whether world ``world``'s program is running now (never, seen from the engine: threads
+        """Whether world ``world``'s program is running now (never, seen from the engine: programs
         run one at a time while the engine waits)."""
         return False
 
@@ -165,12 +199,10 @@ class Lockstep:
         return self.slots[world].done
 
     def shutdown(self) -> None:
-        """Stop every live program (raises :class:`WorldStopped` inside it) and join the threads."""
-        for s in self.slots:
-            if not s.done:
+        """Stop every live program (raises :class:`WorldStopped` inside it) and let it end."""
+        for w, s in enumerate(self.slots):
+            if not s.done and s.glet is not None:
                 s.stop = True
-                s.go.release()
-                s.parked.acquire()
-        for s in self.slots:
-            if s.thread is not None:
-                s.thread.join(timeout=5.0)
+                self._switch(w)
+        if self.yield_check is not None:
+            set_hook(None)

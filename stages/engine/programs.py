@@ -1,7 +1,7 @@
 """The world-program side of the engine: one scripted-expert episode loop per world.
 
 A :class:`WorldSide` runs the programs of some of the engine's worlds, in the engine's process
-(threads) or in a worker process (:mod:`stages.engine.remote`), against world views
+(coroutines) or in a worker process (:mod:`stages.engine.remote`), against world views
 (:class:`~stages.engine.view.WorldView`) and command buffers. It talks to the engine through
 arrays (episode step counters, recording flags, time limits) and ``emit(kind, world, payload)``
 events, in order:

@@ -2,7 +2,7 @@
 
 With ``EngineConfig(program_procs=K)`` the engine's process keeps the simulation, the cameras and
 the recording, and K worker processes run the worlds' programs (blocks of worlds each: a world's
-program always runs in the same process, its threads one at a time). They share, in shared memory:
+program always runs in the same process, its programs one at a time). They share, in shared memory:
 
 - the state snapshot (joint_q, joint_qd, body_q, the watched joints' peaks), written by the
   engine once before every batch of resumes;
@@ -17,7 +17,11 @@ episode begin and end), which the engine handles in world order. A world's progr
 own world and its own commands, so which process runs it changes nothing: episodes equal those of
 the threaded engine. With ``EngineConfig.program_wait`` the engine waits only that long for a
 batch: worlds whose programs are still running (planning) are held (:mod:`stages.engine.hold`)
-and the rest step on; a held world is released once its program has answered.
+and the rest step on; a held world is released once its program has answered. With
+``EngineConfig.program_yield`` a program that plans longer than that parks at its next checkpoint
+(:mod:`stages.simulate.cooperative`): its worker sends a busy notice, the engine holds that world
+without waiting for it, and the worker answers its other worlds' requests before it goes on with
+the parked program, so one world's planning stalls neither the engine nor its worker's other worlds.
 
 ``next_instance`` must be picklable here (a module-level function or an object): each worker
 calls it for its worlds.
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 from types import SimpleNamespace
 
 import numpy as np
@@ -117,13 +122,23 @@ def _worker(conn, init: dict) -> None:
     cmdbuf = CommandBuffers(info.desc, info.robot.coord, info.coords_per_world, init["arm_lower"],
                             init["arm_upper"], targets=a["targets"], cmd=a["cmd"])
     bank = SimpleNamespace(sim=info, snapshot=_SharedSnapshot(a), model=model)
-    ls = Lockstep(n)
-    events: list = []
+    queue: deque[int] = deque()  # worlds the engine resumed, not started yet
+    busy: deque[int] = deque()  # worlds parked mid-computation at a checkpoint
+    notified: set[int] = set()  # busy worlds the engine was told of
+    yield_after = init["yield_after"]
+
+    def yield_check(w: int, seconds: float) -> bool:
+        # a program planning for yield_after [s] parks once (the engine is told and holds its
+        # world at once) and again whenever other worlds' requests wait behind it
+        return seconds >= yield_after and (w not in notified or bool(queue) or conn.poll())
+
+    ls = Lockstep(n, yield_check=None if yield_after is None else yield_check)
+    events: dict[int, list] = {w: [] for w in worlds}
     views = {w: WorldView(None, w, bank, w, model, a["steps"]) for w in worlds}
     side = WorldSide(info=info, views=views, controls={w: WorldControl(cmdbuf, w) for w in worlds},
                      ik=timed_clik(info.desc), fps=init["fps"], steps_per_second=init["steps_per_second"],
                      steps=a["steps"], rec_active=a["rec_active"], rec_max=a["rec_max"], lockstep=ls,
-                     peaks=_SharedPeaks(a, init["paths"]), emit=lambda k, w, p: events.append((k, w, p)),
+                     peaks=_SharedPeaks(a, init["paths"]), emit=lambda k, w, p: events[w].append((k, w, p)),
                      free=init["free"], scene_coord=init["scene_coord"], max_seconds=init["max_seconds"])
     for v in views.values():
         v._engine = side
@@ -132,25 +147,37 @@ def _worker(conn, init: dict) -> None:
     conn.send(("ready", None))
     try:
         while True:
-            msg, arg = conn.recv()
-            if msg == "stop":
-                break
-            for w in arg:  # one answer per world, as soon as its program blocks again
-                events.clear()
-                try:
+            # every request that arrived; block only when no world is left to run
+            while conn.poll() or not (queue or busy):
+                msg, arg = conn.recv()
+                if msg == "stop":
+                    return
+                for w in arg:
                     ls.slots[w].sync, ls.slots[w].pending = False, 0  # the engine met its request
-                    ls._resume(w)
-                except RuntimeError as e:
-                    conn.send(("error", w, str(e)))
-                    continue
-                s = ls.slots[w]
-                a["pending"][w] = s.pending
-                a["flags"][w, SYNC] = int(s.sync)
-                a["flags"][w, DONE] = int(s.done)
-                c = side.cmds[w]
-                a["cmdrec"][w, :3] = c.base_velocity
-                a["cmdrec"][w, 3], a["cmdrec"][w, 4] = c.gripper, c.mode
-                conn.send(("ok", w, list(events)))
+                queue.extend(arg)
+            # the requests first, in the engine's order; parked computations when none is left
+            w = queue.popleft() if queue else busy.popleft()
+            try:
+                ls._resume(w)
+            except RuntimeError as e:
+                conn.send(("error", w, str(e)))
+                continue
+            s = ls.slots[w]
+            if s.busy:
+                if w not in notified:
+                    notified.add(w)
+                    conn.send(("busy", w))
+                busy.append(w)
+                continue
+            notified.discard(w)
+            a["pending"][w] = s.pending  # one answer per world, as soon as its program blocks again
+            a["flags"][w, SYNC] = int(s.sync)
+            a["flags"][w, DONE] = int(s.done)
+            c = side.cmds[w]
+            a["cmdrec"][w, :3] = c.base_velocity
+            a["cmdrec"][w, 3], a["cmdrec"][w, 4] = c.gripper, c.mode
+            conn.send(("ok", w, events[w]))
+            events[w] = []
     finally:
         ls.shutdown()
         shared.close()
@@ -185,6 +212,7 @@ class RemotePrograms:
         bank.ctl.bind(a["targets"], a["cmd"])
         self.blocks = [list(range(i * n // k, (i + 1) * n // k)) for i in range(k)]
         self.in_flight = np.zeros(n, bool)  # sent to a worker, no answer yet
+        self.busy = np.zeros(n, bool)  # in flight, and its worker said it is planning (parked)
         ctx = mp.get_context("spawn")
         self.procs, self.conns = [], []
         for worlds in self.blocks:
@@ -193,7 +221,8 @@ class RemotePrograms:
                         arm_lower=bank.ctl.arm_lower, arm_upper=bank.ctl.arm_upper, fps=engine.config.fps,
                         steps_per_second=engine.steps_per_second, paths=list(bank.peaks.paths),
                         free=engine._free, scene_coord=engine._scene_coord,
-                        max_seconds=engine.config.max_seconds, next_instance=next_instance)
+                        max_seconds=engine.config.max_seconds, next_instance=next_instance,
+                        yield_after=engine.config.program_yield)
             p = ctx.Process(target=_worker, args=(child, init), name=f"engine-programs-{len(self.procs)}",
                             daemon=True)
             p.start()
@@ -209,8 +238,9 @@ class RemotePrograms:
         return payload
 
     def _drain(self, timeout: float | None) -> list:
-        """Answers that arrived within ``timeout`` [s] (None: wait for at least one): (world,
-        events) each; their worlds are no longer in flight."""
+        """Answers that arrived within ``timeout`` [s] (None: wait for at least one message): (world,
+        events) each; their worlds are no longer in flight. A worker's notice that a world's
+        program is planning (parked at a checkpoint) marks it busy."""
         from multiprocessing.connection import wait
 
         out = []
@@ -219,10 +249,21 @@ class RemotePrograms:
                 msg = conn.recv()
                 if msg[0] == "error":
                     raise RuntimeError(msg[2])
+                if msg[0] == "busy":
+                    self.busy[msg[1]] = True
+                    self.engine.stats.yields += 1
+                    continue
                 _, w, events = msg
-                self.in_flight[w] = False
+                self.in_flight[w] = self.busy[w] = False
                 out.append((w, events))
         return out
+
+    def _waited(self, ready: list[int], limit: float | None) -> np.ndarray:
+        """Which of ``ready`` the engine still waits for: in flight, and with a ``limit`` not busy
+        (a planning world is held at once)."""
+        if limit is None:
+            return self.in_flight[ready]
+        return self.in_flight[ready] & ~self.busy[ready]
 
     def _write_snapshot(self) -> None:
         bank = self.engine.banks[0]
@@ -261,7 +302,7 @@ class RemotePrograms:
             self.in_flight[ready] = True
             limit = self.engine.config.program_wait
             t_end = None if limit is None else time.perf_counter() + limit
-            while self.in_flight[ready].any():
+            while self._waited(ready, limit).any():
                 timeout = None if t_end is None else t_end - time.perf_counter()
                 if timeout is not None and timeout <= 0:
                     break
@@ -270,7 +311,7 @@ class RemotePrograms:
             if late:
                 self.engine.hold(late)
         live = self.a["flags"][:, DONE] == 0
-        if not replies and self.in_flight.any() and (self.in_flight | ~live).all():
+        while not replies and self.in_flight.any() and (self.in_flight | ~live).all():
             replies += self._drain(None)  # every live world is planning: wait for one (no spinning)
         if not replies:
             return len(ready)

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.linalg import _umath_linalg
 
+from stages.simulate.cooperative import checkpoint
+
 # np.linalg.solve's gufunc for one right-hand side: the same LAPACK call without the wrapper's
 # checks (the damped J J^T + lambda I it solves is positive definite)
 _solve1 = _umath_linalg.solve1
@@ -112,6 +114,7 @@ def lockstep(ik, jobs, width=32):
             lanes.append(_Lane(ik, k, job, req))
 
     while True:
+        checkpoint()  # between iterations (no lane is mid-kinematics): another world may run here
         t0 = time.perf_counter()
         w = width(nxt) if callable(width) else width
         while more and len(lanes) < w and started < nxt + LOOKAHEAD * w:

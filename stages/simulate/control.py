@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from stages.simulate.clik_lanes import IkResult, _solve1, solve_lanes
+from stages.simulate.cooperative import checkpoint
 from stages.simulate.robot import RobotDescription
 
 log = logging.getLogger(__name__)
@@ -69,9 +70,22 @@ class CommandBuffers:
         self.arm_lower, self.arm_upper = np.asarray(arm_lower, float), np.asarray(arm_upper, float)
         self._targets, self._cmd_np = targets, cmd
         self._dirty = self._cmd_dirty = False
+        # world-0 coordinates of the arm's and the gripper's joints (a world's: + world * C)
+        self._arm_idx = np.array([self.coord[n] for n in desc.arm_joints], np.int64)
+        self._finger_idx = np.array([self.coord[n] for n in desc.gripper.finger_joints], np.int64)
+
+    def _at(self, idx: np.ndarray, world: int | None) -> np.ndarray:
+        """Flat indices of world-0 coordinates ``idx`` in ``world`` (None: every world, world-major)."""
+        if world is None:
+            return (np.arange(len(self._cmd_np))[:, None] * self.coords_per_world + idx).ravel()
+        return idx + world * self.coords_per_world
 
     def _c(self, name: str, world: int) -> int:
         return self.coord[name] + world * self.coords_per_world
+
+    def _per_world(self, q: np.ndarray, world: int | None) -> np.ndarray:
+        """Values ``q`` for the indices :meth:`_at` gives (repeated for every world when None)."""
+        return q if world is not None else np.tile(q, len(self._cmd_np))
 
     def set_base_velocity(self, vx: float, vy: float, vtheta: float, world: int | None = None) -> None:
         """Base-frame velocity command [m/s, m/s, rad/s] for one world (or all)."""
@@ -82,20 +96,15 @@ class CommandBuffers:
     def set_arm_targets(self, q: np.ndarray, world: int | None = None) -> None:
         """Arm joint position targets (7,) [rad], clipped to the limits."""
         q = np.clip(np.asarray(q, float), self.arm_lower, self.arm_upper)
-        for w in self._worlds(world):
-            for i, n in enumerate(self.desc.arm_joints):
-                self._targets[self._c(n, w)] = q[i]
+        self._targets[self._at(self._arm_idx, world)] = self._per_world(q, world)
         self._dirty = True
 
     def set_gripper(self, command: float, world: int | None = None) -> None:
         """Gripper command in [0, 1]: 0 fully open, 1 fully closed. The finger targets go linearly
         from open to closed, and at 1 ``squeeze`` past closed so that the drive pushes with up to
         its force limit on whatever is between the fingers (joint limits stop empty fingers)."""
-        g = self.desc.gripper
-        q = g.finger_targets(command)
-        for w in self._worlds(world):
-            for n, v in zip(g.finger_joints, q, strict=True):
-                self._targets[self._c(n, w)] = v
+        q = np.asarray(self.desc.gripper.finger_targets(command), float)
+        self._targets[self._at(self._finger_idx, world)] = self._per_world(q, world)
         self._dirty = True
 
     def set_finger_targets(self, q: np.ndarray, world: int | None = None) -> None:
@@ -112,10 +121,11 @@ class CommandBuffers:
 
     def finger_targets(self, world: int = 0) -> np.ndarray:
         """The finger joints' current position targets (n,) [m or rad]."""
-        return np.array([self._targets[self._c(n, world)] for n in self.desc.gripper.finger_joints])
+        return self._targets[self._at(self._finger_idx, world)]
 
     def arm_targets(self, world: int = 0) -> np.ndarray:
-        return np.array([self._targets[self._c(n, world)] for n in self.desc.arm_joints])
+        """The arm joints' current position targets (7,) [rad] (a copy)."""
+        return self._targets[self._at(self._arm_idx, world)]
 
     def _worlds(self, world):
         return range(len(self._cmd_np)) if world is None else (world,)
@@ -289,6 +299,7 @@ class Clik:
 
         When a solve ends in a local minimum (a joint limit), up to ``restarts`` more solves start
         from random in-limit arm configurations drawn from ``rng``; the best result is returned."""
+        checkpoint()  # between solves: a cooperative scheduler may run another world here
         best = self._solve(target, q0, max_iters, pos_tol, rot_tol)
         for _ in range(restarts if not best.success else 0):
             if rng is None:

@@ -80,7 +80,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
                                           record_images=not args.no_images,
                                           program_procs=args.program_procs, program_wait=args.program_wait,
-                                          layout=args.layout))
+                                          program_yield=args.program_yield, layout=args.layout))
     build = time.perf_counter() - t0
     next_instance = RoundRobin(room, tasks, seed_base)
 
@@ -136,6 +136,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
     s1 = eng.stats.to_json()["timings"]
     split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
+    world_steps = n * steps  # every world's steps in the window, held ones included
     frames = held["frames"]
     e2e = frames / wall
 
@@ -186,6 +187,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "frames": frames, "lengths": {t: v for t, v in lengths.items()},
         "render_split_seconds_per_frame": render_split,
         "holds": eng.stats.holds, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
+        "yields": eng.stats.yields, "program_yield": args.program_yield,
+        "control_ms_per_world_step": round(1000 * split["control"] / world_steps, 4),
     }
     print(json.dumps(res), flush=True)
     return res
@@ -314,6 +317,8 @@ def bench_pool(n: int, args) -> dict:
            "recorded_timesteps_per_second": round(e2e, 1), "standalone_timesteps_per_second": maxima,
            "fraction_of_slowest_component": round(e2e / min(maxima.values()), 3),
            "split_seconds_per_process": [r["split_seconds"] for r in parts],
+           "control_ms_per_world_step_median": statistics.median(r["control_ms_per_world_step"]
+                                                                 for r in parts),
            "episodes_completed": sum(r["episodes_completed"] for r in parts),
            "successes": sum(r["successes"] for r in parts),
            "successful_episodes_per_hour": round(sum(r["successes"] for r in parts) / wall * 3600, 1),
@@ -436,6 +441,11 @@ def main(argv=None) -> dict:
     p.add_argument("--layout", default="auto", choices=("auto", "batched", "per_world"))
     p.add_argument("--program-wait", type=float, default=None,
                    help="seconds to wait for planning programs before holding their worlds (None: wait for all)")
+    p.add_argument("--program-yield", type=lambda v: None if v == "none" else float(v), default=0.002,
+                   help="seconds a program plans before it parks at a checkpoint and its world is held at "
+                        "once (EngineConfig.program_yield; 'none': never)")
+    p.add_argument("--ab-program-yield", action="store_true",
+                   help="each world count twice: programs never park (--program-yield none), then as given")
     p.add_argument("--work", type=Path, default=REPO / "bench_results" / "engine_work")
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
     args = p.parse_args(argv)
@@ -452,13 +462,18 @@ def main(argv=None) -> dict:
     from stages.simulate import compact
 
     runs = [(n, s) for n in args.worlds for s in ((False, True) if args.ab_render_stream else (None,))]
+    if args.ab_program_yield:
+        runs = [(n, ("yield", y)) for n in args.worlds for y in (None, args.program_yield)]
     for n, stream in runs:
-        if stream is not None:
+        if isinstance(stream, tuple):
+            args.program_yield = stream[1]
+            print(f"worlds {n}: program_yield {stream[1]}", flush=True)
+        elif stream is not None:
             compact.OWN_STREAM = stream
             print(f"worlds {n}: render on its own CUDA stream: {stream}", flush=True)
         try:
             results.append(bench_pool(n, args) if args.procs > 1 else bench_worlds(room, args.work, n, args))
-            if stream is not None:
+            if stream is not None and not isinstance(stream, tuple):
                 results[-1]["render_own_stream"] = stream
         except Exception as e:  # noqa: BLE001 (out of memory at large N: report and go on)
             print(f"worlds {n}: failed: {e!r}", flush=True)
@@ -468,7 +483,7 @@ def main(argv=None) -> dict:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     prev = json.loads(args.out.read_text()) if args.out.is_file() else {}
     prev[f"{args.device}_{args.height}x{args.width}_p{args.procs}_w{args.program_procs}"
-         f"{'_noimg' if args.no_images else ''}"] = doc
+         f"{'_noimg' if args.no_images else ''}{'_ab_yield' if args.ab_program_yield else ''}"] = doc
     args.out.write_text(json.dumps(prev, indent=1))
     return doc
 

@@ -26,7 +26,8 @@ def room(kitchen_room):
 
 
 def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: int = 0, *,
-         program_wait: float | None = None, hold_policy=None, stats_out: list | None = None) -> dict:
+         program_wait: float | None = None, program_yield: float | None = 0.002, hold_policy=None,
+         stats_out: list | None = None) -> dict:
     """Run an engine of len(queues) worlds; queues: world -> [(task, seed, max_seconds)].
     Returns (task, seed) -> dict(frames=[...], result=EpisodeResult, world=w)."""
     from stages.engine import BatchEngine, EngineConfig
@@ -34,7 +35,8 @@ def _run(room, work: Path, layout: str, queues: dict[int, list], program_procs: 
 
     eng = BatchEngine(room, panda_root=None, work_dir=work,
                       config=EngineConfig(worlds=len(queues), width=64, height=48, layout=layout,
-                                          program_procs=program_procs, program_wait=program_wait))
+                                          program_procs=program_procs, program_wait=program_wait,
+                                          program_yield=program_yield))
     eng.hold_policy = hold_policy
     out: dict = {}
 
@@ -163,6 +165,22 @@ def test_late_programs_in_worker_processes_are_held_and_record_what_threads_reco
         _assert_same_episode(threads[key], procs[key], key, exact_images=False)
 
 
+def test_planning_programs_parked_at_checkpoints_are_held_at_once_and_record_what_threads_record(
+        room, batched_two, tmp_path):
+    # one worker runs both worlds' programs; program_yield=0 parks a program at its first
+    # checkpoint (an IK solve, a path search) of every resume: the worker tells the engine, which
+    # holds that world without waiting (program_wait 30 s would otherwise wait for it), and runs
+    # the other world's request before it goes on with the parked one; episodes are unchanged
+    threads = batched_two
+    stats: list = []
+    procs = _run(room, tmp_path / "p", "batched", TWO_WORLDS, program_procs=1, program_wait=30.0,
+                 program_yield=0.0, stats_out=stats)
+    assert stats[0].yields > 0 and stats[0].holds >= stats[0].yields
+    assert set(threads) == set(procs)
+    for key in threads:
+        _assert_same_episode(threads[key], procs[key], key, exact_images=False)
+
+
 def test_compact_readback_equals_the_host_conversion(room, tmp_path):
     # the engine records RGB and depth converted on the device; they equal render() + depth_m_to_mm
     from stages.dataset import depth_m_to_mm
@@ -213,6 +231,62 @@ def test_lockstep_resumes_worlds_in_order_and_counts_steps():
     assert [e for e in log if e[0] == 2] == [(2, 0), (2, 7), (2, 8)]
     # at one step, worlds resume in world order
     assert log[:3] == [(0, 0), (1, 0), (2, 0)]
+
+
+def test_a_program_parks_at_a_checkpoint_only_when_its_scheduler_says_so_and_goes_on_from_there():
+    from stages.engine import Lockstep
+    from stages.simulate.cooperative import checkpoint
+
+    trace: list = []
+
+    def program(w):
+        def fn():
+            trace.append((w, "plan"))
+            checkpoint()
+            trace.append((w, "planned"))
+            ls.wait_steps(w, 3)
+            trace.append((w, "stepped"))
+        return fn
+
+    ls = Lockstep(2, yield_check=lambda w, seconds: w == 0 and seconds >= 0.0)
+    for w in (0, 1):
+        ls.start(w, program(w))
+    ls._resume(0)  # world 0 parks at its checkpoint, mid-computation; world 1 runs meanwhile
+    assert ls.slots[0].busy and trace == [(0, "plan")]
+    ls._resume(1)
+    assert not ls.slots[1].busy and ls.pending(1) == 3 and trace[-1] == (1, "planned")
+    ls._resume(0)
+    assert not ls.slots[0].busy and ls.pending(0) == 3 and trace[-1] == (0, "planned")
+    assert ls.yields == 1
+    ls.shutdown()
+    checkpoint()  # the engine's thread has no scheduler: a no-op
+
+
+def test_command_buffers_write_and_read_the_joints_by_name():
+    from types import SimpleNamespace
+
+    from stages.simulate.control import CommandBuffers
+
+    arm = [f"a{i}" for i in range(7)]
+    grip = SimpleNamespace(finger_joints=["f0", "f1"], finger_targets=lambda c: np.full(2, 0.04 * (1 - c)))
+    desc = SimpleNamespace(arm_joints=arm, gripper=grip)
+    coord = {n: i for i, n in enumerate(["x", "y", "f1", *arm[::-1], "f0"])}  # not in control order
+    c, worlds = len(coord) + 2, 3
+    buf = CommandBuffers(desc, coord, c, -np.ones(7), np.ones(7), np.zeros(worlds * c, np.float32),
+                         np.zeros((worlds, 3), np.float32))
+    q = np.array([0.1, -0.2, 0.3, 1.7, -0.5, 0.6, -3.0])
+    buf.set_arm_targets(q, world=1)
+    buf.set_gripper(0.5, world=2)
+    expect = np.zeros(worlds * c, np.float32)
+    for i, n in enumerate(arm):
+        expect[c + coord[n]] = np.clip(q[i], -1, 1)
+    for n in grip.finger_joints:
+        expect[2 * c + coord[n]] = 0.02
+    np.testing.assert_array_equal(buf._targets, expect)
+    np.testing.assert_array_equal(buf.arm_targets(1), np.clip(q, -1, 1).astype(np.float32))
+    np.testing.assert_array_equal(buf.finger_targets(2), np.float32([0.02, 0.02]))
+    buf.set_arm_targets(np.zeros(7))  # every world
+    assert not buf._targets[[w * c + coord[n] for w in range(worlds) for n in arm]].any()
 
 
 def test_a_failing_program_names_its_world():
