@@ -168,12 +168,13 @@ class EngineStats:
     startup_seconds: float = 0.0  # starting worker processes (program_procs)
     holds: int = 0  # worlds held while their programs ran (stages.engine.hold)
     held_steps: int = 0  # global steps those worlds stood still, summed
+    advances: int = 0  # engine steps (each: one round of the programs, then k physics steps)
 
     def to_json(self) -> dict:
         return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
                 "episodes": self.episodes, "worlds": self.worlds,
                 "startup_seconds": round(self.startup_seconds, 3), "holds": self.holds,
-                "held_steps": self.held_steps}
+                "held_steps": self.held_steps, "advances": self.advances}
 
 
 def device_scope(device: str):
@@ -424,6 +425,7 @@ class BatchEngine:
                 self.capture.deliver_ready()
         self.stats.timings.simulation += sim_s
         self.stats.steps += k
+        self.stats.advances += 1
         self.global_step += k
         self.steps[~held] += k
         ls.advance(k, skip=held)

@@ -185,7 +185,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
         "frames": frames, "lengths": {t: v for t, v in lengths.items()},
         "render_split_seconds_per_frame": render_split,
-        "holds": eng.stats.holds, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
+        "holds": eng.stats.holds, "engine_steps": eng.stats.advances, "physics_steps": eng.stats.steps, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
     }
     print(json.dumps(res), flush=True)
     return res
