@@ -522,6 +522,7 @@ def _base_shift(d, delta, speed: float = SHIFT_SPEED, accel: float = SHIFT_ACCEL
     prof *= dist / (prof.sum() * h)
     d.cmd.mode = 1
     for vk in prof:
+        vk *= h / (d.step_count(h) * d.sim.settings.dt)  # a command lasts to the next frame step
         d.base((float(vk * u[0]), float(vk * u[1]), 0.0))
         d.step(h)
     d.base((0.0, 0.0, 0.0))

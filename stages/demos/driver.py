@@ -76,8 +76,31 @@ class Driver:
     def frame_dt(self) -> float:
         return 1.0 / self.recorder.fps
 
-    def step(self, seconds: float) -> None:
-        self.sim.step(max(1, int(round(seconds / self.sim.settings.dt))))
+    def step_count(self, seconds: float) -> int:
+        """Physics steps that :meth:`step` runs for ``seconds`` [s] from the current step: to the
+        first frame step of the episode's frame grid (frame k at step ``ceil(k * S / fps)``, S =
+        steps per second: the engine's frame steps when the episode started at a sync point) that
+        is at least one step on and less than one step short of ``seconds`` (frames are 16 or 17
+        steps apart at 500 steps/s and 30 fps: ``step(1 / fps)`` is one frame). Requests that end on
+        frame steps let a batched engine advance all worlds a frame at a time (one round of the
+        programs per frame; a world whose request ends between frames splits every frame into
+        several engine steps). ``round(seconds / dt)`` (at least 1) when 1/dt is not a whole
+        number of steps per second."""
+        dt = self.sim.settings.dt
+        S = 1.0 / dt
+        if abs(S - round(S)) > 1e-6:
+            return max(1, int(round(seconds / dt)))
+        S, f, t = int(round(S)), self.recorder.fps, int(self.sim.steps)
+        lo = max(t + 1, math.ceil(t + seconds / dt - 1 + 1e-6))
+        k = (lo - 1) * f // S + 1  # the first frame whose step ceil(k * S / f) is >= lo
+        return -(-k * S // f) - t
+
+    def step(self, seconds: float) -> float:
+        """Advance about ``seconds`` [s] (:meth:`step_count`: to the next frame step); returns the
+        seconds actually stepped."""
+        n = self.step_count(seconds)
+        self.sim.step(n)
+        return n * self.sim.settings.dt
 
     def base(self, v) -> None:
         self.cmd.base_velocity = np.asarray(v, float)

@@ -177,12 +177,13 @@ class EngineStats:
     holds: int = 0  # worlds held while their programs ran (stages.engine.hold)
     held_steps: int = 0  # global steps those worlds stood still, summed
     yields: int = 0  # programs that parked planning (program_yield), held without a wait
+    advances: int = 0  # engine steps (each: one round of the programs, then k physics steps)
 
     def to_json(self) -> dict:
         return {"timings": self.timings.to_json(), "steps": self.steps, "renders": self.renders,
                 "episodes": self.episodes, "worlds": self.worlds,
                 "startup_seconds": round(self.startup_seconds, 3), "holds": self.holds,
-                "held_steps": self.held_steps, "yields": self.yields}
+                "held_steps": self.held_steps, "yields": self.yields, "advances": self.advances}
 
 
 def device_scope(device: str):
@@ -433,6 +434,7 @@ class BatchEngine:
                 self.capture.deliver_ready()
         self.stats.timings.simulation += sim_s
         self.stats.steps += k
+        self.stats.advances += 1
         self.global_step += k
         self.steps[~held] += k
         ls.advance(k, skip=held)

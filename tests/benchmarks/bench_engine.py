@@ -189,6 +189,7 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "holds": eng.stats.holds, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
         "yields": eng.stats.yields, "program_yield": args.program_yield,
         "control_ms_per_world_step": round(1000 * split["control"] / world_steps, 4),
+        "engine_steps": eng.stats.advances, "physics_steps": eng.stats.steps,
     }
     print(json.dumps(res), flush=True)
     return res
