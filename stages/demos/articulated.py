@@ -521,9 +521,8 @@ def _base_shift(d, delta, speed: float = SHIFT_SPEED, accel: float = SHIFT_ACCEL
     prof = np.minimum.reduce([np.full(n, peak), accel * t, accel * (total - t)])
     prof *= dist / (prof.sum() * h)
     d.cmd.mode = 1
-    for vk in prof:
-        vk *= h / (d.step_count(h) * d.sim.settings.dt)  # a command lasts to the next frame step
-        d.base((float(vk * u[0]), float(vk * u[1]), 0.0))
+    for vk in prof:  # a command lasts to the next frame step: speed scaled to its actual time
+        d.base(tuple(float(vk * h / (d.step_count(h) * d.sim.settings.dt) * c) for c in (u[0], u[1], 0.0)))
         d.step(h)
     d.base((0.0, 0.0, 0.0))
     d.step(0.1)
