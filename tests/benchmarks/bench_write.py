@@ -166,7 +166,8 @@ def run(*, procs: int = 3, shards: int = 256, frames: int = 30, steady_frames: i
             m["timesteps_per_s_per_writer_process"] = 1000.0 / m["cpu_ms_per_timestep"]
     out = {"resolution": [H, W], "cameras": len(CAMS), "streams": "RGB (h264 ultrafast) + depth (16-bit PNG)",
            "writer_procs": procs, "shards": shards, "frames_per_shard": frames,
-           "steady_frames": steady_frames, "steady_episodes": episodes, "repeats": repeats, "cpu_count": os.cpu_count(),
+           "steady_frames": steady_frames, "steady_episodes": episodes, "repeats": repeats,
+           "cpu_count": os.cpu_count(),
            "trees": {t: str(p) for t, p in trees.items()}, "median": med, "runs": runs}  # fmt: skip
     print(f"\nwriting {H}x{W}, {len(CAMS)} cameras RGB + depth; medians of {repeats} "
           f"({os.cpu_count()} CPUs):")
