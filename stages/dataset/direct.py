@@ -122,6 +122,8 @@ def video_frame(rgb: np.ndarray, pix_fmt: str) -> Any:
     from the mean of each 2x2 block (``INTER_AREA``; OpenCV's I420 takes one pixel of each block,
     which costs 0.6 dB). 0.2 ms per 240x320 frame against 0.37 ms for an RGB frame and swscale in the
     encoder; decoded PSNR 0.1 dB higher, files 2% larger (``tests/stages/test_dataset_encode.py``).
+    CPU figures with OpenCV single-threaded (as in the shard pool's workers); with its default pool of
+    threads (an inline writer in the engine's process) 0.34 ms on 2 cores, more on more cores.
     Other formats and sizes go to the encoder as RGB (it converts)."""
     import av
 
