@@ -127,8 +127,13 @@ def _unpack_numeric(buf: bytes) -> dict[str, Any]:
 def _worker(k: int, conn_in, conn_out, shm_name: str, slots: int, slot_bytes: int, shards_dir: str,
             ids: dict[int, str], spec: DatasetSpec, writer_kwargs: dict[str, Any]) -> None:
     """Writer process ``k``: owns the shards ``ids`` (pool index -> shard id) until told to close."""
+    import cv2
+
     from .shards import open_shard
 
+    # OpenCV's RGB -> yuv420p conversion of a frame (direct.video_frame) is too small to split over
+    # threads: its default pool (one thread per core) only adds CPU in a process that is one of many
+    cv2.setNumThreads(1)
     shm = SharedMemory(name=shm_name)
     layout = _layout(spec)
     # the direct backend copies what it keeps, so it reads the images in place and the slot is freed

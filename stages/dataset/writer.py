@@ -37,7 +37,8 @@ import numpy as np
 
 from ._lerobot import import_lerobot
 from .depth import encode_depth
-from .direct import DirectBackend, stats_sample, image_stats
+from .direct import DirectBackend
+from .stats import image_stats, stats_sample
 from .schema import (
     ACTION_KEY,
     STATE_KEY,

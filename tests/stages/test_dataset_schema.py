@@ -181,7 +181,7 @@ def test_depth_png_is_a_standard_16_bit_png_that_decoders_read_back_exactly():
 
 def test_image_stats_quantiles_equal_numpys_bit_for_bit():
     """Image stats read the quantiles of uint8/uint16 frames from histograms: np.quantile's values exactly."""
-    from stages.dataset.direct import QUANTILES, image_stats
+    from stages.dataset.stats import QUANTILES, image_stats
 
     rng = np.random.default_rng(5)
     cases = ((1, 1, np.uint8, 1, 255.0), (7, 3, np.uint8, 256, 255.0), (3, 3, np.uint8, 40, 255.0),
