@@ -60,11 +60,14 @@ class PoolConfig:
     """workers: writer processes (shard ``i`` goes to worker ``i % workers``); slots: frames in flight
     per worker (each slot holds one frame's images: 3 cameras of 240x320 RGB + depth take 1.15 MB);
     writer: keyword arguments of each :class:`~stages.dataset.ShardWriter` (backend, encoder_threads,
-    queue_frames); timeout: [s] a blocked call waits this long for a worker before failing."""
+    queue_frames; default: ``encoder_threads=1``: a worker encodes each of its shards' video streams
+    in a thread of its own already, and x264's automatic thread count (1.5 per core) in each of
+    hundreds of streams only oversubscribes a many-core host); timeout: [s] a blocked call waits
+    this long for a worker before failing."""
 
     workers: int = 2
     slots: int = 32
-    writer: dict[str, Any] = dataclasses.field(default_factory=dict)
+    writer: dict[str, Any] = dataclasses.field(default_factory=lambda: {"encoder_threads": 1})
     timeout: float = 600.0
 
     def __post_init__(self) -> None:
