@@ -73,7 +73,7 @@ def camera_rig(rig: TableRig, spec):
     for c in spec.cameras:
         if c.name == "third_person":
             eye, target = ((1.6, 0.9, 1.4), (0.4, 0.0, 0.6)) if rig.embodiment == "aloha" else \
-                ((1.75, 0.85, 1.35), (0.72, 0.0, 0.6))
+                ((1.45, 0.6, 1.2), (0.72, 0.0, 0.62))
             cams.append(CameraSpec(name=c.name, width=c.width, height=c.height, vertical_fov=1.0,
                                    pose=look_at(eye, target)))
         else:
