@@ -16,9 +16,10 @@ writes, per pair ``<emb>/<task>``:
 - ``OUT/report.json``: attempts, successes, failure reasons, wall and simulated seconds per episode
   for every pair, and each episode's sample and measurements.
 
-The hand tasks' mug and can are the default catalog's ``mug_04`` and ``can_00``: built by a
-two-step job in ``OUT/catalog_job`` (default catalog, ingest of the two packages; cached after the
-first run) unless ``--catalog`` names a work dir that holds them (``assets/<id>``).
+The hand tasks' mug, can and counter are the default catalog's ``mug_04``, ``can_00`` and
+``kitchen_counter_00``: built by a two-step job in ``OUT/catalog_job`` (default catalog, ingest of
+the packages the pairs need; cached after the first run) unless ``--catalog`` names a work dir that
+holds them (``assets/<id>``).
 
 Why not the batched engine (:mod:`stages.engine`): its worlds are kitchens (``KitchenWorld``: the
 robot is the mobile Panda written by ``stages.simulate.robot``, free objects mug / bowl / pusher, the
@@ -210,13 +211,14 @@ def summarize(pair: str, results: list[dict], *, build_seconds: float = 0.0) -> 
             "build_seconds": round(build_seconds, 2), "episodes": results}
 
 
-def catalog_assets(work_dir: Path, catalog: Path | None = None) -> dict:
-    """The hand tasks' packages (``PACKAGES``) as :class:`stages.demos.packages.CatalogAsset`, from the
-    work dir ``catalog`` or built by a two-step job in ``work_dir / "catalog_job"``."""
+def catalog_assets(work_dir: Path, catalog: Path | None = None, ids=None) -> dict:
+    """The hand tasks' packages ``ids`` (default: every one of ``PACKAGES``) as
+    :class:`stages.demos.packages.CatalogAsset`, from the work dir ``catalog`` or built by a two-step
+    job in ``work_dir / "catalog_job"``."""
     from pipeline import build_job, run_job
     from stages.demos.packages import CatalogAsset
 
-    ids = sorted(set(PACKAGES.values()))
+    ids = sorted(set(ids or PACKAGES.values()))
     out = Path(catalog) if catalog else Path(work_dir).resolve() / "catalog_job"
     if catalog is None:
         job = {"job": {"name": "table_catalog", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
@@ -226,7 +228,7 @@ def catalog_assets(work_dir: Path, catalog: Path | None = None) -> dict:
         summary = run_job(build_job(job, source="<record-table>", base_dir=out.parent), progress=False)
         failed = {s.name: s.failed for s in summary.steps if s.failed}
         if failed:
-            raise RuntimeError(f"record-table: building the mug and can failed in {out} ({failed}); see {out}/logs")
+            raise RuntimeError(f"record-table: building the packages {ids} failed in {out} ({failed}); see {out}/logs")
     gen = out / "catalog" / "default" / "generated.json"
     if not gen.is_file():
         raise FileNotFoundError(f"{gen}: no default catalog record in the work dir {out}")
@@ -247,7 +249,8 @@ def record_all(out: Path, pairs=PAIRS, *, episodes: int = 30, seed: int = 0, ima
     bad = [p for p in pairs if p not in PAIRS]
     if bad:
         raise ValueError(f"record-table: unknown pairs {bad}; known {list(PAIRS)}")
-    assets = catalog_assets(out, catalog) if any(not p.startswith("aloha/") for p in pairs) else None
+    ids = {PACKAGES[p.split("/")[1]] for p in pairs if not p.startswith("aloha/")}
+    assets = catalog_assets(out, catalog, ids) if ids else None
     report = {"episodes_per_pair": episodes, "seed": seed, "images": images, "pairs": {}}
     for pair in pairs:
         rep = record_pair(pair, out, episodes=episodes, seed=seed, assets=assets, images=images, **kwargs)
@@ -295,7 +298,7 @@ def cli(argv: list[str]) -> int:
     p.add_argument("--width", type=int, default=128)
     p.add_argument("--height", type=int, default=96)
     p.add_argument("--fps", type=int, default=30)
-    p.add_argument("--catalog", type=Path, default=None, help="a work dir holding assets/mug_04 and assets/can_00")
+    p.add_argument("--catalog", type=Path, default=None, help="a work dir holding assets/<id> of the pairs' packages")
     a = p.parse_args(argv)
     if a.episodes < 1 or a.fps < 1 or min(a.width, a.height) < 8:
         print("error: --episodes and --fps must be >= 1, --width/--height >= 8")

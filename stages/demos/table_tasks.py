@@ -9,6 +9,13 @@ Pairs (``PAIRS``: "<embodiment>/<task>"):
   the contact check passes), lift, carry to a target spot on the table, set down, open, withdraw
   (:func:`pick_place_hand`). Success: the object stands (within 10 deg of upright) on the table
   within ``PLACE_TOL`` of the target and no finger touches it.
+  ``open_drawer``, ``close_drawer``: the top drawer of the catalog's ``kitchen_counter_00``
+  standing on the floor before the robot (:func:`write_counter_scene`); its bar handle is
+  horizontal, so the hand comes at it palm first (fingers down, the bar across them), closes round
+  it and pulls the drawer out (:func:`open_drawer_hand`), or pushes the open drawer shut with the
+  open palm on the bar (:func:`close_drawer_hand`). Success: the drawer out at least
+  ``DRAWER_OPEN`` / at most ``DRAWER_CLOSED`` and the hand no longer holding the handle (the contact
+  check; a drawer that slides on out may still brush the open fingers).
 - ``aloha`` (the dual-arm platform, :mod:`stages.simulate.dual_arm`): ``lift_tray`` and
   ``hand_over``, the experts and success predicates of :mod:`stages.demos.bimanual`.
 
@@ -35,10 +42,18 @@ from pathlib import Path
 import numpy as np
 
 HANDS = ("allegro", "shadow")
-HAND_TASKS = ("pick_place_mug", "pick_place_can")
+HAND_TASKS = ("pick_place_mug", "pick_place_can", "open_drawer", "close_drawer")
 ARM_TASKS = ("lift_tray", "hand_over")
 PAIRS = tuple(f"{h}/{t}" for h in HANDS for t in HAND_TASKS) + tuple(f"aloha/{t}" for t in ARM_TASKS)
-PACKAGES = {"pick_place_mug": "mug_04", "pick_place_can": "can_00"}
+PACKAGES = {"pick_place_mug": "mug_04", "pick_place_can": "can_00", "open_drawer": "kitchen_counter_00",
+            "close_drawer": "kitchen_counter_00"}
+DRAWER = "drawer_4_2"  # kitchen_counter_00's top drawer (its bar handle 0.72 m high, along the counter's width)
+# [m] where the closed drawer's bar handle is (the robot at the origin, facing +X), per task: the hand
+# pulls the bar back to 0.42 m or pushes it from 0.56-0.62 m (a horizontal palm nearer the base is
+# out of the Panda's reach at this height)
+DRAWER_BAR_XY = {"open_drawer": (0.62, 0.0), "close_drawer": (0.74, 0.0)}
+DRAWER_OPEN = 0.12  # [m] an open drawer is out at least this far
+DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
 HAND_TABLE_XY = (0.95, 0.0)
@@ -130,6 +145,8 @@ class TableRig:
         from stages.demos import bimanual as bm
 
         x0, y0 = self.home_xy
+        if self.task in ("open_drawer", "close_drawer"):
+            return self.scene.reset(self, rng)
         if self.embodiment == "aloha":
             xy = (x0 + rng.uniform(-0.04, 0.04), y0 + rng.uniform(-0.03, 0.03))
             yaw = rng.uniform(-0.2, 0.2)
@@ -181,7 +198,11 @@ def build_rig(pair: str, work_dir: Path, *, assets: dict | None = None, shared_a
     pkg = PACKAGES[task]
     if not assets or pkg not in assets:
         raise ValueError(f"table tasks: {pair} needs the catalog package {pkg} (assets)")
-    scene = write_table_scene(work_dir / "scene.usda", assets[pkg], table_xy=HAND_TABLE_XY, object_xy=HAND_OBJECT_XY)
+    if task in ("open_drawer", "close_drawer"):
+        scene = write_counter_scene(work_dir / "scene.usda", assets[pkg], bar_xy=DRAWER_BAR_XY[task])
+    else:
+        scene = write_table_scene(work_dir / "scene.usda", assets[pkg], table_xy=HAND_TABLE_XY,
+                                  object_xy=HAND_OBJECT_XY)
     desc = write_robot_urdf(work_dir / "robot", gripper=emb, shared_assets=shared_assets)
     sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(seed))
     ctl = _remembering(RobotControl)(sim)
@@ -279,6 +300,156 @@ def judge_place(rig: TableRig, target_xy, *, max_tilt: float = 10.0) -> Outcome:
 
 
 # --------------------------------------------------------------------------------------------
+# the hands' drawer
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class CounterScene:
+    """The drawer tasks' scene: usd; joint: the drawer joint's prim path; bar: the closed drawer's
+    bar handle centre (3,) [m]; slide: the drawer's opening direction (3,); travel: its joint's upper
+    limit [m]; radius: the bar's radius [m]; links: the drawer's body prim path."""
+
+    usd: Path
+    joint: str
+    bar: np.ndarray
+    slide: np.ndarray
+    radius: float
+    body: str
+
+    def coord(self, sim) -> int:
+        j = next(j for j, p in sim.scene.joint_path.items() if p == self.joint)
+        return int(sim.model.joint_q_start.numpy()[j])
+
+    def travel(self, sim) -> float:
+        j = next(j for j, p in sim.scene.joint_path.items() if p == self.joint)
+        return float(sim.model.joint_limit_upper.numpy()[int(sim.model.joint_qd_start.numpy()[j])])
+
+    def opening(self, sim) -> float:
+        """How far the drawer is out [m]."""
+        return float(sim.state_0.joint_q.numpy()[self.coord(sim)])
+
+    def reset(self, rig: TableRig, rng: np.random.Generator) -> dict:
+        """An episode's start: the base +-3 cm and +-0.08 rad off its spawn pose, the drawer shut
+        (open_drawer) or out 12-18 cm (close_drawer)."""
+        from stages.demos.session import set_coords
+
+        base = (rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03), rng.uniform(-0.08, 0.08))
+        out = 0.0 if rig.task == "open_drawer" else float(rng.uniform(0.12, 0.18))
+        rig.sim.reset(base=base)
+        rig.ctl.reset()
+        set_coords(rig.sim, {self.coord(rig.sim): out})
+        rig.sim.step(50)
+        return {"base": np.round(base, 4).tolist(), "drawer": round(out, 4)}
+
+    def judge(self, rig: TableRig, *, opened: bool, detail: dict) -> Outcome:
+        from stages.demos.hand_grasps import contact_fingers, is_held
+
+        q = self.opening(rig.sim)
+        touching = contact_fingers(rig.sim, rig.desc.gripper.hand, rig.sim.body_of_path(self.body))
+        reason = ("not_opened" if opened and q < DRAWER_OPEN else "not_closed" if not opened and q > DRAWER_CLOSED
+                  else "still_held" if is_held(touching) else "")
+        touching = sorted(touching)
+        return Outcome(success=not reason, reason=reason,
+                       detail={**detail, "drawer": round(q, 4), "touching": touching})
+
+
+def write_counter_scene(path: Path, asset, *, bar_xy=(0.62, 0.0), drawer: str = DRAWER) -> CounterScene:
+    """Author the drawer tasks' scene at ``path``: floor and ``asset`` (a counter package) on it,
+    turned to face the robot (its front towards -X), placed so that ``drawer``'s bar handle is at
+    ``bar_xy`` [m] when the drawer is shut."""
+    import os
+
+    from pxr import Sdf
+
+    from stages.demos.hand_scene import OBJECT_PRIM, table_world
+    from stages.simulate.demo_scene import _labels, _xform_attrs
+
+    handle = next((h for h in asset.info.get("handles", ()) if h["link"] == drawer), None)
+    if handle is None or tuple(handle["bar_axis"]) != (0.0, 1.0, 0.0):
+        raise ValueError(f"{asset.usd}: no horizontal bar handle on link {drawer!r}")
+    c = np.asarray(handle["center"], float)
+    yaw = math.pi   # the asset's front (+X) faces the robot
+    pos = (bar_xy[0] + c[0], bar_xy[1] + c[1], 0.0)
+    path = Path(path)
+    w = table_world(table_xy=(-3.0, -3.0), table_size=(0.1, 0.1), table_height=0.05)   # no table in reach
+    la, lv = _labels(asset.category)
+    rel = os.path.relpath(Path(asset.usd).resolve(), path.parent.resolve()).replace(os.sep, "/")
+    ref = Sdf.Reference(rel if rel.startswith(".") else f"./{rel}")
+    w.prim(OBJECT_PRIM, "Xform", apis=la, attrs={**_xform_attrs(pos, yaw), **lv},
+           meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
+    w.write(path, "World")
+    return CounterScene(usd=path, joint=f"{OBJECT_PRIM}/joints/{drawer}_joint",
+                        bar=np.array([bar_xy[0], bar_xy[1], c[2]]), slide=np.array([-1.0, 0.0, 0.0]),
+                        radius=float(handle["grip_width"]) / 2, body=f"{OBJECT_PRIM}/{drawer}")
+
+
+def _palm_on_bar() -> np.ndarray:
+    """TCP rotation (3, 3) with the palm facing +X (the counter), the fingers pointing down and a bar
+    along world Y lying across them (along the TCP's Y)."""
+    return np.stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]], axis=1)
+
+
+def _move(rig: TableRig, p: np.ndarray, duration: float, segments: int, settle: float = 0.0) -> None:
+    from stages.simulate.control import move_ee
+
+    try:
+        move_ee(rig.sim, rig.ctl, rig.ik, p, duration, segments=segments, settle=settle)
+    except RuntimeError as e:
+        raise TaskFailure("ik_unreachable", str(e)) from None
+
+
+def open_drawer_hand(rig: TableRig, *, along: float = 0.05, gap: float = 0.006, pull: float = 0.20) -> dict:
+    """Palm first onto the bar handle (the bar ``along`` [m] down the fingers from the TCP, ``gap``
+    [m] in front of the palm), close the hand round it, pull the drawer out ``pull`` [m], open the
+    hand and back away."""
+    from stages.simulate.control import pose
+
+    sc, rot = rig.scene, _palm_on_bar()
+    bar = sc.bar + sc.slide * sc.opening(rig.sim)
+    tcp = bar - along * rot[:, 0] - (sc.radius + gap) * rot[:, 2]
+    _move(rig, pose(tcp - 0.10 * rot[:, 2], rot), 1.5, 3, 0.1)
+    _move(rig, pose(tcp, rot), 0.8, 2, 0.1)
+    for c in np.linspace(0.1, 1.0, 10):
+        rig.ctl.set_gripper(float(c))
+        rig.sim.step(25)
+    rig.sim.step(100)
+    _move(rig, pose(tcp + pull * sc.slide, rot), 2.0, 4, 0.2)
+    pulled = sc.opening(rig.sim)
+    _open_hand(rig, 0.4)
+    _move(rig, pose(tcp + (pull + 0.08) * sc.slide, rot), 0.6, 2)
+    _back_off(rig)
+    return {"pulled": round(pulled, 4)}
+
+
+def _back_off(rig: TableRig, speed: float = 0.3, duration: float = 0.6) -> None:
+    """Drive the base straight back ``speed`` [m/s] for ``duration`` [s], the arm held, then stop
+    and wait 0.3 s (the hand leaves a drawer that slides on out after it)."""
+    rig.ctl.set_base_velocity(-speed, 0.0, 0.0)
+    rig.sim.step(int(round(duration / rig.sim.settings.dt)))
+    rig.ctl.set_base_velocity(0.0, 0.0, 0.0)
+    rig.sim.step(int(round(0.3 / rig.sim.settings.dt)))
+
+
+def close_drawer_hand(rig: TableRig, *, along: float = 0.05, gap: float = 0.004, past: float = 0.01) -> dict:
+    """The open palm onto the open drawer's bar handle (the bar ``along`` [m] down the fingers from the
+    TCP, as for opening), push the drawer ``past`` [m] beyond shut (its stop holds it), back away."""
+    from stages.simulate.control import pose
+
+    sc, rot = rig.scene, _palm_on_bar()
+    bar = sc.bar + sc.slide * sc.opening(rig.sim)
+    tcp = bar - along * rot[:, 0] - (sc.radius + gap) * rot[:, 2]
+    rig.ctl.set_gripper(0.0)
+    _move(rig, pose(tcp - 0.10 * rot[:, 2], rot), 1.5, 3, 0.1)
+    _move(rig, pose(tcp, rot), 0.6, 2)
+    shut = sc.bar - along * rot[:, 0] - (sc.radius + gap) * rot[:, 2] - past * sc.slide
+    _move(rig, pose(shut, rot), 2.0, 4, 0.2)
+    pushed = sc.opening(rig.sim)
+    _move(rig, pose(shut - 0.12 * rot[:, 2], rot), 0.8, 2, 0.3)
+    return {"pushed_to": round(pushed, 4)}
+
+
+# --------------------------------------------------------------------------------------------
 # one episode
 # --------------------------------------------------------------------------------------------
 
@@ -288,6 +459,8 @@ def instruction(rig: TableRig, sample: dict) -> str:
         return "lift the tray with both hands and hold it level"
     if rig.task == "hand_over":
         return "pick up the block with the right gripper and hand it to the left gripper"
+    if rig.task in ("open_drawer", "close_drawer"):
+        return f"{rig.task.split('_')[0]} the top drawer of the counter"
     obj = rig.task.removeprefix("pick_place_")
     side = "left" if sample["target"][1] > sample["xy"][1] else "right"
     return f"pick up the {obj} and place it to the {side}"
@@ -306,6 +479,12 @@ def run_expert(rig: TableRig, sample: dict) -> Outcome:
             fig = bm.hand_over(rig.sim, rig.ctl, rig.ik, rig.scene)
             return Outcome(success=fig.success(), reason="" if fig.success() else _handover_reason(fig),
                            detail=_rounded(vars(fig)))
+        if rig.task == "open_drawer":
+            fig = open_drawer_hand(rig)
+            return rig.scene.judge(rig, opened=True, detail=fig)
+        if rig.task == "close_drawer":
+            fig = close_drawer_hand(rig)
+            return rig.scene.judge(rig, opened=False, detail=fig)
         fig = pick_place_hand(rig, sample["target"])
         out = judge_place(rig, sample["target"])
         return Outcome(success=out.success, reason=out.reason, detail={**fig, **out.detail})
