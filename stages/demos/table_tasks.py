@@ -55,6 +55,7 @@ DRAWER_BAR_XY = {"open_drawer": (0.62, 0.0), "close_drawer": (0.74, 0.0)}
 DRAWER_OPEN = 0.12  # [m] an open drawer is out at least this far
 DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
+LIFT_SECONDS = 2.0  # [s] the lift after the grasp
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
 HAND_TABLE_XY = (0.95, 0.0)
 
@@ -244,7 +245,9 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     shape = hg.fit_upright(hg.object_points(sim, body))
     if not shape.upright:
         raise TaskFailure("tipped", "the object does not stand upright before the grasp")
-    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2])
+    side = getattr(hand, "handle_side", 0)
+    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=side,
+                             **({"max_turn": math.pi} if side else {}))
 
     def move(p, duration, segments, settle=0.0):
         try:
@@ -261,14 +264,17 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
         raise TaskFailure("grasp_missed", f"contact check never passed (touching {sorted(closing.touching)})")
     up = plan.grasp.copy()
     up[2, 3] += lift
-    move(up, 1.0, 2)
+    move(up, LIFT_SECONDS, 4)
     lifted = float(sim.state_0.body_q.numpy()[body][2]) - z0
     if lifted < 0.5 * lift:
         raise TaskFailure("dropped", f"lifted {lifted:.3f} m of {lift:.2f}")
     shift = np.array([target_xy[0] - shape.center[0], target_xy[1] - shape.center[1], 0.0])
     carry = up.copy()
     carry[:3, 3] += shift
-    move(carry, 1.2, 3)
+    move(carry, 1.6, 4)
+    carried = float(sim.state_0.body_q.numpy()[body][2]) - z0
+    if carried < 0.5 * lift:
+        raise TaskFailure("dropped", f"in the carry (at {carried:.3f} m of {lift:.2f})")
     down = plan.grasp.copy()
     down[:3, 3] += shift + [0.0, 0.0, place_gap]
     move(down, 0.8, 2, 0.1)
@@ -276,7 +282,7 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     away = down.copy()
     away[2, 3] += 0.12
     move(away, 0.8, 2, 0.3)
-    return {"lifted": round(lifted, 4), "contact_command": closing.contact_command}
+    return {"lifted": round(lifted, 4), "carried": round(carried, 4), "contact_command": closing.contact_command}
 
 
 def judge_place(rig: TableRig, target_xy, *, max_tilt: float = 10.0) -> Outcome:
