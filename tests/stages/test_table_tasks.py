@@ -37,6 +37,30 @@ def test_report_counts_successes_and_failure_reasons_per_pair():
     assert _handover_reason(Handover(**{**held, "gripped_after": {"left": 0, "right": 0}})) == "not_received"
 
 
+@pytest.mark.parametrize("handle_yaw", [-np.pi / 2, 0.3 - np.pi / 2, np.pi / 2 + 0.5])
+def test_top_grasp_puts_a_handle_on_the_side_the_hand_asks_for(handle_yaw):
+    """plan_top_grasp's handle_side: the handle lies across the fingers (along the TCP's Y) on the
+    asked side, turning as far as it must (the Allegro's handle_side -1: its thumb side); without it
+    the side that needs the smaller turn."""
+    from stages.demos.hand_grasps import UprightShape, plan_top_grasp
+    from stages.simulate.hands import allegro_info
+
+    handle = np.array([np.cos(handle_yaw), np.sin(handle_yaw), 0.0])
+    shape = UprightShape(center=np.array([0.72, 0.0, 0.6]), bottom=0.55, height=0.1, radius=0.037, handle=handle,
+                         upright=True)
+    hand = allegro_info()
+    assert hand.handle_side == -1
+    for side in (-1, 1):
+        plan = plan_top_grasp(shape, hand, (0.0, 0.0), handle_side=side, max_turn=np.pi)
+        y = plan.grasp[:3, 1]
+        assert float(np.dot(y, handle)) == pytest.approx(side, abs=1e-9)
+        np.testing.assert_allclose(plan.grasp[:3, 2], [0, 0, -1], atol=1e-12)
+    either = plan_top_grasp(shape, hand, (0.0, 0.0))   # the smaller turn from fingers along +X
+    fingers = either.grasp[:3, 0]
+    assert abs(float(np.dot(either.grasp[:3, 1], handle))) == pytest.approx(1.0)
+    assert fingers[0] >= np.cos(np.pi / 2) - 1e-9
+
+
 def test_dual_arm_frames_carry_both_arms_in_the_embodiment_layout(tmp_path, shared_assets):
     """The recorder on the dual-arm platform: frames at 30 fps in the DatasetSpec with arms
     (left, right), valid; each arm's recorded TCP pose is where Newton has that TCP (the base at the
