@@ -57,7 +57,7 @@ DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 LIFT_SECONDS = 2.0  # [s] the lift after the grasp
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
-HAND_TABLE_XY = (0.95, 0.0)
+HAND_TABLE_XY = (0.90, 0.0)  # [m] the table (0.6 m deep): its near edge 12 cm before the object's nominal spot
 
 
 class TaskFailure(RuntimeError):
