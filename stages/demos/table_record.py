@@ -65,7 +65,8 @@ def dataset_spec(rig: TableRig, *, images: bool = True, width: int = 128, height
 
 def camera_rig(rig: TableRig, spec):
     """The CameraRig of ``spec``'s cameras (None without cameras): the third-person camera looks at
-    the table from the front right, above the robot's side."""
+    the table from across it, to the robot's left (the drawer tasks: from the robot's left, before
+    the counter)."""
     from stages.simulate.sensors import CameraRig, CameraSpec, look_at
 
     if not spec.cameras:
@@ -74,6 +75,7 @@ def camera_rig(rig: TableRig, spec):
     for c in spec.cameras:
         if c.name == "third_person":
             eye, target = ((1.6, 0.9, 1.4), (0.4, 0.0, 0.6)) if rig.embodiment == "aloha" else \
+                ((0.15, 1.1, 1.45), (0.5, 0.0, 0.7)) if rig.task.endswith("drawer") else \
                 ((1.45, 0.6, 1.2), (0.72, 0.0, 0.62))
             cams.append(CameraSpec(name=c.name, width=c.width, height=c.height, vertical_fov=1.0,
                                    pose=look_at(eye, target)))

@@ -423,7 +423,7 @@ def open_drawer_hand(rig: TableRig, *, along: float = 0.05, gap: float = 0.006, 
     _move(rig, pose(tcp + pull * sc.slide, rot), 2.0, 4, 0.2)
     pulled = sc.opening(rig.sim)
     _open_hand(rig, 0.4)
-    _move(rig, pose(tcp + (pull + 0.08) * sc.slide, rot), 0.6, 2)
+    _move(rig, pose(tcp + (pull + 0.04) * sc.slide, rot), 0.6, 2)
     _back_off(rig)
     return {"pulled": round(pulled, 4)}
 
