@@ -408,7 +408,7 @@ def _move(rig: TableRig, p: np.ndarray, duration: float, segments: int, settle: 
 def open_drawer_hand(rig: TableRig, *, along: float = 0.05, gap: float = 0.006, pull: float = 0.20) -> dict:
     """Palm first onto the bar handle (the bar ``along`` [m] down the fingers from the TCP, ``gap``
     [m] in front of the palm), close the hand round it, pull the drawer out ``pull`` [m], open the
-    hand and back away."""
+    hand and drive the base back (:func:`_back_off`)."""
     from stages.simulate.control import pose
 
     sc, rot = rig.scene, _palm_on_bar()
@@ -423,8 +423,7 @@ def open_drawer_hand(rig: TableRig, *, along: float = 0.05, gap: float = 0.006, 
     _move(rig, pose(tcp + pull * sc.slide, rot), 2.0, 4, 0.2)
     pulled = sc.opening(rig.sim)
     _open_hand(rig, 0.4)
-    _move(rig, pose(tcp + (pull + 0.04) * sc.slide, rot), 0.6, 2)
-    _back_off(rig)
+    _back_off(rig)   # the arm held: a palm any nearer the base is out of reach with the base turned
     return {"pulled": round(pulled, 4)}
 
 
