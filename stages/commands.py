@@ -23,6 +23,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                      "train ACT or Diffusion Policy on a dataset with lerobot-train; curve CSV/PNG, wall time"),
     "teleop": ("stages.teleop.cli:main",
                "teleoperate a task world from a browser (keyboard) and record episodes; --replay a session"),
+    "record-table": ("stages.demos.table_record:cli",
+                     "record the dexterous hands' and the dual-arm platform's table tasks: shards, success, sheets"),
     "render-assets": ("stages.render_assets:main",
                       "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
     "render-dataset": ("stages.dataset.render:cli",

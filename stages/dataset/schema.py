@@ -13,6 +13,13 @@ Layout of one frame (``fps`` frames per second, 30 by default):
   joint targets (n) [rad] in place of the gripper command: ``action`` = [arm targets, end-effector
   target, base velocity, hand joint targets (n), mode] (``arm_dof + 11 + n``), ``observation.state``
   = [arm joints, end-effector pose, base pose, hand joints (n)] (``arm_dof + 10 + n``);
+- with several arms (``DatasetSpec.arms``: their names, e.g. ``("left", "right")`` of the dual-arm
+  platform, each with a parallel gripper and ``arm_dof / len(arms)`` joints), the layout of
+  :mod:`stages.embodiment.layout`: ``observation.state`` = [per arm its joints, per arm its
+  end-effector pose (7), base pose (3)], ``action`` = [per arm its joint targets, per arm its
+  end-effector target (7), base velocity (3), per arm its gripper command, mode]; the names carry
+  the arm's prefix (``left_q0``, ``right_ee_x``, ``left_gripper``) and the frame's ``ee_pose`` /
+  ``ee_target`` are (7 k,), its ``gripper`` (k,) for k arms;
 - ``observation.images.<camera>`` RGB uint8 ``(H, W, 3)``, stored as mp4 video (lossy codec,
   :class:`VideoCodecSpec`; default x264 ultrafast, crf 23, GOP 30, chosen by measurement below);
 - ``depth.<camera>`` depth uint16 ``(H, W)`` [mm], stored WITHOUT LOSS as a 16-bit PNG, base64 text
@@ -144,7 +151,9 @@ class DatasetSpec:
     hand's joint names (control order; empty for a parallel gripper): the state carries their
     positions and the action their targets in place of the gripper command (module docstring);
     subtasks: frames carry the stage of a multistage task (``subtask_index``, int64; the stages'
-    language is the episode column ``agentworld/subtasks``).
+    language is the episode column ``agentworld/subtasks``); arms: the arm names of a multi-arm
+    robot (empty: one arm; see the module docstring), each with ``arm_dof / len(arms)`` joints and a
+    parallel gripper.
     """
 
     arm_dof: int = 7
@@ -161,9 +170,14 @@ class DatasetSpec:
     chunk_size: int = 1000
     hand_joints: tuple[str, ...] = ()
     subtasks: bool = False
+    arms: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         problems = []
+        if self.arms and (len(set(self.arms)) != len(self.arms) or any(not _NAME_RE.match(a) for a in self.arms)
+                          or self.arm_dof % len(self.arms) or self.hand_joints):
+            problems.append(f"arms must be unique names matching [a-z][a-z0-9_]*, share arm_dof equally and "
+                            f"have no hand_joints, got arms {list(self.arms)}, arm_dof {self.arm_dof}")
         if self.arm_dof <= 0:
             problems.append(f"arm_dof must be positive, got {self.arm_dof}")
         if self.fps <= 0:
@@ -180,14 +194,26 @@ class DatasetSpec:
             raise ValueError("; ".join(problems))
 
     @property
+    def ee_count(self) -> int:
+        """End effectors (one per arm; 1 for a one-arm spec)."""
+        return len(self.arms) or 1
+
+    @property
     def state_dim(self) -> int:
-        return self.arm_dof + 7 + 3 + len(self.hand_joints)
+        return self.arm_dof + 7 * self.ee_count + 3 + len(self.hand_joints)
 
     @property
     def action_dim(self) -> int:
-        return self.arm_dof + 7 + 3 + (len(self.hand_joints) or 1) + 1
+        return self.arm_dof + 7 * self.ee_count + 3 + (len(self.hand_joints) or self.ee_count) + 1
+
+    def _arm_names(self, suffix: str) -> list[str]:
+        k = self.arm_dof // len(self.arms)
+        joints = [f"{a}_q{i}{suffix}" for a in self.arms for i in range(k)]
+        return joints + [f"{a}_ee_{c}{suffix}" for a in self.arms for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
 
     def state_names(self) -> list[str]:
+        if self.arms:
+            return [*self._arm_names(""), "base_x", "base_y", "base_theta"]
         return [
             *(f"arm_q{i}" for i in range(self.arm_dof)),
             "ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz",
@@ -195,6 +221,9 @@ class DatasetSpec:
         ]  # fmt: skip
 
     def action_names(self) -> list[str]:
+        if self.arms:
+            return [*self._arm_names("_target"), "base_vx", "base_vy", "base_vtheta",
+                    *(f"{a}_gripper" for a in self.arms), "mode"]
         return [
             *(f"arm_q{i}_target" for i in range(self.arm_dof)),
             "ee_x_target", "ee_y_target", "ee_z_target",
@@ -242,6 +271,7 @@ class DatasetSpec:
             "chunk_size": self.chunk_size,
             **({"hand_joints": list(self.hand_joints)} if self.hand_joints else {}),
             **({"subtasks": True} if self.subtasks else {}),
+            **({"arms": list(self.arms)} if self.arms else {}),
         }  # fmt: skip
 
     @classmethod
@@ -250,6 +280,7 @@ class DatasetSpec:
         d["cameras"] = tuple(CameraSpec(**c) for c in d["cameras"])
         d["video"] = VideoCodecSpec(**d["video"])
         d["hand_joints"] = tuple(d.get("hand_joints", ()))
+        d["arms"] = tuple(d.get("arms", ()))
         return cls(**d)
 
 
@@ -290,7 +321,8 @@ class Frame:
 
     arm_joint_pos (arm_dof,); ee_pose (7,) xyz + quat wxyz; base_pose (3,) x, y, theta;
     arm_joint_target (arm_dof,); ee_target (7,); base_velocity (3,) vx, vy [m/s], vtheta [rad/s];
-    gripper in [0, 1]; mode 0 (locomotion) or 1 (manipulation); subtask_index: the stage of a
+    gripper in [0, 1] (several arms: ee_pose, ee_target (7 k,) and gripper (k,), arm after arm);
+    mode 0 (locomotion) or 1 (manipulation); subtask_index: the stage of a
     multistage task (recorded where the spec has ``subtasks``);
     rgb: camera -> uint8 (H, W, 3); depth_mm: camera -> uint16 (H, W) or (H, W, 1)
     (use :func:`depth_m_to_mm` to convert a float depth map in metres);
@@ -304,7 +336,7 @@ class Frame:
     arm_joint_target: np.ndarray
     ee_target: np.ndarray
     base_velocity: np.ndarray
-    gripper: float
+    gripper: float | np.ndarray
     mode: int
     rgb: Mapping[str, np.ndarray]
     depth_mm: Mapping[str, np.ndarray]
@@ -319,7 +351,7 @@ class Frame:
 
     def action(self) -> np.ndarray:
         """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets."""
-        ee_cmd = np.ravel(self.hand_joint_target) if np.size(self.hand_joint_target) else [self.gripper]
+        ee_cmd = np.ravel(self.hand_joint_target) if np.size(self.hand_joint_target) else np.ravel(self.gripper)
         return np.concatenate(
             [self.arm_joint_target, self.ee_target, self.base_velocity, ee_cmd, [self.mode]]
         ).astype(np.float32)
@@ -349,6 +381,13 @@ def _quat_problems(name: str, pose: Any) -> list[str]:
     if arr.shape == (7,) and np.all(np.isfinite(arr)) and abs(float(np.linalg.norm(arr[3:])) - 1.0) > 1e-3:
         return [f"{name}: quaternion norm {np.linalg.norm(arr[3:]):.4f}, expected 1 (wxyz)"]
     return []
+
+
+def _poses_quat_problems(name: str, poses: Any, k: int) -> list[str]:
+    arr = np.asarray(poses, dtype=np.float64)
+    if k == 1 or arr.shape != (7 * k,):
+        return _quat_problems(name, poses)
+    return [p for i in range(k) for p in _quat_problems(f"{name}[{i}]", arr[7 * i:7 * i + 7])]
 
 
 def _image_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
@@ -381,21 +420,25 @@ def _image_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
 
 def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
     """Every way ``frame`` does not match ``spec`` (empty list: valid)."""
-    n = spec.arm_dof
+    n, k = spec.arm_dof, spec.ee_count
     out = [
         *_vector_problems("arm_joint_pos", frame.arm_joint_pos, n),
-        *_vector_problems("ee_pose", frame.ee_pose, 7),
-        *_quat_problems("ee_pose", frame.ee_pose),
+        *_vector_problems("ee_pose", frame.ee_pose, 7 * k),
+        *_poses_quat_problems("ee_pose", frame.ee_pose, k),
         *_vector_problems("base_pose", frame.base_pose, 3),
         *_vector_problems("arm_joint_target", frame.arm_joint_target, n),
-        *_vector_problems("ee_target", frame.ee_target, 7),
-        *_quat_problems("ee_target", frame.ee_target),
+        *_vector_problems("ee_target", frame.ee_target, 7 * k),
+        *_poses_quat_problems("ee_target", frame.ee_target, k),
         *_vector_problems("base_velocity", frame.base_velocity, 3),
         *_vector_problems("hand_joint_pos", frame.hand_joint_pos, len(spec.hand_joints)),
         *_vector_problems("hand_joint_target", frame.hand_joint_target, len(spec.hand_joints)),
     ]
-    if not (isinstance(frame.gripper, (int, float, np.floating, np.integer)) and math.isfinite(frame.gripper)
-            and 0.0 <= float(frame.gripper) <= 1.0):  # fmt: skip
+    if spec.arms:
+        g = np.asarray(frame.gripper)
+        if not (g.shape == (k,) and np.issubdtype(g.dtype, np.number) and np.all((g >= 0.0) & (g <= 1.0))):
+            out.append(f"gripper must be {k} numbers in [0, 1] (one per arm), got {frame.gripper!r}")
+    elif not (isinstance(frame.gripper, (int, float, np.floating, np.integer)) and math.isfinite(frame.gripper)
+              and 0.0 <= float(frame.gripper) <= 1.0):  # fmt: skip
         out.append(f"gripper must be a number in [0, 1], got {frame.gripper!r}")
     if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
         out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")

@@ -142,20 +142,23 @@ def top_rotation(fingers: np.ndarray) -> np.ndarray:
 
 
 def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10, gap: float = 0.006,
-                   max_turn: float = float(np.deg2rad(60.0))) -> GraspPlan:
+                   max_turn: float = float(np.deg2rad(60.0)), handle_side: int = 0) -> GraspPlan:
     """A top power grasp of ``shape`` by ``hand`` (:class:`stages.simulate.hands.HandInfo`) for a
     robot at ``robot_xy`` (2,) [m] (see the module docstring): the palm ``gap`` [m] above the
     object's top, the object's axis at ``hand.grasp_x`` along the fingers, the fingers pointing
     away from the robot so that they wrap the far side and the thumb the near side; for a handle,
     turned (at most ``max_turn``) so that the handle points across the fingers (along the TCP's
-    Y), clear of the fingers' and the thumb's sweep. Pre-grasp: ``standoff`` [m] above."""
+    Y), clear of the fingers' and the thumb's sweep; ``handle_side`` +1 / -1 puts it on the TCP's +Y /
+    -Y side only (0: whichever side needs the smaller turn). Pre-grasp: ``standoff`` [m] above."""
     if not shape.upright:
         raise ValueError("plan_top_grasp: the object does not stand upright")
     direct = shape.center[:2] - np.asarray(robot_xy, float)
     az = float(np.arctan2(direct[1], direct[0]))
     if shape.handle is not None:
         h = float(np.arctan2(shape.handle[1], shape.handle[0]))
-        turns = [(c - az + np.pi) % (2 * np.pi) - np.pi for c in (h + np.pi / 2, h - np.pi / 2)]
+        # fingers along h + 90 deg put the handle on the TCP's +Y side (TCP +Y = fingers - 90 deg)
+        sides = {1: (h + np.pi / 2,), -1: (h - np.pi / 2,), 0: (h + np.pi / 2, h - np.pi / 2)}[int(handle_side)]
+        turns = [(c - az + np.pi) % (2 * np.pi) - np.pi for c in sides]
         turn = min(turns, key=abs)
         az += float(np.clip(turn, -max_turn, max_turn))
     d = np.array([np.cos(az), np.sin(az), 0.0])

@@ -64,7 +64,8 @@ class HandInfo:
     X and Y [m] (how far the palm reaches along the fingers' direction and across); reach: the
     largest object radius the synergy wraps [m]; grasp_x: where along the TCP's X (the fingers'
     direction) a grasped cylinder's axis lies [m]; fingers: finger name ("thumb", "index", ...)
-    -> its link names; drive."""
+    -> its link names; drive; handle_side: the side of the TCP's Y a mug's handle must be on in a
+    top grasp (+1 / -1; 0: either; :func:`stages.demos.hand_grasps.plan_top_grasp`)."""
 
     kind: str
     joints: tuple[str, ...]
@@ -79,6 +80,7 @@ class HandInfo:
     grasp_x: float
     fingers: dict[str, tuple[str, ...]]
     drive: HandDrive
+    handle_side: int = 0
 
 
 def _fmt(v) -> str:
@@ -138,7 +140,10 @@ def allegro_info() -> HandInfo:
                     palm_half=(0.05, 0.056), reach=0.05, grasp_x=0.015,
                     fingers={name: tuple(f"allegro_link_{i}" for i in range(4 * k, 4 * k + 4)) + (f"allegro_link_{4 * k + 3}_tip",)
                              for k, name in ((3, "thumb"), (0, "index"), (1, "middle"), (2, "ring"))},
-                    drive=HandDrive(kp=3.0, kd=0.1, armature=0.01, effort=(0.7,) * 16))
+                    drive=HandDrive(kp=3.0, kd=0.1, armature=0.01, effort=(0.7,) * 16),
+                    # a handle on the ring finger's side (+Y) takes the ring finger's grip: the mug
+                    # slipped out in the lift (2 of 2 episodes with the handle there; record-table)
+                    handle_side=-1)
 
 
 def add_allegro(robot: ET.Element, shared_assets: Path, *, palm_z: float = -0.035) -> HandInfo:

@@ -67,6 +67,33 @@ def test_hand_joints_replace_the_gripper_command_and_extend_the_state():
         DatasetSpec(hand_joints=("joint 1",))
 
 
+def test_two_arms_give_the_embodiment_layout_of_the_dual_arm_platform():
+    """DatasetSpec.arms (the dual-arm platform): per arm its joints and end-effector pose, one gripper
+    command per arm, named as stages.embodiment.layout names the spec mobile_aloha_viperx; frames carry
+    (14,) poses and (2,) grippers, each quaternion checked."""
+    import dataclasses
+
+    from stages.embodiment.layout import action_names, state_names
+    from stages.embodiment.spec import load_spec
+
+    spec = DatasetSpec(arm_dof=12, cameras=(), arms=("left", "right"))
+    viperx = load_spec("mobile_aloha_viperx")
+    assert spec.state_names() == state_names(viperx) and spec.action_names() == action_names(viperx)
+    assert spec.state_dim == 12 + 14 + 3 and spec.action_dim == 12 + 14 + 3 + 2 + 1
+    assert DatasetSpec.from_json(spec.to_json()) == spec and "arms" not in DatasetSpec().to_json()
+    one = synthetic_frame(DatasetSpec(arm_dof=12, cameras=()), 0, 0, 5)
+    frame = dataclasses.replace(one, ee_pose=np.tile(one.ee_pose, 2), ee_target=np.tile(one.ee_target, 2),
+                                gripper=np.array([0.0, 1.0]))
+    assert frame_problems(spec, frame) == []
+    assert frame.state().shape == (29,) and frame.action().shape == (32,)
+    np.testing.assert_allclose(frame.action()[-3:], [0.0, 1.0, 1.0])
+    bad = dataclasses.replace(frame, ee_pose=np.concatenate([one.ee_pose, [0, 0, 0, 2, 0, 0, 0]]), gripper=0.5)
+    assert frame_problems(spec, bad) == ["ee_pose[1]: quaternion norm 2.0000, expected 1 (wxyz)",
+                                         "gripper must be 2 numbers in [0, 1] (one per arm), got 0.5"]
+    with pytest.raises(ValueError, match="arms"):
+        DatasetSpec(arm_dof=13, arms=("left", "right"))
+
+
 def test_spec_rejects_bad_values_in_one_message():
     with pytest.raises(ValueError, match="arm_dof.*fps"):
         DatasetSpec(arm_dof=0, fps=0)
