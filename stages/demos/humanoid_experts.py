@@ -185,8 +185,78 @@ def close_drawer(h: Any, inst: Any, cfg: DrawerPushConfig = DrawerPushConfig()) 
     yield from hand_to(h, cfg.arm, target, tol=0.02, timeout_s=2.0)
 
 
+@dataclass(frozen=True, kw_only=True)
+class LeafPushConfig:
+    """Closing a vertically hinged leaf by sweeping a hand along it: the push point's place on the
+    leaf (fraction of the hinge-to-handle distance), the sweep's middle in the base frame (forward
+    [m], |lateral| [m] towards the pushing hand's side), the sweep rate [rad/s], the overshoot past
+    closed [rad], the approach offset off the leaf [m]."""
+
+    along: float = 0.6
+    reach: float = 0.27
+    lateral: float = 0.2
+    rate: float = 0.5
+    overshoot: float = 0.08
+    approach: float = 0.08
+    hand_radius: float = 0.045
+    walk: WalkConfig = WalkConfig()
+
+
+def close_leaf(h: Any, inst: Any, cfg: LeafPushConfig = LeafPushConfig()) -> Generator[int, None, None]:
+    """Close a vertically hinged door (the microwave's) with one hand: walk to a stance beside the
+    open leaf, facing the furniture; the hand's sphere onto the leaf's outer face (``along`` of the
+    way from the hinge to the handle), then swept along the leaf's arc to ``overshoot`` past closed
+    at ``rate``, a few degrees ahead of the leaf; the hand backs off 10 cm."""
+    part = inst.part
+    if part.kind != "revolute" or abs(part.axis[2]) < 0.9:
+        raise ExpertFailure("no_expert", f"{part.joint_path} is not a vertically hinged leaf")
+    q0 = h.joint_value(part.joint_path)
+    out = -np.asarray(part.front, float)
+    out[2] = 0.0
+    out /= np.linalg.norm(out)
+    yaw = math.atan2(out[1], out[0])
+    left = np.array([-out[1], out[0], 0.0])
+    origin, handle = np.asarray(part.origin, float), np.asarray(part.handle, float)
+    radial = handle - origin
+    radial[2] = 0.0
+    p_closed = origin + cfg.along * radial + np.asarray(part.front) * (cfg.hand_radius + 0.005)
+    p_closed[2] = handle[2]
+
+    def centre(q: float) -> np.ndarray:
+        return part.point_at(p_closed, q)
+
+    # the pushing hand: on the side the leaf's free edge moves to while closing
+    closing = centre(q0 - 0.05) - centre(q0)
+    arm, side = ("right", -1.0) if float(closing @ left) < 0.0 else ("left", 1.0)
+    mid = centre(0.5 * q0)
+    base = mid - out * cfg.reach - left * side * cfg.lateral
+    yield from walk_to(h, (float(base[0]), float(base[1]), yaw), cfg.walk, grid=inst.world.grid())
+    h.set_mode(MANIPULATION)
+    yield from _wait(10)
+    q = h.joint_value(part.joint_path)
+    target = h.ee_pose(arm).copy()
+    normal = part.front_at(q)                              # outward normal of the leaf's outer face
+    target[:3, 3] = centre(q) + normal * cfg.approach
+    yield from hand_to(h, arm, target, tol=0.025, timeout_s=4.0)
+    target[:3, 3] = centre(q)
+    err = yield from hand_to(h, arm, target, tol=0.02, timeout_s=2.0)
+    if err > 0.05:
+        raise ExpertFailure("hand_not_placed", f"hand {err * 1000:.0f} mm from the leaf")
+    q_cmd = q
+    step = cfg.rate * h.dt
+    while q_cmd > part.closed - cfg.overshoot:
+        q_cmd = max(part.closed - cfg.overshoot, min(q_cmd, h.joint_value(part.joint_path) + 0.15) - step)
+        target[:3, 3] = centre(q_cmd)
+        h.set_ee_target(arm, target)
+        yield 1
+    yield from _wait(int(0.8 / h.dt))
+    log.debug("close_leaf: leaf at %.3f rad after the sweep", h.joint_value(part.joint_path))
+    target[:3, 3] = centre(part.closed) - out * 0.10
+    yield from hand_to(h, arm, target, tol=0.02, timeout_s=2.0)
+
+
 #: humanoid experts by task name
-HUMANOID_EXPERTS = {"close_drawer": close_drawer}
+HUMANOID_EXPERTS = {"close_drawer": close_drawer, "close_microwave": close_leaf}
 
 
 def humanoid_program(h: Any, inst: Any) -> Generator[int, None, None]:

@@ -23,7 +23,7 @@ import logging
 import time
 from collections import Counter
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -45,15 +45,51 @@ class HumanoidRunConfig:
     width: int = 128
     height: int = 96
     max_seconds: float = 40.0
-    extra: dict = field(default_factory=dict)
+
+
+def run_kitchen(kitchen: Any, cfg: HumanoidRunConfig, *, shards_dir: Path | None = None,
+                shard_id: str = "") -> tuple[list[dict], Path | None]:
+    """Every (task, episode) of ``cfg`` in one kitchen on one humanoid engine; with cameras and
+    ``shards_dir`` the successful episodes go to shard ``shards_dir/shard_id``. Returns the episode
+    records and the shard (None without one)."""
+    from stages.dataset import EpisodeInfo, open_shard
+    from stages.demos.humanoid_experts import humanoid_program
+    from stages.demos.sampling import sample_instance
+    from stages.engine.humanoid import HumanoidEngine, HumanoidEngineConfig
+
+    eng = HumanoidEngine(kitchen, HumanoidEngineConfig(spec=cfg.spec, cameras=cfg.cameras, width=cfg.width,
+                                                      height=cfg.height, max_seconds=cfg.max_seconds))
+    queue = [sample_instance(t, kitchen, cfg.seed0 + k) for k in range(cfg.episodes) for t in cfg.tasks]
+    episodes: list[dict] = []
+    with ExitStack() as stack:
+        shard = (stack.enter_context(open_shard(shards_dir, shard_id, eng.dataset_spec()))
+                 if cfg.cameras and shards_dir is not None else None)
+
+        def begin(w: int, inst: Any):
+            if shard is None:
+                return None
+            shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id=kitchen.scene_id,
+                                            seed=inst.seed, asset_ids=inst.asset_ids))
+            return shard.add_frame
+
+        def end(w: int, inst: Any, res: Any):
+            if shard is not None:
+                shard.end_episode(success=res.success, reason=res.reason)
+            episodes.append({"scene_id": kitchen.scene_id, "task": inst.task, "seed": inst.seed,
+                             "success": res.success, "reason": res.reason, "detail": res.detail,
+                             "frames": res.frames, "sim_seconds": round(res.sim_seconds, 2),
+                             "wall_seconds": round(res.wall_seconds, 1)})
+            log.info("%s %s seed %d: %s %s (%.1f s simulated, %.0f s wall)", inst.task, kitchen.scene_id, inst.seed,
+                     "success" if res.success else "failed", res.reason, res.sim_seconds, res.wall_seconds)
+
+        eng.run(lambda w: queue.pop(0) if queue else None, humanoid_program, begin=begin, end=end)
+    path = shards_dir / shard_id if shard is not None else None
+    return episodes, path
 
 
 def record(work: Path, cfg: HumanoidRunConfig) -> dict[str, Any]:
     """Run every (kitchen, task, episode) of ``cfg`` in ``work``; returns the report (also written)."""
-    from stages.dataset import EpisodeInfo, merge_shards, open_shard
-    from stages.demos.humanoid_experts import humanoid_program
-    from stages.demos.sampling import sample_instance
-    from stages.engine.humanoid import HumanoidEngine, HumanoidEngineConfig
+    from stages.dataset import merge_shards
     from stages.teleop.world import teleop_kitchen
 
     work = Path(work)
@@ -63,47 +99,30 @@ def record(work: Path, cfg: HumanoidRunConfig) -> dict[str, Any]:
     t_all = time.perf_counter()
     for ws in cfg.world_seeds:
         kitchen = teleop_kitchen(work / "kitchens", world_seed=ws, scene_id=f"kitchen_ws{ws}")
-        eng = HumanoidEngine(kitchen, HumanoidEngineConfig(spec=cfg.spec, cameras=cfg.cameras, width=cfg.width,
-                                                          height=cfg.height, max_seconds=cfg.max_seconds))
-        queue = [sample_instance(t, kitchen, cfg.seed0 + k) for k in range(cfg.episodes) for t in cfg.tasks]
-        with ExitStack() as stack:
-            shard = (stack.enter_context(open_shard(shards_dir, f"{cfg.spec}_ws{ws}", eng.dataset_spec()))
-                     if cfg.cameras else None)
-
-            def begin(w: int, inst: Any, shard=shard, scene=kitchen.scene_id):
-                if shard is None:
-                    return None
-                shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id=scene,
-                                                seed=inst.seed, asset_ids=inst.asset_ids))
-                return shard.add_frame
-
-            def end(w: int, inst: Any, res: Any, shard=shard, ws=ws):
-                if shard is not None:
-                    shard.end_episode(success=res.success, reason=res.reason)
-                episodes.append({"world_seed": ws, "task": inst.task, "seed": inst.seed, "success": res.success,
-                                 "reason": res.reason, "detail": res.detail, "frames": res.frames,
-                                 "sim_seconds": round(res.sim_seconds, 2), "wall_seconds": round(res.wall_seconds, 1)})
-                log.info("%s ws%d seed %d: %s %s (%.1f s simulated, %.0f s wall)", inst.task, ws, inst.seed,
-                         "success" if res.success else "failed", res.reason, res.sim_seconds, res.wall_seconds)
-
-            eng.run(lambda w: queue.pop(0) if queue else None, humanoid_program, begin=begin, end=end)
-    report = summarize(episodes, cfg, time.perf_counter() - t_all)
+        eps, _ = run_kitchen(kitchen, cfg, shards_dir=shards_dir, shard_id=f"{cfg.spec}_ws{ws}")
+        episodes += eps
+    report = summarize(episodes, cfg.tasks, time.perf_counter() - t_all)
+    report.update(spec=cfg.spec, world_seeds=list(cfg.world_seeds))
     if cfg.cameras and any(e["success"] for e in episodes):
-        from stages.dataset.render import render_contact_sheet
-
         merged = work / "datasets" / "humanoid" / "merged"
         res = merge_shards(shards_dir, merged, repo_id=f"agentworld/humanoid_{cfg.spec}")
         report["dataset"] = str(res.root)
-        report["contact_sheet"] = str(render_contact_sheet(res.root, work / "reports" / "humanoid_contact_sheet.png",
-                                                           frames=6, max_episodes=3))
+        report["contact_sheet"] = str(contact_sheet(res.root, work / "reports" / "humanoid_contact_sheet.png"))
     (work / "reports" / "humanoid_demos.json").write_text(json.dumps(report, indent=1))
     return report
 
 
-def summarize(episodes: list[dict], cfg: HumanoidRunConfig, wall_s: float) -> dict[str, Any]:
+def contact_sheet(dataset: Path, out: Path) -> Path:
+    """A PNG of the dataset's head and wrist views (and depth): 3 episodes x 6 frames."""
+    from stages.dataset.render import render_contact_sheet
+
+    return render_contact_sheet(dataset, out, frames=6, max_episodes=3)
+
+
+def summarize(episodes: list[dict], tasks_run: tuple[str, ...], wall_s: float) -> dict[str, Any]:
     """Attempts, successes and failure reasons per task, and every episode."""
     tasks = {}
-    for t in cfg.tasks:
+    for t in tasks_run:
         eps = [e for e in episodes if e["task"] == t]
         ok = [e for e in eps if e["success"]]
         frames = sorted(e["frames"] for e in ok) or [0]
@@ -112,7 +131,7 @@ def summarize(episodes: list[dict], cfg: HumanoidRunConfig, wall_s: float) -> di
                     "failures": dict(Counter(e["reason"] for e in eps if not e["success"])),
                     "median_sim_seconds": sorted(e["sim_seconds"] for e in ok)[len(ok) // 2] if ok else None,
                     "median_frames": frames[len(frames) // 2]}
-    return {"spec": cfg.spec, "world_seeds": list(cfg.world_seeds), "episodes_per_task": cfg.episodes,
+    return {"attempts": len(episodes), "successes": sum(e["success"] for e in episodes),
             "wall_seconds": round(wall_s, 1), "tasks": tasks, "episodes": episodes}
 
 
