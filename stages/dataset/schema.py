@@ -173,10 +173,12 @@ class DatasetSpec:
         if bool(self.state_layout) != bool(self.action_layout):
             problems.append("state_layout and action_layout must be given together")
         if self.state_layout and self.hand_joints:
-            problems.append("hand_joints belong to the single-arm layout; an embodiment layout names its joints")
+            problems.append("hand_joints belong to the single-arm layout; an embodiment layout names its "
+                            "joints")
         for what, names in (("state_layout", self.state_layout), ("action_layout", self.action_layout)):
             if any(not _JOINT_RE.match(n) for n in names) or len(set(names)) != len(names):
-                problems.append(f"{what} must be unique names matching [A-Za-z][A-Za-z0-9_]*, got {list(names)}")
+                problems.append(f"{what} must be unique names matching [A-Za-z][A-Za-z0-9_]*, "
+                                f"got {list(names)}")
         if self.arm_dof <= 0:
             problems.append(f"arm_dof must be positive, got {self.arm_dof}")
         if self.fps <= 0:
@@ -346,9 +348,10 @@ class Frame:
                    depth_mm: Mapping[str, np.ndarray], subtask_index: int = 0) -> Frame:
         """A frame of a spec with an embodiment layout: its state (S,) and action (A,) vectors."""
         empty = np.zeros(0)
-        return Frame(arm_joint_pos=empty, ee_pose=empty, base_pose=empty, arm_joint_target=empty, ee_target=empty,
-                     base_velocity=empty, gripper=0.0, mode=int(mode), rgb=rgb, depth_mm=depth_mm,
-                     subtask_index=subtask_index, state_vector=np.asarray(state), action_vector=np.asarray(action))
+        return Frame(arm_joint_pos=empty, ee_pose=empty, base_pose=empty, arm_joint_target=empty,
+                     ee_target=empty, base_velocity=empty, gripper=0.0, mode=int(mode), rgb=rgb,
+                     depth_mm=depth_mm, subtask_index=subtask_index, state_vector=np.asarray(state),
+                     action_vector=np.asarray(action))
 
     def state(self) -> np.ndarray:
         """float32 (arm_dof + 10 + n,) (n: hand joints, 0 for a parallel gripper); or ``state_vector``."""
@@ -358,7 +361,8 @@ class Frame:
                                np.ravel(self.hand_joint_pos)]).astype(np.float32)
 
     def action(self) -> np.ndarray:
-        """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets; or ``action_vector``."""
+        """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets; or
+        ``action_vector``."""
         if self.action_vector is not None:
             return np.asarray(self.action_vector, np.float32)
         ee_cmd = np.ravel(self.hand_joint_target) if np.size(self.hand_joint_target) else [self.gripper]
@@ -455,7 +459,8 @@ def _layout_frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
            *_vector_problems("action_vector", frame.action_vector, spec.action_dim)]
     if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
         out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
-    elif not out and "mode" in spec.action_layout and frame.action_vector[spec.action_layout.index("mode")] != frame.mode:
+    elif not out and "mode" in spec.action_layout and (
+            frame.action_vector[spec.action_layout.index("mode")] != frame.mode):
         out.append("action_vector's mode differs from the frame's mode")
     if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
         out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")

@@ -96,7 +96,8 @@ def walk_to(h: Any, goal: tuple[float, float, float], cfg: WalkConfig, *, path: 
         yield 1
     h.set_command(0.0, 0.0, 0.0)
     x, y, yaw = h.base_pose()
-    raise ExpertFailure("not_reached", f"base at ({x:.2f}, {y:.2f}, {yaw:.2f}), goal {tuple(round(v, 2) for v in goal)}")
+    raise ExpertFailure("not_reached",
+                        f"base at ({x:.2f}, {y:.2f}, {yaw:.2f}), goal {tuple(round(v, 2) for v in goal)}")
 
 
 def hand_to(h: Any, arm: str, target: np.ndarray, *, tol: float = 0.02, timeout_s: float = 3.0,
@@ -168,11 +169,13 @@ def close_drawer(h: Any, inst: Any, cfg: DrawerPushConfig = DrawerPushConfig()) 
     push_walk = WalkConfig(**{**cfg.walk.__dict__, "v_max": cfg.push_speed, "timeout_s": 8.0})
     closed = lambda: h.joint_value(part.joint_path) - part.closed < 0.005  # noqa: E731
     try:
-        yield from walk_to(h, (float(base_end[0]), float(base_end[1]), yaw), push_walk, path=path, until=closed)
+        yield from walk_to(h, (float(base_end[0]), float(base_end[1]), yaw), push_walk, path=path,
+                           until=closed)
     except ExpertFailure as e:
         if e.reason != "not_reached":
             raise
-    log.debug("close_drawer: push walk ended, base %s, drawer %.3f m", h.base_pose(), h.joint_value(part.joint_path))
+    log.debug("close_drawer: push walk ended, base %s, drawer %.3f m", h.base_pose(),
+              h.joint_value(part.joint_path))
     # finish with the arm from where the base stands
     h.set_mode(MANIPULATION)
     yield from _wait(10)
@@ -263,5 +266,6 @@ def humanoid_program(h: Any, inst: Any) -> Generator[int, None, None]:
     """The engine's program: the task's humanoid expert; ExpertFailure("no_expert") for other tasks."""
     expert = HUMANOID_EXPERTS.get(inst.task)
     if expert is None:
-        raise ExpertFailure("no_expert", f"no humanoid expert for {inst.task} (have {sorted(HUMANOID_EXPERTS)})")
+        raise ExpertFailure("no_expert",
+                            f"no humanoid expert for {inst.task} (have {sorted(HUMANOID_EXPERTS)})")
     yield from expert(h, inst)

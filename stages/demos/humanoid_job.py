@@ -120,7 +120,8 @@ def record_kitchen(params: KitchenParams, ctx: ItemContext) -> KitchenResult:
                             width=c.width, height=c.height, max_seconds=c.max_seconds)
     episodes, shard = run_kitchen(kitchen, cfg, shards_dir=ctx.out_dir, shard_id="dataset")
     written = shard is not None and any(e["success"] for e in episodes)
-    return KitchenResult(scene_id=kitchen.scene_id, dataset=str(ctx.final_dir / "dataset") if written else None,
+    return KitchenResult(scene_id=kitchen.scene_id,
+                         dataset=str(ctx.final_dir / "dataset") if written else None,
                          episodes=tuple(episodes))
 
 
@@ -135,7 +136,8 @@ def finalize_humanoid(config: HumanoidDemosConfig, ctx: PlanContext, results: di
     episodes = [e for r in res for e in r.episodes]
     report = summarize(episodes, config.tasks, 0.0)
     del report["wall_seconds"]
-    report.update(spec=config.spec, failed_items=dict(ctx.failed.get(step, {})), dataset=None, contact_sheet=None)
+    report.update(spec=config.spec, failed_items=dict(ctx.failed.get(step, {})), dataset=None,
+                  contact_sheet=None)
     roots = [Path(r.dataset) for r in res if r.dataset]
     if roots:
         out = ctx.work_dir / "datasets" / step
@@ -148,8 +150,8 @@ def finalize_humanoid(config: HumanoidDemosConfig, ctx: PlanContext, results: di
     path = ctx.work_dir / "reports" / f"{step}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(path, report)
-    log.info("humanoid demos: %d/%d episodes succeeded; report %s\n%s", report["successes"], report["attempts"],
-             path, json.dumps({k: v["rate"] for k, v in report["tasks"].items()}))
+    log.info("humanoid demos: %d/%d episodes succeeded; report %s\n%s", report["successes"],
+             report["attempts"], path, json.dumps({k: v["rate"] for k, v in report["tasks"].items()}))
 
 
 HUMANOID_DEMOS_JOB = JobKind(name="humanoid_demos", config=HumanoidDemosConfig, plan=plan_humanoid,

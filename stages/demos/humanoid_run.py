@@ -68,8 +68,9 @@ def run_kitchen(kitchen: Any, cfg: HumanoidRunConfig, *, shards_dir: Path | None
         def begin(w: int, inst: Any):
             if shard is None:
                 return None
-            shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task, scene_id=kitchen.scene_id,
-                                            seed=inst.seed, asset_ids=inst.asset_ids))
+            shard.begin_episode(EpisodeInfo(task=inst.instruction, task_kind=inst.task,
+                                            scene_id=kitchen.scene_id, seed=inst.seed,
+                                            asset_ids=inst.asset_ids))
             return shard.add_frame
 
         def end(w: int, inst: Any, res: Any):
@@ -79,8 +80,9 @@ def run_kitchen(kitchen: Any, cfg: HumanoidRunConfig, *, shards_dir: Path | None
                              "success": res.success, "reason": res.reason, "detail": res.detail,
                              "frames": res.frames, "sim_seconds": round(res.sim_seconds, 2),
                              "wall_seconds": round(res.wall_seconds, 1)})
-            log.info("%s %s seed %d: %s %s (%.1f s simulated, %.0f s wall)", inst.task, kitchen.scene_id, inst.seed,
-                     "success" if res.success else "failed", res.reason, res.sim_seconds, res.wall_seconds)
+            log.info("%s %s seed %d: %s %s (%.1f s simulated, %.0f s wall)", inst.task, kitchen.scene_id,
+                     inst.seed, "success" if res.success else "failed", res.reason, res.sim_seconds,
+                     res.wall_seconds)
 
         eng.run(lambda w: queue.pop(0) if queue else None, humanoid_program, begin=begin, end=end)
     path = shards_dir / shard_id if shard is not None else None
@@ -107,7 +109,8 @@ def record(work: Path, cfg: HumanoidRunConfig) -> dict[str, Any]:
         merged = work / "datasets" / "humanoid" / "merged"
         res = merge_shards(shards_dir, merged, repo_id=f"agentworld/humanoid_{cfg.spec}")
         report["dataset"] = str(res.root)
-        report["contact_sheet"] = str(contact_sheet(res.root, work / "reports" / "humanoid_contact_sheet.png"))
+        sheet = contact_sheet(res.root, work / "reports" / "humanoid_contact_sheet.png")
+        report["contact_sheet"] = str(sheet)
     (work / "reports" / "humanoid_demos.json").write_text(json.dumps(report, indent=1))
     return report
 
@@ -136,7 +139,8 @@ def summarize(episodes: list[dict], tasks_run: tuple[str, ...], wall_s: float) -
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m stages.demos.humanoid_run", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m stages.demos.humanoid_run",
+                                description=__doc__.splitlines()[0])
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--tasks", default="close_drawer")
     p.add_argument("--episodes", type=int, default=30)
@@ -149,7 +153,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     w, h = (int(v) for v in a.size.split("x"))
     cfg = HumanoidRunConfig(tasks=tuple(a.tasks.split(",")), episodes=a.episodes,
-                            world_seeds=tuple(int(s) for s in a.world_seeds.split(",")), seed0=a.seed0, spec=a.spec,
+                            world_seeds=tuple(int(s) for s in a.world_seeds.split(",")), seed0=a.seed0,
+                            spec=a.spec,
                             cameras=tuple(c for c in a.cameras.split(",") if c), width=w, height=h)
     report = record(a.work, cfg)
     print(json.dumps(report["tasks"], indent=1))

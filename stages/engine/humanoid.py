@@ -182,10 +182,11 @@ class HumanoidEngine:
         newton.solvers.SolverMuJoCo.register_custom_attributes(main)
         main.replicate(tpl, cfg.worlds)
         model = main.finalize(device=wp.get_device(cfg.device))
-        cap = size_contact_buffers(model, model.body_q.numpy(), robot_shapes=len(layout.foot_shapes) + len(hands),
+        cap = size_contact_buffers(model, model.body_q.numpy(),
+                                   robot_shapes=len(layout.foot_shapes) + len(hands),
                                    dofs_per_world=tpl.joint_dof_count)
-        sim = HumanoidWorlds(HumanoidWorldsConfig(num_worlds=cfg.worlds, device=cfg.device, runtime=self.runtime_cfg,
-                                                  foot_mu=cfg.foot_mu),
+        sim = HumanoidWorlds(HumanoidWorldsConfig(num_worlds=cfg.worlds, device=cfg.device,
+                                                  runtime=self.runtime_cfg, foot_mu=cfg.foot_mu),
                              model=model, solver_options={"nconmax": cap.nconmax, "njmax": cap.njmax})
         return sim, scene, tpl.joint_count
 
@@ -202,9 +203,9 @@ class HumanoidEngine:
         from stages.embodiment.layout import action_names, state_names
 
         cams = tuple(CameraSpec(c, height=self.cfg.height, width=self.cfg.width) for c in self.cfg.cameras)
-        return DatasetSpec(arm_dof=self.spec.arm_dof, fps=self.fps, robot_type=self.spec.robot_type, cameras=cams,
-                           state_layout=tuple(state_names(self.spec)), action_layout=tuple(action_names(self.spec)),
-                           **options)
+        return DatasetSpec(arm_dof=self.spec.arm_dof, fps=self.fps, robot_type=self.spec.robot_type,
+                           cameras=cams, state_layout=tuple(state_names(self.spec)),
+                           action_layout=tuple(action_names(self.spec)), **options)
 
     # ------------------------------------------------------------------ world state
     def joint_value(self, world: int, path: str) -> float:
@@ -237,7 +238,8 @@ class HumanoidEngine:
             for path, value in inst.joints.items():
                 j = self._path_joint.get(path)
                 if j is None:
-                    raise KeyError(f"joint {path} of {inst.task} is not in the simulated scene {self.world.usd}")
+                    raise KeyError(f"joint {path} of {inst.task} is not in the simulated scene "
+                                   f"{self.world.usd}")
                 q[int(self._q_start[world * jn + j])] = float(value)
         x, y, yaw = inst.start_base
         self.sim.reset([world], xy=[[x, y]], yaw=[yaw])
@@ -344,8 +346,10 @@ def add_hand_spheres(robot: Any, spec: Any, radius: float) -> list[int]:
     out = []
     for arm in spec.arms:
         if arm.tip_link not in bodies:
-            raise ValueError(f"{spec.name}: arm {arm.name}'s tip link {arm.tip_link} is not a body of the robot")
+            raise ValueError(f"{spec.name}: arm {arm.name}'s tip link {arm.tip_link} is not a body of the "
+                             "robot")
         out.append(robot.shape_count)
-        robot.add_shape_sphere(bodies.index(arm.tip_link), xform=wp.transform(tuple(arm.ee_xyz), wp.quat_identity()),
-                               radius=radius, cfg=cfg)
+        robot.add_shape_sphere(bodies.index(arm.tip_link),
+                               xform=wp.transform(tuple(arm.ee_xyz), wp.quat_identity()), radius=radius,
+                               cfg=cfg)
     return out

@@ -87,8 +87,10 @@ def mounted_rig(worlds: Any, spec: Any, scene: Any, names: tuple[str, ...], widt
                                    pose=look_at(c.eye, target)))
             continue
         if c.parent not in labels:
-            raise KeyError(f"{spec.name}: camera {name!r} rides {c.parent!r}, not a body of the simulated robot")
+            raise KeyError(f"{spec.name}: camera {name!r} rides {c.parent!r}, not a body of the simulated "
+                           "robot")
         mounts[name] = (labels.index(c.parent), bodies_per_world, mount_pose(c.xyz, c.forward, c.up))
-        cams.append(CameraSpec(name=name, width=width, height=height, vertical_fov=c.vertical_fov, link=c.parent))
+        cams.append(CameraSpec(name=name, width=width, height=height, vertical_fov=c.vertical_fov,
+                               link=c.parent))
     return MountedCameraRig(sim=_SimView(worlds, scene, model.world_count), cameras=cams, segmentation=False,
                             mounts=mounts)

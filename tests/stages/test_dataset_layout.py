@@ -17,7 +17,14 @@ if "HF_DATASETS_CACHE" not in os.environ:
     os.environ["HF_DATASETS_CACHE"] = tempfile.mkdtemp(prefix="hf-datasets-cache-")
     atexit.register(shutil.rmtree, os.environ["HF_DATASETS_CACHE"], True)
 
-from stages.dataset.schema import CameraSpec, DatasetSpec, EpisodeInfo, Frame, FrameError, validate_frame  # noqa: E402
+from stages.dataset.schema import (  # noqa: E402
+    CameraSpec,
+    DatasetSpec,
+    EpisodeInfo,
+    Frame,
+    FrameError,
+    validate_frame,
+)
 
 
 def _g1_spec(**kw) -> DatasetSpec:
@@ -25,8 +32,8 @@ def _g1_spec(**kw) -> DatasetSpec:
     from stages.embodiment.layout import action_names, state_names
 
     g1 = load_spec("g1_29dof")
-    return DatasetSpec(arm_dof=g1.arm_dof, fps=25, robot_type=g1.robot_type, state_layout=tuple(state_names(g1)),
-                       action_layout=tuple(action_names(g1)), **kw)
+    return DatasetSpec(arm_dof=g1.arm_dof, fps=25, robot_type=g1.robot_type,
+                       state_layout=tuple(state_names(g1)), action_layout=tuple(action_names(g1)), **kw)
 
 
 def _frame(spec: DatasetSpec, k: int, mode: int = 1) -> Frame:
@@ -41,10 +48,11 @@ def _frame(spec: DatasetSpec, k: int, mode: int = 1) -> Frame:
 
 def test_g1_layout_names_dims_and_json_round_trip():
     spec = _g1_spec(cameras=(CameraSpec("head", 24, 32),))
-    # 2 arms x 7 joints, 2 end-effector poses, base pose | targets, ee targets, base command, mode (no gripper)
+    # 2 arms x 7 joints, 2 end-effector poses, base pose | targets, ee targets, base command, mode
+    # (no gripper: the rubber hands)
     assert (spec.state_dim, spec.action_dim) == (14 + 14 + 3, 14 + 14 + 3 + 1)
-    assert spec.state_names()[:2] == ["left_q0", "left_q1"] and spec.state_names()[-3:] == ["base_x", "base_y",
-                                                                                            "base_theta"]
+    names = spec.state_names()
+    assert names[:2] == ["left_q0", "left_q1"] and names[-3:] == ["base_x", "base_y", "base_theta"]
     assert spec.action_names()[-4:] == ["base_vx", "base_vy", "base_vtheta", "mode"]
     feats = spec.features()
     assert feats["observation.state"]["shape"] == (31,) and feats["action"]["names"] == spec.action_names()
@@ -74,7 +82,8 @@ def test_layout_dataset_loads_with_lerobot(tmp_path):
     spec = _g1_spec(cameras=(CameraSpec("head", 24, 32),))
     written = []
     with open_shard(tmp_path / "shards", "g1", spec) as shard:
-        shard.begin_episode(EpisodeInfo(task="close the drawer", task_kind="close_drawer", scene_id="k", seed=1))
+        shard.begin_episode(EpisodeInfo(task="close the drawer", task_kind="close_drawer", scene_id="k",
+                                        seed=1))
         for k in range(6):
             f = _frame(spec, k)
             written.append(f)

@@ -33,8 +33,8 @@ def test_g1_stands_walks_to_a_pose_and_reaches_in_the_engine(kitchen_room):
     from stages.engine.humanoid import HumanoidEngine, HumanoidEngineConfig
 
     k = kitchen_room
-    eng = HumanoidEngine(k, HumanoidEngineConfig(worlds=1, cameras=("head", "right_wrist"), width=32, height=24,
-                                                 max_seconds=15.0))
+    eng = HumanoidEngine(k, HumanoidEngineConfig(worlds=1, cameras=("head", "right_wrist"), width=32,
+                                                 height=24, max_seconds=15.0))
     inst = replace(sample_instance("close_drawer", k, 1), start_base=k.spawn)
     x0, y0, _, _ = k.table_rect
     stance = (k.spawn[0] - 0.15, y0 - 0.45, math.pi / 2)
@@ -99,7 +99,8 @@ def test_close_drawer_episodes_are_recorded_and_load(kitchen_catalog, tmp_path):
     assert rep["tasks"]["close_drawer"]["successes"] == 2, rep["episodes"]
     ds = load_dataset(rep["dataset"])
     assert ds.meta.robot_type == "unitree_g1" and ds.meta.total_episodes == 2
-    assert set(ds.meta.camera_keys) == {f"observation.images.{c}" for c in ("head", "left_wrist", "right_wrist")}
+    cams = ("head", "left_wrist", "right_wrist")
+    assert set(ds.meta.camera_keys) == {f"observation.images.{c}" for c in cams}
     assert (work / "reports" / "humanoid_contact_sheet.png").stat().st_size > 1000
 
 
