@@ -9,5 +9,6 @@ JOB_KINDS: dict[str, str] = {
     "layout": "stages.layout.job:LAYOUT_JOB",
     "scene": "stages.scene.job:SCENE_JOB",
     "demos": "stages.demos.job:DEMOS_JOB",
+    "humanoid_demos": "stages.demos.humanoid_job:HUMANOID_DEMOS_JOB",
     "robots": "stages.embodiment.job:ROBOTS_JOB",
 }

@@ -171,6 +171,12 @@ class DatasetSpec:
     hand_joints: tuple[str, ...] = ()
     subtasks: bool = False
     arms: tuple[str, ...] = ()
+    state_layout: tuple[str, ...] = ()
+    """an embodiment's ``observation.state`` names (``stages.embodiment.layout.state_names``: two
+    arms, no gripper ...); empty: the single-arm layout above. Frames then carry ``state_vector``."""
+    action_layout: tuple[str, ...] = ()
+    """an embodiment's ``action`` names (``stages.embodiment.layout.action_names``), with
+    ``state_layout``; frames then carry ``action_vector``"""
 
     def __post_init__(self) -> None:
         problems = []
@@ -178,6 +184,17 @@ class DatasetSpec:
                           or self.arm_dof % len(self.arms) or self.hand_joints):
             problems.append(f"arms must be unique names matching [a-z][a-z0-9_]*, share arm_dof equally and "
                             f"have no hand_joints, got arms {list(self.arms)}, arm_dof {self.arm_dof}")
+        if self.arms and self.state_layout:
+            problems.append("arms (the arms' layout) and state_layout (an embodiment's own) exclude each other")
+        if bool(self.state_layout) != bool(self.action_layout):
+            problems.append("state_layout and action_layout must be given together")
+        if self.state_layout and self.hand_joints:
+            problems.append("hand_joints belong to the single-arm layout; an embodiment layout names its "
+                            "joints")
+        for what, names in (("state_layout", self.state_layout), ("action_layout", self.action_layout)):
+            if any(not _JOINT_RE.match(n) for n in names) or len(set(names)) != len(names):
+                problems.append(f"{what} must be unique names matching [A-Za-z][A-Za-z0-9_]*, "
+                                f"got {list(names)}")
         if self.arm_dof <= 0:
             problems.append(f"arm_dof must be positive, got {self.arm_dof}")
         if self.fps <= 0:
@@ -200,10 +217,14 @@ class DatasetSpec:
 
     @property
     def state_dim(self) -> int:
+        if self.state_layout:
+            return len(self.state_layout)
         return self.arm_dof + 7 * self.ee_count + 3 + len(self.hand_joints)
 
     @property
     def action_dim(self) -> int:
+        if self.action_layout:
+            return len(self.action_layout)
         return self.arm_dof + 7 * self.ee_count + 3 + (len(self.hand_joints) or self.ee_count) + 1
 
     def _arm_names(self, suffix: str) -> list[str]:
@@ -212,6 +233,8 @@ class DatasetSpec:
         return joints + [f"{a}_ee_{c}{suffix}" for a in self.arms for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
 
     def state_names(self) -> list[str]:
+        if self.state_layout:
+            return list(self.state_layout)
         if self.arms:
             return [*self._arm_names(""), "base_x", "base_y", "base_theta"]
         return [
@@ -221,6 +244,8 @@ class DatasetSpec:
         ]  # fmt: skip
 
     def action_names(self) -> list[str]:
+        if self.action_layout:
+            return list(self.action_layout)
         if self.arms:
             return [*self._arm_names("_target"), "base_vx", "base_vy", "base_vtheta",
                     *(f"{a}_gripper" for a in self.arms), "mode"]
@@ -272,6 +297,8 @@ class DatasetSpec:
             **({"hand_joints": list(self.hand_joints)} if self.hand_joints else {}),
             **({"subtasks": True} if self.subtasks else {}),
             **({"arms": list(self.arms)} if self.arms else {}),
+            **({"state_layout": list(self.state_layout), "action_layout": list(self.action_layout)}
+               if self.state_layout else {}),
         }  # fmt: skip
 
     @classmethod
@@ -281,6 +308,8 @@ class DatasetSpec:
         d["video"] = VideoCodecSpec(**d["video"])
         d["hand_joints"] = tuple(d.get("hand_joints", ()))
         d["arms"] = tuple(d.get("arms", ()))
+        d["state_layout"] = tuple(d.get("state_layout", ()))
+        d["action_layout"] = tuple(d.get("action_layout", ()))
         return cls(**d)
 
 
@@ -343,14 +372,33 @@ class Frame:
     hand_joint_pos: np.ndarray = field(default_factory=lambda: np.zeros(0))
     hand_joint_target: np.ndarray = field(default_factory=lambda: np.zeros(0))
     subtask_index: int = 0
+    state_vector: np.ndarray | None = None
+    """the whole ``observation.state`` (S,) of a spec with an embodiment layout (``state_layout``)"""
+    action_vector: np.ndarray | None = None
+    """the whole ``action`` (A,) of a spec with an embodiment layout (``action_layout``)"""
+
+    @staticmethod
+    def of_vectors(state: np.ndarray, action: np.ndarray, mode: int, rgb: Mapping[str, np.ndarray],
+                   depth_mm: Mapping[str, np.ndarray], subtask_index: int = 0) -> Frame:
+        """A frame of a spec with an embodiment layout: its state (S,) and action (A,) vectors."""
+        empty = np.zeros(0)
+        return Frame(arm_joint_pos=empty, ee_pose=empty, base_pose=empty, arm_joint_target=empty,
+                     ee_target=empty, base_velocity=empty, gripper=0.0, mode=int(mode), rgb=rgb,
+                     depth_mm=depth_mm, subtask_index=subtask_index, state_vector=np.asarray(state),
+                     action_vector=np.asarray(action))
 
     def state(self) -> np.ndarray:
-        """float32 (arm_dof + 10 + n,) (n: hand joints, 0 for a parallel gripper)."""
+        """float32 (arm_dof + 10 + n,) (n: hand joints, 0 for a parallel gripper); or ``state_vector``."""
+        if self.state_vector is not None:
+            return np.asarray(self.state_vector, np.float32)
         return np.concatenate([self.arm_joint_pos, self.ee_pose, self.base_pose,
                                np.ravel(self.hand_joint_pos)]).astype(np.float32)
 
     def action(self) -> np.ndarray:
-        """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets."""
+        """float32 (arm_dof + 12,), or (arm_dof + 11 + n,) with a hand's n joint targets; or
+        ``action_vector``."""
+        if self.action_vector is not None:
+            return np.asarray(self.action_vector, np.float32)
         ee_cmd = np.ravel(self.hand_joint_target) if np.size(self.hand_joint_target) else np.ravel(self.gripper)
         return np.concatenate(
             [self.arm_joint_target, self.ee_target, self.base_velocity, ee_cmd, [self.mode]]
@@ -420,6 +468,8 @@ def _image_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
 
 def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
     """Every way ``frame`` does not match ``spec`` (empty list: valid)."""
+    if spec.state_layout:
+        return _layout_frame_problems(spec, frame)
     n, k = spec.arm_dof, spec.ee_count
     out = [
         *_vector_problems("arm_joint_pos", frame.arm_joint_pos, n),
@@ -442,6 +492,21 @@ def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
         out.append(f"gripper must be a number in [0, 1], got {frame.gripper!r}")
     if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
         out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
+    if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
+        out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")
+    out.extend(_image_problems(spec, frame))
+    return out
+
+
+def _layout_frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
+    """:func:`frame_problems` for a spec with an embodiment layout: the two vectors, mode, images."""
+    out = [*_vector_problems("state_vector", frame.state_vector, spec.state_dim),
+           *_vector_problems("action_vector", frame.action_vector, spec.action_dim)]
+    if frame.mode not in (MODE_LOCOMOTION, MODE_MANIPULATION):
+        out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
+    elif not out and "mode" in spec.action_layout and (
+            frame.action_vector[spec.action_layout.index("mode")] != frame.mode):
+        out.append("action_vector's mode differs from the frame's mode")
     if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
         out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")
     out.extend(_image_problems(spec, frame))

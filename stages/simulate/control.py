@@ -72,7 +72,10 @@ class CommandBuffers:
         self._dirty = self._cmd_dirty = False
         # world-0 coordinates of the arm's and the gripper's joints (a world's: + world * C)
         self._arm_idx = np.array([self.coord[n] for n in desc.arm_joints], np.int64)
-        self._finger_idx = np.array([self.coord[n] for n in desc.gripper.finger_joints], np.int64)
+        # a description without one gripper (the dual-arm platform: fingers per arm) sets its
+        # fingers by name; the indices are needed only by the one-gripper calls
+        grip = getattr(desc, "gripper", None)
+        self._finger_idx = np.array([self.coord[n] for n in (grip.finger_joints if grip else ())], np.int64)
 
     def _at(self, idx: np.ndarray, world: int | None) -> np.ndarray:
         """Flat indices of world-0 coordinates ``idx`` in ``world`` (None: every world, world-major)."""
