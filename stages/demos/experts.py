@@ -29,6 +29,7 @@ from stages.demos.driver import APPROACH_TOL, Driver, ExpertFailure, stow
 from stages.demos.planner import NavGrid
 from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
+from stages.demos.skill_fridge import pick_place_fridge
 from stages.demos.tasks import TASKS
 
 __all__ = ["EXPERTS", "Driver", "ExpertFailure", "approach_counter", "close_articulated", "facing_north_goal",
@@ -300,7 +301,7 @@ def close_articulated(inst: TaskInstance, d: Driver) -> None:
 
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
            "pick_from_microwave": pick_from_microwave, "push_object": push_object,
-           "press_button": press_button}
+           "press_button": press_button, "pick_place_fridge": pick_place_fridge}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

@@ -23,6 +23,7 @@ from enum import StrEnum
 import numpy as np
 
 from stages.demos.parts import part_closed, part_opened
+from stages.demos.skill_fridge import pick_place_fridge_success
 
 log = logging.getLogger(__name__)
 
@@ -148,6 +149,10 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              templates=("take the {object} out of the {container}",
                         "move the {object} from the {container} to the counter",
                         "pick the {object} out of the {container} and put it on the counter")),
+    TaskSpec(name="pick_place_fridge", family=Family.PICK_PLACE, max_seconds=60.0,
+             success=pick_place_fridge_success,
+             templates=("put the {object} in the fridge", "store the {object} in the fridge",
+                        "take the {object} from the counter and put it on a fridge shelf")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
