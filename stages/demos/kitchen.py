@@ -39,7 +39,9 @@ log = logging.getLogger(__name__)
 
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
-                      "coffee_table", "mug", "bowl", "can", "sponge")
+                      "coffee_table", "mug", "bowl", "can", "sponge", "plate")
+#: the placed roles that are free bodies (the tasks set their poses per episode)
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge")
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
@@ -89,7 +91,8 @@ class AssetLibrary:
 @dataclass(frozen=True, kw_only=True, eq=False)
 class KitchenWorld:
     """One task world. usd: scene file; scene_id; size (x, y) [m]; placed: packages by role
-    ("counter", "microwave", "fridge", "oven", "door", "table", "mug", "bowl", "pusher"); spawn:
+    ("counter", "microwave", "fridge", "oven", "door", "table", "mug", "bowl", "pusher", and where the
+    catalog has them "plate" and "sponge"); spawn:
     robot root (x, y, yaw) for the build; counter_z / table_z: support heights [m]; table_rect /
     counter_rect: (xmin, ymin, xmax, ymax) of the support surfaces [m]; counter_spot: (x, y) on the
     counter beside the microwave; cavity: microwave cavity floor (xmin, ymin, xmax, ymax) [m] at
@@ -197,6 +200,18 @@ def _top(a: CatalogAsset) -> dict:
     if not tops:
         raise ItemError(f"{a.usd}: no top surface in its generated.json record")
     return max(tops, key=lambda s: s["z"])
+
+
+def _dishes(lib: AssetLibrary, rng: np.random.Generator, table_rect, table_z: float) -> dict[str, Placed]:
+    """A plate and a sponge narrow enough to grasp across (stages.demos.skill_wipe) on the table's far
+    band, or nothing when the catalog lacks them or the table is under 0.7 m deep."""
+    sponges = [a for a in lib.of("sponge") if float(a.params.get("width", 1.0)) <= 0.072]
+    if not (lib.of("plate") and sponges) or table_rect[3] - table_rect[1] < 0.7:
+        return {}
+    plate, sponge = _pick(lib, rng, ("plate",)), sponges[int(rng.integers(len(sponges)))]
+    tx, far = 0.5 * (table_rect[0] + table_rect[2]), table_rect[3]
+    return {"plate": Placed("Plate", plate, (tx - 0.18, far - 0.17, table_z + 0.002), 0.0),
+            "sponge": Placed("Sponge", sponge, (tx + 0.22, far - 0.10, table_z + 0.002), 0.0)}
 
 
 def _cavity(a: CatalogAsset) -> dict:
@@ -347,6 +362,9 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     # draw: the picks and poses above stay what they were for a seed, whatever the look draws
     look = sample_look(placed, rng.spawn(1)[0])
     colors = {"floor": look.floor, "wall": look.wall}
+    # the wipe task's plate and sponge, parked on the table's far band (when the catalog has them and
+    # the table is deep enough), from a second child generator: nothing above changes with them
+    placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
     usd = out_dir / "scene.usda"
     _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)

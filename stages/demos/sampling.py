@@ -92,6 +92,9 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
+    for role in ("plate", "sponge"):  # parked (stages.demos.kitchen): every episode starts them there
+        if role in pl:
+            objects[pl[role].body()] = (*pl[role].position, 0.0)
     joints: dict[str, float] = {}
     cav = world.cavity
     cav_c = ((cav[0] + cav[2]) / 2, (cav[1] + cav[3]) / 2)
@@ -130,6 +133,14 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         target = place.spot
         names["container"] = "fridge"
         ids = [pl["mug"], pl["fridge"], pl["counter"]]
+    if task_name == "wipe_plate":
+        from stages.demos.skill_wipe import wipe_setup
+
+        moved, place = wipe_setup(world, rng)
+        objects.update(moved)
+        names.update(object="plate", tool="sponge")
+        ids = [pl["plate"], pl["sponge"]]
+        target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
     kind, _, which = task_name.partition("_")
     if which in ARTICULATED and kind in ("open", "close"):
         role = ARTICULATED[which][0]

@@ -83,7 +83,7 @@ def fridge_shelf(world, part, mug_radius: float, mug_height: float) -> Shelf:
 def pick_place_fridge_success(inst, state, peaks=None) -> tuple[bool, str]:
     """The mug's centre over the shelf (:class:`Shelf` ``rect``), at most 4 cm above its top,
     upright, released (the hand open and off it, or :data:`HAND_AWAY` from it)."""
-    from stages.demos.tasks import _inside, _placed_check
+    from stages.demos.predicates import _inside, _placed_check
 
     shelf: Shelf = inst.place
     body = inst.world.placed["mug"].body()
@@ -155,7 +155,16 @@ def _grid_with_leaf(world, part, q: float):
 
 def pick_place_fridge(inst, d) -> None:
     """The expert (see the module doc)."""
-    from stages.demos.experts import SIDE_HEIGHT, SIDE_PITCH, _mug, _pose, _side_pick, approach_counter, side_rot
+    from stages.demos.counter import (
+        COUNTER_STAGE,
+        SIDE_HEIGHT,
+        SIDE_PITCH,
+        _mug,
+        _pose,
+        _side_pick,
+        approach_counter,
+        side_rot,
+    )
 
     w = inst.world
     shelf: Shelf = inst.place
@@ -171,8 +180,6 @@ def pick_place_fridge(inst, d) -> None:
     held = facing_rot((math.cos(th), math.sin(th)), SIDE_PITCH)
     up = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + gz + 0.08])
     d.move(_pose(up, held), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
-    from stages.demos.experts import COUNTER_STAGE
-
     d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
     q = float(inst.joints[part.joint_path])
     goal, approach = fridge_base(w, part, shelf, q)
