@@ -12,8 +12,9 @@ with contact (task ``wipe_plate``).
   still on the table, the sponge released on the table.
 
 Contact is geometric, from the simulated poses the expert samples along the rows (every
-:data:`SAMPLE_STEP`): the sponge's bottom (its origin: the catalog's sponge stands on z = 0)
-at most :data:`CONTACT_TOL` above the plate's surface under its footprint (the lathed profile of
+:data:`SAMPLE_STEP`): the sponge's centre over the plate and its bottom (its origin: the
+catalog's sponge stands on z = 0) within :data:`CONTACT_TOL` of the plate's surface under its
+footprint (the lathed profile of
 the catalog's plate from its parameters) and tilted less than 20 deg; each 1 cm cell of the well
 under the sponge's footprint at such a sample counts as wiped. (A policy's episode records no
 trace: its wipe predicate needs the trace recorded by the engine; not done yet.)
@@ -43,7 +44,9 @@ MAX_SPONGE_WIDTH = 0.072  # the Franka hand's 80 mm stroke grasps a sponge at mo
 class WipeTrace:
     """The plate and sponge of a wipe episode and what was wiped. plate / sponge: body prim paths;
     plate_params / sponge_size (length, width, height) [m]: catalog geometry; cells (K, 2): the
-    well's cell centres in the plate frame [m]; wiped (K,) bool; samples: contact samples taken."""
+    well's cell centres in the plate frame [m]; wiped (K,) bool; samples: contact samples taken;
+    tilted: samples refused for the sponge's tilt; gaps: the sponge bottom's height above the
+    plate's surface at each untilted sample [m] (diagnostics)."""
 
     plate: str
     sponge: str
@@ -52,6 +55,8 @@ class WipeTrace:
     cells: np.ndarray = field(repr=False)
     wiped: np.ndarray = field(repr=False)
     samples: int = 0
+    tilted: int = 0
+    gaps: list = field(default_factory=list, repr=False)
 
     @property
     def coverage(self) -> float:
@@ -79,12 +84,16 @@ class WipeTrace:
         pc, sc = np.asarray(pl.position), np.asarray(sp.position)
         w, x, y, z = (float(v) for v in sp.orientation)
         if 1 - 2 * (x * x + y * y) < math.cos(math.radians(20.0)):
+            self.tilted += 1
             return False
         yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        if np.linalg.norm(sc[:2] - pc[:2]) > float(self.plate_params["radius"]):
+            return False  # (beside the plate: on the table, not on it)
         pts = self.footprint(sc[:2], yaw)
         under = float(self.surface(np.linalg.norm(pts - pc[:2], axis=1)).max()) + pc[2]
-        if sc[2] - under > CONTACT_TOL:
-            return False
+        self.gaps.append(round(float(sc[2] - under), 4))
+        if not -CONTACT_TOL <= sc[2] - under <= CONTACT_TOL:
+            return False  # above it, or (pushed under its rim) not on its surface
         self.samples += 1
         c, s = math.cos(yaw), math.sin(yaw)
         rel = (self.cells + pc[:2] - sc[:2]) @ np.array([[c, -s], [s, c]])  # sponge frame
@@ -199,7 +208,11 @@ def wipe_plate(inst, d) -> None:
     d.move(_pose(at + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(at, rot), 0.8, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
-    plate_z = float(read_state(d.sim).objects[trace.plate].position[2])
+    d.move(_pose(at + [0, 0, 0.03], rot), 0.4, segments=1, carry=True)
+    st = read_state(d.sim)
+    if st.objects[trace.sponge].position[2] < top + 0.015:
+        raise ExpertFailure("grasp_missed", f"sponge at {st.objects[trace.sponge].position}")
+    plate_z = float(st.objects[trace.plate].position[2])
     wipe_yaw = 0.0  # rows along world x: the sponge turned to its length along them
     wrot = top_down(wipe_yaw)
     rows = _rows(trace, pxy, wipe_yaw)

@@ -38,6 +38,8 @@ def test_the_wipe_counts_cells_under_the_sponge_only_in_contact():
     surface = 0.75 + PLATE["thickness"]
     hover = _state({"/P": plate, "/S": Pose(position=(1.0, 2.0, surface + 0.012))})
     assert not tr.record(hover) and tr.coverage == 0.0
+    beside = _state({"/P": plate, "/S": Pose(position=(1.0, 2.2, 0.752))})  # on the table next to it
+    assert not tr.record(beside) and tr.coverage == 0.0
     touch = _state({"/P": plate, "/S": Pose(position=(1.0, 2.0, surface + 0.001))})
     assert tr.record(touch)
     once = tr.coverage
