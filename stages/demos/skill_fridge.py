@@ -127,8 +127,9 @@ def _leaf_points(part, q: float) -> np.ndarray:
 
 def fridge_base(world, part, shelf: Shelf, q: float) -> tuple[tuple[float, float, float], float]:
     """The base pose (x, y, yaw) before the fridge with the door at ``q`` and the length [m] of the
-    straight drive in: the chassis (and its way in) clear of the open leaf by 6 cm, as near the
-    shelf spot as that allows; ExpertFailure("no_base_pose") when the opening leaves no room."""
+    way in that reaches beyond the leaf: the chassis (and that way in) clear of the open leaf by
+    6 cm, as near the shelf spot as that allows; ExpertFailure("no_base_pose") when the opening
+    leaves no room."""
     fr = world.placed["fridge"]
     c, s = math.cos(fr.yaw), math.sin(fr.yaw)
     to_local = np.array([[c, s], [-s, c]])
@@ -151,6 +152,38 @@ def _grid_with_leaf(world, part, q: float):
     from stages.demos.part_planning import swept_grid
 
     return swept_grid(world.grid(), part, q, q)
+
+
+def staging(grid, goal, leaf: np.ndarray, *, approach: float = 0.35, more: float = 1.5,
+            side: float = 0.6) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where the planned drive to ``goal`` (x, y, yaw) ends: ``(point, behind)``: the point
+    ``approach`` [m] behind the goal on its way in, or where that is blocked for the planner (its
+    0.4 m disc near a wall or the open leaf: a fridge in a corner), the free point nearest it up to
+    ``more`` further back and ``side`` [m] aside whose sideways drive onto the way in keeps the
+    chassis clear of the ``leaf`` (points (N, 2), world) [m]; ``behind`` (x, y): the point on the way
+    in level with it, from where the base drives straight in (the chassis, narrower than the disc,
+    fits). ExpertFailure("no_path") when there is none."""
+    from stages.demos.driver import ROBOT_RADIUS
+
+    blocked = grid.inflate(ROBOT_RADIUS)
+    gx, gy, th = goal
+    u, v = np.array([math.cos(th), math.sin(th)]), np.array([-math.sin(th), math.cos(th)])
+    cands = [(abs(o) + 0.5 * (a - approach), a, o) for a in np.arange(approach, approach + more + 1e-9, 0.05)
+             for o in np.arange(-side, side + 1e-9, 0.05)]
+    for _, a, o in sorted(cands):
+        behind = np.array([gx, gy]) - a * u
+        p = behind + o * v
+        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
+        if not (0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1]) or blocked[iy, ix]:
+            continue
+        # the chassis (its half length ahead and behind) along the sideways leg, and on the way in
+        rel = leaf - behind
+        along, across = rel @ u, rel @ v
+        lo, hi = min(0.0, o), max(0.0, o)
+        near = (np.abs(along) < CHASSIS / 2 + 0.06) & (across > lo - HALF_WIDTH) & (across < hi + HALF_WIDTH)
+        if not near.any():
+            return (float(p[0]), float(p[1])), (float(behind[0]), float(behind[1]))
+    raise ExpertFailure("no_path", f"no free point behind the base pose {goal} before the fridge")
 
 
 def pick_place_fridge(inst, d) -> None:
@@ -182,8 +215,13 @@ def pick_place_fridge(inst, d) -> None:
     d.move(_pose(up, held), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
     d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
     q = float(inst.joints[part.joint_path])
-    goal, approach = fridge_base(w, part, shelf, q)
-    d.drive_to(goal, _grid_with_leaf(w, part, q), approach=approach)
+    goal, _ = fridge_base(w, part, shelf, q)
+    grid = _grid_with_leaf(w, part, q)
+    point, behind = staging(grid, goal, _leaf_points(part, q))
+    d.drive_to((*point, goal[2]), grid, approach=0.0)
+    if math.dist(point, behind) > 0.02:
+        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    d.drive_straight(goal)
     # in over the shelf: the hand points into the fridge (-front)
     n = np.asarray(shelf.front[:2])
     rot = facing_rot(-n, SIDE_PITCH)

@@ -86,7 +86,7 @@ class WipeTrace:
         if 1 - 2 * (x * x + y * y) < math.cos(math.radians(20.0)):
             self.tilted += 1
             return False
-        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        yaw = _yaw(sp.orientation)
         if np.linalg.norm(sc[:2] - pc[:2]) > float(self.plate_params["radius"]):
             return False  # (beside the plate: on the table, not on it)
         pts = self.footprint(sc[:2], yaw)
@@ -160,6 +160,11 @@ def wipe_plate_success(inst, state, peaks=None) -> tuple[bool, str]:
     return True, ""
 
 
+def _yaw(q) -> float:
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 def _rows(trace: WipeTrace, center, yaw: float) -> list[np.ndarray]:
     """The sponge centre's path (N, 2) [m] over the well: rows along the sponge's length (world
     ``yaw``), :data:`ROW_STEP` sponge widths apart, alternating direction, sampled every
@@ -206,13 +211,21 @@ def wipe_plate(inst, d) -> None:
     d.grip(0.0, 0.2)
     at = np.array([*sxy, top + grasp_h])
     d.move(_pose(at + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(at, rot), 0.8, segments=2, settle=0.2)
+    # the light sponge creeps on the table (turned up to 0.3 rad while the base drove up, measured):
+    # grasp it where it lies now
+    sp = read_state(d.sim).objects[trace.sponge]
+    sxy, s_yaw = np.asarray(sp.position[:2], float), _yaw(sp.orientation)
+    rot = top_down(s_yaw)
+    at = np.array([*sxy, float(sp.position[2]) + grasp_h])
+    d.move(_pose(at + [0, 0, 0.05], rot), 0.6, segments=2, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(at, rot), 0.6, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     d.move(_pose(at + [0, 0, 0.03], rot), 0.4, segments=1, carry=True)
     st = read_state(d.sim)
     if st.objects[trace.sponge].position[2] < top + 0.015:
         raise ExpertFailure("grasp_missed", f"sponge at {st.objects[trace.sponge].position}")
     plate_z = float(st.objects[trace.plate].position[2])
+    pxy = np.asarray(st.objects[trace.plate].position[:2], float)
     wipe_yaw = 0.0  # rows along world x: the sponge turned to its length along them
     wrot = top_down(wipe_yaw)
     rows = _rows(trace, pxy, wipe_yaw)
