@@ -117,3 +117,9 @@ def test_a_store_food_episode_starts_closed_with_the_mug_on_the_counter(kitchen_
     x0, y0, x1, y1 = shelf.rect
     assert fx0 < x0 < shelf.spot[0] < x1 < fx1 and fy0 < y0 < shelf.spot[1] < y1 < fy1
     assert 0.5 <= shelf.z <= 1.2
+
+
+def test_clean_dishes_is_the_wipe_checked_when_it_ends():
+    spec = MULTISTAGE["clean_dishes"]
+    assert [(s.skill, s.final) for s in spec.stages] == [("wipe_plate", False)]
+    assert "wipe_plate" in TASKS

@@ -74,3 +74,32 @@ def test_a_mug_on_the_shelf_is_released_by_a_hand_closed_far_from_it():
         False, "object_still_held")
     assert pick_place_fridge_success(inst, _state({"/M": Pose(position=(0.3, -0.2, 0.9))}))[1] == (
         "object_not_in_container")
+
+
+def test_the_fridge_staging_point_is_free_for_the_planner_and_its_side_leg_misses_the_leaf():
+    """A fridge in a corner (west wall at x = 0, its front at y = 2, the door's leaf open along
+    x = 0.75 down to y = 1.2): the base pose before it (x = 0.39) lies inside the planner's 0.4 m
+    disc round the wall, so the planned drive ends at a free point aside, further back than the
+    leaf's end (the sideways leg would hit it nearer), and the base drives on straight in."""
+    import pytest
+
+    from stages.demos.driver import ExpertFailure
+    from stages.demos.planner import NavGrid
+    from stages.demos.skill_fridge import HALF_WIDTH, staging
+
+    walls = np.array([(-0.1, -0.1, 0.0, 3.0), (0.0, 2.0, 0.8, 2.8), (-0.1, -0.1, 3.0, 0.0)])
+    leaf = np.array([(0.75, y) for y in np.linspace(1.2, 2.0, 30)])
+    grid = NavGrid.from_boxes((-0.2, -0.2, 3.0, 3.0), np.vstack([walls, [(0.72, 1.2, 0.78, 2.0)]]))
+    goal = (0.39, 1.62, math.pi / 2)
+    point, behind = staging(grid, goal, leaf)
+    blocked = grid.inflate(0.40)
+    iy, ix = grid.cell_of(*point)
+    assert not blocked[iy, ix]
+    assert behind[0] == pytest.approx(0.39) and behind[1] < 1.62 - 0.35
+    assert point[0] >= behind[0] + 0.04  # aside, away from the wall
+    # the chassis (0.3 m either way along the way in) on the sideways leg stays off the leaf
+    assert behind[1] + 0.3 < 1.2 or point[0] + HALF_WIDTH < 0.75
+    # a way in walled off on both sides has no staging point
+    shut = NavGrid.from_boxes((-0.2, -0.2, 3.0, 3.0), np.vstack([walls, [(0.72, -0.1, 3.0, 2.0)]]))
+    with pytest.raises(ExpertFailure, match="no free point"):
+        staging(shut, goal, leaf)
