@@ -92,7 +92,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
-    for role in ("plate", "sponge"):  # parked (stages.demos.kitchen): every episode starts them there
+    for role in ("plate", "sponge", "paper", "trash_can"):  # parked (stages.demos.kitchen): every episode starts them there
         if role in pl:
             objects[pl[role].body()] = (*pl[role].position, 0.0)
     joints: dict[str, float] = {}
@@ -141,6 +141,13 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="plate", tool="sponge")
         ids = [pl["plate"], pl["sponge"]]
         target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
+    if task_name == "throw_away":
+        from stages.demos.skill_trash import trash_setup
+
+        objects.update(trash_setup(world, rng))
+        names.update(object="paper", container="trash can")
+        ids = [pl["paper"], pl["trash_can"]]
+        target = tuple(float(v) for v in pl["trash_can"].position[:2])
     kind, _, which = task_name.partition("_")
     if which in ARTICULATED and kind in ("open", "close"):
         role = ARTICULATED[which][0]

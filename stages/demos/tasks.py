@@ -25,6 +25,7 @@ import numpy as np
 from stages.demos.parts import part_closed, part_opened
 from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
 from stages.demos.skill_fridge import pick_place_fridge_success
+from stages.demos.skill_trash import throw_away_success
 from stages.demos.skill_wipe import wipe_plate_success
 
 log = logging.getLogger(__name__)
@@ -128,6 +129,9 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="wipe_plate", family=Family.PUSH_PULL, max_seconds=60.0, success=wipe_plate_success,
              templates=("wipe the {object} with the {tool}", "clean the {object} with the {tool}",
                         "scrub the {object} clean with the {tool}")),
+    TaskSpec(name="throw_away", family=Family.PICK_PLACE, max_seconds=40.0, success=throw_away_success,
+             templates=("throw the {object} in the {container}", "put the {object} into the {container}",
+                        "clear the {object} off the table into the {container}")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
