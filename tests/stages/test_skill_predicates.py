@@ -103,3 +103,24 @@ def test_the_fridge_staging_point_is_free_for_the_planner_and_its_side_leg_misse
     shut = NavGrid.from_boxes((-0.2, -0.2, 3.0, 3.0), np.vstack([walls, [(0.72, -0.1, 3.0, 2.0)]]))
     with pytest.raises(ExpertFailure, match="no free point"):
         staging(shut, goal, leaf)
+
+
+def test_paper_counts_as_thrown_away_inside_the_can_below_its_rim():
+    from stages.demos.skill_trash import throw_away_success
+
+    can = SimpleNamespace(position=(1.0, 1.0, 0.0), asset=SimpleNamespace(params={
+        "shape": 0.0, "rim_radius": 0.14, "height": 0.3, "wall": 0.005}), body=lambda: "/C")
+    paper = SimpleNamespace(body=lambda: "/P")
+    inst = SimpleNamespace(world=SimpleNamespace(placed={"trash_can": can, "paper": paper}))
+    upright = Pose(position=(1.0, 1.0, 0.0))
+
+    def check(p, can_pose=upright, opening=0.08):
+        return throw_away_success(inst, _state({"/C": can_pose, "/P": Pose(position=p)}, opening=opening))
+
+    assert check((1.05, 0.95, 0.03)) == (True, "")
+    assert check((1.05, 0.95, 0.35))[1] == "object_not_in_container"  # above the rim (on the lid, held)
+    assert check((1.2, 1.0, 0.03))[1] == "object_not_in_container"    # beside it on the floor
+    tipped = Pose(position=(1.0, 1.0, 0.0), orientation=(math.cos(0.5), math.sin(0.5), 0.0, 0.0))
+    assert check((1.0, 1.0, 0.03), tipped)[1] == "container_tipped"
+    # the can pushed 10 cm: the paper inside it where it stands now
+    assert check((1.1, 1.0, 0.03), Pose(position=(1.1, 1.0, 0.0))) == (True, "")
