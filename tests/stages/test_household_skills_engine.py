@@ -1,9 +1,10 @@
-"""wipe_plate on the batched engine (issue 16, clean dishes): in a CPU kitchen whose catalog has
-plates and sponges (the kitchen catalog job plus those categories), the expert grasps the sponge,
-wipes the plate in rows with contact and puts the sponge back; the coverage of the plate's top by
-the sponge's contact path reaches the predicate's threshold.
+"""The household skills on the batched engine (issue 16), in a CPU kitchen whose catalog has a plate,
+a sponge, crumpled paper and a trash can (the kitchen catalog job plus those categories; world seed
+0, the world of ``bench_kitchen_tasks.py --kitchens 0``): wipe_plate (the sponge grasped, the plate
+wiped in rows with contact, the sponge put back; the coverage of the plate's top by the sponge's
+contact path reaches the predicate's threshold) and clean_table (the paper into the can).
 
-Slow (the catalog job and one episode, several minutes of CPU on 2 shared cores): ``-m slow``."""
+Slow (the catalog job and an episode each, several minutes of CPU on 2 shared cores): ``-m slow``."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from kitchen_testutil import KITCHEN, PACKAGES
 
 pytestmark = pytest.mark.slow
 
-DISHES = ("plate_02", "sponge_04")  # a plate and a sponge the hand grasps across (61-72 mm)
+#: a plate and a sponge the hand grasps across (61-72 mm), paper of 26 mm radius, a round can
+DISHES = ("plate_02", "sponge_04", "crumpled_paper_00", "trash_can_01")
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +29,7 @@ def dish_kitchen(tmp_path_factory):
     out = tmp_path_factory.mktemp("dishes") / "out"
     job = {"job": {"name": "dishes", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
            "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": [*KITCHEN, "plate", "sponge"]}},
+                     "config": {"variants": 5, "categories": [*KITCHEN, "plate", "sponge", "crumpled_paper", "trash_can"]}},
                     {"name": "assets", "kind": "ingest",
                      "config": {"catalog_step": "catalog", "only": [*PACKAGES, *DISHES]}}]}
     summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
@@ -56,3 +58,16 @@ def test_wipe_plate_covers_the_plate_and_succeeds(dish_kitchen, tmp_path):
     eng.run(next_instance, begin=lambda *_: None, end=lambda w, t, res: results.append(res))
     assert results[0].success, results[0].detail
     assert traces[0].coverage >= COVERAGE and traces[0].samples > 10
+
+
+def test_clean_table_throws_the_paper_into_the_can(dish_kitchen, tmp_path):
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    assert {"paper", "trash_can"} <= set(dish_kitchen.placed)
+    eng = BatchEngine(dish_kitchen, panda_root=None, work_dir=tmp_path / "w",
+                      config=EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True))
+    results = []
+    eng.run(Listed(dish_kitchen, {0: [("clean_table", 1, None)]}), begin=lambda *_: None,
+            end=lambda w, t, res: results.append(res))
+    assert results[0].success, results[0].detail
