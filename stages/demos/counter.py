@@ -45,15 +45,16 @@ def _mug(inst) -> tuple[str, float, float]:
 
 
 def approach_counter(inst, d: Driver, x: float, *, rot: np.ndarray | None = None,
-                     lift: float = 0.12, reach: float = 0.35) -> None:
+                     lift: float = 0.12, reach: float = 0.35, grid=None) -> None:
     """Bring the base in front of the counter at ``x`` facing +Y: A* to a pose COUNTER_STAGE back, raise
     the hand to ``lift`` [m] above the counter top, ``reach`` [m] ahead of the base (the tucked arm
-    would hit the counter's front), then drive the last COUNTER_STAGE straight in."""
+    would hit the counter's front), then drive the last COUNTER_STAGE straight in. ``grid``: the
+    planning grid (default: the world's)."""
     w = inst.world
     goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
     stage = (goal[0], goal[1] - COUNTER_STAGE, goal[2])
     tuck = stow(d, on_the_way=True)
-    d.drive_to(stage, inst.world.grid(), approach=0.0, tuck=tuck)
+    d.drive_to(stage, inst.world.grid() if grid is None else grid, approach=0.0, tuck=tuck)
     bx, by, th = base_pose(d.sim)
     ready = np.array([bx + reach * math.cos(th), by + reach * math.sin(th), w.counter_z + lift])
     d.move(_pose(ready, side_rot(0.0) if rot is None else rot), 1.5, segments=3, tol=APPROACH_TOL)

@@ -205,7 +205,14 @@ def pick_place_fridge(inst, d) -> None:
     body, _, h = _mug(inst)
     start = np.asarray(inst.objects[body][:3], float)
     cav = w.cavity
-    approach_counter(inst, d, float((start[0] + 0.5 * (cav[0] + cav[2])) / 2))
+    q = float(inst.joints[part.joint_path])
+    grid = _grid_with_leaf(w, part, q)
+    # after open_fridge the base may stand where the planner counts it blocked (by the fridge or its
+    # leaf: no_path from there in the test kitchen, world seed 5): move it clear first
+    from stages.demos.articulated import _escape
+
+    _escape(d, grid, reach=1.0)
+    approach_counter(inst, d, float((start[0] + 0.5 * (cav[0] + cav[2])) / 2), grid=grid)
     gz = SIDE_HEIGHT * h
     _side_pick(d, start + [0.0, -0.003, gz], side_rot(SIDE_PITCH), 0.03)
     # hold it before the base, clear of the counter, and back away from the counter
@@ -214,9 +221,7 @@ def pick_place_fridge(inst, d) -> None:
     up = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + gz + 0.08])
     d.move(_pose(up, held), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
     d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
-    q = float(inst.joints[part.joint_path])
     goal, _ = fridge_base(w, part, shelf, q)
-    grid = _grid_with_leaf(w, part, q)
     point, behind = staging(grid, goal, _leaf_points(part, q))
     d.drive_to((*point, goal[2]), grid, approach=0.0)
     if math.dist(point, behind) > 0.02:

@@ -87,7 +87,9 @@ def throw_away(inst, d) -> None:
     pxy, z0 = np.asarray(st.position[:2], float), float(st.position[2])
     rot = top_down(math.pi / 2)
     h = r * 1.5  # the flat-bottomed ball's height [m]
-    at = np.array([*pxy, z0 + 0.5 * h])
+    # across its widest (the ball's centre, flat_bottom x radius above its flat side): pinched above
+    # it, the light ball slipped down out of the fingers as they lifted (kitchen 0, seed 1)
+    at = np.array([*pxy, z0 + max(float(paper.asset.params.get("flat_bottom", 0.55)) * r, 0.012)])
     d.grip(0.0, 0.2)
     d.move(_pose(at + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(at, rot), 0.6, segments=2, settle=0.2)
