@@ -23,6 +23,7 @@ from stages.demos.driver import APPROACH_TOL, ExpertFailure
 DROP_ABOVE = 0.10        # the paper is let go this far [m] above the can's rim
 MAX_PAPER_RADIUS = 0.0315  # crumpled paper (bumps up to +18 %) the Franka hand's 80 mm stroke grasps [m]
 BIN_GAP = 0.10           # the can stands this far [m] off the table's west end
+PINCH = 0.008            # the fingers are commanded this far [m] inside the paper's width
 
 
 def can_opening(placed) -> tuple[np.ndarray, float, float]:
@@ -68,6 +69,13 @@ def throw_away_success(inst, state, peaks=None) -> tuple[bool, str]:
     return True, ""
 
 
+def _command_for(gripper, width: float) -> float:
+    """The gripper command (0 open .. 1 closed) whose finger targets stand ``width`` [m] apart (a
+    parallel gripper: each finger at width / 2; command 1 is ``squeeze`` past closed)."""
+    span = gripper.open_q - gripper.closed_q + gripper.squeeze
+    return float(np.clip((gripper.open_q - 0.5 * width) / span, 0.0, 1.0))
+
+
 def throw_away(inst, d) -> None:
     """The expert (see the module doc)."""
     from stages.demos.counter import _pose, facing_north_goal
@@ -93,7 +101,9 @@ def throw_away(inst, d) -> None:
     d.grip(0.0, 0.2)
     d.move(_pose(at + [0, 0, 0.10], rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(at, rot), 0.6, segments=2, settle=0.2)
-    d.grip(1.0, 0.8)
+    # a gentle pinch: fingers commanded to 8 mm under the ball's width (the fully closed squeeze shot
+    # the 4 g ball out of the hand onto the floor: kitchen 0, seed 1)
+    d.grip(_command_for(d.sim.desc.gripper, 2.0 * r - PINCH), 0.8)
     d.move(_pose(at + [0, 0, 0.12], rot), 0.8, segments=2, carry=True)
     if read_state(d.sim).objects[paper.body()].position[2] < z0 + 0.05:
         raise ExpertFailure("grasp_missed", "the paper stayed on the table")
