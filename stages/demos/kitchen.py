@@ -283,8 +283,11 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
 
 
 def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
-                  rng: np.random.Generator) -> KitchenWorld:
-    """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc)."""
+                  rng: np.random.Generator, household: bool = False) -> KitchenWorld:
+    """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc).
+    ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
+    tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
+    as they were)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     micro = _pick(lib, rng, ("microwave",))
@@ -378,7 +381,8 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     colors = {"floor": look.floor, "wall": look.wall}
     # the wipe task's plate and sponge, parked on the table's far band (when the catalog has them and
     # the table is deep enough), from a second child generator: nothing above changes with them
-    placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
+    if household:
+        placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
     usd = out_dir / "scene.usda"
     _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)

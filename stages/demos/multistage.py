@@ -257,3 +257,12 @@ def whole_task_success(spec: MultistageSpec, inst: TaskInstance, state, peaks=No
         if not ok:
             return False, f"final_s{k}_{stage.skill}.{reason}"
     return True, ""
+
+
+#: skills whose objects a task kitchen parks only when asked (``write_kitchen(household=True)``)
+HOUSEHOLD_SKILLS = ("wipe_plate", "throw_away")
+
+
+def needs_household(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a multistage task with a household skill's stage."""
+    return any(st.skill in HOUSEHOLD_SKILLS for t in tasks if t in MULTISTAGE for st in MULTISTAGE[t].stages)

@@ -35,7 +35,8 @@ def dish_kitchen(tmp_path_factory):
     summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
     assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
     lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
-    return write_kitchen(out.parent / "kitchen", lib, scene_id="d", rng=np.random.default_rng(0))
+    return write_kitchen(out.parent / "kitchen", lib, scene_id="d", rng=np.random.default_rng(0),
+                         household=True)
 
 
 def test_wipe_plate_covers_the_plate_and_succeeds(dish_kitchen, tmp_path):

@@ -123,3 +123,11 @@ def test_clean_dishes_is_the_wipe_checked_when_it_ends():
     spec = MULTISTAGE["clean_dishes"]
     assert [(s.skill, s.final) for s in spec.stages] == [("wipe_plate", False)]
     assert "wipe_plate" in TASKS
+
+
+def test_only_household_skill_tasks_ask_for_the_household_objects():
+    from stages.demos.multistage import needs_household
+    from stages.demos.tasks import TASKS
+
+    assert needs_household(["clean_dishes"]) and needs_household(["pick_place_bowl", "clean_table"])
+    assert not needs_household(list(TASKS)) and not needs_household(["heat_food", "store_food", "tidy_kitchen"])
