@@ -25,10 +25,24 @@ import time
 import numpy as np
 
 from stages.demos.articulated import close_part, open_part
+from stages.demos.counter import (
+    COUNTER_STAGE,
+    SIDE_HEIGHT,
+    SIDE_PITCH,
+    _mug,
+    _pose,
+    _side_pick,
+    approach_counter,
+    facing_north_goal,
+    side_rot,
+)
 from stages.demos.driver import APPROACH_TOL, Driver, ExpertFailure, stow
 from stages.demos.planner import NavGrid
 from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
+from stages.demos.skill_fridge import pick_place_fridge
+from stages.demos.skill_trash import throw_away
+from stages.demos.skill_wipe import wipe_plate
 from stages.demos.tasks import TASKS
 
 __all__ = ["EXPERTS", "Driver", "ExpertFailure", "approach_counter", "close_articulated", "facing_north_goal",
@@ -38,7 +52,6 @@ __all__ = ["EXPERTS", "Driver", "ExpertFailure", "approach_counter", "close_arti
 log = logging.getLogger(__name__)
 
 RIM_CLEARANCE = 0.025  # top-down grasp: fingertip centre below the mug's rim [m]
-COUNTER_STAGE = 0.35  # the base raises or tucks the hand this far back from its pose at the counter [m]
 
 
 def timed_clik(desc):
@@ -60,30 +73,6 @@ def timed_clik(desc):
 
 def _grid(inst: TaskInstance) -> NavGrid:
     return inst.world.grid()
-
-
-def _pose(p, rot) -> np.ndarray:
-    from stages.simulate.control import pose
-
-    return pose(np.asarray(p, float), rot)
-
-
-def facing_north_goal(front_y: float, x: float, gap: float = 0.08) -> tuple[float, float, float]:
-    """Base pose facing +Y with the chassis front ``gap`` [m] before the obstacle face at ``front_y``."""
-    return (x, front_y - gap - 0.30, math.pi / 2)
-
-
-def side_rot(pitch_deg: float = 0.0) -> np.ndarray:
-    """Hand pointing along world +Y (tool Z), pitched down ``pitch_deg``, fingers closing along world X."""
-    p = math.radians(pitch_deg)
-    z = np.array([0.0, math.cos(p), -math.sin(p)])
-    y = np.array([1.0, 0.0, 0.0])
-    return np.stack([np.cross(y, z), y, z], axis=1)
-
-
-def _mug(inst: TaskInstance) -> tuple[str, float, float]:
-    w = inst.world
-    return w.placed["mug"].body(), w.mug_radius, w.mug_height
 
 
 def _retreat(d: Driver, back: float = 0.15) -> None:
@@ -127,39 +116,6 @@ def pick_place_bowl(inst: TaskInstance, d: Driver) -> None:
     d.grip(0.0, 0.6)
     d.move(_pose(place + [0, 0, 0.12], rot), 0.8, segments=2, tol=APPROACH_TOL)
     stow(d)  # home hangs at table height: swinging there from over the bowl knocks the mug over
-
-
-def approach_counter(inst: TaskInstance, d: Driver, x: float, *, rot: np.ndarray | None = None,
-                     lift: float = 0.12, reach: float = 0.35) -> None:
-    """Bring the base in front of the counter at ``x`` facing +Y: A* to a pose COUNTER_STAGE back, raise
-    the hand to ``lift`` [m] above the counter top, ``reach`` [m] ahead of the base (the tucked arm
-    would hit the counter's front), then drive the last COUNTER_STAGE straight in."""
-    w = inst.world
-    goal = facing_north_goal(w.placed["counter"].footprint()[1], x)
-    stage = (goal[0], goal[1] - COUNTER_STAGE, goal[2])
-    tuck = stow(d, on_the_way=True)
-    d.drive_to(stage, _grid(inst), approach=0.0, tuck=tuck)
-    bx, by, th = base_pose(d.sim)
-    ready = np.array([bx + reach * math.cos(th), by + reach * math.sin(th), w.counter_z + lift])
-    d.move(_pose(ready, side_rot(0.0) if rot is None else rot), 1.5, segments=3, tol=APPROACH_TOL)
-    d.drive_straight(goal)
-
-
-def _side_pick(d: Driver, at: np.ndarray, rot: np.ndarray, lift: float, pre: float = 0.14) -> np.ndarray:
-    """Side grasp of the mug whose grasp point is ``at`` (3,): in front, in, close, lift ``lift`` [m];
-    returns the lifted TCP position."""
-    approach = rot[:, 2]
-    d.grip(0.0, 0.1)
-    d.move(_pose(at - pre * approach, rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(at, rot), 1.0, segments=2, settle=0.2)
-    d.grip(1.0, 0.8)
-    up = at + [0, 0, lift]
-    d.move(_pose(up, rot), 0.6, segments=1, carry=True)
-    return up
-
-
-SIDE_PITCH = 15.0  # side grasps: hand pitched down [deg] so the wrist clears the counter's edge
-SIDE_HEIGHT = 0.45  # side grasps: TCP at this fraction of the mug's height
 
 
 def _microwave_front(inst: TaskInstance) -> float:
@@ -300,7 +256,8 @@ def close_articulated(inst: TaskInstance, d: Driver) -> None:
 
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
            "pick_from_microwave": pick_from_microwave, "push_object": push_object,
-           "press_button": press_button}
+           "press_button": press_button, "pick_place_fridge": pick_place_fridge,
+           "wipe_plate": wipe_plate, "throw_away": throw_away}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

@@ -39,7 +39,9 @@ log = logging.getLogger(__name__)
 
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
-                      "coffee_table", "mug", "bowl", "can", "sponge")
+                      "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can")
+#: the placed roles that are free bodies (the tasks set their poses per episode)
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can")
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
@@ -89,7 +91,8 @@ class AssetLibrary:
 @dataclass(frozen=True, kw_only=True, eq=False)
 class KitchenWorld:
     """One task world. usd: scene file; scene_id; size (x, y) [m]; placed: packages by role
-    ("counter", "microwave", "fridge", "oven", "door", "table", "mug", "bowl", "pusher"); spawn:
+    ("counter", "microwave", "fridge", "oven", "door", "table", "mug", "bowl", "pusher", and where the
+    catalog has them "plate" and "sponge"); spawn:
     robot root (x, y, yaw) for the build; counter_z / table_z: support heights [m]; table_rect /
     counter_rect: (xmin, ymin, xmax, ymax) of the support surfaces [m]; counter_spot: (x, y) on the
     counter beside the microwave; cavity: microwave cavity floor (xmin, ymin, xmax, ymax) [m] at
@@ -128,7 +131,8 @@ class KitchenWorld:
         t = self.wall_thickness
         boxes = [(-t, -t, sx + t, 0.0), (-t, sy, sx + t, sy + t), (-t, -t, 0.0, sy + t),
                  (sx, -t, sx + t, sy + t)]
-        boxes += [self.placed[k].footprint() for k in ("fridge", "counter", "oven", "table", "door")]
+        boxes += [self.placed[k].footprint() for k in ("fridge", "counter", "oven", "table", "door", "trash_can")
+                  if k in self.placed]
         return np.asarray(boxes, float)
 
     def nav_bounds(self) -> tuple[float, float, float, float]:
@@ -199,6 +203,31 @@ def _top(a: CatalogAsset) -> dict:
     return max(tops, key=lambda s: s["z"])
 
 
+def _dishes(lib: AssetLibrary, rng: np.random.Generator, table_rect, table_z: float) -> dict[str, Placed]:
+    """The household skills' objects where the catalog has them and the table is at least 0.7 m deep
+    (else none): a plate and a sponge narrow enough to grasp across (stages.demos.skill_wipe) and a
+    piece of crumpled paper (stages.demos.skill_trash) on the table's far band; a trash can on the
+    floor off the table's west end."""
+    out: dict[str, Placed] = {}
+    if table_rect[3] - table_rect[1] < 0.7:
+        return out
+    from stages.demos.skill_trash import BIN_GAP, MAX_PAPER_RADIUS
+
+    tx, far = 0.5 * (table_rect[0] + table_rect[2]), table_rect[3]
+    sponges = [a for a in lib.of("sponge") if float(a.params.get("width", 1.0)) <= 0.072]
+    if lib.of("plate") and sponges:
+        plate, sponge = _pick(lib, rng, ("plate",)), sponges[int(rng.integers(len(sponges)))]
+        out["plate"] = Placed("Plate", plate, (tx - 0.18, far - 0.17, table_z + 0.002), 0.0)
+        out["sponge"] = Placed("Sponge", sponge, (tx + 0.22, far - 0.10, table_z + 0.002), 0.0)
+    papers = [a for a in lib.of("crumpled_paper") if float(a.params.get("radius", 1.0)) <= MAX_PAPER_RADIUS]
+    if papers and lib.of("trash_can"):
+        paper, can = papers[int(rng.integers(len(papers)))], _pick(lib, rng, ("trash_can",))
+        out["paper"] = Placed("Paper", paper, (tx + 0.02, far - 0.08, table_z + 0.002), 0.0)
+        x = table_rect[0] - BIN_GAP - can.hi[0]  # its east side BIN_GAP off the table's west end
+        out["trash_can"] = Placed("TrashCan", can, (x, table_rect[1] + 0.15, 0.0), 0.0)
+    return out
+
+
 def _cavity(a: CatalogAsset) -> dict:
     cav = [s for s in a.info.get("surfaces", []) if s["inside"]]
     if not cav:
@@ -254,8 +283,11 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
 
 
 def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
-                  rng: np.random.Generator) -> KitchenWorld:
-    """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc)."""
+                  rng: np.random.Generator, household: bool = False) -> KitchenWorld:
+    """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc).
+    ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
+    tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
+    as they were)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     micro = _pick(lib, rng, ("microwave",))
@@ -347,6 +379,10 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     # draw: the picks and poses above stay what they were for a seed, whatever the look draws
     look = sample_look(placed, rng.spawn(1)[0])
     colors = {"floor": look.floor, "wall": look.wall}
+    # the wipe task's plate and sponge, parked on the table's far band (when the catalog has them and
+    # the table is deep enough), from a second child generator: nothing above changes with them
+    if household:
+        placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
     usd = out_dir / "scene.usda"
     _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)

@@ -14,18 +14,26 @@ A task file (``stages/demos/multistage/<name>.toml``, or any folder passed to
     [[stage]]
     skill = "close_microwave"
     instruction = "close the microwave door"
+    final = true                           # (default) its predicate must still hold at the end
+
+Optional: ``objects_from = k`` (task key, 1-based, default 1): the stage whose sampled instance
+places the objects at the episode's start (store_food opens the fridge first, then takes the mug
+from where its second stage's skill starts it); ``final = false`` (stage key): a stage whose
+result a later stage undoes (the fridge opened, then closed again) is checked when it ends, not
+at the episode's end.
 
 Semantics (the solver apart from the data, as the scene rules):
 
 - the episode starts from the first stage's instance (:func:`~stages.demos.sampling.sample_instance`
-  of its skill with the episode's seed): robot start, object poses; its scene joints are every
+  of its skill with the episode's seed): robot start, object poses (those of stage
+  ``objects_from``); its scene joints are every
   stage's set-up (a close stage's part starts open), an earlier stage's value first;
 - each stage runs its skill's expert from the state the previous stage left: its instance is the
   skill's instance for the same seed with the *current* object poses and scene joint positions
   (a door left open at 88 deg is closed from 88 deg), then checks the skill's success predicate
   at once; a failure ends the episode with the reason ``s<k>_<skill>.<reason>`` (counted by stage);
-- the whole task succeeds when every stage's predicate holds on the final state (a mug put into
-  the microwave must still be inside when its button is pressed);
+- the whole task succeeds when every ``final`` stage's predicate holds on the final state (a mug
+  put into the microwave must still be inside when its button is pressed);
 - the engine records the stage of every frame (``subtask_index``) and the stages' instructions as
   the episode's ``subtasks``.
 
@@ -64,16 +72,19 @@ class MultistageError(ValueError):
 
 @dataclass(frozen=True)
 class Stage:
-    """skill: the basic task whose expert and predicate the stage uses; instruction: its language."""
+    """skill: the basic task whose expert and predicate the stage uses; instruction: its language;
+    final: its predicate is part of the whole task's (False: a later stage undoes it)."""
 
     skill: str
     instruction: str
+    final: bool = True
 
 
 @dataclass(frozen=True)
 class MultistageSpec:
     """name; room: where it happens; max_seconds: episode time limit [s]; templates: the whole
-    task's instructions; stages: in order; source: the file it came from."""
+    task's instructions; stages: in order; source: the file it came from; objects_from: the
+    stage (0-based) whose instance places the objects at the start."""
 
     name: str
     room: str
@@ -81,6 +92,7 @@ class MultistageSpec:
     templates: tuple[str, ...]
     stages: tuple[Stage, ...]
     source: str = ""
+    objects_from: int = 0
 
     @property
     def subtasks(self) -> tuple[str, ...]:
@@ -96,7 +108,7 @@ class MultistageSpec:
 def parse_multistage(data: dict, source: str) -> MultistageSpec:
     """A spec from a task file's table; :class:`MultistageError` lists every problem."""
     problems: list[str] = []
-    known = {"name", "room", "max_seconds", "templates", "stage"}
+    known = {"name", "room", "max_seconds", "templates", "stage", "objects_from"}
     problems += [f"unknown key {k!r}" for k in sorted(set(data) - known)]
     name = data.get("name")
     if not isinstance(name, str) or not _NAME_RE.match(name):
@@ -121,18 +133,24 @@ def parse_multistage(data: dict, source: str) -> MultistageSpec:
             if not isinstance(st, dict):
                 problems.append(f"stage {k}: must be a table")
                 continue
-            extra = sorted(set(st) - {"skill", "instruction"})
+            extra = sorted(set(st) - {"skill", "instruction", "final"})
             problems += [f"stage {k}: unknown key {x!r}" for x in extra]
             skill, text = st.get("skill"), st.get("instruction")
             if skill not in TASKS or skill not in EXPERTS:
                 problems.append(f"stage {k}: unknown skill {skill!r}; known: {sorted(TASKS)}")
             if not (isinstance(text, str) and text.strip()):
                 problems.append(f"stage {k}: instruction must be a non-empty string")
-            out.append(Stage(str(skill), str(text)))
+            final = st.get("final", True)
+            if not isinstance(final, bool):
+                problems.append(f"stage {k}: final must be true or false, got {final!r}")
+            out.append(Stage(str(skill), str(text), bool(final)))
+    first = data.get("objects_from", 1)
+    if not isinstance(first, int) or isinstance(first, bool) or not 1 <= first <= max(1, len(out)):
+        problems.append(f"objects_from must be a stage number 1..{max(1, len(out))}, got {first!r}")
     if problems:
         raise MultistageError(f"{source}: " + "; ".join(problems))
     return MultistageSpec(name=name, room=room, max_seconds=float(limit), templates=tuple(templates),
-                          stages=tuple(out), source=source)
+                          stages=tuple(out), source=source, objects_from=int(first) - 1)
 
 
 def load_multistage_dir(folder: Path) -> dict[str, MultistageSpec]:
@@ -181,7 +199,8 @@ def sample_task(name: str, world, seed: int) -> TaskInstance:
     joints: dict[str, float] = {}
     for si in reversed(stage_insts):  # every stage's scene set-up; an earlier stage's wins
         joints.update(si.joints)
-    return replace(stage_insts[0], task=name, instruction=text, asset_ids=ids, joints=joints)
+    return replace(stage_insts[0], task=name, instruction=text, asset_ids=ids, joints=joints,
+                   objects=stage_insts[spec.objects_from].objects)
 
 
 def stage_instance(stage: Stage, inst: TaskInstance, state=None) -> TaskInstance:
@@ -229,10 +248,21 @@ def run_stages(spec: MultistageSpec, inst: TaskInstance, d: Driver, *, peaks: Ca
 
 
 def whole_task_success(spec: MultistageSpec, inst: TaskInstance, state, peaks=None) -> tuple[bool, str]:
-    """Every stage's predicate on the final state (reason ``final_s<k>_<skill>.<reason>`` of the
-    first that fails)."""
+    """Every ``final`` stage's predicate on the final state (reason ``final_s<k>_<skill>.<reason>``
+    of the first that fails)."""
     for k, stage in enumerate(spec.stages, 1):
+        if not stage.final:
+            continue
         ok, reason = TASKS[stage.skill].success(stage_instance(stage, inst), state, peaks=peaks)
         if not ok:
             return False, f"final_s{k}_{stage.skill}.{reason}"
     return True, ""
+
+
+#: skills whose objects a task kitchen parks only when asked (``write_kitchen(household=True)``)
+HOUSEHOLD_SKILLS = ("wipe_plate", "throw_away")
+
+
+def needs_household(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a multistage task with a household skill's stage."""
+    return any(st.skill in HOUSEHOLD_SKILLS for t in tasks if t in MULTISTAGE for st in MULTISTAGE[t].stages)

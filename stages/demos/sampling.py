@@ -25,6 +25,7 @@ from stages.demos.tasks import ARTICULATED, task
 log = logging.getLogger(__name__)
 
 MICROWAVE_OPEN = math.radians(88.0)  # microwave door opening of the microwave tasks [rad]
+FRIDGE_OPEN = 0.9  # fridge door opening of pick_place_fridge [fraction of its travel], as open_fridge leaves it
 PUSH_DIRECTION = (0.0, 1.0)
 
 
@@ -34,7 +35,9 @@ class TaskInstance:
     (x, y, yaw) [m, rad]; objects: free body prim path -> (x, y, z, yaw) start pose [m, rad];
     joints: scene joint prim path -> initial position [m or rad]; push_direction (2,) unit;
     target: (x, y) where the object goes (counter spot, bowl or cavity centre) [m]; asset_ids;
-    part: the articulated part of an open/close task (None otherwise)."""
+    part: the articulated part of an open/close task, or the door a place task reaches through
+    (None otherwise); place: where a place task's object ends (e.g. a
+    :class:`~stages.demos.skill_fridge.Shelf`; None otherwise)."""
 
     task: str
     seed: int
@@ -48,6 +51,7 @@ class TaskInstance:
     target: tuple[float, float]
     asset_ids: tuple[str, ...]
     part: object = None
+    place: object = None
 
 
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
@@ -88,6 +92,9 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
+    for role in ("plate", "sponge", "paper", "trash_can"):  # parked (stages.demos.kitchen): every episode starts them there
+        if role in pl:
+            objects[pl[role].body()] = (*pl[role].position, 0.0)
     joints: dict[str, float] = {}
     cav = world.cavity
     cav_c = ((cav[0] + cav[2]) / 2, (cav[1] + cav[3]) / 2)
@@ -115,7 +122,32 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     elif task_name == "press_button":
         ids = [pl["microwave"]]
         target = tuple(world.button[:2])
-    part = None
+    part = place = None
+    if task_name == "pick_place_fridge":
+        from stages.demos.skill_fridge import fridge_shelf
+
+        part = world_part(world, "fridge")
+        joints[part.joint_path] = part.closed + FRIDGE_OPEN * part.travel
+        objects[mug] = (*spot, world.counter_z + 0.002, mug_yaw)
+        place = fridge_shelf(world, part, world.mug_radius, world.mug_height)
+        target = place.spot
+        names["container"] = "fridge"
+        ids = [pl["mug"], pl["fridge"], pl["counter"]]
+    if task_name == "wipe_plate":
+        from stages.demos.skill_wipe import wipe_setup
+
+        moved, place = wipe_setup(world, rng)
+        objects.update(moved)
+        names.update(object="plate", tool="sponge")
+        ids = [pl["plate"], pl["sponge"]]
+        target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
+    if task_name == "throw_away":
+        from stages.demos.skill_trash import trash_setup
+
+        objects.update(trash_setup(world, rng))
+        names.update(object="paper", container="trash can")
+        ids = [pl["paper"], pl["trash_can"]]
+        target = tuple(float(v) for v in pl["trash_can"].position[:2])
     kind, _, which = task_name.partition("_")
     if which in ARTICULATED and kind in ("open", "close"):
         role = ARTICULATED[which][0]
@@ -124,12 +156,14 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         ids = [pl[role]]
         if kind == "close":
             joints[part.joint_path] = part.closed + float(rng.uniform(0.6, 0.85)) * part.travel
+        else:  # (a multistage task that opens it later starts with it closed)
+            joints[part.joint_path] = part.closed
         target = tuple(float(v) for v in part.handle[:2])
     instruction = spec.templates[int(rng.integers(len(spec.templates)))].format(**names)
     start = free_start(world, rng)
     return TaskInstance(task=task_name, seed=int(seed), world=world, instruction=instruction, names=names,
                         start_base=start, objects=objects, joints=joints, push_direction=PUSH_DIRECTION,
-                        target=target, asset_ids=tuple(p.asset.asset_id for p in ids), part=part)
+                        target=target, asset_ids=tuple(p.asset.asset_id for p in ids), part=part, place=place)
 
 
 def world_part(world: KitchenWorld, which: str):

@@ -23,6 +23,10 @@ from enum import StrEnum
 import numpy as np
 
 from stages.demos.parts import part_closed, part_opened
+from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
+from stages.demos.skill_fridge import pick_place_fridge_success
+from stages.demos.skill_trash import throw_away_success
+from stages.demos.skill_wipe import wipe_plate_success
 
 log = logging.getLogger(__name__)
 
@@ -44,36 +48,6 @@ class TaskSpec:
     templates: tuple[str, ...]
     max_seconds: float
     success: Callable
-
-
-def _upright(q) -> bool:
-    """Tilt of the body's +Z from world +Z below 30 deg (q: w, x, y, z)."""
-    w, x, y, z = q
-    return 1 - 2 * (x * x + y * y) >= np.cos(np.deg2rad(30.0))
-
-
-def _released(state, body: str, min_gap: float = 0.03) -> bool:
-    """The gripper is open and its TCP away from the body's origin (the object is not held)."""
-    ee = np.asarray(state.robot.ee_pose.position)
-    gap = np.linalg.norm(ee - np.asarray(state.objects[body].position))
-    return state.robot.gripper_opening > 0.06 and gap > min_gap
-
-
-def _inside(xy, rect, margin: float = 0.0) -> bool:
-    x0, y0, x1, y1 = rect
-    return x0 + margin <= xy[0] <= x1 - margin and y0 + margin <= xy[1] <= y1 - margin
-
-
-def _placed_check(inst, state, body: str, z_min: float) -> str:
-    """'' when ``body`` is upright, at or above ``z_min`` [m] and released; else the reason."""
-    o = state.objects[body]
-    if o.position[2] < z_min:
-        return "object_fell"
-    if not _upright(o.orientation):
-        return "object_tipped"
-    if not _released(state, body):
-        return "object_still_held"
-    return ""
 
 
 def pick_place_bowl_success(inst, state, peaks=None) -> tuple[bool, str]:
@@ -148,6 +122,16 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              templates=("take the {object} out of the {container}",
                         "move the {object} from the {container} to the counter",
                         "pick the {object} out of the {container} and put it on the counter")),
+    TaskSpec(name="pick_place_fridge", family=Family.PICK_PLACE, max_seconds=60.0,
+             success=pick_place_fridge_success,
+             templates=("put the {object} in the fridge", "store the {object} in the fridge",
+                        "take the {object} from the counter and put it on a fridge shelf")),
+    TaskSpec(name="wipe_plate", family=Family.PUSH_PULL, max_seconds=60.0, success=wipe_plate_success,
+             templates=("wipe the {object} with the {tool}", "clean the {object} with the {tool}",
+                        "scrub the {object} clean with the {tool}")),
+    TaskSpec(name="throw_away", family=Family.PICK_PLACE, max_seconds=40.0, success=throw_away_success,
+             templates=("throw the {object} in the {container}", "put the {object} into the {container}",
+                        "clear the {object} off the table into the {container}")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,

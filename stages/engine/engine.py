@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.demos.experts import timed_clik
+from stages.demos.kitchen import FREE_ROLES
 from stages.demos.record import Timings
 from stages.engine.capture import FrameCapture
 from stages.engine.lockstep import Lockstep
@@ -237,7 +238,7 @@ class BatchEngine:
         qs = self.banks[0].model.joint_q_start.numpy()
         child = self.banks[0].model.joint_child.numpy()
         for k, p in world.placed.items():
-            if k in ("mug", "bowl", "pusher"):
+            if k in FREE_ROLES:
                 b = sim.body_of_path(p.body())
                 self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}

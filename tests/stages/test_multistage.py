@@ -75,3 +75,59 @@ def test_the_demos_job_accepts_multistage_tasks():
     with pytest.raises(ValueError, match="multistage"):
         DemosConfig(tasks=("heat_the_house",))
 
+
+
+def test_store_food_opens_the_fridge_first_and_checks_it_closed_at_the_end():
+    spec = MULTISTAGE["store_food"]
+    assert [s.skill for s in spec.stages] == ["open_fridge", "pick_place_fridge", "close_fridge"]
+    assert [s.final for s in spec.stages] == [False, True, True] and spec.objects_from == 1
+    assert task_spec("store_food").family is Family.MULTISTAGE
+
+
+def test_final_and_objects_from_are_checked():
+    import tomllib
+
+    data = tomllib.loads(GOOD)
+    spec = parse_multistage({**data, "objects_from": 2, "stage": [{**data["stage"][0], "final": False},
+                                                                   data["stage"][1]]}, "ok.toml")
+    assert spec.objects_from == 1 and [s.final for s in spec.stages] == [False, True]
+    with pytest.raises(MultistageError) as e:
+        parse_multistage({**data, "objects_from": 3, "stage": [{**data["stage"][0], "final": "no"}]}, "x.toml")
+    assert "objects_from must be a stage number 1..1, got 3" in str(e.value)
+    assert "stage 1: final must be true or false" in str(e.value)
+
+
+def test_a_store_food_episode_starts_closed_with_the_mug_on_the_counter(kitchen_room):
+    """The episode's scene joints: the fridge closed (open_fridge's set-up wins over the later
+    stages' open door); the mug where pick_place_fridge takes it from (objects_from = 2); the
+    shelf it goes to lies inside the fridge, behind the door's opening."""
+    from stages.demos.multistage import sample_task, stage_instance
+    from stages.demos.sampling import sample_instance
+
+    inst = sample_task("store_food", kitchen_room, 3)
+    door = kitchen_room.placed["fridge"].joint("door_0_joint")
+    assert inst.joints[door] == 0.0
+    pick = sample_instance("pick_place_fridge", kitchen_room, 3)
+    mug = kitchen_room.placed["mug"].body()
+    assert inst.objects[mug] == pick.objects[mug]
+    assert abs(inst.objects[mug][2] - kitchen_room.counter_z - 0.002) < 1e-9
+    assert pick.joints[door] > 1.2  # open (0.9 of its 90 deg) for the pick-and-place alone
+    shelf = stage_instance(MULTISTAGE["store_food"].stages[1], inst).place
+    fx0, fy0, fx1, fy1 = kitchen_room.placed["fridge"].footprint()
+    x0, y0, x1, y1 = shelf.rect
+    assert fx0 < x0 < shelf.spot[0] < x1 < fx1 and fy0 < y0 < shelf.spot[1] < y1 < fy1
+    assert 0.5 <= shelf.z <= 1.2
+
+
+def test_clean_dishes_is_the_wipe_checked_when_it_ends():
+    spec = MULTISTAGE["clean_dishes"]
+    assert [(s.skill, s.final) for s in spec.stages] == [("wipe_plate", False)]
+    assert "wipe_plate" in TASKS
+
+
+def test_only_household_skill_tasks_ask_for_the_household_objects():
+    from stages.demos.multistage import needs_household
+    from stages.demos.tasks import TASKS
+
+    assert needs_household(["clean_dishes"]) and needs_household(["pick_place_bowl", "clean_table"])
+    assert not needs_household(list(TASKS)) and not needs_household(["heat_food", "store_food", "tidy_kitchen"])
