@@ -52,7 +52,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from pipeline.types import ItemContext, ItemError, JobKind, PlanContext, PlannedFailure, WorkItem, derive_seed
 from stages.demos import mixed as _mixed
-from stages.demos.tasks import TASKS
+from stages.demos.tasks import BASIC_TASKS, TASKS
 
 
 log = logging.getLogger(__name__)
@@ -95,7 +95,7 @@ class DemosConfig(_Strict):
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
-    tasks: tuple[str, ...] = tuple(TASKS)
+    tasks: tuple[str, ...] = BASIC_TASKS
     worlds: int = Field(default=1, ge=1, le=10000)
     episodes_per_shard: int = Field(default=2, ge=1, le=1000)
     width: int = Field(default=128, ge=16, le=1920)

@@ -70,11 +70,11 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     """One engine of ``n`` worlds; with ``barrier`` (a process pool's), the timed run and the
     standalone measurements start together with the other processes'."""
     from stages.demos.sampling import sample_instance
-    from stages.demos.tasks import TASKS
+    from stages.demos.tasks import BASIC_TASKS
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import RoundRobin
 
-    tasks = sorted(TASKS)
+    tasks = sorted(BASIC_TASKS)
     t0 = time.perf_counter()
     eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,

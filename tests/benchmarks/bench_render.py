@@ -157,7 +157,7 @@ def main(argv=None) -> dict:
     from bench_engine import _catalog  # the engine benchmark's kitchen catalog
 
     from stages.demos.kitchen import AssetLibrary, write_kitchen
-    from stages.demos.tasks import TASKS
+    from stages.demos.tasks import BASIC_TASKS
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import RoundRobin
 
@@ -174,7 +174,7 @@ def main(argv=None) -> dict:
                               work_dir=args.work.resolve(),
                               config=EngineConfig(worlds=n, device=args.device, width=args.width,
                                                   height=args.height))
-            eng.run(RoundRobin(room, sorted(TASKS), 0), begin=lambda w, inst: (lambda frame: None),
+            eng.run(RoundRobin(room, sorted(BASIC_TASKS), 0), begin=lambda w, inst: (lambda frame: None),
                     end=lambda w, inst, res: None, max_steps=args.warm_frames * eng.sync_period)
             results.append({"worlds": n, "variants": bench_render(eng, names, args.reps),
                             "compact_equals_render": compact_equals_render(eng)})
