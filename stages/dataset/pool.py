@@ -47,7 +47,7 @@ from .schema import DatasetSpec, EpisodeInfo, Frame, frame_problems, validate_fr
 
 _IMAGE_FIELDS = ("rgb", "depth_mm")
 _NUMERIC = tuple(f.name for f in dataclasses.fields(Frame) if f.name not in _IMAGE_FIELDS)
-_SCALAR_FLOAT, _SCALAR_INT, _VECTOR = 0, 1, 2
+_SCALAR_FLOAT, _SCALAR_INT, _VECTOR, _NONE = 0, 1, 2, 3  # _NONE: an optional field left None
 _HEAD = struct.Struct("<iiI")  # shard, slot, bitmask of the images present (2 bits per camera)
 
 
@@ -99,7 +99,9 @@ def _pack_numeric(frame: Frame) -> bytes:
     kinds, values = [], []
     for name in _NUMERIC:
         v = getattr(frame, name)
-        if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        if v is None:  # Frame.state_vector / action_vector of the single-arm layout
+            kinds.append((_NONE, 0))
+        elif isinstance(v, (int, np.integer)) and not isinstance(v, bool):
             kinds.append((_SCALAR_INT, 1))
             values.append(np.array([v], np.float64))
         elif np.ndim(v) == 0:
@@ -122,8 +124,8 @@ def _unpack_numeric(buf: bytes) -> dict[str, Any]:
         kind, length = kinds[2 * j], kinds[2 * j + 1]
         chunk = vals[i:i + length]
         i += length
-        out[name] = int(chunk[0]) if kind == _SCALAR_INT else float(chunk[0]) if kind == _SCALAR_FLOAT \
-            else chunk.copy()
+        out[name] = None if kind == _NONE else int(chunk[0]) if kind == _SCALAR_INT \
+            else float(chunk[0]) if kind == _SCALAR_FLOAT else chunk.copy()
     return out
 
 
