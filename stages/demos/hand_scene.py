@@ -50,24 +50,30 @@ def table_world(table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55):
     return w
 
 
-def write_table_scene(path: Path, asset, *, table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55,
-                      object_xy=(0.85, 0.0), object_yaw: float = 0.0) -> TableScene:
-    """Author the scene at ``path`` (.usda) with ``asset`` (a :class:`stages.demos.packages.CatalogAsset`)
-    on the table; returns where things are."""
+def write_object_world(path: Path, w, asset, pos, yaw: float) -> None:
+    """Reference ``asset`` (a :class:`stages.demos.packages.CatalogAsset`) into the world ``w`` (from
+    :func:`table_world`) at OBJECT_PRIM, at ``pos`` [m] turned by ``yaw`` [rad], and write it to ``path``."""
     import os
 
     from pxr import Sdf
 
     from stages.simulate.demo_scene import _labels, _xform_attrs
 
+    la, lv = _labels(asset.category)
+    rel = os.path.relpath(Path(asset.usd).resolve(), Path(path).parent.resolve()).replace(os.sep, "/")
+    ref = Sdf.Reference(rel if rel.startswith(".") else f"./{rel}")
+    w.prim(OBJECT_PRIM, "Xform", apis=la, attrs={**_xform_attrs(pos, yaw), **lv},
+           meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
+    w.write(path, "World")
+
+
+def write_table_scene(path: Path, asset, *, table_xy=(1.0, 0.0), table_size=(0.6, 0.9), table_height=0.55,
+                      object_xy=(0.85, 0.0), object_yaw: float = 0.0) -> TableScene:
+    """Author the scene at ``path`` (.usda) with ``asset`` (a :class:`stages.demos.packages.CatalogAsset`)
+    on the table; returns where things are."""
     path = Path(path)
     w = table_world(table_xy, table_size, table_height)
     pos = (float(object_xy[0]), float(object_xy[1]), float(table_height) + 0.001)
-    la, lv = _labels(asset.category)
-    rel = os.path.relpath(Path(asset.usd).resolve(), path.parent.resolve()).replace(os.sep, "/")
-    ref = Sdf.Reference(rel if rel.startswith(".") else f"./{rel}")
-    w.prim(OBJECT_PRIM, "Xform", apis=la, attrs={**_xform_attrs(pos, object_yaw), **lv},
-           meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
-    w.write(path, "World")
+    write_object_world(path, w, asset, pos, object_yaw)
     return TableScene(usd=path, body=f"{OBJECT_PRIM}/{asset.root_link}", position=pos, yaw=float(object_yaw),
                       table_height=float(table_height), category=asset.category)

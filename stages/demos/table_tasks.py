@@ -364,12 +364,7 @@ def write_counter_scene(path: Path, asset, *, bar_xy=(0.62, 0.0), drawer: str = 
     """Author the drawer tasks' scene at ``path``: floor and ``asset`` (a counter package) on it,
     turned to face the robot (its front towards -X), placed so that ``drawer``'s bar handle is at
     ``bar_xy`` [m] when the drawer is shut."""
-    import os
-
-    from pxr import Sdf
-
-    from stages.demos.hand_scene import OBJECT_PRIM, table_world
-    from stages.simulate.demo_scene import _labels, _xform_attrs
+    from stages.demos.hand_scene import OBJECT_PRIM, table_world, write_object_world
 
     handle = next((h for h in asset.info.get("handles", ()) if h["link"] == drawer), None)
     if handle is None or tuple(handle["bar_axis"]) != (0.0, 1.0, 0.0):
@@ -379,12 +374,7 @@ def write_counter_scene(path: Path, asset, *, bar_xy=(0.62, 0.0), drawer: str = 
     pos = (bar_xy[0] + c[0], bar_xy[1] + c[1], 0.0)
     path = Path(path)
     w = table_world(table_xy=(-3.0, -3.0), table_size=(0.1, 0.1), table_height=0.05)   # no table in reach
-    la, lv = _labels(asset.category)
-    rel = os.path.relpath(Path(asset.usd).resolve(), path.parent.resolve()).replace(os.sep, "/")
-    ref = Sdf.Reference(rel if rel.startswith(".") else f"./{rel}")
-    w.prim(OBJECT_PRIM, "Xform", apis=la, attrs={**_xform_attrs(pos, yaw), **lv},
-           meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
-    w.write(path, "World")
+    write_object_world(path, w, asset, pos, yaw)
     return CounterScene(usd=path, joint=f"{OBJECT_PRIM}/joints/{drawer}_joint",
                         bar=np.array([bar_xy[0], bar_xy[1], c[2]]), slide=np.array([-1.0, 0.0, 0.0]),
                         radius=float(handle["grip_width"]) / 2, body=f"{OBJECT_PRIM}/{drawer}")
