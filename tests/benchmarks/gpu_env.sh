@@ -24,5 +24,14 @@ if ! python3 -c "import av" 2>/dev/null && [ -d .whl_av ]; then
 fi
 export PYTHONPATH="$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$PWD${PYTHONPATH:+:$PYTHONPATH}"
 [ -d .loco/erd ] && export PYTHONPATH="$PYTHONPATH:$PWD/.loco/erd"
+# The third-party robots the hands / dual-arm tasks read (../shared/assets is not on the GPU machine): carry
+# .carry_assets (tar -C ../shared/assets -cf .carry_assets/robots.tar robots/<the robots> README.md) once.
+if [ -f .carry_assets/robots.tar ] && [ ! -d "$HOME/shared_assets/robots" ]; then
+  mkdir -p "$HOME/shared_assets" && tar -C "$HOME/shared_assets" -xf .carry_assets/robots.tar \
+    || _aw_fail "unpacking .carry_assets/robots.tar failed"
+fi
+[ -d "$HOME/shared_assets/robots" ] && export AGENTWORLD_SHARED_ASSETS="$HOME/shared_assets"
+# greenlet (the engine's expert programs) is not in the staged wheels: carried in .loco/erd, copied once.
+[ -d .loco/erd/greenlet ] && [ ! -d "$HOME/site/greenlet" ] && cp -r .loco/erd/greenlet "$HOME/site/"
 export WARP_CACHE_PATH="$HOME/stash/warp-cache" PYTHONUNBUFFERED=1
 python3 -c "import newton, warp, lerobot, pydantic" 2>/dev/null || { _aw_fail "newton/warp/lerobot/pydantic do not import"; return 3; }
