@@ -11,7 +11,7 @@ pkgs=()
 for p in rsl-rl-lib tensordict pyvers GitPython gitdb smmap cloudpickle datasets multiprocess dill lerobot termcolor \
          gymnasium Farama-Notifications draccus toml mergedeep omniverse-asset-validator xxhash typing-inspect \
          mypy_extensions pydantic pydantic_core annotated-types typing-inspection rich markdown-it-py mdurl Pygments \
-         tqdm jsonlines einops tensorboard tensorboard-data-server Markdown Werkzeug av; do
+         tqdm jsonlines einops tensorboard tensorboard-data-server Markdown Werkzeug greenlet av; do
   v=$(grep -i "^$p==" constraints.txt) || { echo "gpu_wheels: $p is not in constraints.txt" >&2; exit 2; }
   pkgs+=("$v")
 done
@@ -30,3 +30,8 @@ pan=$(.venv/bin/python -c "from stages.simulate.robot import _pip_panda_root; pr
 rm -rf .loco/erd/cmeel.prefix/share/example-robot-data/robots/panda_description
 cp -r "$pan/robots/panda_description" .loco/erd/cmeel.prefix/share/example-robot-data/robots/
 du -sh .whl .whl_av .loco/erd
+# the third-party robots of the hands / dual-arm tasks (gpu_env.sh unpacks them, AGENTWORLD_SHARED_ASSETS)
+mkdir -p .carry_assets && tar -C ../shared/assets -cf .carry_assets/robots.tar robots/aloha__gym_aloha \
+  robots/allegro_hand__robotlocomotion robots/shadow_hand__gymnasium_robotics robots/robotiq_2f85__menagerie \
+  robots/fetch__gymnasium_robotics README.md
+du -sh .carry_assets
