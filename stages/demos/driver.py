@@ -78,22 +78,37 @@ class Driver:
 
     def step_count(self, seconds: float) -> int:
         """Physics steps that :meth:`step` runs for ``seconds`` [s] from the current step: to the
-        first frame step of the episode's frame grid (frame k at step ``ceil(k * S / fps)``, S =
-        steps per second: the engine's frame steps when the episode started at a sync point) that
-        is at least one step on and less than one step short of ``seconds`` (frames are 16 or 17
-        steps apart at 500 steps/s and 30 fps: ``step(1 / fps)`` is one frame). Requests that end on
-        frame steps let a batched engine advance all worlds a frame at a time (one round of the
-        programs per frame; a world whose request ends between frames splits every frame into
-        several engine steps). ``round(seconds / dt)`` (at least 1) when 1/dt is not a whole
-        number of steps per second."""
+        frame step of the episode's frame grid (frame k at step ``ceil(k * S / fps)``, S = steps per
+        second: the engine's frame steps when the episode started at a sync point) nearest to
+        ``seconds`` on, at least one step on (a tie goes to the later one). Frames are 16 or 17
+        steps apart at 500 steps/s and 30 fps: ``step(1 / fps)`` is one frame, and so is a request
+        of 17 steps (0.034 s) that ends one step past a 16-step frame (taking the next frame step
+        instead doubled it to 33 steps: every other base-shift command of the retreat from an
+        oven door lasted two frames, the leaf dropped onto the slowed hand and open_oven missed
+        its regrasp). Requests that end on frame steps let a batched engine advance all worlds a
+        frame at a time (one round of the programs per frame; a world whose request ends between
+        frames splits every frame into several engine steps). ``round(seconds / dt)`` (at least 1)
+        when 1/dt is not a whole number of steps per second."""
         dt = self.sim.settings.dt
         S = 1.0 / dt
         if abs(S - round(S)) > 1e-6:
             return max(1, int(round(seconds / dt)))
         S, f, t = int(round(S)), self.recorder.fps, int(self.sim.steps)
-        lo = max(t + 1, math.ceil(t + seconds / dt - 1 + 1e-6))
-        k = (lo - 1) * f // S + 1  # the first frame whose step ceil(k * S / f) is >= lo
-        return -(-k * S // f) - t
+        target = round(t + seconds / dt, 6)  # the requested end [steps]
+
+        def at(k: int) -> int:  # frame k's step
+            return -(-k * S // f)
+
+        first = t * f // S + 1  # the first frame whose step is after t
+        k = max(first, int(target * f // S))
+        while k > first and at(k) > target:
+            k -= 1
+        while at(k + 1) <= target:
+            k += 1
+        # at(k): the last frame step not past the request (or the first one after t)
+        if at(k) < target and at(k + 1) - target <= target - at(k):
+            k += 1
+        return at(k) - t
 
     def step(self, seconds: float) -> float:
         """Advance about ``seconds`` [s] (:meth:`step_count`: to the next frame step); returns the
