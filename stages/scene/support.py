@@ -64,8 +64,8 @@ def contact_region(inst, sup, floor_top: float | None) -> tuple[np.ndarray | Non
     low = min(float(p.lo[2]) for p in inst.pieces)
     if any(float(p.lo[2]) < low + BASE_TOL for p, mv in zip(inst.pieces, inst.geo.moving) if mv):
         return None, "a moving part touches the support"
-    feet = [p.vertices[p.vertices[:, 2] < low + BASE_TOL][:, :2] for p, mv in zip(inst.pieces, inst.geo.moving)
-            if not mv]
+    fixed = [p for p, mv in zip(inst.pieces, inst.geo.moving) if not mv]
+    feet = [p.vertices[p.vertices[:, 2] < low + BASE_TOL][:, :2] for p in fixed]
     feet = [f for f in feet if len(f)]
     if sum(len(f) for f in feet) < 3:
         return None, "no flat base"

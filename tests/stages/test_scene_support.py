@@ -83,7 +83,8 @@ def _shifted_off(pop: Populator, inst, sup):
     local = (np.asarray(inst.p.position[:2]) - np.asarray(sup.p.position[:2])) @ R
     com_local = ((np.asarray(inst.p.position[:2]) + rot2(inst.p.yaw) @ inst.geo.com[:2])
                  - np.asarray(sup.p.position[:2])) @ R
-    surf = next(s for s in sup.geo.surfaces if s.polygon[:, 1].min() - 1e-6 <= com_local[1] <= s.polygon[:, 1].max() + 1e-6)
+    surf = next(s for s in sup.geo.surfaces
+                if s.polygon[:, 1].min() - 1e-6 <= com_local[1] <= s.polygon[:, 1].max() + 1e-6)
     dy = surf.polygon[:, 1].max() - 0.03 - com_local[1]
     xy = np.asarray(sup.p.position[:2]) + R @ (local + np.array([0.0, dy]))
     ctx = pop.room_ctx[inst.p.room]
