@@ -12,6 +12,7 @@ Public surface (pxr/newton are imported inside the functions, never at import ti
     build.build_scene(plan_json, layout_usd, library, rules, rng, out_dir, final_dir, BuildOptions())
         -> SceneSummary                                              # one attempt; SceneRejected(reason)
     rest.analytic_rest(populator, needs_package_check) -> RestProof  # rest proven by statics (COM in contact)
+    support.tips_over(inst, support_inst) -> str | None              # COM over the feet on the surface?
     validation.validate_scene(scene_usd, packages, CheckCache) -> SceneValidation
         # packages once per content hash (checkcache), per scene only what composition adds
     settle_batch.settle_batch(scenes, device="cuda:0") -> BatchSettle   # a few scenes, one MuJoCo-Warp model

@@ -86,17 +86,19 @@ def _prim(parent, name: str, type_name: str = "", *, over: bool = False, kind: s
     return spec
 
 
-def _export(layer, path: Path) -> None:
+def _export(layer, path: Path, reload: bool = True) -> None:
     """Write ``layer`` to ``path`` (temporary name, then rename). A layer of that path still open in
     this process (a stage of an earlier settle check not yet collected) is reloaded, else the next
-    stage opened on the scene would reuse its stale content."""
+    stage opened on the scene would reuse its stale content; ``reload`` False leaves it as it was
+    (the final rewrite for the folder the scene moves to: no stage opens it here again, and a stage
+    still alive would recompose with paths that resolve only from there)."""
     from pxr import Sdf
 
     tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
     if not layer.Export(str(tmp)):
         raise OSError(f"{path}: could not write the layer")
     os.replace(tmp, path)
-    stale = Sdf.Layer.Find(str(path))
+    stale = Sdf.Layer.Find(str(path)) if reload else None
     if stale is not None:
         stale.Reload(force=True)
 
@@ -105,8 +107,9 @@ def _export(layer, path: Path) -> None:
 
 
 def write_root(scene_dir: Path, layout_usd: Path, layout_dir_final: Path, scene_dir_final: Path,
-               meta: dict[str, str]) -> Path:
-    """scene.usda: /World, the layout reference, the physics scene and the sublayers."""
+               meta: dict[str, str], *, reload: bool = True) -> Path:
+    """scene.usda: /World, the layout reference, the physics scene and the sublayers (``reload``:
+    see ``_export``)."""
     from pxr import Gf, Sdf
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
@@ -122,12 +125,14 @@ def write_root(scene_dir: Path, layout_usd: Path, layout_dir_final: Path, scene_
         _attr(ps, "physics:gravityDirection", "Vector3f", Gf.Vec3f(0.0, 0.0, -1.0))
         _attr(ps, "physics:gravityMagnitude", "Float", 9.81)
     path = scene_dir / SCENE_NAME
-    _export(layer, path)
+    _export(layer, path, reload)
     return path
 
 
-def write_placement(scene_dir: Path, scene_dir_final: Path, instances: Sequence[InstanceSpec]) -> Path:
-    """placement.usda: one referencing Xform per instance with its transform and annotations."""
+def write_placement(scene_dir: Path, scene_dir_final: Path, instances: Sequence[InstanceSpec], *,
+                    reload: bool = True) -> Path:
+    """placement.usda: one referencing Xform per instance with its transform and annotations
+    (``reload``: see ``_export``)."""
     from pxr import Gf, Sdf, Vt
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
@@ -146,7 +151,7 @@ def write_placement(scene_dir: Path, scene_dir_final: Path, instances: Sequence[
                   uniform=True)
             s.customData = {"agentworld": {"room": inst.room, "support": inst.support, "category": inst.category}}
     path = scene_dir / LAYER_NAMES["placement"]
-    _export(layer, path)
+    _export(layer, path, reload)
     return path
 
 

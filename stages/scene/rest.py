@@ -10,9 +10,11 @@ must lie inside its contact region. ``analytic_rest`` proves that per instance:
 
 - instances fixed to the world cannot move; their joints only move on their own when gravity works
   on them (``AssetGeometry.neutral_joints``), which the package rest check decides;
-- contact region: the convex hull of the lowest collider points (within ``BASE_TOL``) of the fixed
-  part (a moving part at the bottom, e.g. a door touching the floor, is not proven), clipped to the
-  support surface's polygon (the floor: unbounded); it must sit ``REST_GAP`` above the support;
+- contact region (``stages.scene.support.contact_region``): per collider piece of the fixed part,
+  its base patch (points within ``BASE_TOL`` of the lowest point; a moving part at the bottom, e.g.
+  a door touching the floor, is not proven) clipped to the support surface's polygons (the floor:
+  unbounded), and the hull of those patches: a foot past the support's edge carries nothing; it
+  must sit ``REST_GAP`` above the support;
 - the combined center of mass must lie ``margin`` inside that region (5 mm by default); it is known
   only when every dynamic instance in the stack has authored mass properties (``MassAPI`` mass and
   center of mass on each body): otherwise the simulator derives them from collider volumes, which
@@ -37,14 +39,11 @@ from pathlib import Path
 import numpy as np
 
 from stages.scene.checkcache import CheckCache, content_hash
-from stages.scene.geom import convex_hull_2d, polygon_area, rot2
+from stages.scene.support import (  # noqa: F401  (clip_convex, signed_inside: this module's surface before)
+    BASE_TOL, GAP_TOL, REST_GAP, REST_MARGIN, clip_convex, contact_region, signed_inside, world_com,
+)
 
 log = logging.getLogger(__name__)
-
-BASE_TOL = 0.002      # [m] collider points this close to an asset's lowest point form its base
-GAP_TOL = 2.0e-4      # [m] slack on the rest gap between a base and its support
-REST_MARGIN = 0.005   # [m] the combined center of mass lies this far inside the contact region
-
 
 @dataclass(frozen=True)
 class RestProof:
@@ -56,51 +55,15 @@ class RestProof:
     margin: dict[str, float]
 
 
-def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    """Intersection of two CCW convex polygons (K, 2) (Sutherland-Hodgman); (0, 2) if empty."""
-    out = np.asarray(subject, dtype=np.float64)
-    n = len(clip)
-    for i in range(n):
-        if len(out) == 0:
-            break
-        a, b = clip[i], clip[(i + 1) % n]
-        e = b - a
-        side = e[0] * (out[:, 1] - a[1]) - e[1] * (out[:, 0] - a[0])  # >= 0: inside (left of a->b)
-        res = []
-        for k in range(len(out)):
-            p, q = out[k], out[(k + 1) % len(out)]
-            sp, sq = side[k], side[(k + 1) % len(out)]
-            if sp >= 0:
-                res.append(p)
-            if (sp >= 0) != (sq >= 0):
-                t = sp / (sp - sq)
-                res.append(p + t * (q - p))
-        out = np.asarray(res, dtype=np.float64).reshape(-1, 2)
-    return out
-
-
-def signed_inside(pt: np.ndarray, poly: np.ndarray) -> float:
-    """Distance of ``pt`` (2,) inside the CCW convex polygon ``poly`` [m] (negative: outside)."""
-    e = np.roll(poly, -1, axis=0) - poly
-    n = np.stack([-e[:, 1], e[:, 0]], axis=1)
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    return float(np.min(np.einsum("kd,kd->k", pt[None] - poly, n)))
-
-
 def analytic_rest(pop, needs_package_check, *, margin: float = REST_MARGIN) -> RestProof:
     """See the module docstring. ``pop``: a populated ``stages.scene.solver.Populator``;
     ``needs_package_check(inst) -> str | None``: why the instance's package is not known to rest
     on a flat floor (None: it is)."""
-    from stages.scene.solver import REST_GAP
-
     insts = {i.p.inst: i for i in pop.insts}
     children: dict[str, list[str]] = {}
     for i in pop.insts:
         if i.p.support:
             children.setdefault(i.p.support, []).append(i.p.inst)
-
-    def world_com(i) -> np.ndarray:
-        return np.asarray(i.p.position) + np.append(rot2(i.p.yaw) @ i.geo.com[:2], i.geo.com[2])
 
     def load(name: str) -> tuple[float, np.ndarray]:
         """(mass [kg], center of mass (3,)) of the instance and all that rests on it."""
@@ -125,37 +88,10 @@ def analytic_rest(pop, needs_package_check, *, margin: float = REST_MARGIN) -> R
             continue
         if not i.geo.dynamic:
             continue
-        fixed = [p for p, mv in zip(i.pieces, i.geo.moving) if not mv]
-        low = min(float(p.lo[2]) for p in i.pieces)
-        if any(float(p.lo[2]) < low + BASE_TOL for p, mv in zip(i.pieces, i.geo.moving) if mv):
-            unproven[name] = "a moving part touches the support"
-            continue
-        base = np.vstack([p.vertices[p.vertices[:, 2] < low + BASE_TOL][:, :2] for p in fixed])
-        if len(base) < 3:
-            unproven[name] = "no flat base"
-            continue
-        region = convex_hull_2d(base)
-        if i.p.support is None:
-            top = pop.room_ctx[i.p.room].elevation if i.p.room in pop.room_ctx else None
-        else:
-            # contact: the base clipped to every surface of the support at that height (coplanar
-            # cushions, shelf boards); the region is the hull of all those contact patches
-            sup = insts.get(i.p.support)
-            top, patches = None, []
-            if sup is not None:
-                for s in sup.geo.surfaces:
-                    z = sup.p.position[2] + s.z
-                    if abs(low - REST_GAP - z) <= GAP_TOL:
-                        top = z
-                        c = clip_convex(region, s.polygon @ rot2(sup.p.yaw).T + np.asarray(sup.p.position[:2]))
-                        if len(c):
-                            patches.append(c)
-            region = convex_hull_2d(np.vstack(patches)) if patches else np.zeros((0, 2))
-        if top is None or not (0.0 <= low - top <= REST_GAP + GAP_TOL):
-            unproven[name] = "not resting on its support's surface"
-            continue
-        if len(region) < 3 or polygon_area(region) < 1e-8:
-            unproven[name] = "no contact area"
+        floor_top = pop.room_ctx[i.p.room].elevation if i.p.room in pop.room_ctx else None
+        region, why = contact_region(i, insts.get(i.p.support) if i.p.support else None, floor_top)
+        if region is None:
+            unproven[name] = why
             continue
         if unknown_mass(name):
             unproven[name] = "mass properties not authored on every body of the stack (center of mass unknown)"
@@ -221,7 +157,6 @@ def write_floor_scene(folder: Path, usd_path: Path, geo) -> Path:
     from pxr import Gf, Sdf
 
     from stages.scene.compose import _attr, _layer_meta, _prim, _rel
-    from stages.scene.solver import REST_GAP
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
     with Sdf.ChangeBlock():

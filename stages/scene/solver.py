@@ -15,7 +15,8 @@ candidate is kept only if
   every interactable placed so far.
 
 Then objects are placed on support surfaces (tops, shelves, seats, beds) of the furniture named by
-their rule, resting 1 mm above it, collision-checked the same way, and kept only if reachable.
+their rule, resting 1 mm above it, collision-checked the same way, and kept only if reachable and
+its center of mass is over the part of its base that stands on the surface (``stages.scene.support``).
 Randomness comes only from the ``numpy.random.Generator`` passed in.
 
 Room geometry and the robot-path grid live in ``stages.scene.room``, the catalog view in
@@ -42,10 +43,10 @@ from stages.scene.geom import (
 from stages.scene.library import Library
 from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
 from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
+from stages.scene.support import REST_GAP, tips_over
 
 log = logging.getLogger(__name__)
 
-REST_GAP = 0.001          # [m] assets are placed this far above their support
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
@@ -573,7 +574,8 @@ class Populator:
                 xy = xy + f * (float(np.max(poly @ f)) - float(np.max(fp @ f)) - 0.03)
                 fp = local_fp + xy
             # the central half of the footprint (so the center of mass) must lie on the surface;
-            # overhangs are allowed where the collider check finds nothing in the way
+            # overhangs are allowed where the collider check finds nothing in the way and the center
+            # of mass stays over the feet that stand on the surface (``tips_over``)
             core = xy + 0.5 * (fp - fp.mean(axis=0)) + (fp.mean(axis=0) - xy)
             if not points_in_convex(core, poly, margin=0.005).all():
                 rep.reject(f"{rule.category}: off the edge of {sup.p.record.category}")
@@ -581,7 +583,7 @@ class Populator:
             z = sup.p.position[2] + surf.z + REST_GAP - geo.lo[2]
             inst = self._instance(rec, geo, ctx, xy, z, yaw, sup.p.inst, 0.0)
             inst.on_floor = False
-            why = self._collides(inst)
+            why = self._collides(inst) or tips_over(inst, sup)
             if why is None and rec.interactable and ctx.door_points:
                 if labels is None:
                     ok, lab = self._door_labels_ok(grid, ctx, None)

@@ -69,7 +69,8 @@ def test_tiny_scene_job_end_to_end(tmp_path: Path):
     for key in ("attempts_rejected_by_reason", "room_arrangements_rejected_by_reason", "settle_repairs_by_reason",
                 "failed_items"):
         assert isinstance(rep[key], dict)
-    assert 0 < rep["settle_simulated_s_median"] <= 2.0
+    # 0 when every instance of both scenes is proven at rest (stages.scene.rest: nothing simulated)
+    assert 0.0 <= rep["settle_simulated_s_median"] <= 2.0
     scenes = find_scenes(tmp_path)
     assert len(scenes) == 2
     png = contact_sheet(scenes, tmp_path / "sheet.png", tile=160)
