@@ -86,6 +86,23 @@ def test_video_frame_converts_like_the_encoder_within_a_level():
     assert video_frame(odd, "yuv420p").format.name == "rgb24"
 
 
+def test_video_frame_chroma_within_a_level_of_bt601_limited_range():
+    """U and V of each 2x2 block: BT.601 limited range of the block's mean (OpenCV's INTER_AREA
+    half-size image) rounded, within one level (full-range YCrCb through a table rounds twice)."""
+    import cv2
+
+    from stages.dataset.direct import video_frame
+
+    for rgb in render_like_frames(3, 240, 320):
+        yuv = video_frame(rgb, "yuv420p").to_ndarray().astype(float)
+        half = cv2.resize(rgb, (160, 120), interpolation=cv2.INTER_AREA).astype(float)
+        r, g, b = half[..., 0], half[..., 1], half[..., 2]
+        u = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255
+        v = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255
+        assert np.abs(yuv[240:300].reshape(120, 160) - np.round(u)).max() <= 1
+        assert np.abs(yuv[300:].reshape(120, 160) - np.round(v)).max() <= 1
+
+
 def _encode(frames: np.ndarray, convert) -> bytes:
     import av
 
