@@ -148,9 +148,10 @@ def video_frame(rgb: np.ndarray, pix_fmt: str) -> Any:
     swscale does): luma from OpenCV's ``COLOR_RGB2YUV_I420`` (within 1 level of swscale's), chroma
     of the mean of each 2x2 block (``INTER_AREA``; OpenCV's I420 takes one pixel of each block,
     which costs 0.6 dB): OpenCV's full-range ``COLOR_RGB2YCrCb`` of the half-size image, then a
-    table to limited range (within 1 level of the exact value; ``cv2.transform`` with the limited
-    range matrix gave the same within 1 level at 4x the CPU: 0.19 ms of the conversion's 0.4 ms per
-    240x320 frame on the shared 2-core machine, 0.03 ms now). Against an RGB frame and swscale in the
+    table to limited range (within 1 level of the rounded exact value; ``cv2.transform`` with the
+    limited range matrix did it in one rounding: resize + chroma 0.29 ms per 240x320 frame, now 0.17
+    ms, medians of 15 alternated batches in one process, OpenCV single-threaded, the shared 2-core
+    machine; luma unchanged; 25% of chroma samples differ by 1 level). Against an RGB frame and swscale in the
     encoder (0.37 ms): decoded PSNR 0.1 dB higher, files 2% larger (``tests/stages/test_dataset_encode.py``).
     CPU figures with OpenCV single-threaded (as in the shard pool's workers).
     Other formats and sizes go to the encoder as RGB (it converts)."""
