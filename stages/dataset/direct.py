@@ -52,12 +52,13 @@ logger = logging.getLogger(__name__)
 
 
 class _VideoStream:
-    """One camera's episode video: frames are encoded by a thread (PyAV releases the GIL) as they come.
-
-    put() blocks when ``queue_frames`` frames wait (never drops a frame)."""
+    """One camera's episode video. ``threaded``: frames are encoded by a thread of the stream (PyAV
+    releases the GIL) as they come, and put() blocks when ``queue_frames`` frames wait (never drops
+    a frame); else put() encodes the frame before it returns (a pool's writer process: its parallelism
+    is the processes, and a thread per stream only adds hand-overs, see :class:`DirectBackend`)."""
 
     def __init__(self, path: Path, fps: int, encoder: Any, threads: int | None, height: int, width: int,
-                 queue_frames: int) -> None:  # fmt: skip
+                 queue_frames: int, threaded: bool = True) -> None:  # fmt: skip
         import av
 
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -68,22 +69,28 @@ class _VideoStream:
         stream.pix_fmt, stream.width, stream.height = encoder.pix_fmt, width, height
         stream.time_base = Fraction(1, fps)
         self._stream = stream
-        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
+        self._pts = 0
         self._error: BaseException | None = None
-        name = f"encode-{path.parent.parent.name}"
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self._thread.start()
+        self._thread: threading.Thread | None = None
+        if threaded:
+            self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
+            name = f"encode-{path.parent.parent.name}"
+            self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+            self._thread.start()
+
+    def _encode(self, frame: Any) -> None:
+        """Encode and mux one frame (``None``: flush the encoder)."""
+        if frame is not None:
+            frame.pts = self._pts
+            self._pts += 1
+        for packet in self._stream.encode(frame):
+            self._container.mux(packet)
 
     def _run(self) -> None:
-        pts = 0
         try:
             while (frame := self._queue.get()) is not None:
-                frame.pts = pts
-                pts += 1
-                for packet in self._stream.encode(frame):
-                    self._container.mux(packet)
-            for packet in self._stream.encode():
-                self._container.mux(packet)
+                self._encode(frame)
+            self._encode(None)
         except BaseException as e:  # reported to the caller by put() / close()
             self._error = e
             while self._queue.get() is not None:  # drain so that put() never blocks forever
@@ -92,26 +99,46 @@ class _VideoStream:
             self._container.close()
 
     def put(self, img: np.ndarray) -> None:
-        """Queue ``img`` (uint8 (H, W, 3)); it is copied (into the video frame) before this returns."""
+        """Encode ``img`` (uint8 (H, W, 3)); it is copied (into the video frame) before this returns."""
         if self._error is not None:
             raise RuntimeError(f"{self.path}: video encoding failed: {self._error}") from self._error
-        self._queue.put(video_frame(img, self._stream.pix_fmt))
+        frame = video_frame(img, self._stream.pix_fmt)
+        if self._thread is not None:
+            self._queue.put(frame)
+            return
+        try:
+            self._encode(frame)
+        except Exception as e:
+            self._error = e
+            raise RuntimeError(f"{self.path}: video encoding failed: {e}") from e
+
+    def _stop(self, flush: bool) -> None:
+        if self._thread is not None:
+            self._queue.put(None)
+            self._thread.join()
+            return
+        try:
+            if flush and self._error is None:
+                self._encode(None)
+        except Exception as e:
+            self._error = e
+        finally:
+            self._container.close()
 
     def close(self) -> None:
-        self._queue.put(None)
-        self._thread.join()
+        self._stop(flush=True)
         if self._error is not None:
             raise RuntimeError(f"{self.path}: video encoding failed: {self._error}") from self._error
 
     def discard(self) -> None:
-        self._queue.put(None)
-        self._thread.join()
+        self._stop(flush=False)
         self.path.unlink(missing_ok=True)
 
 
-# BT.601 limited range, 8 bits (the encoder's swscale default): U and V rows of RGB [0, 255] plus offset
-_RGB_TO_UV = np.array([[-37.797, -74.203, 112.0, 128.0 * 255.0], [112.0, -93.786, -18.214, 128.0 * 255.0]],
-                      np.float32) / np.float32(255.0)  # fmt: skip
+# BT.601 chroma: OpenCV's YCrCb is full range (Cb = 128 + 0.564 (B - Y)), the encoder's limited
+# range (U = 128 + 112/255 (B - Y) / 0.886): the same axis scaled by 224/255 around 128, as a table
+_FULL_TO_LIMITED_CHROMA = np.clip(np.round(128.0 + (np.arange(256) - 128.0) * 224.0 / 255.0), 0, 255).astype(
+    np.uint8)  # fmt: skip
 
 
 def video_frame(rgb: np.ndarray, pix_fmt: str) -> Any:
@@ -119,11 +146,14 @@ def video_frame(rgb: np.ndarray, pix_fmt: str) -> Any:
 
     For yuv420p of even size the frame is converted here (BT.601, limited range, as the encoder's
     swscale does): luma from OpenCV's ``COLOR_RGB2YUV_I420`` (within 1 level of swscale's), chroma
-    from the mean of each 2x2 block (``INTER_AREA``; OpenCV's I420 takes one pixel of each block,
-    which costs 0.6 dB). 0.2 ms per 240x320 frame against 0.37 ms for an RGB frame and swscale in the
-    encoder; decoded PSNR 0.1 dB higher, files 2% larger (``tests/stages/test_dataset_encode.py``).
-    CPU figures with OpenCV single-threaded (as in the shard pool's workers); with its default pool of
-    threads (an inline writer in the engine's process) 0.34 ms on 2 cores, more on more cores.
+    of the mean of each 2x2 block (``INTER_AREA``; OpenCV's I420 takes one pixel of each block,
+    which costs 0.6 dB): OpenCV's full-range ``COLOR_RGB2YCrCb`` of the half-size image, then a
+    table to limited range (within 1 level of the rounded exact value; ``cv2.transform`` with the
+    limited range matrix did it in one rounding: resize + chroma 0.29 ms per 240x320 frame, now 0.17
+    ms, medians of 15 alternated batches in one process, OpenCV single-threaded, the shared 2-core
+    machine; luma unchanged; 25% of chroma samples differ by 1 level). Against an RGB frame and swscale in the
+    encoder (0.37 ms): decoded PSNR 0.1 dB higher, files 2% larger (``tests/stages/test_dataset_encode.py``).
+    CPU figures with OpenCV single-threaded (as in the shard pool's workers).
     Other formats and sizes go to the encoder as RGB (it converts)."""
     import av
 
@@ -133,10 +163,11 @@ def video_frame(rgb: np.ndarray, pix_fmt: str) -> Any:
     import cv2
 
     out = cv2.cvtColor(rgb, cv2.COLOR_RGB2YUV_I420)  # (3H/2, W): Y (H, W), then U and V (H/4, W) each
-    uv = cv2.transform(cv2.resize(rgb, (w // 2, h // 2), interpolation=cv2.INTER_AREA), _RGB_TO_UV)
+    half = cv2.resize(rgb, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+    ycc = cv2.LUT(cv2.cvtColor(half, cv2.COLOR_RGB2YCrCb), _FULL_TO_LIMITED_CHROMA)  # Y (unused), Cr, Cb
     q = h // 4
-    out[h:h + q] = uv[..., 0].reshape(q, w)
-    out[h + q:] = uv[..., 1].reshape(q, w)
+    out[h:h + q] = ycc[..., 2].reshape(q, w)
+    out[h + q:] = ycc[..., 1].reshape(q, w)
     return av.VideoFrame.from_numpy_buffer(out, format="yuv420p")
 
 
@@ -158,12 +189,19 @@ def _depth_executor() -> ThreadPoolExecutor:
 
 
 class DirectBackend:
-    """Backend of :class:`~stages.dataset.writer.EpisodeWriter` (same calls as its lerobot backend)."""
+    """Backend of :class:`~stages.dataset.writer.EpisodeWriter` (same calls as its lerobot backend).
+
+    ``inline``: encode RGB and depth in the calling thread, in add() (a shard pool's writer process,
+    which holds a hundred shards: a thread per video stream and the depth threads made every frame
+    six hand-overs between threads under the GIL; the files are the same bytes). Else videos are
+    encoded by a thread per stream and depth by the process's two depth threads, beside the caller.
+    """
 
     def __init__(self, root: Path, spec: DatasetSpec, repo_id: str, encoder_threads: int | None,
-                 queue_frames: int) -> None:  # fmt: skip
+                 queue_frames: int, inline: bool = False) -> None:  # fmt: skip
         self.root, self.spec, self.repo_id = root, spec, repo_id
         self._encoder_threads, self._queue_frames = encoder_threads, queue_frames
+        self._inline = inline
         self.meta: Any = None
         self._pq: Any = None
         self._data_file = 0  # running data file number (chunk = n // chunk_size)
@@ -176,7 +214,7 @@ class DirectBackend:
         self._states: list[np.ndarray] = []
         self._actions: list[np.ndarray] = []
         self._subtasks: list[int] = []
-        self._depth_png: dict[str, list[Future]] = {k: [] for k in self.spec.depth_keys().values()}
+        self._depth_png: dict[str, list[Future | str]] = {k: [] for k in self.spec.depth_keys().values()}
         self._samples: dict[str, list[np.ndarray]] = {}  # downsampled (C, h, w) copies for image stats
 
     # -- lifecycle ---------------------------------------------------------------------------------
@@ -218,7 +256,10 @@ class DirectBackend:
             self._samples.setdefault(key, []).append(stats_sample(img.transpose(2, 0, 1)))
         for cam, key in self.spec.depth_keys().items():
             d = frame.depth_mm[cam].reshape(frame.depth_mm[cam].shape[:2])
-            self._depth_png[key].append(_depth_executor().submit(encode_depth, d.copy()))
+            if self._inline:
+                self._depth_png[key].append(encode_depth(d))
+            else:
+                self._depth_png[key].append(_depth_executor().submit(encode_depth, d.copy()))
             self._samples.setdefault(key, []).append(stats_sample(d[None]))
 
     def _open_videos(self) -> None:
@@ -229,14 +270,16 @@ class DirectBackend:
                 rel = self.meta.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
                 path = self.root / rel
                 self._videos[key] = _VideoStream(path, self.spec.fps, self._encoder, self._encoder_threads,
-                                                 cam.height, cam.width, self._queue_frames)  # fmt: skip
+                                                 cam.height, cam.width, self._queue_frames,
+                                                 threaded=not self._inline)  # fmt: skip
 
     def discard(self) -> None:
         for stream in self._videos.values():
             stream.discard()
         for futures in self._depth_png.values():
             for f in futures:
-                f.cancel()
+                if isinstance(f, Future):
+                    f.cancel()
         self._reset_episode()
 
     # -- saving ------------------------------------------------------------------------------------
@@ -263,7 +306,8 @@ class DirectBackend:
             ep_meta.update({f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
                             f"videos/{key}/from_timestamp": 0.0,
                             f"videos/{key}/to_timestamp": self._duration(stream.path, n)})  # fmt: skip
-        depth = {key: [f.result() for f in futs] for key, futs in self._depth_png.items()}
+        depth = {key: [f.result() if isinstance(f, Future) else f for f in futs]
+                 for key, futs in self._depth_png.items()}  # fmt: skip
         ep_meta.update(self._write_data(columns, depth, start, n))
         stats = self._episode_stats(columns)
         self.meta.save_episode(ep_index, n, [task], stats, ep_meta)

@@ -60,10 +60,13 @@ class PoolConfig:
     """workers: writer processes (shard ``i`` goes to worker ``i % workers``); slots: frames in flight
     per worker (each slot holds one frame's images: 3 cameras of 240x320 RGB + depth take 1.15 MB);
     writer: keyword arguments of each :class:`~stages.dataset.ShardWriter` (backend, encoder_threads,
-    queue_frames; default: ``encoder_threads=1``: a worker encodes each of its shards' video streams
-    in a thread of its own already, and x264's automatic thread count (1.5 per core) in each of
-    hundreds of streams only oversubscribes a many-core host); timeout: [s] a blocked call waits
-    this long for a worker before failing."""
+    queue_frames, inline_encoding; default: ``encoder_threads=1``: a worker encodes each of its shards'
+    video streams in a thread of its own already, and x264's automatic thread count (1.5 per core) in
+    each of hundreds of streams only oversubscribes a many-core host. ``inline_encoding=True`` encodes
+    in the worker's own thread instead (no hand-overs between threads; the same files): on the shared
+    2-core machine 12.2 against 13.1 ms of writer CPU per timestep (medians of 3, within the noise),
+    but one core per worker at most (25 against 47 timesteps/s wall with one worker), so it needs
+    about twice the workers); timeout: [s] a blocked call waits this long for a worker before failing."""
 
     workers: int = 2
     slots: int = 32

@@ -207,7 +207,9 @@ class EpisodeWriter:
     backend: ``"direct"`` (default; :mod:`stages.dataset.direct`, the same format written without
     lerobot's per-frame overheads) or ``"lerobot"`` (lerobot's own writer);
     encoder_threads: threads per video encoder (``None``: the codec decides);
-    queue_frames: frames buffered per camera before add_frame blocks on the encoder.
+    queue_frames: frames buffered per camera before add_frame blocks on the encoder;
+    inline_encoding: the direct backend encodes RGB and depth in add_frame's thread (no encoder or
+    depth threads: what a shard pool's writer process wants, see :class:`~stages.dataset.direct.DirectBackend`).
     """
 
     def __init__(
@@ -219,9 +221,12 @@ class EpisodeWriter:
         repo_id: str = "agentworld/dataset",
         encoder_threads: int | None = 1,
         queue_frames: int = 60,
+        inline_encoding: bool = False,
     ) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if inline_encoding and backend != "direct":
+            raise ValueError(f"inline_encoding needs the direct backend, got backend {backend!r}")
         self.root = Path(root)
         self.spec = spec
         self.repo_id = repo_id
@@ -229,6 +234,7 @@ class EpisodeWriter:
         self.stats = WriterStats()
         self._encoder_threads = encoder_threads
         self._queue_frames = queue_frames
+        self._inline_encoding = inline_encoding
         self._state = _State.NEW
         self._impl: Any = None
         self._episode: EpisodeInfo | None = None
@@ -241,11 +247,11 @@ class EpisodeWriter:
         self._require(_State.NEW, "open")
         if self.root.exists():
             raise FileExistsError(f"{self.root}: dataset folder already exists")
+        args = (self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
         if self.backend == "lerobot":
-            backend_cls: type = _LerobotBackend
+            impl: Any = _LerobotBackend(*args)
         else:
-            backend_cls = DirectBackend
-        impl = backend_cls(self.root, self.spec, self.repo_id, self._encoder_threads, self._queue_frames)
+            impl = DirectBackend(*args, inline=self._inline_encoding)
         impl.open()
         self._impl = impl
         self._state = _State.OPEN

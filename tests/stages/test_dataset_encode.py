@@ -48,6 +48,29 @@ def test_numeric_episode_stats_equal_lerobots_bit_for_bit(n):
             np.testing.assert_array_equal(g, w, err_msg=f"{key} {stat}")
 
 
+def test_numeric_episode_stats_of_a_nearly_constant_float32_column_warn_nothing():
+    """A float32 dimension whose range is below 5,000 ulps of its value (a coordinate held still, e.g.
+    the base at x = 1002.06 m, moving 0.16 m) has repeated histogram edges. The quantiles' vectorised
+    interpolation multiplied -inf (an empty bin, masked afterwards) by a zero bin width there: numpy's
+    ``invalid value encountered in multiply`` on every such episode; the values are lerobot's."""
+    import warnings
+
+    from lerobot.datasets.compute_stats import compute_episode_stats
+
+    from stages.dataset.stats import numeric_episode_stats
+
+    held = np.r_[np.full(20, 1002.05817), np.full(39, 1002.21594)].astype(np.float32)
+    cols = {"observation.state": np.stack([held, np.linspace(0, 1, held.size, dtype=np.float32)], axis=1)}
+    features = {"observation.state": {"dtype": "float32"}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = numeric_episode_stats(cols, features)["observation.state"]
+    want = compute_episode_stats(cols, features)["observation.state"]
+    for stat, w in want.items():
+        assert np.isfinite(got[stat]).all(), stat
+        np.testing.assert_array_equal(got[stat], w, err_msg=stat)
+
+
 def test_video_frame_converts_like_the_encoder_within_a_level():
     import av
 
@@ -61,6 +84,23 @@ def test_video_frame_converts_like_the_encoder_within_a_level():
         assert diff[240:].mean() < 1.0 and diff[240:].max() <= 10  # chroma: 2x2 means, close to swscale's
     odd = render_like_frames(1, 49, 64)[0]  # odd height: the encoder converts
     assert video_frame(odd, "yuv420p").format.name == "rgb24"
+
+
+def test_video_frame_chroma_within_a_level_of_bt601_limited_range():
+    """U and V of each 2x2 block: BT.601 limited range of the block's mean (OpenCV's INTER_AREA
+    half-size image) rounded, within one level (full-range YCrCb through a table rounds twice)."""
+    import cv2
+
+    from stages.dataset.direct import video_frame
+
+    for rgb in render_like_frames(3, 240, 320):
+        yuv = video_frame(rgb, "yuv420p").to_ndarray().astype(float)
+        half = cv2.resize(rgb, (160, 120), interpolation=cv2.INTER_AREA).astype(float)
+        r, g, b = half[..., 0], half[..., 1], half[..., 2]
+        u = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255
+        v = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255
+        assert np.abs(yuv[240:300].reshape(120, 160) - np.round(u)).max() <= 1
+        assert np.abs(yuv[300:].reshape(120, 160) - np.round(v)).max() <= 1
 
 
 def _encode(frames: np.ndarray, convert) -> bytes:

@@ -100,3 +100,22 @@ def test_a_bad_frame_names_the_shard_and_a_worker_failure_publishes_nothing(tmp_
             pool.close()
     assert [s.shard_id for s in list_shards(d)] == ["s1"] and _files(d / "s1") == before
     assert not [p for p in d.iterdir() if p.name.startswith(".")]  # s0's temporary folder removed
+
+
+def test_inline_encoding_writes_the_same_files(tmp_path):
+    """``inline_encoding`` (RGB and depth encoded in add_frame's thread, for a pool's workers) gives
+    the same bytes as the encoder and depth threads; a dropped episode leaves nothing behind."""
+    def write(d: Path, inline: bool) -> Path:
+        with open_shard(d, "s0", SPEC, inline_encoding=inline) as shard:
+            for e, n, ok in PLAN[0]:
+                shard.begin_episode(synthetic_episode_info(0, e))
+                for i in range(n):
+                    shard.add_frame(synthetic_frame(SPEC, 0, e, i))
+                shard.end_episode(success=ok, reason="" if ok else "dropped")
+        return d / "s0"
+
+    threaded, inline = _files(write(tmp_path / "threads", False)), _files(write(tmp_path / "inline", True))
+    assert threaded == inline
+    assert sum(k.endswith(".mp4") for k in inline) == 4  # 2 written episodes x 2 RGB cameras
+    with pytest.raises(ValueError, match="inline_encoding needs the direct backend"):
+        open_shard(tmp_path / "x", "s0", SPEC, backend="lerobot", inline_encoding=True)
