@@ -65,3 +65,39 @@ def test_python_client_drives_a_real_session_and_receives_frames(teleop_world, t
         session.stop()
         session.join(120)
         srv.close()
+
+
+@pytest.mark.slow  # ~100 s on the shared 2-core machine: MuJoCo-Warp's CPU kernels step one world slowly
+def test_python_client_on_the_gpu_code_path_on_cpu(teleop_world, tmp_path):
+    """The session as ``--device cuda`` builds it (the batched layout: MuJoCo-Warp, WorldHold, the
+    render in the engine's thread, frames delivered at the next frame step), run on the CPU: the
+    client gets frames and its keys drive the base."""
+    from stages.teleop import TeleopConfig, TeleopSession
+    from stages.teleop.client import TeleopClient
+
+    cfg = TeleopConfig(width=32, height=24, cameras=("head",), layout="batched")
+    session = TeleopSession(teleop_world, task="pick_place_bowl", out=tmp_path / "out", config=cfg, world_seed=5)
+    ecfg = session.engine.config
+    assert ecfg.resolved_layout() == "batched" and not ecfg.background_render
+    assert session.engine.banks[0].hold is not None  # MuJoCo-Warp's world hold: the batched engine
+    srv = ServerThread(session)
+    session.start()
+    try:
+        with TeleopClient(srv.url) as c:
+            c.wait(lambda: c.frames >= 2, what="the first frames")
+            assert c.last_images["head"].shape == (24, 32, 3)
+            c.key_down("KeyQ")  # turn left
+            t0 = session.status()["tick"]
+            wait_for(lambda: session.status()["tick"] >= t0 + 4, what="4 ticks of Q")
+            c.key_up("KeyQ")
+            n = c.frames
+            c.wait(lambda: c.frames >= n + 2, what="frames after the turn")
+        assert not c.errors, c.errors
+    finally:
+        session.stop()
+        session.join(120)
+        srv.close()
+    import json
+
+    ticks = [json.loads(line) for line in session.log_path.read_text().splitlines()]
+    assert sum(t.get("kind") == "tick" and t["base"] == [0.0, 0.0, 1.0] for t in ticks) >= 4  # Q applied
