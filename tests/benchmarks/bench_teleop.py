@@ -116,7 +116,7 @@ class _PythonOperator:
 
 
 def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30.0, size=(160, 120),
-              chromium: str | None = None) -> dict:
+              chromium: str | None = None, cameras: tuple[str, ...] = ("wrist", "head", "third_person")) -> dict:
     """One benchmark run (see the module docstring); returns the result written to bench_results."""
     from teleop_testutil import ServerThread, wait_for
 
@@ -128,7 +128,7 @@ def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30
     try:
         t_build = time.monotonic()
         world = teleop_kitchen(tmp / "world", 5)
-        cfg = TeleopConfig(width=w, height=h, device=device)
+        cfg = TeleopConfig(width=w, height=h, device=device, cameras=tuple(cameras))
         session = TeleopSession(world, task="pick_place_bowl", out=tmp / "out", config=cfg, world_seed=5)
         srv = ServerThread(session)
         session.start()
@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--device", default="cpu", help="the session's simulation and rendering device: cpu, cuda[:n]")
     p.add_argument("--seconds", type=float, default=30.0, help="wall seconds of the recorded episode")
     p.add_argument("--size", default="160x120", help="camera images WxH [px]")
+    p.add_argument("--cameras", default="wrist,head,third_person", help="cameras rendered and streamed")
     a = p.parse_args(argv)
     chromium = None
     if a.client == "chromium":
@@ -216,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
             p.error("--client chromium: no Chromium from the OS packages here (use --client python)")
     w, h = (int(x) for x in a.size.split("x"))
     os.environ.setdefault("TQDM_DISABLE", "1")
-    result = run_bench(a.client, a.device, a.seconds, (w, h), chromium=chromium)
+    result = run_bench(a.client, a.device, a.seconds, (w, h), chromium=chromium, cameras=tuple(a.cameras.split(",")))
     ok = result["latency"]["render_to_display"]["count"] > 0 and result["latency"]["input_to_command"]["count"] > 0
     return 0 if ok else 1
 

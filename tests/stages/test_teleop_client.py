@@ -101,3 +101,12 @@ def test_python_client_on_the_gpu_code_path_on_cpu(teleop_world, tmp_path):
 
     ticks = [json.loads(line) for line in session.log_path.read_text().splitlines()]
     assert sum(t.get("kind") == "tick" and t["base"] == [0.0, 0.0, 1.0] for t in ticks) >= 4  # Q applied
+
+
+def test_cli_cameras_option_is_checked(tmp_path, capsys):
+    from stages.teleop.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["pick_place_bowl", "--out", str(tmp_path), "--cameras", "head,nose"])
+    assert e.value.code == 2 and "--cameras 'head,nose'" in capsys.readouterr().err
+    assert not (tmp_path / "logs").exists()  # refused before anything was built
