@@ -22,6 +22,9 @@ Prints and writes ``bench_results/teleop.json`` (Chromium) or ``bench_results/te
 - sim_fps: frames the simulation captured per wall second; display_fps: frames the page showed per
   second (the page's count over its last 2 s, read every 2 s: median, min, max); the engine's wall
   time split (simulation, rendering, control, encoding);
+- process_cpu_ms_per_frame: CPU time of the benchmark's process (session, render threads, server,
+  and the Python client when it is the client) per simulated frame in the window [ms] (less
+  sensitive to a shared machine's load than the frame rates);
 - load_average: the machine's 1-minute load average at the start and the end (the figures above
   depend on what else runs on a shared machine).
 """
@@ -143,6 +146,7 @@ def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30
                 op.focus()
                 load0 = os.getloadavg()[0]
                 t0 = time.monotonic()
+                tick0, cpu0 = session.status()["tick"], time.process_time()
                 fps = []
                 while time.monotonic() - t0 < seconds:
                     op.key("KeyW", True)
@@ -150,6 +154,7 @@ def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30
                     op.key("KeyW", False)
                     time.sleep(1.0)
                     fps.append(op.fps())
+                ticks, cpu = session.status()["tick"] - tick0, time.process_time() - cpu0
                 op.save()
                 wait_for(lambda: session.status()["saved"] >= 1, what="save")
             finally:
@@ -169,7 +174,8 @@ def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30
                   "load_average": [round(load0, 2), round(os.getloadavg()[0], 2)],
                   "realtime_factor": round(meta["sim_seconds"] / meta["wall_seconds"], 3),
                   "latency": meta["latency"], "engine_seconds": stats["timings"], "cpu_count": os.cpu_count(),
-                  "startup_seconds": round(build_s, 1), "server": dict(srv.server.stats), **extra}
+                  "startup_seconds": round(build_s, 1),
+                  "process_cpu_ms_per_frame": round(1000.0 * cpu / max(ticks, 1), 1), "server": dict(srv.server.stats), **extra}
         name = "teleop.json" if client == "chromium" else f"teleop_python_{device.replace(':', '')}.json"
         dest = REPO / "bench_results" / name
         dest.parent.mkdir(exist_ok=True)
@@ -179,7 +185,8 @@ def run_bench(client: str = "chromium", device: str = "cpu", seconds: float = 30
               f"frames/s ({result['realtime_factor']}x real time), display {result['display_fps_median']} fps; "
               f"input->command p50 {lat['input_to_command']['p50_ms']} ms p95 {lat['input_to_command']['p95_ms']} ms; "
               f"render->display p50 {lat['render_to_display']['p50_ms']} ms p95 {lat['render_to_display']['p95_ms']} ms"
-              f"\nengine wall split [s]: {stats['timings']}; load average {result['load_average']} on "
+              f"\nthis process's CPU {result['process_cpu_ms_per_frame']} ms per frame (server, session, render"
+              f"{', client' if client == 'python' else ''}); engine wall split [s]: {stats['timings']}; load average {result['load_average']} on "
               f"{os.cpu_count()} cores\n-> {dest}", flush=True)
         return result
     finally:
