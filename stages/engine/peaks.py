@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stages.simulate.launch_cache import LaunchCache
+
 
 class LocalPeaks:
     """Peaks of world programs running in the engine's process: the banks' device arrays."""
@@ -41,7 +43,8 @@ class Peaks:
         self._active = wp.zeros(n, dtype=wp.int32, device=dev)
         self._dirty = False
         self._host: np.ndarray | None = None  # host copy of _peak, read at most once per step
-        self._kernel = _peaks_kernel()
+        # replayed from recorded launches (one per state buffer: they alternate)
+        self._launch = LaunchCache(_peaks_kernel(), (n, max(1, len(self.paths))), dev)
         sim.pre_step.append(self._pre_step)
 
     def start(self, w: int) -> None:
@@ -65,16 +68,13 @@ class Peaks:
         return {p: float(row[i]) for i, p in enumerate(self.paths)}
 
     def _pre_step(self, sim) -> None:
-        import warp as wp
-
         if not self.paths:
             return
         self._host = None
         if self._dirty:
             self._active.assign(self._active_np)
             self._dirty = False
-        wp.launch(self._kernel, dim=(sim.world_count, len(self.paths)), device=sim.model.device,
-                  inputs=[sim.state_0.joint_q, self._coords, self._active, sim.coords_per_world, self._peak])
+        self._launch.launch([sim.state_0.joint_q, self._coords, self._active, sim.coords_per_world, self._peak])
 
 
 _PEAKS_KERNEL = None

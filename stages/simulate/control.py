@@ -21,6 +21,7 @@ import numpy as np
 
 from stages.simulate.clik_lanes import IkResult, _solve1, solve_lanes
 from stages.simulate.cooperative import checkpoint
+from stages.simulate.launch_cache import LaunchCache
 from stages.simulate.robot import RobotDescription
 
 log = logging.getLogger(__name__)
@@ -159,6 +160,8 @@ class RobotControl(CommandBuffers):
                          np.array([hi[sim.robot.dof[n]] for n in desc.arm_joints]),
                          sim.control.joint_target_q.numpy().copy(), np.zeros((nw, 3), np.float32))
         self._default_targets = sim.model.joint_target_q.numpy().copy()
+        # the base kernel, replayed from recorded launches (one per state buffer: they alternate)
+        self._launch = LaunchCache(_KERNEL, nw, sim.model.device)
         sim.pre_step.append(self._pre_step)
 
     def bind(self, targets: np.ndarray, cmd: np.ndarray) -> None:
@@ -190,8 +193,6 @@ class RobotControl(CommandBuffers):
 
     # -- per-step --------------------------------------------------------------------------
     def _pre_step(self, sim) -> None:
-        import warp as wp
-
         if self._dirty:
             sim.control.joint_target_q.assign(self._targets.astype(np.float32))
             self._dirty = False
@@ -199,22 +200,9 @@ class RobotControl(CommandBuffers):
             self._cmd.assign(self._cmd_np)
             self._cmd_dirty = False
         r = sim.robot
-        wp.launch(
-            _KERNEL,
-            dim=sim.world_count,
-            device=sim.model.device,
-            inputs=[
-                self._cmd,
-                sim.state_0.joint_q,
-                sim.control.joint_target_qd,
-                r.coord["base_yaw"],
-                r.dof["base_x"],
-                r.dof["base_y"],
-                r.dof["base_yaw"],
-                sim.coords_per_world,
-                sim.dofs_per_world,
-            ],
-        )
+        self._launch.launch([self._cmd, sim.state_0.joint_q, sim.control.joint_target_qd, r.coord["base_yaw"],
+                             r.dof["base_x"], r.dof["base_y"], r.dof["base_yaw"], sim.coords_per_world,
+                             sim.dofs_per_world])
 
 
 # --------------------------------------------------------------------------------------------

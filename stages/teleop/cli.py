@@ -86,12 +86,18 @@ def main(argv: list[str]) -> int:
     p.add_argument("--seed", type=int, default=0, help="seed of the first episode's task instance")
     p.add_argument("--width", type=int, default=160, help="camera image width [px]")
     p.add_argument("--height", type=int, default=120, help="camera image height [px]")
+    p.add_argument("--cameras", default="wrist,head,third_person",
+                   help="cameras rendered, streamed and recorded (comma-separated; fewer render faster on a CPU)")
     p.add_argument("--episode-seconds", type=float, default=300.0, help="longest recorded episode [s]")
     p.add_argument("--work", type=Path, help="where the kitchen's assets are built (default OUT/.work/world)")
     p.add_argument("--verbose", action="store_true", help="show third-party output on the console too")
     a = p.parse_args(argv)
     if a.robot not in ROBOTS:
         p.error(f"--robot {a.robot!r}: the engine drives {', '.join(ROBOTS)} today")
+    cameras = tuple(c.strip() for c in a.cameras.split(",") if c.strip())
+    bad = set(cameras) - {"wrist", "head", "third_person"}
+    if bad or not cameras:
+        p.error(f"--cameras {a.cameras!r}: choose among wrist, head, third_person")
     out = a.out.resolve()
     console = _logging(out, a.verbose)
     log = logging.getLogger("stages.teleop")
@@ -112,7 +118,7 @@ def main(argv: list[str]) -> int:
         s = replay_session(script, world, out=out)
         print(f"replayed {len(s.saved)} episode(s) of {a.replay} into {out / 'dataset'}", file=console)
         return 0
-    cfg = TeleopConfig(device=a.device, seed=a.seed, width=a.width, height=a.height,
+    cfg = TeleopConfig(device=a.device, seed=a.seed, width=a.width, height=a.height, cameras=cameras,
                        episode_seconds=a.episode_seconds, hand=a.hand, retarget=a.retarget)
     log.info("building the kitchen (world seed %d) in %s", a.world_seed, work)
     world = teleop_kitchen(work, a.world_seed)

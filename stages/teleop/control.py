@@ -46,7 +46,10 @@ class TeleopConfig:
     its controls every 0.1 s, so a stalled or vanished page stops the robot; None: never); hand:
     a dexterous hand on the Panda instead of its parallel gripper ("allegro" or "shadow"), driven
     by the WebXR hand's fingers; retarget: dex-retargeting's optimizer for it ("dexpilot": fingertip
-    and thumb-to-finger vectors, keeps pinches; "vector": wrist-to-fingertip vectors)."""
+    and thumb-to-finger vectors, keeps pinches; "vector": wrist-to-fingertip vectors); layout: the
+    engine's layout ("auto": one MuJoCo C world on the CPU, whose frames render in threads beside
+    the physics; on CUDA the batched layout: MuJoCo-Warp stepped as a CUDA graph, rendered on the
+    GPU; "batched" on the CPU runs that GPU code path, rendering in the engine's thread as there)."""
 
     max_base_speed: float = 0.5
     max_base_turn: float = 1.0
@@ -65,6 +68,7 @@ class TeleopConfig:
     command_timeout: float | None = 1.0
     hand: str | None = None
     retarget: str = "dexpilot"
+    layout: str = "auto"
 
     def __post_init__(self) -> None:
         problems = []
@@ -88,6 +92,8 @@ class TeleopConfig:
             problems.append(f"hand must be allegro, shadow or None, got {self.hand!r}")
         if self.retarget not in ("vector", "dexpilot"):
             problems.append(f"retarget must be vector or dexpilot, got {self.retarget!r}")
+        if self.layout not in ("auto", "batched", "per_world"):
+            problems.append(f"layout must be auto, batched or per_world, got {self.layout!r}")
         if problems:
             raise ValueError("teleop config: " + "; ".join(problems))
 

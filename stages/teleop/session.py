@@ -27,7 +27,7 @@ import logging
 import secrets
 import threading
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -82,11 +82,15 @@ class TeleopSession:
         self.out = Path(out)
         self._check_task()
         self.name = datetime.now(UTC).strftime("%Y%m%dT%H%M%S") + "-" + secrets.token_hex(3)
-        # on the CPU each frame renders in a thread of its own while the next frame's physics steps
-        # run, and reaches the page as soon as it is rendered (the same frames: stages.engine)
+        # on the CPU (MuJoCo C) each frame renders in a thread of its own while the next frame's
+        # physics steps run, and reaches the page as soon as it is rendered (the same frames:
+        # stages.engine); the batched layout (CUDA: MuJoCo-Warp, a CUDA graph, the GPU's render)
+        # renders in the engine's thread, on the CPU too (tests run the GPU's code path there)
         ecfg = EngineConfig(worlds=1, device=config.device, width=config.width, height=config.height,
                             fps=config.fps, cameras=config.cameras, gripper=config.hand or "panda_hand",
-                            background_render=not config.device.startswith("cuda"))
+                            layout=config.layout)
+        ecfg = replace(ecfg, background_render=ecfg.resolved_layout() == "per_world"
+                       and not config.device.startswith("cuda"))
         self.engine = BatchEngine(world, panda_root=panda_root, work_dir=self.out / ".work" / self.name,
                                   config=ecfg, seed=world_seed)
         self.retargeter = None  # WebXR hand joints -> the dexterous hand's joint targets
