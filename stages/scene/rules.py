@@ -63,6 +63,7 @@ class FurnitureRule(_Entry):
     tall_ok_at_window: bool = False
     snap: float = Field(default=0.0, ge=0.0, le=1.0)
     min_top: float | None = Field(default=None, gt=0.0)
+    stand: float = Field(default=0.0, ge=0.0, le=3.0)
 
     def fits(self, record, geo) -> bool:
         """Whether the longest top surface of the package (within 2 cm of its highest surface), along
