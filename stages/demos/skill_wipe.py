@@ -6,7 +6,10 @@ with contact (task ``wipe_plate``).
   tasks) and the :class:`WipeTrace` that records the wipe;
 - :func:`wipe_plate` (the expert): top-down grasp of the sponge across its width, over the plate,
   down until the sponge presses :data:`PRESS` into the plate's surface, rows across the plate's
-  well (boustrophedon, :data:`ROW_STEP` apart), up, the sponge back where it lay, release;
+  well (boustrophedon, :data:`ROW_STEP` apart); then, while the trace's coverage is short of
+  :data:`COVERAGE` + :data:`TOUCH_UP_MARGIN` (the plate dragged along, the sponge turned or lifted in
+  the hand: kitchen 1 ended at 0.799), up to :data:`TOUCH_UPS` passes over the cells still unwiped
+  (:func:`_touch_up_rows`); up, the sponge back where it lay, release;
 - :func:`wipe_plate_success` (the predicate): coverage of the plate's top (its flat well, radius
   ``well_ratio x radius`` + 1 cm) by the sponge's contact path at least :data:`COVERAGE`, the plate
   still on the table, the sponge released on the table.
@@ -37,6 +40,8 @@ CONTACT_TOL = 0.005     # in contact: the sponge's bottom at most this above the
 ROW_STEP = 0.6          # rows this many sponge widths apart
 SAMPLE_STEP = 0.015     # the path is moved and sampled in steps of this [m]
 CELL = 0.01             # coverage cells [m]
+TOUCH_UP_MARGIN = 0.06  # the expert strokes again over what is left until this share above COVERAGE is wiped
+TOUCH_UPS = 2           # such passes at most
 MAX_SPONGE_WIDTH = 0.072  # the Franka hand's 80 mm stroke grasps a sponge at most this wide [m]
 
 
@@ -188,6 +193,38 @@ def _rows(trace: WipeTrace, center, yaw: float) -> list[np.ndarray]:
     return rows
 
 
+def _touch_up_rows(trace: WipeTrace, center, yaw: float) -> list[np.ndarray]:
+    """The sponge centre's path (N, 2) [m] over the cells of ``trace`` still unwiped, the plate at
+    ``center``: rows along world ``yaw``, :data:`ROW_STEP` sponge widths apart across it, each over
+    its band's unwiped cells (the sponge's half length short of their ends), alternating direction;
+    the centre kept 1 cm inside the plate's rim (a sample counts only with the centre over the
+    plate). Empty when everything is wiped."""
+    missed = trace.cells[~trace.wiped]
+    if not len(missed):
+        return []
+    sx, sy, _ = trace.sponge_size
+    along = np.array([math.cos(yaw), math.sin(yaw)])
+    across = np.array([-along[1], along[0]])
+    u, v = missed @ along, missed @ across
+    well = float(np.linalg.norm(trace.cells, axis=1).max()) + CELL / 2
+    rim = float(trace.plate_params["radius"]) - 0.01
+    step = ROW_STEP * sy
+    band = np.floor((v - v.min()) / step).astype(int)
+    rows = []
+    for k, b in enumerate(np.unique(band)):
+        m = band == b
+        o = float(np.clip(0.5 * (v[m].min() + v[m].max()), -(well - sy / 2), well - sy / 2))
+        lim = math.sqrt(max(rim * rim - o * o, 0.0))
+        lo, hi = float(u[m].min()) + 0.25 * sx, float(u[m].max()) - 0.25 * sx
+        lo, hi = (lo, hi) if lo <= hi else (0.5 * (lo + hi),) * 2
+        lo, hi = float(np.clip(lo, -lim, lim)), float(np.clip(hi, -lim, lim))
+        ts = np.linspace(lo, hi, max(2, int((hi - lo) / SAMPLE_STEP) + 1))
+        if k % 2:
+            ts = ts[::-1]
+        rows.append(np.asarray(center, float) + np.outer(ts, along) + o * across)
+    return rows
+
+
 def wipe_plate(inst, d) -> None:
     """The expert (see the module doc)."""
     from stages.demos.driver import stow
@@ -244,6 +281,19 @@ def wipe_plate(inst, d) -> None:
             d.move(_pose([*xy, tcp_z(xy)], wrot), 0.1, segments=1)
             trace.record(read_state(d.sim))
     last = rows[-1][-1]
+    for _ in range(TOUCH_UPS):
+        if trace.coverage >= COVERAGE + TOUCH_UP_MARGIN:
+            break
+        pxy = np.asarray(read_state(d.sim).objects[trace.plate].position[:2], float)  # (tcp_z reads it)
+        for row in _touch_up_rows(trace, pxy, wipe_yaw):
+            # over to the row's start still pressing, at most 0.15 m/s (a quick drag shifts the plate)
+            d.move(_pose([*row[0], tcp_z(row[0])], wrot), max(0.3, float(np.linalg.norm(row[0] - last)) / 0.15),
+                   segments=2)
+            trace.record(read_state(d.sim))
+            for xy in row[1:]:
+                d.move(_pose([*xy, tcp_z(xy)], wrot), 0.1, segments=1)
+                trace.record(read_state(d.sim))
+            last = row[-1]
     d.move(_pose([*last, plate_z + 0.06 + grasp_h], wrot), 0.8, segments=2, carry=True, tol=APPROACH_TOL)
     d.move(_pose([*sxy, top + grasp_h + 0.06], rot), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
     d.move(_pose([*sxy, top + grasp_h + 0.004], rot), 0.6, segments=2, settle=0.1)

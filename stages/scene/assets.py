@@ -223,3 +223,29 @@ def _inside(p: ConvexPiece, x: np.ndarray) -> bool:
     if np.any(x < p.lo) or np.any(x > p.hi):
         return False
     return bool(np.all(p.normals @ x < (p.vertices @ p.normals.T).max(axis=0)))
+
+
+def stand_zones(geo: AssetGeometry, width: float, depth: float, hinge_width: float = 0.0) -> list[np.ndarray]:
+    """Asset-frame rectangles (4, 2) [m] of floor a robot stands on to open and close a vertically
+    hinged door: ``width`` out beside each such door's free edge (where the base takes the handle)
+    and ``hinge_width`` out beyond its hinge (where the base pushes the open leaf shut), from the
+    asset's front face (asset +X) out by ``depth`` or the swing's depth, whichever is larger. A
+    swing whose far end spans its width (a drawer, a bottom-hinged oven door) has none; a door's
+    hinge side is where its swing reaches furthest out."""
+    out: list[np.ndarray] = []
+    for s in geo.swings:
+        x_far = float(s[:, 0].max())
+        if x_far - geo.hi[0] < 0.2:
+            continue
+        far = s[s[:, 0] > x_far - 0.02]
+        if float(np.ptp(far[:, 1])) > 0.5 * float(np.ptp(s[:, 1])):
+            continue
+        x0, x1 = float(geo.hi[0]), float(geo.hi[0] + max(depth, x_far - geo.hi[0]))
+        y_lo, y_hi = float(s[:, 1].min()), float(s[:, 1].max())
+        hinge_up = float(far[:, 1].mean()) >= 0.5 * (y_lo + y_hi)   # hinge at +Y: free edge at -Y
+        lo_w, hi_w = (width, hinge_width) if hinge_up else (hinge_width, width)
+        for y0, y1 in ((y_lo - lo_w, y_lo), (y_hi, y_hi + hi_w)):
+            z = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+            if y1 - y0 > 0 and not any(np.allclose(z, o) for o in out):
+                out.append(z)
+    return out

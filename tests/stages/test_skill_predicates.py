@@ -12,7 +12,7 @@ import numpy as np
 
 from asset_catalog.asset_model import Pose
 from stages.demos.skill_fridge import Shelf, pick_place_fridge_success
-from stages.demos.skill_wipe import COVERAGE, WipeTrace, _rows
+from stages.demos.skill_wipe import COVERAGE, TOUCH_UP_MARGIN, WipeTrace, _rows, _touch_up_rows
 from stages.simulate.state import BasePose, RobotState, StepState
 
 PLATE = {"radius": 0.12, "height": 0.022, "thickness": 0.005, "well_ratio": 0.7}
@@ -51,6 +51,31 @@ def test_the_wipe_counts_cells_under_the_sponge_only_in_contact():
             z = 0.75 + float(tr.surface(r).max())
             tr.record(_state({"/P": plate, "/S": Pose(position=(*xy, z))}))
     assert tr.coverage >= COVERAGE > once
+
+
+def _wipe_along(tr: WipeTrace, rows, plate_at) -> None:
+    """Record each point of ``rows`` in contact, the plate's centre at ``plate_at(xy)`` then."""
+    for row in rows:
+        for xy in row:
+            pc = plate_at(xy)
+            r = np.linalg.norm(tr.footprint(xy, 0.0) - pc, axis=1)
+            tr.record(_state({"/P": Pose(position=(*pc, 0.75)),
+                              "/S": Pose(position=(*xy, 0.75 + float(tr.surface(r).max())))}))
+
+
+def test_touch_up_rows_wipe_what_a_dragged_plate_left():
+    """The plate dragged along by the sponge (its centre following the sponge by 90 % along the rows, 50 % across): the rows
+    wipe less than COVERAGE; strokes over the cells left, from where the plate now stands, wipe
+    them."""
+    tr = _trace()
+    _wipe_along(tr, _rows(tr, (1.0, 2.0), 0.0),
+                lambda xy: np.array([1.0 + 0.9 * (xy[0] - 1.0), 2.0 + 0.5 * (xy[1] - 2.0)]))
+    assert 0.3 < tr.coverage < COVERAGE
+    here = np.array([1.03, 2.0])
+    for _ in range(2):
+        _wipe_along(tr, _touch_up_rows(tr, here, 0.0), lambda xy: here)
+    assert tr.coverage >= COVERAGE + TOUCH_UP_MARGIN
+    assert _touch_up_rows(SimpleNamespace(**{**tr.__dict__, "wiped": np.ones_like(tr.wiped)}), here, 0.0) == []
 
 
 def test_a_tilted_sponge_does_not_wipe():
