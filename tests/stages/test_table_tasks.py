@@ -16,15 +16,18 @@ pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs ne
 def test_report_counts_successes_and_failure_reasons_per_pair():
     """summarize() counts what the episodes say; the bimanual measurements map to one reason each."""
     from stages.demos.bimanual import Handover, TrayLift
-    from stages.demos.table_record import summarize, table
+    from stages.demos.table_record import summarize
+    from stages.demos.table_summary import summarize_runs, summary_table
     from stages.demos.table_tasks import _handover_reason, _tray_reason
 
-    ep = [{"success": s, "reason": r, "wall_seconds": w, "sim_seconds": 8.0, "render_seconds": 0.0, "frames": 240}
-          for s, r, w in ((True, "", 20.0), (False, "dropped", 30.0), (False, "dropped", 10.0), (False, "tipped", 20.0))]
+    ep = [{"success": s, "reason": r, "wall_seconds": w, "sim_seconds": 8.0, "render_seconds": 0.0, "frames": 240,
+           "seed": k} for k, (s, r, w) in enumerate(((True, "", 20.0), (False, "dropped", 30.0), (False, "dropped", 10.0),
+                                                     (False, "tipped", 20.0)))]
     rep = summarize("allegro/pick_place_mug", ep)
     assert (rep["attempts"], rep["successes"], rep["success_rate"]) == (4, 1, 0.25)
     assert rep["failures"] == {"dropped": 2, "tipped": 1} and rep["wall_seconds_per_episode"] == 20.0
-    assert "1/4" in table({"pairs": {"allegro/pick_place_mug": rep}})
+    line = summary_table(summarize_runs({"out": {"seed": 0, "pairs": {"allegro/pick_place_mug": rep}}}))
+    assert "1/4" in line and "BELOW 80%" in line and "dropped 2, tipped 1" in line
     level = dict(lift=0.1, lift_held=0.1, tilt=1.0, tilt_max=2.0, slip=0.001, gripped={"left": 2, "right": 2},
                  height_error=0.0)
     assert TrayLift(**level).success()
@@ -35,6 +38,46 @@ def test_report_counts_successes_and_failure_reasons_per_pair():
     assert Handover(**held).success()
     assert _handover_reason(Handover(**{**held, "gripped_after": {"left": 2, "right": 1}})) == "not_released"
     assert _handover_reason(Handover(**{**held, "gripped_after": {"left": 0, "right": 0}})) == "not_received"
+
+
+def _run(seed: int, outcomes, pair: str = "allegro/open_drawer") -> dict:
+    """A record-table report of one pair whose episodes (seeds as record_pair draws them) end in
+    ``outcomes`` (reason strings, "" for a success), built by table_record.summarize."""
+    from stages.demos.table_record import summarize
+
+    eps = [{"episode": k, "seed": seed * 100_003 + k, "success": not r, "reason": r, "wall_seconds": 5.0,
+            "sim_seconds": 6.8, "render_seconds": 0.0, "frames": 200} for k, r in enumerate(outcomes)]
+    return {"episodes_per_pair": len(eps), "seed": seed, "pairs": {pair: summarize(pair, eps)}}
+
+
+def test_summary_sums_runs_of_a_pair_and_checks_the_bar(tmp_path, capsys):
+    """record-table-summary over three runs of 10 episodes (seeds 0, 1, 2) of one pair and one run of
+    another: the pair's counts and reasons are the sums, the 80 % bar is checked per pair, the JSON
+    is written, --check fails while a pair is below the bar, and a run given twice is refused."""
+    from stages.demos.table_summary import cli, summarize_runs
+
+    runs = {f"r{s}": _run(s, [""] * (10 - s) + ["not_opened"] * s) for s in range(3)}   # 10 + 9 + 8 of 30
+    runs["close"] = _run(0, ["not_closed"] * 3 + [""] * 7, pair="shadow/close_drawer")
+    sm = summarize_runs(runs)
+    p = sm["pairs"]["allegro/open_drawer"]
+    assert (p["attempts"], p["successes"], p["failures"], p["meets_bar"]) == (30, 27, {"not_opened": 3}, True)
+    assert [r["seed"] for r in p["runs"]] == [0, 1, 2] and p["wall_seconds_per_episode"] == 5.0
+    q = sm["pairs"]["shadow/close_drawer"]
+    assert (q["successes"], q["attempts"], q["meets_bar"], sm["all_meet_bar"]) == (7, 10, False, False)
+    for name, rep in runs.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "report.json").write_text(json.dumps(rep))
+    dirs = [str(tmp_path / n) for n in runs]
+    assert cli([*dirs, "--json", str(tmp_path / "sum.json")]) == 0
+    out = capsys.readouterr().out
+    assert "27/30" in out and "7/10" in out and "BELOW 80%" in out and "not_closed 3" in out
+    assert json.loads((tmp_path / "sum.json").read_text())["pairs"]["allegro/open_drawer"]["successes"] == 27
+    assert cli([*dirs, "--check"]) == 1
+    assert cli([*dirs[:3], "--check"]) == 0
+    assert cli([dirs[0], dirs[1], dirs[0]]) == 2
+    assert "counted twice" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="episode seed 0 in a and b"):
+        summarize_runs({"a": runs["r0"], "b": runs["r0"]})
 
 
 @pytest.mark.parametrize("handle_yaw", [-np.pi / 2, 0.3 - np.pi / 2, np.pi / 2 + 0.5])
