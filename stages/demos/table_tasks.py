@@ -56,7 +56,7 @@ DRAWER = "drawer_4_2"  # kitchen_counter_00's top drawer (its bar handle 0.72 m 
 # out of the Panda's reach at this height)
 DRAWER_BAR_XY = {"open_drawer": (0.62, 0.0), "close_drawer": (0.74, 0.0)}
 DRAWER_ALONG = 0.05  # [m] the bar this far down the fingers from the TCP when the palm is on it
-DRAWER_READY_X = 0.42  # [m] the drawer tasks' start: the TCP this far before the base (see _ready_arm)
+DRAWER_READY_X = 0.42  # [m] the drawer tasks' start: the TCP this far before the base (see _ready_posture)
 DRAWER_OPEN = 0.12  # [m] an open drawer is out at least this far
 DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 DRAWER_REST_SPEED = 0.005  # [m/s] a drawer slower than this is at rest (judged only then)

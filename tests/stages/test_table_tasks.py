@@ -181,3 +181,55 @@ def test_hand_table_task_episodes_succeed(pair, tmp_path, kitchen_catalog, share
         assert ep["detail"]["drawer"] <= DRAWER_CLOSED
     else:
         assert ep["detail"]["place_error"] < 0.04 and ep["detail"]["tilt"] < 10.0
+
+
+def _hand_touches(rig) -> set[str]:
+    """Fingers of the rig's hand touching any rigid body of the scene (the counter's carcass, drawers
+    and doors)."""
+    from stages.demos.hand_grasps import contact_fingers
+
+    return set().union(*(contact_fingers(rig.sim, rig.desc.gripper.hand, b) for b in rig.sim.scene.body_path))
+
+
+@pytest.mark.slow  # ~1 min on 2 shared cores (building the rig)
+@pytest.mark.parametrize("pair", ["allegro/close_drawer"])
+def test_drawer_episodes_start_with_the_hand_clear_of_the_counter(pair, tmp_path, kitchen_catalog, shared_assets):
+    """At a drawer episode's start (TableRig.reset, three samples) no finger touches the counter and
+    the drawer stays where the reset put it for 0.5 s. (The arm's home posture held the hand's
+    fingers 0.70 m out, into the drawer's front: they hooked the bar and dragged the drawer before
+    the expert began, 8 of 10 Allegro close_drawer episodes failing, seed 0.)"""
+    from stages.demos.table_record import catalog_assets
+    from stages.demos.table_tasks import PACKAGES, PAIRS, build_rig
+
+    assets = catalog_assets(tmp_path, kitchen_catalog, [PACKAGES[pair.split("/")[1]]])
+    rig = build_rig(pair, tmp_path / "rig", assets=assets, shared_assets=shared_assets)
+    for k in range(3):
+        sample = rig.reset(np.random.default_rng([0, k, PAIRS.index(pair)]))
+        assert _hand_touches(rig) == set(), (k, sample)
+        rig.sim.step(250)
+        assert rig.scene.opening(rig.sim) == pytest.approx(sample["drawer"], abs=0.002), (k, sample)
+        assert _hand_touches(rig) == set(), (k, sample)
+
+
+@pytest.mark.slow  # ~1 min on 2 shared cores (two Allegro drawer episodes, no cameras)
+@pytest.mark.parametrize(("pair", "episode"), [("allegro/open_drawer", 5), ("allegro/close_drawer", 2)])
+def test_allegro_drawer_episodes_that_failed_before_succeed(pair, episode, tmp_path, kitchen_catalog, shared_assets):
+    """Allegro drawer episodes of record-table seed 0 that failed before the drawer-ready start,
+    the hook synergy and the let-go on the way back: open_drawer episode 5 (pulled 18 cm, then the
+    opening fingers pushed the drawer shut) and close_drawer episode 2 (pushed shut, then the
+    fingers, hooked behind the bar at the start, dragged it 8 cm open again). Now the drawer ends
+    at rest open >= 12 cm / shut, let go."""
+    from stages.demos.table_record import catalog_assets
+    from stages.demos.table_tasks import DRAWER_CLOSED, DRAWER_OPEN, PACKAGES, PAIRS, build_rig, run_expert
+
+    assets = catalog_assets(tmp_path, kitchen_catalog, [PACKAGES[pair.split("/")[1]]])
+    rig = build_rig(pair, tmp_path / "rig", assets=assets, shared_assets=shared_assets)
+    sample = rig.reset(np.random.default_rng([0, episode, PAIRS.index(pair)]))
+    out = run_expert(rig, sample)
+    print(pair, episode, sample, out)
+    assert out.success, out
+    assert out.detail["drawer_speed"] < 0.005 and out.detail["touching"] == []
+    if pair.endswith("open_drawer"):
+        assert out.detail["drawer"] >= DRAWER_OPEN
+    else:
+        assert out.detail["drawer"] <= DRAWER_CLOSED
