@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "teleoperate a task world from a browser (keyboard) and record episodes; --replay a session"),
     "record-table": ("stages.demos.table_record:cli",
                      "record the dexterous hands' and the dual-arm platform's table tasks: shards, success, sheets"),
+    "record-table-summary": ("stages.demos.table_summary:cli",
+                             "sum record-table runs (e.g. several seeds of a pair) into the per-pair success table"),
     "render-assets": ("stages.render_assets:main",
                       "contact sheet PNG per category of a catalog's assets (Newton SensorCamera, CPU)"),
     "render-dataset": ("stages.dataset.render:cli",

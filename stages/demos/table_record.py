@@ -14,7 +14,11 @@ writes, per pair ``<emb>/<task>``:
   (:func:`dataset_spec`); it loads with ``LeRobotDataset`` (:func:`stages.dataset.load_dataset`);
 - ``OUT/sheets/<emb>-<task>.png``: its contact sheet (:func:`stages.dataset.render.render_contact_sheet`);
 - ``OUT/report.json``: attempts, successes, failure reasons, wall and simulated seconds per episode
-  for every pair, and each episode's sample and measurements.
+  for every pair, and each episode's sample and measurements;
+- ``OUT/summary.json`` and, printed at the end, one line per pair: successes / episodes, failure
+  reasons, whether the pair meets the issue's 80 % bar (:mod:`stages.demos.table_summary`; runs
+  of one pair with other seeds, e.g. on several hosts, sum with ``agentworld record-table-summary
+  OUT1 OUT2 ...``).
 
 The hand tasks' mug, can and counter are the default catalog's ``mug_04``, ``can_00`` and
 ``kitchen_counter_00``: built by a two-step job in ``OUT/catalog_job`` (default catalog, ingest of
@@ -41,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.demos.record import EpisodeTimeout, base_pose, pose7
+from stages.demos.table_summary import summarize_runs, summary_table, write_json
 from stages.demos.table_tasks import PACKAGES, PAIRS, TableRig, build_rig, instruction, run_expert
 
 log = logging.getLogger(__name__)
@@ -261,6 +266,7 @@ def record_all(out: Path, pairs=PAIRS, *, episodes: int = 30, seed: int = 0, ima
             rep["contact_sheet"] = str(render_contact_sheet(out / "shards" / slug, out / "sheets" / f"{slug}.png"))
         report["pairs"][pair] = rep
         _write_json(out / "report.json", report)
+        write_json(out / "summary.json", summarize_runs({str(out): report}))
     return report
 
 
@@ -277,16 +283,6 @@ def _jsonable(v):
     if isinstance(v, np.ndarray | set | frozenset | tuple):
         return list(v.tolist() if isinstance(v, np.ndarray) else v)
     raise TypeError(f"not JSON-able: {type(v)}")
-
-
-def table(report: dict) -> str:
-    """One line per pair: successes / attempts, failure reasons, seconds per episode."""
-    lines = []
-    for pair, r in report["pairs"].items():
-        fails = ", ".join(f"{k} {v}" for k, v in sorted(r["failures"].items())) or "-"
-        lines.append(f"{pair:26s} {r['successes']:3d}/{r['attempts']:<3d} failures: {fails:30s} "
-                     f"{r['wall_seconds_per_episode']} s wall, {r['sim_seconds_per_episode']} s sim per episode")
-    return "\n".join(lines)
 
 
 def cli(argv: list[str]) -> int:
@@ -313,7 +309,7 @@ def cli(argv: list[str]) -> int:
     except (ValueError, FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}")
         return 2
-    print(table(report))
+    print(summary_table(summarize_runs({str(a.out): report})))
     return 0
 
 

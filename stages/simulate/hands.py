@@ -65,7 +65,10 @@ class HandInfo:
     largest object radius the synergy wraps [m]; grasp_x: where along the TCP's X (the fingers'
     direction) a grasped cylinder's axis lies [m]; fingers: finger name ("thumb", "index", ...)
     -> its link names; drive; handle_side: the side of the TCP's Y a mug's handle must be on in a
-    top grasp (+1 / -1; 0: either; :func:`stages.demos.hand_grasps.plan_top_grasp`)."""
+    top grasp (+1 / -1; 0: either; :func:`stages.demos.hand_grasps.plan_top_grasp`);
+    hook_open / hook_closed: the end postures [rad] of the hook synergy that grips a bar handle
+    with the fingers alone, the thumb folded out of the way (empty: the closing synergy's;
+    :meth:`synergy`)."""
 
     kind: str
     joints: tuple[str, ...]
@@ -81,6 +84,16 @@ class HandInfo:
     fingers: dict[str, tuple[str, ...]]
     drive: HandDrive
     handle_side: int = 0
+    hook_open: tuple[float, ...] = ()
+    hook_closed: tuple[float, ...] = ()
+
+    def synergy(self, command: float, *, hook: bool = False) -> np.ndarray:
+        """Finger joint targets (n,) [rad] for a command in [0, 1] (0 open, 1 closed) along the
+        closing synergy, or with ``hook`` along the hook synergy (the closing one where the hand
+        has none)."""
+        o, k = (self.hook_open, self.hook_closed) if hook and self.hook_open else (self.open, self.closed)
+        c = float(np.clip(command, 0.0, 1.0))
+        return np.asarray(o, float) + c * (np.asarray(k, float) - np.asarray(o, float))
 
 
 def _fmt(v) -> str:
@@ -130,6 +143,11 @@ ALLEGRO_JOINTS = tuple(f"allegro_joint_{i}" for i in range(16))
 # fingers (index 0-3, middle 4-7, ring 8-11): abduction, three flexions; thumb 12-15
 ALLEGRO_OPEN = (0.0, 0.0, 0.0, 0.0) * 3 + (1.2, 0.2, 0.0, 0.0)
 ALLEGRO_CLOSED = (0.0, 1.45, 1.6, 1.5) * 3 + (1.35, 0.9, 1.5, 1.6)
+# the hook synergy (bar handles): the fingers close as in ALLEGRO_CLOSED, the thumb lies folded
+# against the palm's side (joint 12 at its lower limit, 13 flexed): open, it stands 11-13 cm out of
+# the palm and met a drawer's front 6-7 cm before the palm reached the drawer's bar (record-table,
+# open_drawer); folded, nothing of it stands more than 3.1 cm out of the palm plane
+ALLEGRO_HOOK_THUMB = (0.27, 1.1, 0.0, 0.0)
 ALLEGRO_PALM_FACE = 0.0111  # [m] palm surface along +X of palm_link (collision box -0.0093 + 0.0204)
 
 
@@ -143,7 +161,8 @@ def allegro_info() -> HandInfo:
                     drive=HandDrive(kp=3.0, kd=0.1, armature=0.01, effort=(0.7,) * 16),
                     # a handle on the ring finger's side (+Y) takes the ring finger's grip: the mug
                     # slipped out in the lift (2 of 2 episodes with the handle there; record-table)
-                    handle_side=-1)
+                    handle_side=-1, hook_open=ALLEGRO_OPEN[:12] + ALLEGRO_HOOK_THUMB,
+                    hook_closed=ALLEGRO_CLOSED[:12] + ALLEGRO_HOOK_THUMB)
 
 
 def add_allegro(robot: ET.Element, shared_assets: Path, *, palm_z: float = -0.035) -> HandInfo:
