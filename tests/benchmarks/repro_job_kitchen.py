@@ -27,6 +27,7 @@ EPISODES_PER_TASK = 18  # demos_success_gpu2's episodes_per_task (the mixed item
 
 def instances(tasks: list[str], kitchen: int, seeds: str) -> list[tuple[str, int]]:
     """(task, instance seed) of each episode to run (see the module docstring for ``seeds``)."""
+    from stages.demos.mixed import plan_episodes
     from stages.demos.tasks import BASIC_TASKS
 
     out: list[tuple[str, int]] = []
@@ -36,9 +37,8 @@ def instances(tasks: list[str], kitchen: int, seeds: str) -> list[tuple[str, int
             out.append((t, derive_seed(item, "episode", "0") % 2**62))
         elif seeds.startswith("mixed"):
             item = derive_seed(0, "demos", f"mixed_w{kitchen:03d}")
-            order = list(BASIC_TASKS)
-            es = [e for e in range(len(order) * EPISODES_PER_TASK) if order[e % len(order)] == t]
-            out += [(t, derive_seed(item, "episode", str(e)) % 2**62) for e in es[:int(seeds[5:])]]
+            plan = plan_episodes(tuple(BASIC_TASKS), EPISODES_PER_TASK, item)
+            out += [(t, s) for task, s in plan if task == t][:int(seeds[5:])]
         else:
             out += [(t, int(s)) for s in seeds.split(",")]
     return out
