@@ -111,7 +111,7 @@ class Driver:
         return at(k) - t
 
     def step(self, seconds: float) -> float:
-        """Advance about ``seconds`` [s] (:meth:`step_count`: to the next frame step); returns the
+        """Advance about ``seconds`` [s] (:meth:`step_count`: to the nearest frame step); returns the
         seconds actually stepped."""
         n = self.step_count(seconds)
         self.sim.step(n)
