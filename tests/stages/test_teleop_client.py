@@ -56,7 +56,9 @@ def test_python_client_drives_a_real_session_and_receives_frames(teleop_world, t
             wait_for(lambda: session.status()["recording"], what="recording")
             n = c.frames
             c.wait(lambda: c.frames >= n + 3, what="frames while recording")
-            assert c.status is not None and c.status["recording"] and c.status["task"] == "pick_place_bowl"
+            # the session's status messages are periodic: the client sees recording on the next one
+            c.wait(lambda: c.status is not None and c.status["recording"], what="a status that says recording")
+            assert c.status["task"] == "pick_place_bowl"
             c.episode("discard")
             wait_for(lambda: not session.status()["recording"], what="the discard")
         assert not c.errors, c.errors
