@@ -31,8 +31,10 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class EpisodeResult:
-    """success; reason: failure category ("" on success); detail: message; frames recorded;
-    sim_seconds: simulated time of the episode [s]; wall_seconds: from its reset to its end [s]."""
+    """success; reason: failure category ("" on success; "error" where the expert raised an
+    unexpected exception, logged with its traceback: that episode fails, the run goes on); detail:
+    message; frames recorded; sim_seconds: simulated time of the episode [s]; wall_seconds: from its
+    reset to its end [s]."""
 
     success: bool
     reason: str
@@ -167,6 +169,9 @@ class WorldSide:
             reason, detail = e.reason, str(e)
         except EpisodeTimeout as e:
             reason, detail = "timeout", str(e)
+        except Exception as e:  # noqa: BLE001 (a bug or bad instance fails its episode alone, not the run)
+            reason, detail = "error", f"{type(e).__name__}: {e}"
+            log.exception("world %d %s seed %d: the episode raised", w, inst.task, inst.seed)
         finally:
             self.rec_active[w] = 0
             self.peaks.stop(w)

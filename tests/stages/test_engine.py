@@ -356,3 +356,31 @@ def test_a_run_cut_by_max_steps_leaves_no_recording_to_the_next_run(room, tmp_pa
     eng.run(Listed(room, {0: [("push_object", 5, 0.2)]}), begin=lambda w, inst: second.append)
     assert len(first) == cut
     assert second
+
+
+def test_an_episode_whose_expert_raises_fails_alone(room, tmp_path, caplog):
+    """An unexpected exception in one episode's expert (a bug, a bad instance) ends that episode as
+    failed with reason "error" and its traceback in the log; the world goes on to its next episode
+    (a run of many worlds is not lost to one)."""
+    import logging
+
+    from stages.demos.multistage import sample_task
+    from stages.engine import BatchEngine, EngineConfig
+
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path,
+                      config=EngineConfig(worlds=1, width=32, height=24, layout="per_world"))
+    queue = [sample_task("press_button", room, 4), sample_task("press_button", room, 3)]
+    results = {}
+
+    def act(inst, drv):
+        if inst.seed == 3:
+            raise ValueError("boom")
+        drv.step(0.2)
+
+    with caplog.at_level(logging.ERROR, logger="stages.engine.programs"):
+        stats = eng.run(lambda w: queue.pop() if queue else None, act=act,
+                        end=lambda w, t, r: results.__setitem__(t.seed, r))
+    assert stats.episodes == 2 and set(results) == {3, 4}
+    assert (results[3].success, results[3].reason, results[3].detail) == (False, "error", "ValueError: boom")
+    assert results[4].reason != "error" and results[4].sim_seconds >= 0.2 - 1e-6
+    assert any("the episode raised" in r.getMessage() and r.exc_info for r in caplog.records)
