@@ -84,10 +84,10 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     rng = np.random.default_rng(seed)
     pl = world.placed
     # a world without a table (a house's kitchen, stages.demos.house) has no bowl or object to push
-    mug = pl["mug"].body()
-    bowl, pusher = (pl[k].body() if k in pl else None for k in ("bowl", "pusher"))
+    # a house's living room (stages.demos.house_living) has no mug either: its tasks move their own objects
+    mug, bowl, pusher = (pl[k].body() if k in pl else None for k in ("mug", "bowl", "pusher"))
     mug_yaw = float(rng.uniform(-0.25, 0.25))  # the handle (+Y of the mug) points away from the robot
-    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)}
+    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)} if mug else {}
     if bowl:
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
