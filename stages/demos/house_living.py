@@ -4,7 +4,7 @@ the facts the living-room skills read, on the shared house-room machinery
 
 :func:`house_living` picks the living room, its work surface (the coffee table, else a dining table)
 with a piece of crumpled paper on it that the hand grasps, the trash can, and where the room has them
-the bookshelf and a book on the table (the household rules place them:
+the bookshelf (the household rules place them:
 ``stages/scene/rules/household_tasks.toml``). It turns the house by the multiple of 90 deg about +Z
 that leaves the table's side facing world -Y with free floor for the robot's base before its west
 end (the experts work at a table from its south side, facing +Y; the coffee table's sofa side is
@@ -12,11 +12,12 @@ not that one), the table's long side first, and moves the trash can onto the flo
 west end (as the task kitchen parks it: :data:`CAN_GAP` off the table's footprint, 0.15 m north of
 the top's front), where it stands clear of the walls and the floor furniture. The
 task scene deactivates the other rooms' objects and the table's objects other than the task's paper
-and book (a pitcher and cups: serve drinks is not built); the room's floor furniture (the moved
+(a book, a pitcher and cups: organize books and serve drinks are not built; a book left at the
+table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
 can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room.
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "table", "paper", "trash_can" and
-where present "bookshelf", "book"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
+where present "bookshelf"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
 bookshelf's boards inside it as (xmin, ymin, xmax, ymax, z, clear height) [m]. The kitchen-only
 facts (counter, microwave cavity, button) are the table's top or zero.
 
@@ -121,7 +122,6 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
                                (f"crumpled paper under {MAX_PAPER_RADIUS * 2000:.0f} mm on the table", paper),
                                ("a trash can", can)) if r is None]
         raise ItemError(f"{scene_dir}: living room {rs.room} lacks {', '.join(lack)}")
-    book = rs.one("book", lambda r: r["support"] == table["name"])
     shelf = rs.one("bookshelf", lambda r: r["support"] is None)
     can_asset = rs.asset(can)
 
@@ -157,11 +157,8 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
     pl: dict[str, Placed] = {"table": tp, "trash_can": cp, "paper": rf.placed(paper, rs.asset(paper))}
     if shelf is not None:
         pl["bookshelf"] = furniture[shelf["name"]]
-    if book is not None:
-        pl["book"] = rf.placed(book, rs.asset(book))
-    keep = {paper["name"]} | ({book["name"]} if book else set())
     cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items()
-                                      if r["support"] == table["name"] and n not in keep]
+                                      if r["support"] == table["name"] and n != paper["name"]]
     hxy = rf.to_house(cp.position[:2])
     moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
     usd = out_dir / "scene.usda"
