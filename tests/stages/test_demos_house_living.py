@@ -102,7 +102,7 @@ def test_house_living_shelves_are_the_bookshelf_boards(world):
     zs = [s[4] for s in world.shelves]
     assert len(world.shelves) >= 3 and zs == sorted(zs)
     for bx0, by0, bx1, by1, z, clear in world.shelves:
-        assert fx0 - 1e-6 <= bx0 < bx1 <= fx1 + 1e-6 and fy0 - 1e-6 <= by0 < by1 <= fy1 + 1e-6
+        assert fx0 - 0.005 <= bx0 < bx1 <= fx1 + 0.005 and fy0 - 0.005 <= by0 < by1 <= fy1 + 0.005
         assert 0.0 < z < shelf.asset.hi[2] and clear > 0.2
 
 
