@@ -14,7 +14,9 @@ task scene slides it along the top. The task scene deactivates the objects of th
 and the walls stay, static) and the objects on the counter that stand where the task works (the
 mug's spot beside the microwave, on the side of its door handle). Floor-standing furniture of the
 kitchen and every wall of its floor are the planner's obstacles; the robot plans and starts inside
-the kitchen room.
+the kitchen room. What is not kitchen-specific (reading a room's records, the turn into the task
+frame, the task scene layer, obstacles and start area) is :mod:`stages.demos.house_room`, shared
+with the living room (:mod:`stages.demos.house_living`).
 
 Frame: the task frame, Z up, metres, radians: ``p_task = Rz(theta) p_house + t``
 (:attr:`HouseKitchen.frame` = (tx, ty, theta)).
