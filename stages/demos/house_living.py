@@ -14,7 +14,9 @@ the top's front), where it stands clear of the walls and the floor furniture. Th
 task scene deactivates the other rooms' objects and the table's objects other than the task's paper
 (a book, a pitcher and cups: organize books and serve drinks are not built; a book left at the
 table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
-can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room.
+can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room,
+where the planner finds a path to the staging pose before the paper (``anchor``; a pocket behind
+the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path).
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "table", "paper", "trash_can" and
 where present "bookshelf"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
@@ -105,6 +107,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
     of the scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc).
     ItemError names what the room lacks or why no side of its table works."""
     from stages.demos.counter import facing_north_goal
+    from stages.demos.experts import COUNTER_STAGE
 
     scene_dir, out_dir = Path(scene_dir), Path(out_dir)
     rs = read_room(scene_dir, generated_json, "living_room", room)
@@ -141,7 +144,8 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         fp = cp.footprint()
         x0, y0, x1, y1 = rf.area
         others = [p for n, p in furniture.items() if n != can["name"]]
-        inside = x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR
+        inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
+                  and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
         clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
         goal = facing_north_goal(rect[1], rect[0] + PAPER_AT[0])
         ok_base = x0 < goal[0] < x1 and y0 < goal[1] < y1 and _base_free(goal, rf.walls, obstacles(others + [cp]))
@@ -170,7 +174,8 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0, cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0,
         button_push=(0.0, 1.0, 0.0), mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None,
         house=rs.house.resolve(), room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls, furniture=furniture,
-        cut=tuple(sorted(cut)), moved=moved, shelves=_shelves(pl["bookshelf"]) if shelf is not None else ())
+        cut=tuple(sorted(cut)), moved=moved, anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
+        shelves=_shelves(pl["bookshelf"]) if shelf is not None else ())
     spawn_in(w)
     log.info("house living room %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
     return w

@@ -35,7 +35,9 @@ class HouseRoom(KitchenWorld):
     the room's floor (xmin, ymin, xmax, ymax) in the task frame [m]; walls: footprints (K, 4) of the
     floor's walls [m]; furniture: the room's floor furniture by instance name (task frame); cut: the
     instances the task scene deactivates; moved: (instance, its position in the house frame [m])
-    where the task scene moved one instance, else None."""
+    where the task scene moved one instance, else None; anchor: a floor point (x, y) [m] the task's
+    base drives to (None: any free start), starts are drawn only where a path to it exists
+    (:func:`~stages.demos.sampling.free_start`)."""
 
     house: Path
     room: str
@@ -45,6 +47,7 @@ class HouseRoom(KitchenWorld):
     furniture: dict
     cut: tuple[str, ...]
     moved: tuple | None = None
+    anchor: tuple[float, float] | None = None
 
     def nav_boxes(self) -> np.ndarray:
         return np.asarray(list(self.walls) + obstacles(self.furniture.values()), float)

@@ -95,6 +95,24 @@ def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(wo
     assert pl["paper"].name.split("/")[-1] not in world.cut
 
 
+def test_house_living_starts_have_a_path_to_the_table(world):
+    """Every start drawn in the living room has a base path to the staging pose before the paper (the
+    world's anchor): a free pocket behind the sofa or the TV stand is no start (no_path)."""
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.planner import NoPathError, plan_path
+    from stages.demos.sampling import free_start
+
+    grid = world.grid()
+    stranded = []
+    for s in range(40):
+        x, y, _ = free_start(world, np.random.default_rng(s))
+        try:
+            plan_path(grid, (x, y), world.anchor, ROBOT_RADIUS)
+        except NoPathError:
+            stranded.append((s, round(x, 2), round(y, 2)))
+    assert stranded == []
+
+
 def test_house_living_shelves_are_the_bookshelf_boards(world):
     """One board per inside surface, bottom up, each inside the bookshelf's footprint with room above it."""
     shelf = world.placed["bookshelf"]
