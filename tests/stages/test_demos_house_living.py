@@ -61,6 +61,30 @@ def test_household_rules_put_only_graspable_paper_on_the_coffee_table(house):
     assert papers and set(papers) == {"crumpled_paper_00"}, papers
 
 
+def test_household_rules_admit_only_paper_the_hand_grasps(house):
+    """The rule entry itself (deterministic, unlike which variant a scene draws): every paper of the
+    living room's crumpled paper entry is one the throw-away skill grasps, by the ingested packages'
+    bounds: crumpled_paper_00 (26 mm radius) fits, crumpled_paper_01 (35.7 mm) does not."""
+    from types import SimpleNamespace
+
+    from stages.demos.packages import CatalogAsset
+    from stages.demos.parts import load_generated_info
+    from stages.demos.skill_trash import MAX_PAPER_RADIUS
+    from stages.scene.rules import load_rules
+
+    scene, gen = house
+    info = load_generated_info(gen)
+    entry = next(e for e in load_rules(HOUSEHOLD_TASK_RULES).for_room("living_room").objects
+                 if e.category == "crumpled_paper")
+    fits = {}
+    for aid in ("crumpled_paper_00", "crumpled_paper_01"):
+        a = CatalogAsset(asset_id=aid, category="crumpled_paper", info=info[aid],
+                         usd=scene.parents[1] / "assets" / aid / f"{aid}.usda")
+        assert (float(a.params["radius"]) <= MAX_PAPER_RADIUS) == (aid == "crumpled_paper_00")
+        fits[aid] = entry.fits(SimpleNamespace(dimensions=tuple(h - l for l, h in zip(a.lo, a.hi))))
+    assert fits == {"crumpled_paper_00": True, "crumpled_paper_01": False}
+
+
 def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(world):
     from stages.demos.counter import facing_north_goal
     from stages.demos.house_living import CAN_GAP, PAPER_AT, _overlaps
