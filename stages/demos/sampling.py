@@ -57,17 +57,33 @@ class TaskInstance:
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
     """A start pose in the world's start area (:meth:`~stages.demos.kitchen.KitchenWorld.start_area`:
     the free floor between the south wall and the counter front), clear of every footprint of its
-    ``start_boxes`` by 0.5 m, random heading."""
-    from stages.demos.planner import NavGrid
+    ``start_boxes`` by 0.5 m, random heading. A world with an ``anchor`` (x, y) [m] (a house's room:
+    :class:`~stages.demos.house_room.HouseRoom`) starts only where the base planner finds a path to
+    it (a free pocket behind the sofa is no start)."""
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.planner import NavGrid, NoPathError, astar
 
     grid = NavGrid.from_boxes(world.nav_bounds(), world.start_boxes())
     blocked = grid.inflate(0.5)
+    anchor = getattr(world, "anchor", None)
+    nav = world.grid() if anchor is not None else None
+    nav_blocked = nav.inflate(ROBOT_RADIUS) if nav is not None else None
+
+    def reaches(x: float, y: float) -> bool:
+        if nav is None:
+            return True
+        try:
+            astar(nav_blocked, nav.cell_of(x, y), nav.cell_of(*anchor))
+        except NoPathError:
+            return False
+        return True
+
     x0, y0, x1, y1 = world.start_area()
     for _ in range(400):
         x = float(rng.uniform(x0, x1))
         y = float(rng.uniform(y0, y1))
         iy, ix = grid.cell_of(x, y)
-        if 0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix]:
+        if 0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix] and reaches(x, y):
             return x, y, float(rng.uniform(-np.pi, np.pi))
     raise ItemError(f"{world.usd}: no free start pose for the robot")
 
@@ -84,10 +100,10 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     rng = np.random.default_rng(seed)
     pl = world.placed
     # a world without a table (a house's kitchen, stages.demos.house) has no bowl or object to push
-    mug = pl["mug"].body()
-    bowl, pusher = (pl[k].body() if k in pl else None for k in ("bowl", "pusher"))
+    # a house's living room (stages.demos.house_living) has no mug either: its tasks move their own objects
+    mug, bowl, pusher = (pl[k].body() if k in pl else None for k in ("mug", "bowl", "pusher"))
     mug_yaw = float(rng.uniform(-0.25, 0.25))  # the handle (+Y of the mug) points away from the robot
-    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)}
+    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)} if mug else {}
     if bowl:
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:

@@ -242,7 +242,7 @@ class BatchEngine:
                 b = sim.body_of_path(p.body())
                 self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
-        self.watched = [world.placed["microwave"].joint("button_joint")]
+        self.watched = [world.placed["microwave"].joint("button_joint")] if "microwave" in world.placed else []
         for b in self.banks:
             b.peaks = Peaks(b.sim, self.watched, self._scene_coord)
         self._pending_reset: dict[int, dict[int, float]] = {}
