@@ -23,12 +23,15 @@ spout on -Y (asset_catalog.generators.objects.pitcher).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
+
+log = logging.getLogger(__name__)
 
 DRINK_COUNT = 24          # spheres of the drink
 DRINK_RADIUS = 0.007      # [m]
@@ -38,6 +41,8 @@ POUR_SHARE = 0.6          # share of the spheres that must end in the cup
 POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
+HANDLE_DEPTH = 0.0      # the TCP this far [m] past the handle bar's centre line into the loop
+FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's upper curve above the fingertips
 
 
 @dataclass(frozen=True)
@@ -266,13 +271,27 @@ def _yaw(q) -> float:
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
-def handle_world(pitcher_placed, position, yaw: float) -> np.ndarray:
-    """The centre (3,) [m] of the pitcher's handle bar (its catalog handle: the loop's outer bar)
-    for the pitcher at ``position`` (3,), ``yaw``."""
-    h = next(h for h in pitcher_placed.asset.info["handles"] if h.get("kind") == "loop")
-    cx, cy, cz = (float(v) for v in h["center"])
+def handle_grip(params: dict, depth: float = HANDLE_DEPTH, below: float = FINGER_BELOW) -> np.ndarray:
+    """The side grasp's TCP (3,) [m] in the pitcher frame: on the loop handle's outer bar (the
+    generator's loop: from 0.3 to 0.85 of the height, ``handle_reach`` out, a 7 mm rod), ``depth``
+    past the bar's centre line into the loop's opening, as high as leaves the fingertips (there,
+    ``depth`` + 9 mm past the TCP... see :data:`HANDLE_DEPTH`) ``below`` under the loop's upper
+    curve: a pitcher that pitches about the fingers lands its upper curve on the fingertips."""
+    r, h = float(params["radius"]), float(params["height"])
+    reach, rod = float(params["handle_reach"]), 0.007
+    zm, rz = 0.575 * h, 0.275 * h
+    tip_y = r + reach - depth - 0.009                     # the fingertips' front
+    a = math.acos(np.clip((tip_y - r + rod) / (reach + rod), -1.0, 1.0))
+    z = zm + rz * math.sin(a) - rod - below               # the fingers' top under the curve
+    b = math.asin(np.clip((z - zm) / rz, -1.0, 1.0))
+    bar_y = r - rod + (reach + rod) * math.cos(b)         # the bar's centre line at that height
+    return np.array([0.0, bar_y - depth, z])
+
+
+def _to_world(local, position, yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([position[0] + c * cx - s * cy, position[1] + s * cx + c * cy, position[2] + cz])
+    return np.array([position[0] + c * local[0] - s * local[1], position[1] + s * local[0] + c * local[1],
+                     position[2] + local[2]])
 
 
 def _ry(theta: float) -> np.ndarray:
@@ -291,18 +310,27 @@ def pick_pitcher(inst, d) -> None:
     w, plan = inst.world, inst.place
     pp = w.placed["pitcher"]
     x, y, z, yaw = inst.objects[plan.pitcher]
-    grip = handle_world(pp, (x, y, z), yaw)
+    grip = _to_world(handle_grip(pp.asset.params), (x, y, z), yaw)
     tuck = stow(d, on_the_way=True)
     d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0])), w.grid(), tuck=tuck)
     st = read_state(d.sim).objects[plan.pitcher]
-    grip = handle_world(pp, st.position, _yaw(st.orientation))
+    grip = _to_world(handle_grip(pp.asset.params), st.position, _yaw(st.orientation))
     rot = side_rot(0.0)
-    d.grip(0.0, 0.2)
+    d.grip(0.0, 0.6)
+    log.debug("pick_pitcher: open %.4f m", read_state(d.sim).robot.gripper_opening)
     d.move(_pose(grip - [0, 0.14, 0], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(grip, rot), 1.0, segments=2, settle=0.2)
+    st = read_state(d.sim)
+    log.debug("pick_pitcher: handle at %s, hand at %s, pitcher at %s", np.round(grip, 3),
+              np.round(st.robot.ee_pose.position, 3), np.round(st.objects[plan.pitcher].position, 3))
     d.grip(1.0, 0.8)
+    log.debug("pick_pitcher: closed to %.4f m", read_state(d.sim).robot.gripper_opening)
     d.move(_pose(grip + [0, 0, 0.08], rot), 1.0, segments=2, carry=True, settle=0.2)
-    if read_state(d.sim).objects[plan.pitcher].position[2] < z + 0.04:
+    st = read_state(d.sim)
+    log.debug("pick_pitcher: lifted: hand %s, pitcher %s %s, opening %.4f", np.round(st.robot.ee_pose.position, 3),
+              np.round(st.objects[plan.pitcher].position, 3), np.round(st.objects[plan.pitcher].orientation, 3),
+              st.robot.gripper_opening)
+    if st.objects[plan.pitcher].position[2] < z + 0.04:
         raise ExpertFailure("grasp_missed", "the pitcher stayed on the table")
 
 
