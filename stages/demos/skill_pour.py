@@ -41,7 +41,7 @@ POUR_SHARE = 0.6          # share of the spheres that must end in the cup
 POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
-HANDLE_DEPTH = 0.0      # the TCP this far [m] past the handle bar's centre line into the loop
+HANDLE_DEPTH = 0.0        # the TCP this far [m] past the bar's centre line (0.004: 9.6 mm chord; 0.015: missed)
 FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's upper curve above the fingertips
 
 
@@ -274,9 +274,11 @@ def _yaw(q) -> float:
 def handle_grip(params: dict, depth: float = HANDLE_DEPTH, below: float = FINGER_BELOW) -> np.ndarray:
     """The side grasp's TCP (3,) [m] in the pitcher frame: on the loop handle's outer bar (the
     generator's loop: from 0.3 to 0.85 of the height, ``handle_reach`` out, a 7 mm rod), ``depth``
-    past the bar's centre line into the loop's opening, as high as leaves the fingertips (there,
-    ``depth`` + 9 mm past the TCP... see :data:`HANDLE_DEPTH`) ``below`` under the loop's upper
-    curve: a pitcher that pitches about the fingers lands its upper curve on the fingertips."""
+    past the bar's centre line into the loop's opening, as high as leaves the fingertips (taken
+    9 mm past the TCP) ``below`` under the loop's upper curve: a pitcher that pitches about the
+    fingers would land its upper curve on the fingertips. (Measured: the Franka pads close on an
+    8-11 mm chord of the 14 mm bar and the bar slides out of them as the hand lifts; see
+    :func:`pick_pitcher`.)"""
     r, h = float(params["radius"]), float(params["height"])
     reach, rod = float(params["handle_reach"]), 0.007
     zm, rz = 0.575 * h, 0.275 * h
@@ -302,7 +304,10 @@ def _ry(theta: float) -> np.ndarray:
 
 def pick_pitcher(inst, d) -> None:
     """The expert of ``pick_pitcher``: drive before the table between the pitcher and the cup, side
-    grasp of the handle's bar (hand along +Y, fingers closing along X), lift 8 cm."""
+    grasp of the handle's bar (hand along +Y, fingers closing along X, :func:`handle_grip`), lift
+    8 cm. Does not hold yet: in 10 of 10 CPU episodes the Franka pads closed on the bar (8-11 mm
+    of its 14 mm; twice beside it) and the bar slid out of them as the hand rose, the 0.8-1.3 kg
+    pitcher pitching 4-12 deg on the table (``grasp_missed``)."""
     from stages.demos.counter import _pose, facing_north_goal, side_rot
     from stages.demos.driver import stow
     from stages.simulate.state import read_state

@@ -106,3 +106,14 @@ def test_serve_drinks_is_data_with_three_stages_and_asks_for_the_drink():
     assert all(s.instruction for s in spec.stages)
     assert needs_drink(["serve_drinks"]) and needs_drink(["pour_drink"])
     assert not needs_drink(["clean_table", "pick_place_bowl"]) and not needs_household(["serve_drinks"])
+
+
+@pytest.mark.parametrize("params", [{**PITCHERS[0], "handle_reach": 0.028}, {**PITCHERS[1], "handle_reach": 0.04}])
+def test_the_handle_grip_is_on_the_outer_bar_under_the_loop_top(params):
+    from stages.demos.skill_pour import handle_grip
+
+    r, h, reach = params["radius"], params["height"], params["handle_reach"]
+    g = handle_grip(params, depth=0.0)
+    assert g[0] == 0.0
+    assert 0.575 * h < g[2] < 0.85 * h - 0.007            # above the loop's middle, under its top
+    assert r + 0.5 * reach < g[1] <= r + reach + 1e-9     # on the outer part of the loop, not the body
