@@ -39,9 +39,10 @@ log = logging.getLogger(__name__)
 
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
-                      "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can")
+                      "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
+                      "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
-FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can")
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup")
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
@@ -123,6 +124,18 @@ class KitchenWorld:
     bowl_radius: float
     materials: dict
     look: KitchenLook
+    drink: tuple[str, ...] = ()
+
+    def drink_parked(self) -> dict:
+        """The drink's spheres where the kitchen parks them (body -> (x, y, z, yaw)): in the parked
+        pitcher (:func:`stages.demos.skill_pour.drink_world`); empty without a drink."""
+        if not self.drink:
+            return {}
+        from stages.demos.skill_pour import drink_world
+
+        p = self.placed["pitcher"]
+        pts = drink_world((*p.position, p.yaw), p.asset.params, len(self.drink))
+        return {b: (*(float(v) for v in c), 0.0) for b, c in zip(self.drink, pts, strict=True)}
 
     def nav_boxes(self) -> np.ndarray:
         """Obstacle footprints (K, 4) [xmin, ymin, xmax, ymax] for base planning: walls, the floor
@@ -246,7 +259,7 @@ def _rel(target: Path, layer_dir: Path) -> str:
 
 
 def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap: tuple[float, float],
-                 look: KitchenLook) -> None:
+                 look: KitchenLook, drink: dict | None = None) -> None:
     """Author the scene layer: physics scene, floor, walls (the south one split around the door
     opening ``door_gap`` (x0, x1)), one referencing Xform per placed package, and the look (material
     overrides of the packages, lights)."""
@@ -278,16 +291,21 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
         ref = Sdf.Reference(_rel(p.asset.usd, path.parent))
         w.prim(p.prim, "Xform", apis=la, attrs={**_xform_attrs(p.position, p.yaw), **lv},
                meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
+    if drink:
+        from stages.demos.skill_pour import write_drink
+
+        write_drink(w, drink)
     add_look(w, look, size)
     w.write(Path(path), "World")
 
 
 def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
-                  rng: np.random.Generator, household: bool = False) -> KitchenWorld:
+                  rng: np.random.Generator, household: bool = False, drink: bool = False) -> KitchenWorld:
     """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc).
     ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
     tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
-    as they were)."""
+    as they were); ``drink``: also park a pitcher holding the drink's spheres and a cup
+    (stages.demos.skill_pour; :func:`stages.demos.multistage.needs_drink`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     micro = _pick(lib, rng, ("microwave",))
@@ -383,8 +401,21 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     # the table is deep enough), from a second child generator: nothing above changes with them
     if household:
         placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
+    drink_bodies: tuple[str, ...] = ()
+    if drink:
+        from stages.demos.skill_pour import park_drink
+
+        more, drink_bodies = park_drink(lib, rng.spawn(1)[0], table_rect, table_z)
+        placed.update(more)
     usd = out_dir / "scene.usda"
-    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
+    parked = None
+    if drink_bodies:
+        from stages.demos.skill_pour import drink_world
+
+        p = placed["pitcher"]
+        parked = dict(zip(drink_bodies, drink_world((*p.position, p.yaw), p.asset.params, len(drink_bodies)),
+                          strict=True))
+    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look, parked)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)
     world = KitchenWorld(
         usd=usd, scene_id=scene_id, size=(sx, sy), wall_thickness=WALL_T, placed=placed, spawn=spawn,
@@ -393,6 +424,6 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         button=tuple(float(v) for v in button), button_travel=float(micro.params.get("button_travel", 0.005)),
         button_push=tuple(float(v) for v in push), mug_radius=float(mug.params["radius"]),
         mug_height=float(mug.params["height"]), bowl_radius=float(bowl.params.get("rim_radius", 0.07)),
-        materials=colors, look=look)
+        materials=colors, look=look, drink=drink_bodies)
     log.info("kitchen %s: %s", scene_id, world.asset_ids())
     return world

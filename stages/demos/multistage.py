@@ -266,3 +266,12 @@ HOUSEHOLD_SKILLS = ("wipe_plate", "throw_away")
 def needs_household(tasks) -> bool:
     """Whether any of ``tasks`` (names) is a multistage task with a household skill's stage."""
     return any(st.skill in HOUSEHOLD_SKILLS for t in tasks if t in MULTISTAGE for st in MULTISTAGE[t].stages)
+
+
+def needs_drink(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a pour skill or a multistage task with a pour stage: its
+    kitchen parks a pitcher with the drink and a cup (``write_kitchen(drink=True)``)."""
+    from stages.demos.sampling import POUR_SKILLS
+
+    return any(t in POUR_SKILLS or (t in MULTISTAGE and any(st.skill in POUR_SKILLS for st in MULTISTAGE[t].stages))
+               for t in tasks)

@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 MICROWAVE_OPEN = math.radians(88.0)  # microwave door opening of the microwave tasks [rad]
 FRIDGE_OPEN = 0.9  # fridge door opening of pick_place_fridge [fraction of its travel], as open_fridge leaves it
 PUSH_DIRECTION = (0.0, 1.0)
+POUR_SKILLS = ("pick_pitcher", "pour_drink", "place_pitcher")  # stages.demos.skill_pour
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -108,9 +109,10 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
-    for role in ("plate", "sponge", "paper", "trash_can"):  # parked (stages.demos.kitchen): every episode starts them there
+    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup"):  # parked (stages.demos.kitchen): every episode starts them there
         if role in pl:
-            objects[pl[role].body()] = (*pl[role].position, 0.0)
+            objects[pl[role].body()] = (*pl[role].position, pl[role].yaw)
+    objects.update(world.drink_parked() if hasattr(world, "drink_parked") else {})
     joints: dict[str, float] = {}
     cav = world.cavity
     cav_c = ((cav[0] + cav[2]) / 2, (cav[1] + cav[3]) / 2)
@@ -164,6 +166,14 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="paper", container="trash can")
         ids = [pl["paper"], pl["trash_can"]]
         target = tuple(float(v) for v in pl["trash_can"].position[:2])
+    if task_name in POUR_SKILLS:
+        from stages.demos.skill_pour import pour_setup
+
+        moved, place = pour_setup(world, rng)
+        objects.update(moved)
+        names.update(object="pitcher", container="cup")
+        ids = [pl["pitcher"], pl["cup"]]
+        target = place.cup_xy
     kind, _, which = task_name.partition("_")
     if which in ARTICULATED and kind in ("open", "close"):
         role = ARTICULATED[which][0]
