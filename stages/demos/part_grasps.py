@@ -170,9 +170,9 @@ def gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mod
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
     ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
     face 7 cm inboard of the bar, pressing along the arc; for a vertical hinge ``along`` is instead
-    the fist's yaw [rad] towards the hinge (:data:`PUSH_YAWS`, :func:`grasp_rotation`). Edge (``mode="edge"``, bottom-hinged
-    doors): pinching the leaf's free edge, ``pitch`` being the tilt about the hinge axis (see
-    :func:`_edge_tool`)."""
+    the fist's yaw [rad] towards the hinge (:data:`PUSH_YAWS`, :func:`grasp_rotation`). Edge
+    (``mode="edge"``, bottom-hinged doors): pinching the leaf's free edge, ``pitch`` being the tilt
+    about the hinge axis (see :func:`_edge_tool`)."""
     if mode == "edge":
         contact = _edge_tool(part, q0, pitch, along)
         pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)

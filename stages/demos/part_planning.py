@@ -253,7 +253,8 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     elif push_yaws:
         max_checks = 3 * max_checks  # three times the grips (the turned fists, part_grasps.PUSH_YAWS)
     cands = [(base, pitch, along) for base in bases
-             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge", push=mode == "push")][:max_checks]
+             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge",
+                                       push=mode == "push")][:max_checks]
     gestures: dict = {}  # the approach and arc of a grip do not depend on the base
 
     def gesture_of(pitch: float, along: float):
