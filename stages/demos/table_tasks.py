@@ -62,6 +62,11 @@ DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 DRAWER_REST_SPEED = 0.005  # [m/s] a drawer slower than this is at rest (judged only then)
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 LIFT_SECONDS = 2.0  # [s] the lift after the grasp
+CARRY_SETTLE = 0.2  # [s] the held object comes to rest after the lift and after the carry
+CARRY_SECONDS = 2.4  # [s] the carry to the target spot (14-20 cm; 1.6 s let a top-grasped mug turn in the hand)
+# [m] the pre-grasp above the grasp: the Allegro's thumb opens 11 cm below the palm, so at 10 cm
+# the hand's turn on its way there swept the thumb through a mug's rim and knocked it over
+PRE_GRASP_STANDOFF = 0.16
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
 HAND_TABLE_XY = (0.90, 0.0)  # [m] the table (0.6 m deep): its near edge 12 cm before the object's nominal spot
 
@@ -255,38 +260,53 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     if not shape.upright:
         raise TaskFailure("tipped", "the object does not stand upright before the grasp")
     side = getattr(hand, "handle_side", 0)
-    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=side,
-                             **({"max_turn": math.pi} if side else {}))
 
-    def move(p, duration, segments, settle=0.0):
+    def plan_for(s):
+        return hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=s, standoff=PRE_GRASP_STANDOFF,
+                                 **({"max_turn": math.pi} if s else {}))
+
+    plan = plan_for(side)
+
+    def move(p, duration, segments, settle=0.0, smooth=False):
         try:
-            move_ee(sim, ctl, ik, p, duration, segments=segments, settle=settle)
+            if smooth:   # the object in the hand: min-jerk progress, no jolt at the starts and stops
+                hg.move_ee_smooth(sim, ctl, ik, p, duration, settle=settle)
+            else:
+                move_ee(sim, ctl, ik, p, duration, segments=segments, settle=settle)
         except RuntimeError as e:
             raise TaskFailure("ik_unreachable", str(e)) from None
 
-    move(plan.pre_grasp, 1.5, 3, 0.1)
+    try:
+        move(plan.pre_grasp, 1.5, 8, 0.1)
+    except TaskFailure:
+        if not (side and shape.handle is not None):
+            raise
+        # the hand's side for the handle needs a wrist turn past the Panda's limits (a mug turned
+        # ~180 deg, record-table seed 1 episode 4): the handle on the other side
+        plan = plan_for(-side)
+        move(plan.pre_grasp, 1.5, 8, 0.1)
     move(plan.grasp, 0.8, 2, 0.1)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
-    closing = hg.close_until_contact(sim, ctl, hand, body)
+    closing = hg.close_until_contact(sim, ctl, hand, body, settle=0.5)
     ctl.commands[None] = closing.command
     if closing.contact_command is None:
         raise TaskFailure("grasp_missed", f"contact check never passed (touching {sorted(closing.touching)})")
     up = plan.grasp.copy()
     up[2, 3] += lift
-    move(up, LIFT_SECONDS, 4)
+    move(up, LIFT_SECONDS, 4, CARRY_SETTLE, smooth=True)
     lifted = float(sim.state_0.body_q.numpy()[body][2]) - z0
     if lifted < 0.5 * lift:
         raise TaskFailure("dropped", f"lifted {lifted:.3f} m of {lift:.2f}")
     shift = np.array([target_xy[0] - shape.center[0], target_xy[1] - shape.center[1], 0.0])
     carry = up.copy()
     carry[:3, 3] += shift
-    move(carry, 1.6, 4)
+    move(carry, CARRY_SECONDS, 4, CARRY_SETTLE, smooth=True)
     carried = float(sim.state_0.body_q.numpy()[body][2]) - z0
     if carried < 0.5 * lift:
         raise TaskFailure("dropped", f"in the carry (at {carried:.3f} m of {lift:.2f})")
     down = plan.grasp.copy()
     down[:3, 3] += shift + [0.0, 0.0, place_gap]
-    move(down, 0.8, 2, 0.1)
+    move(down, 0.8, 2, 0.1, smooth=True)
     _open_hand(rig, 0.5)
     away = down.copy()
     away[2, 3] += 0.12
