@@ -260,12 +260,8 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     if not shape.upright:
         raise TaskFailure("tipped", "the object does not stand upright before the grasp")
     side = getattr(hand, "handle_side", 0)
-
-    def plan_for(s):
-        return hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=s, standoff=PRE_GRASP_STANDOFF,
-                                 **({"max_turn": math.pi} if s else {}))
-
-    plan = plan_for(side)
+    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=side, standoff=PRE_GRASP_STANDOFF,
+                             **({"max_turn": math.pi} if side else {}))
 
     def move(p, duration, segments, settle=0.0, smooth=False):
         try:
@@ -276,15 +272,7 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
         except RuntimeError as e:
             raise TaskFailure("ik_unreachable", str(e)) from None
 
-    try:
-        move(plan.pre_grasp, 1.5, 8, 0.1)
-    except TaskFailure:
-        if not (side and shape.handle is not None):
-            raise
-        # the hand's side for the handle needs a wrist turn past the Panda's limits (a mug turned
-        # ~180 deg, record-table seed 1 episode 4): the handle on the other side
-        plan = plan_for(-side)
-        move(plan.pre_grasp, 1.5, 8, 0.1)
+    move(plan.pre_grasp, 1.5, 8, 0.1)   # 8 waypoints: with 3 the wrist's turn dipped the hand 13 cm
     move(plan.grasp, 0.8, 2, 0.1)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
     closing = hg.close_until_contact(sim, ctl, hand, body, settle=0.5)
