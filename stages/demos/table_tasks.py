@@ -249,7 +249,8 @@ def _open_hand(rig: TableRig, duration: float, *, hook: bool = False) -> None:
 def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: float = 0.004) -> dict:
     """The hand's pick & place expert: top power grasp of the object (grasp synthesis), lift
     ``lift`` [m], carry it to ``target_xy`` (2,) [m], set it down ``place_gap`` [m] above where it
-    was grasped, open, withdraw up. Raises :class:`TaskFailure` (grasp_missed, dropped,
+    was grasped (these three min-jerk, :func:`~stages.demos.hand_grasps.move_ee_smooth`), open,
+    withdraw up. Raises :class:`TaskFailure` (grasp_missed, dropped,
     ik_unreachable); returns what it measured."""
     from stages.demos import hand_grasps as hg
     from stages.simulate.control import move_ee
