@@ -172,6 +172,17 @@ def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.1
     return GraspPlan(pre_grasp=pre, grasp=grasp, approach=np.array([0.0, 0.0, -1.0]), shape=shape)
 
 
+def top_grasp_plans(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10) -> list[GraspPlan]:
+    """The top grasps of ``shape`` to try in turn (:func:`plan_top_grasp`): for a hand with a
+    ``handle_side`` and an object with a handle, the handle on that side (any turn), then on the
+    other side (for a mug whose handle-side grasp needs a wrist turn past the Panda's limits: a mug
+    turned ~180 deg, record-table seed 1 episode 3); otherwise the one grasp."""
+    side = int(getattr(hand, "handle_side", 0))
+    sides = (side, -side) if side and shape.handle is not None else (side,)
+    return [plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=s,
+                           **({"max_turn": np.pi} if s else {})) for s in sides]
+
+
 # --------------------------------------------------------------------------------------------
 # contact check and closing synergy
 # --------------------------------------------------------------------------------------------

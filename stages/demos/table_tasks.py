@@ -64,9 +64,7 @@ PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 LIFT_SECONDS = 2.0  # [s] the lift after the grasp
 CARRY_SETTLE = 0.2  # [s] the held object comes to rest after the lift and after the carry
 CARRY_SECONDS = 2.4  # [s] the carry to the target spot (14-20 cm; 1.6 s let a top-grasped mug turn in the hand)
-# [m] the pre-grasp above the grasp: the Allegro's thumb opens 11 cm below the palm, so at 10 cm
-# the hand's turn on its way there swept the thumb through a mug's rim and knocked it over
-PRE_GRASP_STANDOFF = 0.16
+PRE_GRASP_STANDOFF = 0.16  # [m] above the grasp (at 0.10 the Allegro's open thumb, 11 cm down, hit the mug)
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
 HAND_TABLE_XY = (0.90, 0.0)  # [m] the table (0.6 m deep): its near edge 12 cm before the object's nominal spot
 
@@ -260,9 +258,7 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     shape = hg.fit_upright(hg.object_points(sim, body))
     if not shape.upright:
         raise TaskFailure("tipped", "the object does not stand upright before the grasp")
-    side = getattr(hand, "handle_side", 0)
-    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=side, standoff=PRE_GRASP_STANDOFF,
-                             **({"max_turn": math.pi} if side else {}))
+    plans = hg.top_grasp_plans(shape, hand, sim.spawn[:2], standoff=PRE_GRASP_STANDOFF)
 
     def move(p, duration, segments, settle=0.0, smooth=False):
         try:
@@ -273,7 +269,13 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
         except RuntimeError as e:
             raise TaskFailure("ik_unreachable", str(e)) from None
 
-    move(plan.pre_grasp, 1.5, 8, 0.1)   # 8 waypoints: with 3 the wrist's turn dipped the hand 13 cm
+    for k, plan in enumerate(plans):   # 8 waypoints: with 3 the wrist's turn dipped the hand 13 cm
+        try:
+            move(plan.pre_grasp, 1.5, 8, 0.1)
+            break
+        except TaskFailure:
+            if k == len(plans) - 1:
+                raise
     move(plan.grasp, 0.8, 2, 0.1)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
     closing = hg.close_until_contact(sim, ctl, hand, body, settle=0.5)
