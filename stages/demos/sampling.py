@@ -109,7 +109,8 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
-    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup"):  # parked (stages.demos.kitchen): every episode starts them there
+    # parked (stages.demos.kitchen): every episode starts them there
+    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup"):
         if role in pl:
             objects[pl[role].body()] = (*pl[role].position, pl[role].yaw)
     objects.update(world.drink_parked() if hasattr(world, "drink_parked") else {})
