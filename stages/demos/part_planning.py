@@ -243,18 +243,25 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     # closing a vertical door, the turned fists (part_grasps.PUSH_YAWS) press its front face from
     # beside the free edge: bases further round it, before the fridge, not beyond the hinge
     push_yaws = mode == "push" and vertical
-    bases = _swing_bases(part, grid, q0, qs, spread=140.0 if push_yaws else 100.0)
+    bases = _swing_bases(part, grid, q0, qs)
     if mode == "edge":
         # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
         # rises): bases about EDGE_SIDE off the bar's centre along it first
         bar = np.asarray(part.bar_axis, float)[:2]
         bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
         max_checks = 3 * max_checks
-    elif push_yaws:
-        max_checks = 3 * max_checks  # three times the grips (the turned fists, part_grasps.PUSH_YAWS)
     cands = [(base, pitch, along) for base in bases
-             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge",
-                                       push=mode == "push")][:max_checks]
+             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge", push=mode == "push")]
+    if push_yaws:
+        # the square fist first, from the bases it had before the turned ones existed (a tie keeps
+        # it: on a room door a turned fist reaching as far left the leaf 0.29 rad open and took 3
+        # more stages), then the turned fists (part_grasps.PUSH_YAWS, ``along`` != 0) from bases
+        # further round the free edge, twice as many checks
+        turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0)
+                  for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
+        cands = [c for c in cands if c[2] == 0.0][:max_checks] + turned[:2 * max_checks]
+    else:
+        cands = cands[:max_checks]
     gestures: dict = {}  # the approach and arc of a grip do not depend on the base
 
     def gesture_of(pitch: float, along: float):
