@@ -25,23 +25,9 @@ PACKAGES = ("pillow_00", "sofa_00", "tv_stand_00", "coffee_table_04", "bookshelf
 def house(tmp_path_factory):
     """(scene folder, generated.json) of one generated flat whose living room the scene job populated."""
     pytest.importorskip("newton")
-    from pipeline import build_job, run_job
+    from house_testutil import populate_flat
 
-    out = tmp_path_factory.mktemp("living") / "out"
-    cats = sorted({p.rsplit("_", 1)[0] for p in PACKAGES})
-    job = {"job": {"name": "living", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": cats}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}},
-                    {"name": "layouts", "kind": "layout", "config": {"house": [
-                        {"id": "flat", "count": 1, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
-                    {"name": "scenes", "kind": "scene", "config": {
-                        "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
-                        "looks": 1, "validate_usd": False, "settle": False,
-                        "group": [{"id": "flat", "layouts": ["flat_*"], "rooms": ["living_room"]}]}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
-    scene = next((out / "scenes").iterdir())
-    return scene, out / "catalog" / "default" / "generated.json"
+    return populate_flat(tmp_path_factory.mktemp("living") / "out", "living", PACKAGES, "living_room")
 
 
 @pytest.fixture(scope="module")
