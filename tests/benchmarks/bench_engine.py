@@ -19,6 +19,11 @@ prints
   the slowest of them;
 - completed episodes, successes per hour and the median episode length per task [frames].
 
+``--tasks`` replaces the basic tasks by any list of task names, e.g. the multistage tasks (issue 16:
+episodes per hour of the multistage job on the batched engine; the kitchen then parks the household
+objects or the drink they need, frames record the stage). A multistage episode is 1,000-1,500
+frames (35-50 s at 30 fps): give ``--sim-seconds`` several times that.
+
 Writes ``bench_results/engine.json``. Run on the GPU machine::
 
     python tests/benchmarks/bench_engine.py --device cuda --worlds 1 16 64 256 1024 --catalog DIR
@@ -60,6 +65,23 @@ def _catalog(work: Path) -> Path:
     return out
 
 
+def _multistage(tasks) -> bool:
+    from stages.demos.multistage import MULTISTAGE
+
+    return any(t in MULTISTAGE for t in tasks)
+
+
+def _kitchen(folder: Path, lib, tasks):
+    """The benchmark's kitchen (world seed 5), with the household objects or the drink that
+    ``tasks`` need (None: the basic tasks)."""
+    from stages.demos.kitchen import write_kitchen
+    from stages.demos.multistage import needs_drink, needs_household
+
+    tasks = tasks or ()
+    return write_kitchen(folder, lib, scene_id="kitchen_bench", rng=np.random.default_rng(5),
+                         household=needs_household(tasks), drink=needs_drink(tasks))
+
+
 def _sync(device: str) -> None:
     import warp as wp
 
@@ -74,13 +96,14 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import RoundRobin
 
-    tasks = sorted(BASIC_TASKS)
+    tasks = list(args.tasks) if args.tasks else sorted(BASIC_TASKS)
     t0 = time.perf_counter()
     eng = BatchEngine(room, panda_root=args.panda_root, work_dir=work,
                       config=EngineConfig(worlds=n, device=args.device, width=args.width, height=args.height,
                                           record_images=not args.no_images,
                                           program_procs=args.program_procs, program_wait=args.program_wait,
-                                          program_yield=args.program_yield, layout=args.layout))
+                                          program_yield=args.program_yield, layout=args.layout,
+                                          subtasks=_multistage(tasks)))
     build = time.perf_counter() - t0
     next_instance = RoundRobin(room, tasks, seed_base)
 
@@ -271,14 +294,14 @@ def _encode_only(eng, root: Path, frame, frames_per_world: int = 30, procs: int 
 def _child(args, n: int, k: int, barrier, queue) -> None:
     """Process ``k`` of a pool: its own kitchen copy and an engine of ``n`` worlds."""
     import usd_schemas  # noqa: F401
-    from stages.demos.kitchen import AssetLibrary, write_kitchen
+    from stages.demos.kitchen import AssetLibrary
 
     try:
         if args.devices:  # processes spread over the host's GPUs, round robin
             args.device = args.devices[k % len(args.devices)]
         work = args.work / f"proc{k:02d}"
         lib = AssetLibrary.from_folder(args.catalog / "assets", args.catalog / "catalog" / "default" / "generated.json")
-        room = write_kitchen(work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
+        room = _kitchen(work / "kitchen", lib, args.tasks)
         from stages.engine import device_scope
 
         with device_scope(args.device):  # "cuda:N": every allocation of this engine on its GPU
@@ -416,6 +439,8 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--device", default=os.environ.get("AGENTWORLD_BENCH_DEVICE", "cpu"))
     p.add_argument("--worlds", type=int, nargs="+", default=[1, 2])
+    p.add_argument("--tasks", nargs="+", default=None,
+                   help="task names, basic or multistage (default: the 15 basic tasks), round robin over the worlds")
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--height", type=int, default=240)
     p.add_argument("--fps", type=int, default=30)
@@ -451,14 +476,14 @@ def main(argv=None) -> dict:
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "engine.json")
     args = p.parse_args(argv)
     import usd_schemas  # noqa: F401
-    from stages.demos.kitchen import AssetLibrary, write_kitchen
+    from stages.demos.kitchen import AssetLibrary
 
     args.work.mkdir(parents=True, exist_ok=True)
     cat = args.catalog = (args.catalog or _catalog(args.work)).resolve()
     args.work = args.work.resolve()
     args.panda_root = args.panda_root.resolve() if args.panda_root else None
     lib = AssetLibrary.from_folder(cat / "assets", cat / "catalog" / "default" / "generated.json")
-    room = write_kitchen(args.work / "kitchen", lib, scene_id="kitchen_bench", rng=np.random.default_rng(5))
+    room = _kitchen(args.work / "kitchen", lib, args.tasks)
     results = []
     from stages.simulate import compact
 
