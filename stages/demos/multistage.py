@@ -266,3 +266,13 @@ HOUSEHOLD_SKILLS = ("wipe_plate", "throw_away")
 def needs_household(tasks) -> bool:
     """Whether any of ``tasks`` (names) is a multistage task with a household skill's stage."""
     return any(st.skill in HOUSEHOLD_SKILLS for t in tasks if t in MULTISTAGE for st in MULTISTAGE[t].stages)
+
+
+#: skills whose alarm clock a task kitchen parks only when asked (``write_kitchen(clock=True)``)
+CLOCK_SKILLS = ("press_clock_button", "slide_clock_switch")
+
+
+def needs_clock(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a clock skill or a multistage task with a clock skill's stage."""
+    return any(t in CLOCK_SKILLS or (t in MULTISTAGE and any(st.skill in CLOCK_SKILLS for st in MULTISTAGE[t].stages))
+               for t in tasks)

@@ -92,7 +92,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
-    for role in ("plate", "sponge", "paper", "trash_can"):  # parked (stages.demos.kitchen): every episode starts them there
+    for role in ("plate", "sponge", "paper", "trash_can", "clock"):  # parked (stages.demos.kitchen): every episode starts them there
         if role in pl:
             objects[pl[role].body()] = (*pl[role].position, 0.0)
     joints: dict[str, float] = {}
@@ -141,6 +141,15 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="plate", tool="sponge")
         ids = [pl["plate"], pl["sponge"]]
         target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
+    if task_name in ("press_clock_button", "slide_clock_switch"):
+        from stages.demos.skill_press import clock_setup
+
+        moved, rest = clock_setup(world)
+        objects.update(moved)
+        joints.update(rest)
+        names.update(object="alarm clock")
+        ids = [pl["clock"]]
+        target = tuple(float(v) for v in pl["clock"].position[:2])
     if task_name == "throw_away":
         from stages.demos.skill_trash import trash_setup
 

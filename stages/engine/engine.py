@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.demos.experts import timed_clik
-from stages.demos.kitchen import FREE_ROLES
+from stages.demos.kitchen import FREE_ROLES, watched_joints
 from stages.demos.record import Timings
 from stages.engine.capture import FrameCapture
 from stages.engine.lockstep import Lockstep
@@ -242,7 +242,7 @@ class BatchEngine:
                 b = sim.body_of_path(p.body())
                 self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
-        self.watched = [world.placed["microwave"].joint("button_joint")]
+        self.watched = watched_joints(world)
         for b in self.banks:
             b.peaks = Peaks(b.sim, self.watched, self._scene_coord)
         self._pending_reset: dict[int, dict[int, float]] = {}
