@@ -230,11 +230,19 @@ def room_door(b: AssetBuilder) -> float | None:
 #: the alarm clock's slide switch: travel range [m]; knob (width along the slide, protrusion from the
 #: back face, height) [m]; joint damping [N s/m], friction [N] and armature [kg]: a fingertip pushes
 #: it with ~0.2 N (a 0.2 kg clock slides on the counter at ~1 N), and it stays where it is left
+#: its top button's return spring [N/m] (the ~6 g button sags 0.2 mm under gravity; pressed in fully
+#: it pushes back ~1.5 N; without it gravity held the button pressed), damping [N s/m] and armature
+#: [kg]. The armature also stiffens the fingertip's contact: MuJoCo's soft contact pushes with a force
+#: in proportion to the contact's effective mass, and on a 16 g button the fingertip sank through the
+#: cap against the spring (measured: the button did not move, the tip went 8 mm past the cap)
+CLOCK_BUTTON_SPRING = 300.0
+CLOCK_BUTTON_DAMPING = 10.0
+CLOCK_BUTTON_ARMATURE = 0.5
 CLOCK_SWITCH_TRAVEL = (0.012, 0.018)
 CLOCK_KNOB = (0.008, 0.012, 0.014)
 CLOCK_SWITCH_DAMPING = 1.0
 CLOCK_SWITCH_FRICTION = 0.1
-CLOCK_SWITCH_ARMATURE = 0.02
+CLOCK_SWITCH_ARMATURE = 0.3  # (the fingertip's contact on the knob, as the button's)
 
 
 def alarm_clock(b: AssetBuilder) -> float:
@@ -266,7 +274,8 @@ def alarm_clock(b: AssetBuilder) -> float:
             b.add("base", bell, metal, density=1500.0)
     travel = b.param("button_travel", 0.003, 0.005)
     b.link("button", parent="base", origin=(0, 0, top), joint="prismatic", axis=(0, 0, -1), lower=0.0,
-           upper=travel, effort=5.0, velocity=0.1, damping=0.05, friction=0.01, role="button")
+           upper=travel, effort=5.0, velocity=0.1, damping=CLOCK_BUTTON_DAMPING, friction=0.01, role="button",
+           spring=CLOCK_BUTTON_SPRING, armature=CLOCK_BUTTON_ARMATURE)
     b.add("button", g.cylinder(0.008, travel + 0.012, (0, 0, top + 0.006 - travel / 2 + 0.0005), n=16), metal,
           density=1000.0, collision="none")
     b.add("button", g.cylinder(0.013, 0.005, (0, 0, top + 0.009 + 0.0005), n=20), metal, density=1000.0)

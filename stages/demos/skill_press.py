@@ -178,17 +178,17 @@ def press_clock_button(inst, d) -> None:
     pl, parts, at = _clock_now(inst, d)
     rot = top_down(at.yaw - math.pi / 2)  # fingers close along the clock's depth, between the bells
     top, press = at.button_top, at.press
-    approach_counter(inst, d, float(top[0]), rot=rot, lift=float(top[2] - w.counter_z) + 0.08)
+    approach_counter(inst, d, float(top[0]), rot=rot, lift=float(top[2] - w.counter_z) + 0.05)
     _, _, at = _clock_now(inst, d)  # (the base may have brushed the counter)
     top = at.button_top
     d.grip(1.0, 0.4)
     tcp = top - (TIP_AHEAD + GAP) * press  # the fingertips GAP over the button's top
-    d.move(_pose(tcp - 0.06 * press, rot), 1.2, segments=2, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(tcp - 0.04 * press, rot), 1.2, segments=2, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(tcp, rot), 0.6, segments=1, settle=0.1)
     joint = pl.joint(parts.button_joint)
     _push(d, tcp, press, rot, joint, PRESS_GOAL * parts.button_travel, GAP + parts.button_travel + PRESS_OVER)
     d.step(0.2)
-    d.move(_pose(tcp - 0.08 * press, rot), 0.8, segments=2, tol=APPROACH_TOL)
+    d.move(_pose(tcp - 0.04 * press, rot), 0.8, segments=2, tol=APPROACH_TOL)
     leave_counter(inst, d)
 
 
