@@ -42,6 +42,7 @@ from stages.demos.planner import NavGrid
 from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
 from stages.demos.skill_fridge import pick_place_fridge
+from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
 from stages.demos.skill_trash import throw_away
 from stages.demos.skill_wipe import wipe_plate
@@ -248,7 +249,8 @@ def close_articulated(inst: TaskInstance, d: Driver) -> None:
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
            "pick_from_microwave": pick_from_microwave, "push_object": push_object,
            "press_button": press_button, "pick_place_fridge": pick_place_fridge,
-           "wipe_plate": wipe_plate, "throw_away": throw_away, "press_clock_button": press_clock_button,
+           "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
+           "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
            "slide_clock_switch": slide_clock_switch}
 for _name in TASKS:
     if _name.startswith("open_"):

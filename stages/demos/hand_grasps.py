@@ -172,6 +172,17 @@ def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.1
     return GraspPlan(pre_grasp=pre, grasp=grasp, approach=np.array([0.0, 0.0, -1.0]), shape=shape)
 
 
+def top_grasp_plans(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10) -> list[GraspPlan]:
+    """The top grasps of ``shape`` to try in turn (:func:`plan_top_grasp`): for a hand with a
+    ``handle_side`` and an object with a handle, the handle on that side (any turn), then on the
+    other side (for a mug whose handle-side grasp needs a wrist turn past the Panda's limits: a mug
+    turned ~180 deg, record-table seed 1 episode 3); otherwise the one grasp."""
+    side = int(getattr(hand, "handle_side", 0))
+    sides = (side, -side) if side and shape.handle is not None else (side,)
+    return [plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=s,
+                           **({"max_turn": np.pi} if s else {})) for s in sides]
+
+
 # --------------------------------------------------------------------------------------------
 # contact check and closing synergy
 # --------------------------------------------------------------------------------------------
@@ -257,3 +268,37 @@ def close_until_contact(sim, ctl, hand, body: int, *, world: int = 0, rate: floa
     ctl.set_gripper(c, world)
     sim.step(int(round(settle / dt)))
     return Closing(contact_command=hit, command=c, touching=frozenset(contact_fingers(sim, hand, body, world)))
+
+
+# --------------------------------------------------------------------------------------------
+# carrying a grasped object
+# --------------------------------------------------------------------------------------------
+
+
+def min_jerk(s: float) -> float:
+    """The minimum-jerk time scaling of ``s`` in [0, 1]: 0 -> 0, 1 -> 1, zero velocity and
+    acceleration at both ends."""
+    s = float(np.clip(s, 0.0, 1.0))
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def move_ee_smooth(sim, ctl, ik, target: np.ndarray, duration: float, *, pieces: int = 8,
+                   settle: float = 0.0) -> None:
+    """Move the TCP to ``target`` (4, 4) in the world in ``duration`` [s] along the straight path,
+    its progress following :func:`min_jerk` (``pieces`` linear pieces of equal time, each a
+    :func:`stages.simulate.control.move_ee` of one waypoint), then wait ``settle`` [s]. A held
+    object then starts and stops without the jolt of :func:`move_ee`'s constant-speed segments
+    (the Allegro's top-grasped mug tipped out when the lift stopped and the carry started at
+    once: 1 of 3 episodes, record-table seed 1). Raises RuntimeError where move_ee does."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    from stages.simulate.control import Clik, move_ee
+
+    start = np.linalg.inv(Clik.root_from_world(sim.spawn)) @ ik.fk(ik.with_arm(ik.from_sim(sim, 0), ctl.arm_targets(0)))
+    slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], target[:3, :3]])))
+    for k in range(1, pieces + 1):
+        a = min_jerk(k / pieces)
+        wp = np.eye(4)
+        wp[:3, :3] = slerp([a]).as_matrix()[0]
+        wp[:3, 3] = start[:3, 3] + a * (target[:3, 3] - start[:3, 3])
+        move_ee(sim, ctl, ik, wp, duration / pieces, segments=1, settle=settle if k == pieces else 0.0)

@@ -14,7 +14,9 @@ task scene slides it along the top. The task scene deactivates the objects of th
 and the walls stay, static) and the objects on the counter that stand where the task works (the
 mug's spot beside the microwave, on the side of its door handle). Floor-standing furniture of the
 kitchen and every wall of its floor are the planner's obstacles; the robot plans and starts inside
-the kitchen room.
+the kitchen room. What is not kitchen-specific (reading a room's records, the turn into the task
+frame, the task scene layer, obstacles and start area) is :mod:`stages.demos.house_room`, shared
+with the living room (:mod:`stages.demos.house_living`).
 
 Frame: the task frame, Z up, metres, radians: ``p_task = Rz(theta) p_house + t``
 (:attr:`HouseKitchen.frame` = (tx, ty, theta)).
@@ -28,18 +30,18 @@ Frame: the task frame, Z up, metres, radians: ``p_task = Rz(theta) p_house + t``
 
 from __future__ import annotations
 
-import json
 import logging
-import math
-import os
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.demos.kitchen import GRASP_MAX_DIAMETER, SOUTH, KitchenWorld, _cavity, _mug_ok
+from stages.demos.house_room import (HouseRoom, floor_plan_of, obstacles, read_room,
+                                     room_frame, rot2, spawn_in, wrap, write_task_scene)
+from stages.demos.kitchen import GRASP_MAX_DIAMETER, SOUTH, _cavity, _mug_ok
 from stages.demos.packages import CatalogAsset, Placed, link_bounds
+
+__all__ = ["HouseKitchen", "floor_plan_of", "house_kitchen"]
 
 log = logging.getLogger(__name__)
 
@@ -47,59 +49,12 @@ FURNITURE_ROLES = {"kitchen_counter": "counter", "fridge": "fridge", "oven": "ov
 SPOT_BESIDE = 0.17      # mug spot: from the microwave's side to the spot [m] (as the task kitchen)
 SPOT_BACK = 0.07        # mug spot: behind the counter's front edge [m]
 CLEAR_HALF = 0.15       # counter objects from the microwave to this beyond the spot are cut away [m]
-FLOOR_MIN_HEIGHT = 0.03  # floor furniture lower than this (rugs) is no obstacle [m]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False)
-class HouseKitchen(KitchenWorld):
-    """A :class:`~stages.demos.kitchen.KitchenWorld` in a generated house. house: the house's scene
-    USD; room: the kitchen's room id; frame (tx, ty, theta) [m, rad]: house -> task frame; area:
-    the kitchen room's floor (xmin, ymin, xmax, ymax) in the task frame [m]; walls: footprints (K, 4)
-    of the floor's walls [m]; furniture: the kitchen's floor furniture by instance name; cut: the
-    instances the task scene deactivates (other rooms' objects, the counter's clutter where the
-    task works); moved: (microwave instance, its position in the house frame [m]) where the task
-    scene slid it along the counter top to make room for the mug's spot, else None."""
-
-    house: Path
-    room: str
-    frame: tuple[float, float, float]
-    area: tuple[float, float, float, float]
-    walls: tuple[tuple[float, float, float, float], ...]
-    furniture: dict
-    cut: tuple[str, ...]
-    moved: tuple | None = None
-
-    def nav_boxes(self) -> np.ndarray:
-        boxes = list(self.walls) + [p.footprint() for p in self.furniture.values()
-                                    if p.asset.hi[2] - p.asset.lo[2] >= FLOOR_MIN_HEIGHT]
-        return np.asarray(boxes, float)
-
-    def nav_bounds(self) -> tuple[float, float, float, float]:
-        x0, y0, x1, y1 = self.area
-        return (x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2)
-
-    def start_area(self) -> tuple[float, float, float, float]:
-        """The kitchen's floor less 0.3 m along the walls (a house's kitchen is smaller than the task
-        kitchen: no band before the counter is kept free of starts)."""
-        x0, y0, x1, y1 = self.area
-        return (x0 + 0.3, y0 + 0.3, x1 - 0.3, y1 - 0.3)
-
-    def start_boxes(self) -> np.ndarray:
-        return self.nav_boxes()
-
-
-def _rot2(theta: float) -> np.ndarray:
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
-def _rel(target: Path, layer_dir: Path) -> str:
-    r = os.path.relpath(Path(target).resolve(), Path(layer_dir).resolve()).replace(os.sep, "/")
-    return r if r.startswith(".") else f"./{r}"
+class HouseKitchen(HouseRoom):
+    """A :class:`~stages.demos.house_room.HouseRoom` whose room is a kitchen (see the module doc):
+    moved is the microwave the task scene slid along the counter top to make room for the mug's
+    spot, else None."""
 
 
 def _reachable_y(cnt: Placed, seg: dict, ma: CatalogAsset, side: float, span: tuple[float, float], y0: float,
@@ -135,89 +90,18 @@ def _reachable_y(cnt: Placed, seg: dict, ma: CatalogAsset, side: float, span: tu
     return None
 
 
-def floor_plan_of(scene_usd: Path) -> Path:
-    """The ``floorplan.json`` beside the layout layer that a scene's ``/World/Layout`` references."""
-    from pxr import Sdf
-
-    layer = Sdf.Layer.FindOrOpen(str(scene_usd))
-    prim = layer.GetPrimAtPath("/World/Layout") if layer else None
-    refs = list(prim.referenceList.GetAddedOrExplicitItems()) if prim else []
-    if not refs:
-        raise ItemError(f"{scene_usd}: no /World/Layout reference to a layout layer")
-    plan = (Path(scene_usd).parent / refs[0].assetPath).resolve().parent / "floorplan.json"
-    if not plan.is_file():
-        raise ItemError(f"{scene_usd}: the layout's floor plan {plan} is missing")
-    return plan
-
-
-def _asset(rec: dict, info: dict[str, dict]) -> CatalogAsset:
-    gen = info.get(rec["asset_id"])
-    if gen is None:
-        raise ItemError(f"{rec['asset_id']}: not in the catalog's generated.json")
-    return CatalogAsset(asset_id=rec["asset_id"], category=rec["category"], usd=Path(rec["usd"]).resolve(),
-                        info=gen)
-
-
-def _write_task_scene(path: Path, house: Path, frame: tuple[float, float, float], cut: list[str],
-                      moved: tuple[str, tuple] | None) -> None:
-    """The task scene layer: the house's scene as a sublayer, ``/World`` moved by ``frame`` (translate
-    (tx, ty, 0), then rotate theta about +Z), the ``cut`` instances (``/World/Objects/<name>``) inactive;
-    ``moved``: (instance, new position in the house frame [m]) or None."""
-    from pxr import Gf, Sdf
-
-    layer = Sdf.Layer.CreateAnonymous(".usda")
-    root = layer.pseudoRoot
-    root.SetInfo("upAxis", "Z")
-    root.SetInfo("metersPerUnit", 1.0)
-    root.SetInfo("kilogramsPerUnit", 1.0)
-    layer.defaultPrim = "World"
-    layer.subLayerPaths.append(_rel(house, path.parent))
-    world = Sdf.PrimSpec(root, "World", Sdf.SpecifierOver)
-    tx, ty, th = frame
-    t = Sdf.AttributeSpec(world, "xformOp:translate", Sdf.ValueTypeNames.Double3)
-    t.default = Gf.Vec3d(tx, ty, 0.0)
-    r = Sdf.AttributeSpec(world, "xformOp:rotateZ", Sdf.ValueTypeNames.Double)
-    r.default = math.degrees(th)
-    o = Sdf.AttributeSpec(world, "xformOpOrder", Sdf.ValueTypeNames.TokenArray,
-                          variability=Sdf.VariabilityUniform)
-    o.default = ["xformOp:translate", "xformOp:rotateZ"]
-    objs = Sdf.PrimSpec(world, "Objects", Sdf.SpecifierOver)
-    for name in sorted(cut):
-        Sdf.PrimSpec(objs, name, Sdf.SpecifierOver).active = False
-    if moved:
-        m = Sdf.AttributeSpec(Sdf.PrimSpec(objs, moved[0], Sdf.SpecifierOver), "xformOp:translate",
-                              Sdf.ValueTypeNames.Double3)
-        m.default = Gf.Vec3d(*moved[1])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    layer.Export(str(path))
-
-
 def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
                   room: str | None = None) -> HouseKitchen:
     """The task world of the kitchen ``room`` (default: the house's first populated kitchen) of the
     scene in ``scene_dir`` (``scene.usda`` + ``scene.json``), written to ``out_dir/scene.usda``
     (see the module doc). ``generated_json``: the default catalog's records (surfaces, handles,
     parameters). ItemError names what the kitchen lacks."""
-    from stages.demos.parts import load_generated_info
-    from stages.layout.floorplan import load_floor_plan
-
     scene_dir, out_dir = Path(scene_dir), Path(out_dir)
-    house = scene_dir / "scene.usda"
-    try:
-        summary = json.loads((scene_dir / "scene.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise ItemError(f"{scene_dir}: cannot read scene.json ({e})") from None
-    kitchens = [r for r, t in summary["rooms"].items() if t == "kitchen"]
-    room = room or (kitchens[0] if kitchens else None)
-    if room not in kitchens:
-        raise ItemError(f"{scene_dir}: no populated kitchen {room or ''} (rooms: {summary['rooms']})")
-    info = load_generated_info(generated_json)
-    recs = {r["name"]: r for r in summary["instances"]}
-    mine = {n: r for n, r in recs.items() if r["room"] == room}
+    rs = read_room(scene_dir, generated_json, "kitchen", room)
+    house, room, recs, mine, info, one = rs.house, rs.room, rs.recs, rs.mine, rs.info, rs.one
 
-    def one(category: str, ok=lambda r: True, what: str = "") -> dict | None:
-        c = [r for r in mine.values() if r["category"] == category and ok(r)]
-        return c[0] if c else None
+    def _asset(rec: dict, _info=None) -> CatalogAsset:
+        return rs.asset(rec)
 
     counter = one("kitchen_counter")
     micro = one("microwave", lambda r: r["support"] == (counter or {}).get("name"))
@@ -226,30 +110,16 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         lack = [w for w, r in (("a kitchen counter", counter), ("a microwave on the counter", micro),
                                (f"a mug narrower than {GRASP_MAX_DIAMETER * 1000:.0f} mm", mug)) if r is None]
         raise ItemError(f"{scene_dir}: kitchen {room} lacks {', '.join(lack)}")
-    if abs(_wrap(micro["yaw"] - counter["yaw"])) > 0.05:
+    if abs(wrap(micro["yaw"] - counter["yaw"])) > 0.05:
         raise ItemError(f"{scene_dir}: the microwave does not face the counter's front")
 
     # the motion: the counter's front (asset +X) to world -Y, the room's corner to the origin
-    theta = _wrap(SOUTH - counter["yaw"])
-    theta = round(theta / (math.pi / 2)) * (math.pi / 2)
-    R = _rot2(theta)
-    plan = load_floor_plan(floor_plan_of(house))
-    rm = next(r for f in plan.floors for r in f.rooms if r.id == room)
-    poly = np.asarray(rm.polygon) @ R.T
-    t = -poly.min(axis=0)
-    frame = (float(t[0]), float(t[1]), float(theta))
-    size = tuple(float(v) for v in poly.max(axis=0) - poly.min(axis=0))
+    rf = room_frame(house, room, SOUTH - counter["yaw"])
+    frame, size, walls, t, theta = rf.frame, rf.size, rf.walls, rf.t, rf.frame[2]
 
     def placed(rec: dict) -> Placed:
-        xy = R @ np.asarray(rec["position"][:2]) + t
-        pos = (float(xy[0]), float(xy[1]), float(rec["position"][2]))
-        return Placed(f"Objects/{rec['name']}", _asset(rec, info), pos, _wrap(rec["yaw"] + theta))
+        return rf.placed(rec, rs.asset(rec))
 
-    def box(b) -> tuple[float, float, float, float]:
-        pts = np.array([[b[0], b[1]], [b[2], b[3]]]) @ R.T + t
-        return (*pts.min(axis=0), *pts.max(axis=0))
-
-    walls = tuple(box(w.box) for w in plan.floors[rm.floor].walls)
     furniture = {n: placed(r) for n, r in mine.items() if r["support"] is None}
     pl: dict[str, Placed] = {"counter": furniture[counter["name"]], "microwave": placed(micro),
                              "mug": placed(mug)}
@@ -261,7 +131,7 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
 
     # the counter's top segment under the microwave (counter frame), else the widest one with room
     local = np.asarray(mwp.position) - np.asarray(cnt.position)
-    mloc = _rot2(-cnt.yaw) @ local[:2]
+    mloc = rot2(-cnt.yaw) @ local[:2]
     ma = mwp.asset
     handle = [h for h in ma.info.get("handles", []) if h["link"] == "door"]
     side = 1.0 if not handle or handle[0]["center"][1] >= 0 else -1.0
@@ -282,23 +152,23 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     seg = tops[0]
     lo_y, hi_y = span(seg)
     my = _reachable_y(cnt, seg, ma, side, (lo_y, hi_y), float(np.clip(mloc[1], lo_y, hi_y)), walls,
-                      [p.footprint() for p in furniture.values() if p.asset.hi[2] - p.asset.lo[2] >= FLOOR_MIN_HEIGHT])
+                      obstacles(furniture.values()))
     if my is None:
         raise ItemError(f"{scene_dir}: the robot's base cannot stand before the counter where the microwave "
                         f"and the mug's spot are (furniture or a wall beside it)")
     moved = None
     if abs(my - mloc[1]) > 1e-9:
         mloc = np.array([mloc[0], my])
-        xy = np.asarray(cnt.position[:2]) + _rot2(cnt.yaw) @ mloc
+        xy = np.asarray(cnt.position[:2]) + rot2(cnt.yaw) @ mloc
         mwp = pl["microwave"] = Placed(mwp.name, ma, (float(xy[0]), float(xy[1]), mwp.position[2]), mwp.yaw)
-        hxy = _rot2(-theta) @ (xy - t)
+        hxy = rot2(-theta) @ (xy - t)
         moved = (micro["name"], (float(hxy[0]), float(hxy[1]), float(micro["position"][2])))
     spot_y = mloc[1] + (ma.hi[1] + SPOT_BESIDE if side > 0 else ma.lo[1] - SPOT_BESIDE)
     counter_z = float(cnt.position[2] + seg["z"])
     spot = cnt.to_world((seg["hi"][0] - SPOT_BACK, spot_y, 0.0))[:2]
 
     # cut away: the other rooms' objects; the counter's objects where the mug is set down and carried
-    cut = [n for n, r in recs.items() if r["room"] != room and r["support"] is not None]
+    cut = rs.other_rooms_objects()
     y_lo = spot_y - CLEAR_HALF if side < 0 else mloc[1] + ma.lo[1] - 0.02
     y_hi = spot_y + CLEAR_HALF if side > 0 else mloc[1] + ma.hi[1] + 0.02
     for n, r in mine.items():
@@ -307,7 +177,7 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         a = _asset(r, info)
         p = placed(r)
         fp = np.array([p.to_world((x, y, 0.0))[:2] for x in (a.lo[0], a.hi[0]) for y in (a.lo[1], a.hi[1])])
-        cl = (fp - np.asarray(cnt.position[:2])) @ _rot2(cnt.yaw)  # counter frame (row vectors: R^T)
+        cl = (fp - np.asarray(cnt.position[:2])) @ rot2(cnt.yaw)  # counter frame (row vectors: R^T)
         if cl[:, 1].max() > y_lo and cl[:, 1].min() < y_hi:
             cut.append(n)
 
@@ -328,7 +198,7 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     blo, bhi = link_bounds(ma.usd, "button")
     button = mwp.to_world(np.array([bhi[0], (blo[1] + bhi[1]) / 2, (blo[2] + bhi[2]) / 2]))
     usd = out_dir / "scene.usda"
-    _write_task_scene(usd, house, frame, cut, moved)
+    write_task_scene(usd, house, frame, cut, moved)
     area = (0.0, 0.0, *size)
     w = HouseKitchen(
         usd=usd, scene_id=scene_id, size=size, wall_thickness=0.0, placed=pl, spawn=(0.0, 0.0, 0.0),
@@ -341,9 +211,6 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         mug_radius=float(m.asset.params["radius"]), mug_height=float(m.asset.params["height"]),
         bowl_radius=0.0, materials={}, look=None, house=house.resolve(), room=room, frame=frame, area=area,
         walls=walls, furniture=furniture, cut=tuple(sorted(cut)), moved=moved)
-    from stages.demos.sampling import free_start
-
-    spawn = free_start(w, np.random.default_rng(0))
-    object.__setattr__(w, "spawn", spawn)
+    spawn_in(w)
     log.info("house kitchen %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, room, w.asset_ids(), len(cut))
     return w

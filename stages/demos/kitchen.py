@@ -40,9 +40,9 @@ log = logging.getLogger(__name__)
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
                       "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
-                      "alarm_clock")
+                      "alarm_clock", "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
-FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "clock")
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock")
 CLOCK_END_GAP = 0.35    # a parked clock stands this far [m] from the counter top's ends (the base's room)
 CLOCK_BUSY_GAP = 0.30   # ... and from the microwave and the mug's counter spot [m]
 CLOCK_FRONT = 0.075     # its centre this far [m] behind the counter's front edge
@@ -127,6 +127,18 @@ class KitchenWorld:
     bowl_radius: float
     materials: dict
     look: KitchenLook
+    drink: tuple[str, ...] = ()
+
+    def drink_parked(self) -> dict:
+        """The drink's spheres where the kitchen parks them (body -> (x, y, z, yaw)): in the parked
+        pitcher (:func:`stages.demos.skill_pour.drink_world`); empty without a drink."""
+        if not self.drink:
+            return {}
+        from stages.demos.skill_pour import drink_world
+
+        p = self.placed["pitcher"]
+        pts = drink_world((*p.position, p.yaw), p.asset.params, len(self.drink))
+        return {b: (*(float(v) for v in c), 0.0) for b, c in zip(self.drink, pts, strict=True)}
 
     def nav_boxes(self) -> np.ndarray:
         """Obstacle footprints (K, 4) [xmin, ymin, xmax, ymax] for base planning: walls, the floor
@@ -253,8 +265,8 @@ def _clock(lib: AssetLibrary, rng: np.random.Generator, counter_rect, counter_z:
 
 def watched_joints(world: KitchenWorld) -> list[str]:
     """The momentary scene joints whose peaks the engines track: the microwave's button and a
-    parked clock's button."""
-    out = [world.placed["microwave"].joint("button_joint")]
+    parked clock's button (a world without a microwave, a house's, watches no microwave button)."""
+    out = [world.placed["microwave"].joint("button_joint")] if "microwave" in world.placed else []
     if "clock" in world.placed:
         joints = world.placed["clock"].info.get("joints", {})
         out += [world.placed["clock"].joint(n) for n, role in joints.items() if role == "button"]
@@ -279,7 +291,7 @@ def _rel(target: Path, layer_dir: Path) -> str:
 
 
 def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap: tuple[float, float],
-                 look: KitchenLook) -> None:
+                 look: KitchenLook, drink: dict | None = None) -> None:
     """Author the scene layer: physics scene, floor, walls (the south one split around the door
     opening ``door_gap`` (x0, x1)), one referencing Xform per placed package, and the look (material
     overrides of the packages, lights)."""
@@ -311,17 +323,23 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
         ref = Sdf.Reference(_rel(p.asset.usd, path.parent))
         w.prim(p.prim, "Xform", apis=la, attrs={**_xform_attrs(p.position, p.yaw), **lv},
                meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
+    if drink:
+        from stages.demos.skill_pour import write_drink
+
+        write_drink(w, drink)
     add_look(w, look, size)
     w.write(Path(path), "World")
 
 
 def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
-                  rng: np.random.Generator, household: bool = False, clock: bool = False) -> KitchenWorld:
+                  rng: np.random.Generator, household: bool = False, drink: bool = False,
+                  clock: bool = False) -> KitchenWorld:
     """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc).
     ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
     tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
-    as they were). ``clock``: also park an alarm clock on the counter (the press and slide skills,
-    :func:`stages.demos.multistage.needs_clock`)."""
+    as they were); ``drink``: also park a pitcher holding the drink's spheres and a cup
+    (stages.demos.skill_pour; :func:`stages.demos.multistage.needs_drink`); ``clock``: also park an
+    alarm clock on the counter (the press and slide skills, :func:`stages.demos.multistage.needs_clock`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     micro = _pick(lib, rng, ("microwave",))
@@ -422,8 +440,21 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         mw_fp = placed["microwave"].footprint()
         busy = (min(mw_fp[0], counter_spot[0]), max(mw_fp[2], counter_spot[0]))
         placed.update(_clock(lib, spare, counter_rect, top_z, busy))
+    drink_bodies: tuple[str, ...] = ()
+    if drink:
+        from stages.demos.skill_pour import park_drink
+
+        more, drink_bodies = park_drink(lib, rng.spawn(1)[0], table_rect, table_z)
+        placed.update(more)
     usd = out_dir / "scene.usda"
-    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look)
+    parked = None
+    if drink_bodies:
+        from stages.demos.skill_pour import drink_world
+
+        p = placed["pitcher"]
+        parked = dict(zip(drink_bodies, drink_world((*p.position, p.yaw), p.asset.params, len(drink_bodies)),
+                          strict=True))
+    _write_scene(usd, (sx, sy), list(placed.values()), colors, door_gap, look, parked)
     spawn = (float(tx), float(south - 0.9), math.pi / 2)
     world = KitchenWorld(
         usd=usd, scene_id=scene_id, size=(sx, sy), wall_thickness=WALL_T, placed=placed, spawn=spawn,
@@ -432,6 +463,6 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         button=tuple(float(v) for v in button), button_travel=float(micro.params.get("button_travel", 0.005)),
         button_push=tuple(float(v) for v in push), mug_radius=float(mug.params["radius"]),
         mug_height=float(mug.params["height"]), bowl_radius=float(bowl.params.get("rim_radius", 0.07)),
-        materials=colors, look=look)
+        materials=colors, look=look, drink=drink_bodies)
     log.info("kitchen %s: %s", scene_id, world.asset_ids())
     return world

@@ -268,6 +268,15 @@ def needs_household(tasks) -> bool:
     return any(st.skill in HOUSEHOLD_SKILLS for t in tasks if t in MULTISTAGE for st in MULTISTAGE[t].stages)
 
 
+def needs_drink(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a pour skill or a multistage task with a pour stage: its
+    kitchen parks a pitcher with the drink and a cup (``write_kitchen(drink=True)``)."""
+    from stages.demos.sampling import POUR_SKILLS
+
+    return any(t in POUR_SKILLS or (t in MULTISTAGE and any(st.skill in POUR_SKILLS for st in MULTISTAGE[t].stages))
+               for t in tasks)
+
+
 #: skills whose alarm clock a task kitchen parks only when asked (``write_kitchen(clock=True)``)
 CLOCK_SKILLS = ("press_clock_button", "slide_clock_switch")
 

@@ -17,6 +17,10 @@ from stages.demos.parts import ArticulatedPart, axis_angle
 PUSH_INBOARD = 0.07  # pushing contact on the front face, this far from the bar towards the hinge [m]
 LEVER_EXTRA = 0.1   # a lever's rose lies inboard of its grip centre: push further in [m]
 PUSH_STANDOFF = 0.015  # tool centre off the face when touching it with the closed hand [m]
+# closing a vertically hinged door, the fist may also press the front face turned this much [rad]
+# about the vertical towards the hinge (from beside the free edge): the base then stands before the
+# fridge instead of beyond its hinge, where a small kitchen has no floor (issue 16, store_food)
+PUSH_YAWS = (math.radians(40.0), math.radians(65.0))
 OVEN_GRIP_OFFSET = 0.12  # a bottom-hinged door's bar (70 % of the width) may be gripped off-centre [m]
 GRASP_BACK = 0.12   # pre-grasp distance along the approach axis [m]
 # pinching the free edge of a bottom-hinged (oven) door: catalog ovens have the bar's centre 5 cm
@@ -47,13 +51,14 @@ _FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(f
 _FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
 
 
-def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False) -> np.ndarray:
+def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False, yaw: float = 0.0) -> np.ndarray:
     """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
     pitched ``pitch`` [rad] down, fingers closing across the bar (``push``: along it, so that the
-    hand's width runs parallel to the bar)."""
+    hand's width runs parallel to the bar); ``yaw`` [rad]: the approach turned that much about the
+    vertical towards the hinge (a push from beside the free edge)."""
     vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
     base = _FINGERS_HORIZONTAL if vertical_bar != push else _FINGERS_VERTICAL
-    return _rz(heading(-np.asarray(part.front))) @ _ry(pitch) @ base
+    return _rz(heading(-np.asarray(part.front)) + toward_hinge(part) * yaw) @ _ry(pitch) @ base
 
 
 def handle_pose(part: ArticulatedPart, q: float, pitch: float, back: float = 0.0) -> np.ndarray:
@@ -102,10 +107,11 @@ def door_pitch(z: float) -> float:
 
 
 def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float = 0.0,
-             push: bool = False) -> np.ndarray:
+             push: bool = False, yaw: float = 0.0) -> np.ndarray:
     """4x4 world gripper pose at the link point ``p_closed`` (3,) carried to joint value q, ``out``
-    [m] off the front face along its normal, turning with the part."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push)
+    [m] off the front face along its normal, turning with the part (``yaw``: see
+    :func:`grasp_rotation`)."""
+    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push, yaw)
     m = np.eye(4)
     m[:3, :3] = rot
     m[:3, 3] = part.point_at(p_closed, q) + out * part.front_at(q)
@@ -163,22 +169,24 @@ def gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mod
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
     ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
-    face 7 cm inboard of the bar, pressing along the arc. Edge (``mode="edge"``, bottom-hinged
-    doors): pinching the leaf's free edge, ``pitch`` being the tilt about the hinge axis (see
-    :func:`_edge_tool`)."""
+    face 7 cm inboard of the bar, pressing along the arc; for a vertical hinge ``along`` is instead
+    the fist's yaw [rad] towards the hinge (:data:`PUSH_YAWS`, :func:`grasp_rotation`). Edge
+    (``mode="edge"``, bottom-hinged doors): pinching the leaf's free edge, ``pitch`` being the tilt
+    about the hinge axis (see :func:`_edge_tool`)."""
     if mode == "edge":
         contact = _edge_tool(part, q0, pitch, along)
         pre = _edge_tool(part, q0, pitch, along, GRASP_BACK)
         approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
         return approach, [_edge_tool(part, q, pitch, along) for q in qs]
-    h = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float)
+    yaw = along if mode == "push" and _vertical_hinge(part) else 0.0
+    h = np.asarray(part.handle, float) + (along - yaw) * np.asarray(part.bar_axis, float)
     front0 = np.asarray(part.front, float)
     if mode == "push":
         inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
         face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * lateral(part)
-        contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True)
-        arc = [_tool_at(part, face, q, pitch, push=True) for q in qs]
-        pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True)
+        contact = _tool_at(part, face, q0, pitch, PUSH_STANDOFF, push=True, yaw=yaw)
+        arc = [_tool_at(part, face, q, pitch, push=True, yaw=yaw) for q in qs]
+        pre = _tool_at(part, face, q0, pitch, PUSH_STANDOFF + GRASP_BACK, push=True, yaw=yaw)
         around = inboard + _edge_gap(part) + 0.12
     else:
         contact, arc = _tool_at(part, h, q0, pitch), [_tool_at(part, h, q, pitch) for q in qs]
@@ -192,16 +200,25 @@ def gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mod
     return approach, arc
 
 
-def grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = False) -> list[tuple[float, float]]:
+def _vertical_hinge(part: ArticulatedPart) -> bool:
+    return part.kind == "revolute" and abs(float(np.asarray(part.axis)[2])) > 0.7
+
+
+def grips(part: ArticulatedPart, base, p0: float, vertical: bool, edge: bool = False,
+          push: bool = False) -> list[tuple[float, float]]:
     """(pitch, along) grips to try: the pitch for the handle's height and +-15 deg; a bottom-hinged
     door's long bar is also gripped OVEN_GRIP_OFFSET towards the base. ``edge``: tilts 0 and
-    +-20 deg, each also with the hand flipped (tilt + pi), at the bar's centre and offset."""
+    +-20 deg, each also with the hand flipped (tilt + pi), at the bar's centre and offset.
+    ``push`` on a vertically hinged door: also the fist turned by :data:`PUSH_YAWS` (``along``
+    carries the yaw, see :func:`gesture`)."""
     side = float(np.dot(np.asarray(base[:2]) - np.asarray(part.handle[:2]), np.asarray(part.bar_axis)[:2]))
     if edge:  # from beside the lying leaf: pinch its edge near the corner on the base's side
         tilts = tuple(t + f for f in (0.0, math.pi) for t in (0.0, math.radians(-20), math.radians(20)))
         return [(t, math.copysign(a, side)) for a in EDGE_ALONG for t in tilts]
     pitches = (p0, p0 - math.radians(15), p0 + math.radians(15))
     out = [(p, 0.0) for p in pitches]
+    if push and vertical and _vertical_hinge(part):
+        out += [(p, y) for y in PUSH_YAWS for p in pitches]
     if not vertical:
         out += [(p, math.copysign(OVEN_GRIP_OFFSET, side)) for p in pitches]
     return out

@@ -185,10 +185,12 @@ def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN, idx=None) -> bool:
     return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
-def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> list[tuple[float, float, float]]:
+def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
+                 spread: float = 100.0) -> list[tuple[float, float, float]]:
     """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
-    around the handle at q0, in front of the leaf or beyond its free edge, facing the middle of
-    the handle's path (+-0.4 rad); free on ``grid``; nearest to the ideal reach first."""
+    around the handle at q0, in front of the leaf or beyond its free edge (up to ``spread`` [deg]
+    round from its front normal), facing the middle of the handle's path (+-0.4 rad); free on
+    ``grid``; nearest to the ideal reach first."""
     blocked = grid.inflate(ROBOT_RADIUS)
     h0 = part.handle_at(q0)
     mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
@@ -196,7 +198,7 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float]) -> lis
     f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
     out = []
     for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
-        for phi in np.radians(np.arange(-100.0, 101.0, 20.0)):
+        for phi in np.radians(np.arange(-spread, spread + 1.0, 20.0)):
             c, s_ = math.cos(phi), math.sin(phi)
             v = np.array([c * f[0] - s_ * f[1], s_ * f[0] + c * f[1]])
             xy = h0[:2] + rho * v
@@ -238,6 +240,9 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
     p0 = door_pitch(z) if vertical else drawer_pitch(z)
     best = (None, 0.0, -1, [], 0.0)
+    # closing a vertical door, the turned fists (part_grasps.PUSH_YAWS) press its front face from
+    # beside the free edge: bases further round it, before the fridge, not beyond the hinge
+    push_yaws = mode == "push" and vertical
     bases = _swing_bases(part, grid, q0, qs)
     if mode == "edge":
         # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
@@ -246,7 +251,17 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
         bases.sort(key=lambda b: abs(abs(float(np.dot(np.asarray(b[:2]) - part.handle[:2], bar))) - EDGE_SIDE))
         max_checks = 3 * max_checks
     cands = [(base, pitch, along) for base in bases
-             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge")][:max_checks]
+             for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge", push=mode == "push")]
+    if push_yaws:
+        # the square fist first, from the bases it had before the turned ones existed (a tie keeps
+        # it: on a room door a turned fist reaching as far left the leaf 0.29 rad open and took 3
+        # more stages), then the turned fists (part_grasps.PUSH_YAWS, ``along`` != 0) from bases
+        # further round the free edge, twice as many checks
+        turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0)
+                  for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
+        cands = [c for c in cands if c[2] == 0.0][:max_checks] + turned[:2 * max_checks]
+    else:
+        cands = cands[:max_checks]
     gestures: dict = {}  # the approach and arc of a grip do not depend on the base
 
     def gesture_of(pitch: float, along: float):
@@ -272,6 +287,8 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
             best = (base, pitch, n, sols, along)
             if n == len(qs):
                 return best
+    log.info("%s: %s plan: %d free bases, %d checks, best %s reaches %d of %d", part.joint_path, mode,
+             len(bases), checks, best[0], best[2], len(qs))
     if best[0] is None or best[2] < 0:
         raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
     return best

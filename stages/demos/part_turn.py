@@ -186,7 +186,7 @@ def plan_here(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: 
     z = float(part.handle_at(q0)[2])
     p0 = door_pitch(z) if vertical else drawer_pitch(z)
     turns = vertical and abs(turn_limit(part, d, grid, q0, goal) - goal) < math.radians(3.0)
-    for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge"):
+    for pitch, along in grips(part, base, p0, vertical, edge=mode == "edge", push=mode == "push"):
         approach, arc = gesture(part, q0, qs, pitch, mode, along)
         sols = reach(d, base, approach + (arc[:1] if turns else arc))
         n = len(sols) - len(approach)

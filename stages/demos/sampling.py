@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 MICROWAVE_OPEN = math.radians(88.0)  # microwave door opening of the microwave tasks [rad]
 FRIDGE_OPEN = 0.9  # fridge door opening of pick_place_fridge [fraction of its travel], as open_fridge leaves it
 PUSH_DIRECTION = (0.0, 1.0)
+POUR_SKILLS = ("pick_pitcher", "pour_drink", "place_pitcher")  # stages.demos.skill_pour
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,17 +58,33 @@ class TaskInstance:
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
     """A start pose in the world's start area (:meth:`~stages.demos.kitchen.KitchenWorld.start_area`:
     the free floor between the south wall and the counter front), clear of every footprint of its
-    ``start_boxes`` by 0.5 m, random heading."""
-    from stages.demos.planner import NavGrid
+    ``start_boxes`` by 0.5 m, random heading. A world with an ``anchor`` (x, y) [m] (a house's room:
+    :class:`~stages.demos.house_room.HouseRoom`) starts only where the base planner finds a path to
+    it (a free pocket behind the sofa is no start)."""
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.planner import NavGrid, NoPathError, astar
 
     grid = NavGrid.from_boxes(world.nav_bounds(), world.start_boxes())
     blocked = grid.inflate(0.5)
+    anchor = getattr(world, "anchor", None)
+    nav = world.grid() if anchor is not None else None
+    nav_blocked = nav.inflate(ROBOT_RADIUS) if nav is not None else None
+
+    def reaches(x: float, y: float) -> bool:
+        if nav is None:
+            return True
+        try:
+            astar(nav_blocked, nav.cell_of(x, y), nav.cell_of(*anchor))
+        except NoPathError:
+            return False
+        return True
+
     x0, y0, x1, y1 = world.start_area()
     for _ in range(400):
         x = float(rng.uniform(x0, x1))
         y = float(rng.uniform(y0, y1))
         iy, ix = grid.cell_of(x, y)
-        if 0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix]:
+        if 0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix] and reaches(x, y):
             return x, y, float(rng.uniform(-np.pi, np.pi))
     raise ItemError(f"{world.usd}: no free start pose for the robot")
 
@@ -84,17 +101,19 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     rng = np.random.default_rng(seed)
     pl = world.placed
     # a world without a table (a house's kitchen, stages.demos.house) has no bowl or object to push
-    mug = pl["mug"].body()
-    bowl, pusher = (pl[k].body() if k in pl else None for k in ("bowl", "pusher"))
+    # a house's living room (stages.demos.house_living) has no mug either: its tasks move their own objects
+    mug, bowl, pusher = (pl[k].body() if k in pl else None for k in ("mug", "bowl", "pusher"))
     mug_yaw = float(rng.uniform(-0.25, 0.25))  # the handle (+Y of the mug) points away from the robot
-    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)}
+    objects = {mug: (*_on_table(world, rng, "mug"), mug_yaw)} if mug else {}
     if bowl:
         objects[bowl] = (*_on_table(world, rng, "bowl"), 0.0)
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
-    for role in ("plate", "sponge", "paper", "trash_can", "clock"):  # parked (stages.demos.kitchen): every episode starts them there
+    # parked (stages.demos.kitchen): every episode starts them there
+    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock"):
         if role in pl:
-            objects[pl[role].body()] = (*pl[role].position, 0.0)
+            objects[pl[role].body()] = (*pl[role].position, pl[role].yaw)
+    objects.update(world.drink_parked() if hasattr(world, "drink_parked") else {})
     joints: dict[str, float] = {}
     cav = world.cavity
     cav_c = ((cav[0] + cav[2]) / 2, (cav[1] + cav[3]) / 2)
@@ -157,6 +176,14 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="paper", container="trash can")
         ids = [pl["paper"], pl["trash_can"]]
         target = tuple(float(v) for v in pl["trash_can"].position[:2])
+    if task_name in POUR_SKILLS:
+        from stages.demos.skill_pour import pour_setup
+
+        moved, place = pour_setup(world, rng)
+        objects.update(moved)
+        names.update(object="pitcher", container="cup")
+        ids = [pl["pitcher"], pl["cup"]]
+        target = place.cup_xy
     kind, _, which = task_name.partition("_")
     if which in ARTICULATED and kind in ("open", "close"):
         role = ARTICULATED[which][0]

@@ -62,6 +62,9 @@ DRAWER_CLOSED = 0.02  # [m] a closed drawer at most this far
 DRAWER_REST_SPEED = 0.005  # [m/s] a drawer slower than this is at rest (judged only then)
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 LIFT_SECONDS = 2.0  # [s] the lift after the grasp
+CARRY_SETTLE = 0.2  # [s] the held object comes to rest after the lift and after the carry
+CARRY_SECONDS = 2.4  # [s] the carry to the target spot (14-20 cm; 1.6 s let a top-grasped mug turn in the hand)
+PRE_GRASP_STANDOFF = 0.16  # [m] above the grasp (at 0.10 the Allegro's open thumb, 11 cm down, hit the mug)
 HAND_OBJECT_XY = (0.72, 0.0)  # [m] where the hand tasks' object stands (the robot at the origin, facing +X)
 HAND_TABLE_XY = (0.90, 0.0)  # [m] the table (0.6 m deep): its near edge 12 cm before the object's nominal spot
 
@@ -244,7 +247,8 @@ def _open_hand(rig: TableRig, duration: float, *, hook: bool = False) -> None:
 def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: float = 0.004) -> dict:
     """The hand's pick & place expert: top power grasp of the object (grasp synthesis), lift
     ``lift`` [m], carry it to ``target_xy`` (2,) [m], set it down ``place_gap`` [m] above where it
-    was grasped, open, withdraw up. Raises :class:`TaskFailure` (grasp_missed, dropped,
+    was grasped (these three min-jerk, :func:`~stages.demos.hand_grasps.move_ee_smooth`), open,
+    withdraw up. Raises :class:`TaskFailure` (grasp_missed, dropped,
     ik_unreachable); returns what it measured."""
     from stages.demos import hand_grasps as hg
     from stages.simulate.control import move_ee
@@ -254,39 +258,46 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     shape = hg.fit_upright(hg.object_points(sim, body))
     if not shape.upright:
         raise TaskFailure("tipped", "the object does not stand upright before the grasp")
-    side = getattr(hand, "handle_side", 0)
-    plan = hg.plan_top_grasp(shape, hand, sim.spawn[:2], handle_side=side,
-                             **({"max_turn": math.pi} if side else {}))
+    plans = hg.top_grasp_plans(shape, hand, sim.spawn[:2], standoff=PRE_GRASP_STANDOFF)
 
-    def move(p, duration, segments, settle=0.0):
+    def move(p, duration, segments, settle=0.0, smooth=False):
         try:
-            move_ee(sim, ctl, ik, p, duration, segments=segments, settle=settle)
+            if smooth:   # the object in the hand: min-jerk progress, no jolt at the starts and stops
+                hg.move_ee_smooth(sim, ctl, ik, p, duration, settle=settle)
+            else:
+                move_ee(sim, ctl, ik, p, duration, segments=segments, settle=settle)
         except RuntimeError as e:
             raise TaskFailure("ik_unreachable", str(e)) from None
 
-    move(plan.pre_grasp, 1.5, 3, 0.1)
+    for k, plan in enumerate(plans):   # 8 waypoints: with 3 the wrist's turn dipped the hand 13 cm
+        try:
+            move(plan.pre_grasp, 1.5, 8, 0.1)
+            break
+        except TaskFailure:
+            if k == len(plans) - 1:
+                raise
     move(plan.grasp, 0.8, 2, 0.1)
     z0 = float(sim.state_0.body_q.numpy()[body][2])
-    closing = hg.close_until_contact(sim, ctl, hand, body)
+    closing = hg.close_until_contact(sim, ctl, hand, body, settle=0.5)
     ctl.commands[None] = closing.command
     if closing.contact_command is None:
         raise TaskFailure("grasp_missed", f"contact check never passed (touching {sorted(closing.touching)})")
     up = plan.grasp.copy()
     up[2, 3] += lift
-    move(up, LIFT_SECONDS, 4)
+    move(up, LIFT_SECONDS, 4, CARRY_SETTLE, smooth=True)
     lifted = float(sim.state_0.body_q.numpy()[body][2]) - z0
     if lifted < 0.5 * lift:
         raise TaskFailure("dropped", f"lifted {lifted:.3f} m of {lift:.2f}")
     shift = np.array([target_xy[0] - shape.center[0], target_xy[1] - shape.center[1], 0.0])
     carry = up.copy()
     carry[:3, 3] += shift
-    move(carry, 1.6, 4)
+    move(carry, CARRY_SECONDS, 4, CARRY_SETTLE, smooth=True)
     carried = float(sim.state_0.body_q.numpy()[body][2]) - z0
     if carried < 0.5 * lift:
         raise TaskFailure("dropped", f"in the carry (at {carried:.3f} m of {lift:.2f})")
     down = plan.grasp.copy()
     down[:3, 3] += shift + [0.0, 0.0, place_gap]
-    move(down, 0.8, 2, 0.1)
+    move(down, 0.8, 2, 0.1, smooth=True)
     _open_hand(rig, 0.5)
     away = down.copy()
     away[2, 3] += 0.12

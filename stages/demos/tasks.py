@@ -25,6 +25,7 @@ import numpy as np
 from stages.demos.parts import part_closed, part_opened
 from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
 from stages.demos.skill_fridge import pick_place_fridge_success
+from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success, pour_success
 from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
 from stages.demos.skill_trash import throw_away_success
 from stages.demos.skill_wipe import wipe_plate_success
@@ -133,6 +134,13 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="throw_away", family=Family.PICK_PLACE, max_seconds=40.0, success=throw_away_success,
              templates=("throw the {object} in the {container}", "put the {object} into the {container}",
                         "clear the {object} off the table into the {container}")),
+    # the pour skills (stages.demos.skill_pour): the stages of serve_drinks, each from the last one's state
+    TaskSpec(name="pick_pitcher", family=Family.PICK_PLACE, max_seconds=40.0, success=pick_pitcher_success,
+             templates=("pick up the {object}", "lift the {object} by its handle")),
+    TaskSpec(name="pour_drink", family=Family.PICK_PLACE, max_seconds=40.0, success=pour_success,
+             templates=("pour the drink from the {object} into the {container}", "fill the {container}")),
+    TaskSpec(name="place_pitcher", family=Family.PICK_PLACE, max_seconds=30.0, success=place_pitcher_success,
+             templates=("put the {object} back on the table", "set the {object} down")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
@@ -186,7 +194,8 @@ def _articulated_specs() -> list[TaskSpec]:
 TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
-SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "press_clock_button", "slide_clock_switch")
+SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
+               "press_clock_button", "slide_clock_switch")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the
 #: demos job's default
 BASIC_TASKS = tuple(t for t in TASKS if t not in SKILL_TASKS)

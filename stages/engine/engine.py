@@ -241,6 +241,8 @@ class BatchEngine:
             if k in FREE_ROLES:
                 b = sim.body_of_path(p.body())
                 self._free[p.body()] = int(qs[int(np.nonzero(child == b)[0][0])])
+        for body in getattr(world, "drink", ()):  # the drink's spheres (stages.demos.skill_pour)
+            self._free[body] = int(qs[int(np.nonzero(child == sim.body_of_path(body))[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
         self.watched = watched_joints(world)
         for b in self.banks:

@@ -1,11 +1,12 @@
 """Scripted success of tasks in generated houses (issue 16), CPU: ``--houses`` 3-room flats from the
-layout stage, their kitchens populated by the scene stage with the household-task rules from the
-default catalog's kitchen categories (all 5 variants, ingested by the real job steps), each turned
-into a task world (:func:`stages.demos.house.house_kitchen`) and run on the batched engine
+layout stage, their ``--room`` (kitchen or living_room) populated by the scene stage with the
+household-task rules from the default catalog's categories of that room (all 5 variants, ingested
+by the real job steps), each turned into a task world (:func:`stages.demos.house.house_kitchen`,
+:func:`stages.demos.house_living.house_living`) and run on the batched engine
 (``layout="per_world"``, one world, no cameras) for every task and seed.
 
-Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``
-(``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
+``... --room living_room --tasks clean_table_living`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
@@ -26,36 +27,41 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 CATEGORIES = ("fridge", "kitchen_counter", "microwave", "dish_rack", "sponge", "plate", "mug", "oven")
+#: the living room's (the household rules require the pillows on the sofa)
+LIVING_CATEGORIES = ("pillow", "sofa", "tv_stand", "coffee_table", "bookshelf", "trash_can", "crumpled_paper",
+                     "book", "pitcher", "cup")
 
 
-def build_houses(out: Path, n: int) -> list[Path]:
+def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
     """The populated flats' scene folders in work dir ``out`` (the job's items are cached there)."""
     from pipeline import build_job, run_job
     from stages.scene.rules import HOUSEHOLD_TASK_RULES
 
     job = {"job": {"name": "house_tasks", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
            "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": list(CATEGORIES)}},
+                     "config": {"variants": 5, "categories": list(CATEGORIES if room == "kitchen" else LIVING_CATEGORIES)}},
                     {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}},
                     {"name": "layouts", "kind": "layout", "config": {"house": [
                         {"id": "flat", "count": n, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
                     {"name": "scenes", "kind": "scene", "config": {
                         "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
                         "looks": 1, "validate_usd": False,
-                        "group": [{"id": "flat", "layouts": ["flat_*"], "rooms": ["kitchen"]}]}}]}
+                        "group": [{"id": "flat", "layouts": ["flat_*"], "rooms": [room]}]}}]}
     run_job(build_job(job, source="<bench>", base_dir=out.parent), progress=False)
     return sorted(p for p in (out / "scenes").iterdir() if (p / "scene.json").is_file())
 
 
-def run(work: Path, houses: int, tasks: list[str], seeds: list[int]) -> dict:
+def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str = "kitchen") -> dict:
     from stages.demos.house import house_kitchen
+    from stages.demos.house_living import house_living
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
     rows = []
-    for scene in build_houses(work / "out", houses):
+    make = house_kitchen if room == "kitchen" else house_living
+    for scene in build_houses(work / "out", houses, room)[:houses]:
         try:
-            w = house_kitchen(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",
+            w = make(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",
                               scene_id=scene.name)
         except Exception as e:  # noqa: BLE001 - counted with its reason
             rows += [{"house": scene.name, "task": t, "seed": s, "success": False, "reason": f"conversion: {e}",
@@ -72,8 +78,12 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int]) -> dict:
 
         eng.run(Listed(w, {0: [(t, s, None) for t in tasks for s in seeds]}), begin=lambda *_: None, end=end)
     per = {t: f"{sum(r['success'] for r in rows if r['task'] == t)}/{sum(r['task'] == t for r in rows)}" for t in tasks}
+    from collections import Counter
+
+    reasons = {t: dict(Counter(r["reason"] for r in rows if r["task"] == t and not r["success"])) for t in tasks}
     print("success per task:", per)
-    return {"episodes": rows, "success": per}
+    print("failure reasons (s<stage>_<skill>.<reason>):", reasons)
+    return {"episodes": rows, "success": per, "failures": reasons}
 
 
 @pytest.mark.benchmark
@@ -89,10 +99,11 @@ if __name__ == "__main__":
     ap.add_argument("--tasks", nargs="+", default=["heat_food"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--work", type=Path, default=None)
+    ap.add_argument("--room", choices=("kitchen", "living_room"), default="kitchen")
     a = ap.parse_args()
     t0 = time.time()
     work = a.work or Path(tempfile.mkdtemp(prefix="house_tasks_"))
-    res = run(work, a.houses, a.tasks, a.seeds)
+    res = run(work, a.houses, a.tasks, a.seeds, a.room)
     res["wall_seconds"] = round(time.time() - t0, 1)
     Path("bench_results").mkdir(exist_ok=True)
     Path("bench_results/house_tasks.json").write_text(json.dumps(res, indent=1))

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stages.scene.rules import HOUSEHOLD_TASK_RULES
 
 # the kitchen's required categories (stages/scene/rules/household_tasks.toml), one or two variants each
 # kitchen_counter_03 (1.83 m) is a run that fits this flat's 3.65 m kitchen wall beside the 0.78 m fridge and the
@@ -35,23 +34,9 @@ def test_nav_grid_ignores_boxes_beyond_its_bounds():
 def house(tmp_path_factory):
     """(scene folder, generated.json) of one generated flat whose kitchen the scene job populated."""
     pytest.importorskip("newton")
-    from pipeline import build_job, run_job
+    from house_testutil import populate_flat
 
-    out = tmp_path_factory.mktemp("house") / "out"
-    cats = sorted({p.rsplit("_", 1)[0] for p in PACKAGES})
-    job = {"job": {"name": "house", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": cats}},
-                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(PACKAGES)}},
-                    {"name": "layouts", "kind": "layout", "config": {"house": [
-                        {"id": "flat", "count": 1, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
-                    {"name": "scenes", "kind": "scene", "config": {
-                        "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
-                        "looks": 1, "validate_usd": False, "settle": False,
-                        "group": [{"id": "flat", "layouts": ["flat_*"], "rooms": ["kitchen"]}]}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
-    scene = next((out / "scenes").iterdir())
-    return scene, out / "catalog" / "default" / "generated.json"
+    return populate_flat(tmp_path_factory.mktemp("house") / "out", "house", PACKAGES, "kitchen")
 
 
 @pytest.fixture(scope="module")

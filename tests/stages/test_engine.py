@@ -152,6 +152,7 @@ def test_held_worlds_record_what_unheld_worlds_record(room, batched_two, tmp_pat
         _assert_same_episode(held[key], free[key], key, exact_images=layout == "per_world")
 
 
+@pytest.mark.slow  # 40 s on 2 cores; CI keeps test_world_programs_in_worker_processes_record_what_threads_record
 def test_late_programs_in_worker_processes_are_held_and_record_what_threads_record(room, batched_two,
                                                                                    tmp_path):
     # program_wait=0: every world whose program has not answered at once is held until it has
@@ -165,6 +166,7 @@ def test_late_programs_in_worker_processes_are_held_and_record_what_threads_reco
         _assert_same_episode(threads[key], procs[key], key, exact_images=False)
 
 
+@pytest.mark.slow  # 19 s on 2 cores; CI keeps test_held_worlds_record_what_unheld_worlds_record
 def test_planning_programs_parked_at_checkpoints_are_held_at_once_and_record_what_threads_record(
         room, batched_two, tmp_path):
     # one worker runs both worlds' programs; program_yield=0 parks a program at its first
@@ -337,6 +339,7 @@ def test_shards_written_by_writer_processes_equal_shards_written_by_the_engine(r
     assert sum(k.endswith(".mp4") for k in files[0]) == 3 * 3  # 3 episodes x 3 cameras
 
 
+@pytest.mark.slow  # 32 s on 2 cores (CI time); run with -m slow
 def test_a_run_cut_by_max_steps_leaves_no_recording_to_the_next_run(room, tmp_path):
     """An episode a run abandons (``max_steps``) records nothing more. With worker processes and
     holds, the next run's first frame steps (its world still planning, not yet held) went to the

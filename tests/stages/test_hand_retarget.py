@@ -69,12 +69,12 @@ def test_targets_stay_within_the_hand_joint_limits(allegro):
         assert np.all(q >= lo - 2e-3) and np.all(q <= hi + 2e-3), (flex, q)
 
 
-def test_building_a_retargeter_leaves_no_scratch_folder(tmp_path):
+def test_building_a_retargeter_leaves_no_scratch_folder(tmp_path, shared_assets):
     import tempfile
 
     root = Path(tempfile.gettempdir())
     before = set(root.glob("dex_retargeting-*")) | set(root.glob("aw-retarget-*"))
-    HandRetargeter("allegro", tmp_path)
+    HandRetargeter("allegro", tmp_path, shared_assets=shared_assets)
     after = set(root.glob("dex_retargeting-*")) | set(root.glob("aw-retarget-*"))
     assert after <= before, sorted(after - before)
 

@@ -238,6 +238,7 @@ def test_structure_signature_keeps_checked_values_exact(tmp_path) -> None:
     assert _scene_sigs(tmp_path, "d", mpu=0.01) != base
 
 
+@pytest.mark.slow  # 26 s on 2 cores (CI time); test_scenes_as_worlds_of_one_model_settle_as_each_alone stays
 @needs_newton_usd
 def test_settle_pool_workers_agree_with_the_serial_path(world, tmp_path):
     """Two scenes (one with an object lifted 5 cm) settled one per model by two worker processes,

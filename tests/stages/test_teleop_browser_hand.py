@@ -27,11 +27,11 @@ def _joints(hand: str) -> tuple[str, ...]:
     return {"allegro": ALLEGRO_JOINTS, "shadow": SHADOW_JOINTS}[hand]
 
 
-def test_emulated_hand_fingers_drive_the_allegro_hand(teleop_world, tmp_path):
+def test_emulated_hand_fingers_drive_the_allegro_hand(teleop_world, tmp_path, shared_assets):
     _drive_hand(teleop_world, tmp_path, "allegro")
 
 
-def test_emulated_hand_fingers_drive_the_shadow_hand(teleop_world, tmp_path):
+def test_emulated_hand_fingers_drive_the_shadow_hand(teleop_world, tmp_path, shared_assets):
     _drive_hand(teleop_world, tmp_path, "shadow")
 
 

@@ -148,7 +148,7 @@ def _xr(hand_flex: float) -> dict:
     return dict(type="xr", head=cm(head), hands={"right": [cm(j) for j in synthetic_hand(hand_flex, wrist=wrist)]})
 
 
-def test_hand_session_records_retargeted_fingers_and_replays_them(kitchen, tmp_path):
+def test_hand_session_records_retargeted_fingers_and_replays_them(kitchen, tmp_path, shared_assets):
     """``hand="allegro"``: WebXR hand joints (validated messages, as the page sends them) are
     retargeted each tick; the input log carries the targets, and its replay (no retargeting)
     reproduces the episode (same actions, state within 1e-6); a hand the retargeting refuses is

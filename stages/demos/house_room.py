@@ -1,0 +1,250 @@
+"""What every room of a generated house needs to become a task world (issue 16), whatever the room:
+the scene's records of one room (:func:`read_room`), the rigid motion of the whole house into the
+task frame (:class:`RoomFrame`: a multiple of 90 deg about +Z, the room's corner at the origin), the
+task scene layer that sublayers the house, moves it, deactivates cut instances and moves single
+instances (:func:`write_task_scene`), and the world base class whose planner obstacles are the
+floor's walls and the room's floor furniture and whose robot starts inside the room
+(:class:`HouseRoom`). The kitchen (:mod:`stages.demos.house`) and the living room
+(:mod:`stages.demos.house_living`) build on it.
+
+Frame: the task frame, Z up, metres, radians: ``p_task = Rz(theta) p_house + t``
+(:attr:`HouseRoom.frame` = (tx, ty, theta)).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.types import ItemError
+from stages.demos.kitchen import KitchenWorld
+from stages.demos.packages import CatalogAsset, Placed
+
+FLOOR_MIN_HEIGHT = 0.03  # floor furniture lower than this (rugs) is no obstacle [m]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class HouseRoom(KitchenWorld):
+    """A :class:`~stages.demos.kitchen.KitchenWorld` in one room of a generated house. house: the
+    house's scene USD; room: the room's id; frame (tx, ty, theta) [m, rad]: house -> task frame; area:
+    the room's floor (xmin, ymin, xmax, ymax) in the task frame [m]; walls: footprints (K, 4) of the
+    floor's walls [m]; furniture: the room's floor furniture by instance name (task frame); cut: the
+    instances the task scene deactivates; moved: (instance, its position in the house frame [m])
+    where the task scene moved one instance, else None; anchor: a floor point (x, y) [m] the task's
+    base drives to (None: any free start), starts are drawn only where a path to it exists
+    (:func:`~stages.demos.sampling.free_start`)."""
+
+    house: Path
+    room: str
+    frame: tuple[float, float, float]
+    area: tuple[float, float, float, float]
+    walls: tuple[tuple[float, float, float, float], ...]
+    furniture: dict
+    cut: tuple[str, ...]
+    moved: tuple | None = None
+    anchor: tuple[float, float] | None = None
+
+    def nav_boxes(self) -> np.ndarray:
+        return np.asarray(list(self.walls) + obstacles(self.furniture.values()), float)
+
+    def nav_bounds(self) -> tuple[float, float, float, float]:
+        x0, y0, x1, y1 = self.area
+        return (x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2)
+
+    def start_area(self) -> tuple[float, float, float, float]:
+        """The room's floor less 0.3 m along the walls (a house's room is smaller than the task
+        kitchen: no band before the work surface is kept free of starts)."""
+        x0, y0, x1, y1 = self.area
+        return (x0 + 0.3, y0 + 0.3, x1 - 0.3, y1 - 0.3)
+
+    def start_boxes(self) -> np.ndarray:
+        return self.nav_boxes()
+
+
+def obstacles(placed) -> list[tuple[float, float, float, float]]:
+    """Footprints [m] of the floor furniture among ``placed`` that the base cannot cross (rugs can)."""
+    return [p.footprint() for p in placed if p.asset.hi[2] - p.asset.lo[2] >= FLOOR_MIN_HEIGHT]
+
+
+def rot2(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _rel(target: Path, layer_dir: Path) -> str:
+    r = os.path.relpath(Path(target).resolve(), Path(layer_dir).resolve()).replace(os.sep, "/")
+    return r if r.startswith(".") else f"./{r}"
+
+
+def floor_plan_of(scene_usd: Path) -> Path:
+    """The ``floorplan.json`` beside the layout layer that a scene's ``/World/Layout`` references."""
+    from pxr import Sdf
+
+    layer = Sdf.Layer.FindOrOpen(str(scene_usd))
+    prim = layer.GetPrimAtPath("/World/Layout") if layer else None
+    refs = list(prim.referenceList.GetAddedOrExplicitItems()) if prim else []
+    if not refs:
+        raise ItemError(f"{scene_usd}: no /World/Layout reference to a layout layer")
+    plan = (Path(scene_usd).parent / refs[0].assetPath).resolve().parent / "floorplan.json"
+    if not plan.is_file():
+        raise ItemError(f"{scene_usd}: the layout's floor plan {plan} is missing")
+    return plan
+
+
+def asset_of(rec: dict, info: dict[str, dict]) -> CatalogAsset:
+    """The catalog package of a scene instance record (``scene.json``)."""
+    gen = info.get(rec["asset_id"])
+    if gen is None:
+        raise ItemError(f"{rec['asset_id']}: not in the catalog's generated.json")
+    return CatalogAsset(asset_id=rec["asset_id"], category=rec["category"], usd=Path(rec["usd"]).resolve(),
+                        info=gen)
+
+
+@dataclass(frozen=True, eq=False)
+class RoomScene:
+    """One room's records of a populated scene: house: ``scene.usda``; room: its id; recs: every
+    instance record by name; mine: the room's; info: the catalog's generated records by asset id."""
+
+    scene_dir: Path
+    house: Path
+    room: str
+    recs: dict[str, dict]
+    mine: dict[str, dict]
+    info: dict[str, dict]
+
+    def one(self, category: str, ok=lambda r: True) -> dict | None:
+        """The room's first instance of ``category`` that passes ``ok`` (None if none)."""
+        c = [r for r in self.mine.values() if r["category"] == category and ok(r)]
+        return c[0] if c else None
+
+    def asset(self, rec: dict) -> CatalogAsset:
+        return asset_of(rec, self.info)
+
+    def other_rooms_objects(self) -> list[str]:
+        """The instances standing on something in the other rooms (the task scene cuts them away)."""
+        return [n for n, r in self.recs.items() if r["room"] != self.room and r["support"] is not None]
+
+
+def read_room(scene_dir: Path, generated_json: Path, room_type: str, room: str | None = None) -> RoomScene:
+    """The records of the ``room_type`` room ``room`` (default: the house's first populated one) of
+    the scene in ``scene_dir`` (``scene.usda`` + ``scene.json``). ItemError when there is none."""
+    from stages.demos.parts import load_generated_info
+
+    scene_dir = Path(scene_dir)
+    try:
+        summary = json.loads((scene_dir / "scene.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise ItemError(f"{scene_dir}: cannot read scene.json ({e})") from None
+    rooms = [r for r, t in summary["rooms"].items() if t == room_type]
+    room = room or (rooms[0] if rooms else None)
+    if room not in rooms:
+        raise ItemError(f"{scene_dir}: no populated {room_type} {room or ''} (rooms: {summary['rooms']})")
+    recs = {r["name"]: r for r in summary["instances"]}
+    return RoomScene(scene_dir=scene_dir, house=scene_dir / "scene.usda", room=room, recs=recs,
+                     mine={n: r for n, r in recs.items() if r["room"] == room},
+                     info=load_generated_info(generated_json))
+
+
+@dataclass(frozen=True, eq=False)
+class RoomFrame:
+    """The house moved by ``theta`` (a multiple of 90 deg, rounded to one) about +Z and shifted so
+    that the room's floor polygon starts at the origin. frame: (tx, ty, theta); size: the room's
+    (x, y) extent [m]; walls: the room's floor's wall footprints in the task frame [m]."""
+
+    frame: tuple[float, float, float]
+    size: tuple[float, float]
+    walls: tuple[tuple[float, float, float, float], ...]
+
+    @property
+    def R(self) -> np.ndarray:
+        return rot2(self.frame[2])
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.asarray(self.frame[:2], float)
+
+    @property
+    def area(self) -> tuple[float, float, float, float]:
+        return (0.0, 0.0, *self.size)
+
+    def placed(self, rec: dict, asset: CatalogAsset) -> Placed:
+        """A scene instance record in the task frame."""
+        xy = self.R @ np.asarray(rec["position"][:2]) + self.t
+        return Placed(f"Objects/{rec['name']}", asset, (float(xy[0]), float(xy[1]), float(rec["position"][2])),
+                      wrap(rec["yaw"] + self.frame[2]))
+
+    def to_house(self, xy) -> np.ndarray:
+        """A task-frame point (2,) [m] in the house frame."""
+        return rot2(-self.frame[2]) @ (np.asarray(xy, float) - self.t)
+
+    def box(self, b) -> tuple[float, float, float, float]:
+        pts = np.array([[b[0], b[1]], [b[2], b[3]]]) @ self.R.T + self.t
+        return (*pts.min(axis=0), *pts.max(axis=0))
+
+
+def room_frame(house: Path, room: str, theta: float) -> RoomFrame:
+    """The task frame that turns the house by ``theta`` (rounded to a multiple of 90 deg: the walls
+    stay axis-aligned) with room ``room``'s corner at the origin."""
+    from stages.layout.floorplan import load_floor_plan
+
+    theta = round(wrap(theta) / (math.pi / 2)) * (math.pi / 2)
+    R = rot2(theta)
+    plan = load_floor_plan(floor_plan_of(house))
+    rm = next(r for f in plan.floors for r in f.rooms if r.id == room)
+    poly = np.asarray(rm.polygon) @ R.T
+    t = -poly.min(axis=0)
+    size = tuple(float(v) for v in poly.max(axis=0) - poly.min(axis=0))
+    f = RoomFrame((float(t[0]), float(t[1]), float(theta)), size, ())
+    walls = tuple(f.box(w.box) for w in plan.floors[rm.floor].walls)
+    return RoomFrame(f.frame, size, walls)
+
+
+def write_task_scene(path: Path, house: Path, frame: tuple[float, float, float], cut: list[str],
+                     moved: tuple[str, tuple] | None) -> None:
+    """The task scene layer: the house's scene as a sublayer, ``/World`` moved by ``frame`` (translate
+    (tx, ty, 0), then rotate theta about +Z), the ``cut`` instances (``/World/Objects/<name>``) inactive;
+    ``moved``: (instance, new position in the house frame [m]) or None."""
+    from pxr import Gf, Sdf
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    root = layer.pseudoRoot
+    root.SetInfo("upAxis", "Z")
+    root.SetInfo("metersPerUnit", 1.0)
+    root.SetInfo("kilogramsPerUnit", 1.0)
+    layer.defaultPrim = "World"
+    layer.subLayerPaths.append(_rel(house, path.parent))
+    world = Sdf.PrimSpec(root, "World", Sdf.SpecifierOver)
+    tx, ty, th = frame
+    t = Sdf.AttributeSpec(world, "xformOp:translate", Sdf.ValueTypeNames.Double3)
+    t.default = Gf.Vec3d(tx, ty, 0.0)
+    r = Sdf.AttributeSpec(world, "xformOp:rotateZ", Sdf.ValueTypeNames.Double)
+    r.default = math.degrees(th)
+    o = Sdf.AttributeSpec(world, "xformOpOrder", Sdf.ValueTypeNames.TokenArray,
+                          variability=Sdf.VariabilityUniform)
+    o.default = ["xformOp:translate", "xformOp:rotateZ"]
+    objs = Sdf.PrimSpec(world, "Objects", Sdf.SpecifierOver)
+    for name in sorted(cut):
+        Sdf.PrimSpec(objs, name, Sdf.SpecifierOver).active = False
+    if moved:
+        m = Sdf.AttributeSpec(Sdf.PrimSpec(objs, moved[0], Sdf.SpecifierOver), "xformOp:translate",
+                              Sdf.ValueTypeNames.Double3)
+        m.default = Gf.Vec3d(*moved[1])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    layer.Export(str(path))
+
+
+def spawn_in(world: HouseRoom) -> HouseRoom:
+    """``world`` with its build spawn set to a free start pose inside its room (seed 0)."""
+    from stages.demos.sampling import free_start
+
+    object.__setattr__(world, "spawn", free_start(world, np.random.default_rng(0)))
+    return world

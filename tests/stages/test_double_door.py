@@ -1,0 +1,62 @@
+"""The dual-arm double-door task's geometry and success predicate (stages/demos/double_door.py):
+doors assigned to the arms by their handles' side, the handle's path as a door swings about its
+hinge, and success only when both joint angles pass 70 degrees."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+
+def _wardrobe_record():
+    """A two-door record in the shape of the catalog's wardrobe_01 (handles 5 cm either side of the
+    middle, hinges 0.45 m out; door_0 at -Y opening about -Z, door_1 at +Y about +Z)."""
+    info = {"asset_id": "wardrobe_x", "handles": [
+        {"bar_axis": [0.0, 0.0, 1.0], "center": [0.352, -0.05, 1.05], "link": "door_0", "kind": "bar"},
+        {"bar_axis": [0.0, 0.0, 1.0], "center": [0.352, 0.05, 1.05], "link": "door_1", "kind": "bar"}]}
+    joints = {"door_0_joint": (np.array([0.315, -0.455, 0.98]), -1.0),
+              "door_1_joint": (np.array([0.315, 0.455, 0.98]), 1.0)}
+    return info, joints
+
+
+def test_doors_go_to_the_arm_on_their_side_when_the_wardrobe_faces_the_robot():
+    """Turned 180 deg to face the robot, the asset's door_1 (+Y in the asset) lands at -Y: the right
+    arm's; each door opens towards the robot (its handle's x falls as the door swings)."""
+    from stages.demos.double_door import doors_of, handle_on_swing
+
+    info, joints = _wardrobe_record()
+    doors = doors_of(info, joints, (1.0, 0.0, 0.0), math.pi)
+    assert doors["left"].body.endswith("door_0") and doors["right"].body.endswith("door_1")
+    assert doors["left"].handle == pytest.approx([0.648, 0.05, 1.05])
+    assert doors["left"].hinge[:2] == pytest.approx([0.685, 0.455])
+    for arm, d in doors.items():
+        r = np.linalg.norm(d.handle[:2] - d.hinge[:2])
+        p70 = handle_on_swing(d, math.radians(70.0))
+        assert np.linalg.norm(p70[:2] - d.hinge[:2]) == pytest.approx(r)   # on the circle about the hinge
+        assert p70[0] < d.handle[0] - 0.3, arm                             # swung out towards the robot
+        assert abs(p70[1]) > abs(d.handle[1]), arm                          # and towards its own side
+        assert p70[2] == d.handle[2]
+
+
+def test_a_record_without_two_vertical_handles_is_refused():
+    from stages.demos.double_door import doors_of
+
+    info, joints = _wardrobe_record()
+    info["handles"] = info["handles"][:1]
+    with pytest.raises(ValueError, match="two hinged doors"):
+        doors_of(info, joints, (0.0, 0.0, 0.0), math.pi)
+
+
+def test_success_needs_both_doors_past_70_degrees():
+    from stages.demos.double_door import judge_doors
+
+    r = math.radians
+    assert judge_doors({"left": r(75.0), "right": r(88.0)})[:2] == (True, "")
+    assert judge_doors({"left": r(69.0), "right": r(88.0)})[:2] == (False, "left_door_shut")
+    assert judge_doors({"left": r(80.0), "right": r(10.0)})[:2] == (False, "right_door_shut")
+    ok, reason, detail = judge_doors({"left": 0.0, "right": r(5.0)})
+    assert (ok, reason, detail["door_deg"]["right"]) == (False, "doors_shut", 5.0)
+    with pytest.raises(ValueError, match="expected"):
+        judge_doors({"left": 1.5})

@@ -1,0 +1,119 @@
+"""The pour skills' pieces without a simulation (issue 16, serve drinks): the drink's spheres packed
+inside every pitcher the generator makes, the cup-cavity test and the pour predicate on known poses,
+and the serve_drinks task file."""
+
+from __future__ import annotations
+
+import math
+from itertools import combinations
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from asset_catalog.asset_model import Pose
+from stages.demos.skill_pour import (
+    DRINK_COUNT, DRINK_RADIUS, POUR_SHARE, PourPlan, drink_positions, drink_world, in_cup,
+    pitcher_inner_radius, pour_success,
+)
+from stages.simulate.state import BasePose, RobotState, StepState
+
+#: the narrowest and the widest pitcher the generator makes (asset_catalog.generators.objects.pitcher)
+PITCHERS = [{"radius": 0.05, "height": 0.17, "wall": 0.006}, {"radius": 0.07, "height": 0.25, "wall": 0.004}]
+CUP = {"rim_radius": 0.04, "height": 0.1, "taper": 0.8, "wall": 0.0025}
+
+
+@pytest.mark.parametrize("params", PITCHERS)
+def test_the_drink_is_packed_inside_the_pitcher_without_overlap(params):
+    p = drink_positions(params)
+    assert p.shape == (DRINK_COUNT, 3)
+    inner = pitcher_inner_radius(params)
+    assert (np.linalg.norm(p[:, :2], axis=1) + DRINK_RADIUS < inner).all()  # clear of the wall
+    assert p[:, 2].min() - DRINK_RADIUS > 0.008 + params["wall"]            # above the floor
+    assert p[:, 2].max() + DRINK_RADIUS < params["height"]                 # below the rim
+    gaps = [np.linalg.norm(a - b) for a, b in combinations(p, 2)]
+    assert min(gaps) >= 2 * DRINK_RADIUS                                   # no two overlap
+
+
+def test_the_drink_follows_the_pitcher_pose():
+    params = PITCHERS[0]
+    w = drink_world((1.0, 2.0, 0.75, math.pi / 2), params)
+    local = drink_positions(params)
+    # yaw 90 deg: local +X -> world +Y
+    assert np.allclose(w[:, 0], 1.0 - local[:, 1]) and np.allclose(w[:, 1], 2.0 + local[:, 0])
+    assert np.allclose(w[:, 2], 0.75 + local[:, 2])
+
+
+def test_a_pitcher_too_narrow_for_the_ring_is_refused():
+    with pytest.raises(ValueError, match="holds no ring"):
+        drink_positions({"radius": 0.03, "height": 0.2, "wall": 0.005})
+
+
+def test_in_cup_on_known_poses():
+    up = (1.0, 0.0, 0.0, 0.0)
+    c = np.array([1.0, 2.0, 0.75])
+    pts = np.array([c + [0, 0, 0.02],          # on its floor
+                    c + [0.03, 0, 0.09],        # by the wall near the rim (inner ~0.0375 there)
+                    c + [0.05, 0, 0.05],        # outside the wall
+                    c + [0, 0, 0.12],           # above the rim
+                    c + [0, 0, 0.002]])         # under its floor
+    assert in_cup(pts, c, up, CUP).tolist() == [True, True, False, False, False]
+    # tipped on its side (90 deg about X: the cup's +Z along world -Y): the same local points
+    s = math.sqrt(0.5)
+    side = (s, s, 0.0, 0.0)
+    assert in_cup(np.array([c + [0, -0.05, 0], c + [0, 0, 0.05]]), c, side, CUP).tolist() == [True, False]
+
+
+def _state(objects: dict) -> StepState:
+    robot = RobotState(joint_names=(), q=np.zeros(0), qd=np.zeros(0), ee_pose=Pose(position=(0, 0, 2)),
+                       base=BasePose(x=0.0, y=0.0, theta=0.0), gripper_opening=0.08)
+    return StepState(time=0.0, step=0, world=0, robot=robot, objects=objects, scene_joints={})
+
+
+def _inst(n: int):
+    drink = tuple(f"/D{k}" for k in range(n))
+    plan = PourPlan(pitcher="/P", cup="/C", home=(0.5, 2.0, 0.75, math.pi), drink=drink, cup_xy=(1.0, 2.0))
+    world = SimpleNamespace(placed={"cup": SimpleNamespace(asset=SimpleNamespace(params=CUP))}, table_z=0.75)
+    return SimpleNamespace(place=plan, world=world), drink
+
+
+def test_the_pour_predicate_counts_spheres_in_the_cup():
+    inst, drink = _inst(10)
+    cup = Pose(position=(1.0, 2.0, 0.75))
+    inside = [(1.0 + 0.01 * (k % 3), 2.0, 0.77 + 0.014 * k / 3) for k in range(10)]
+    spilled = [(1.3, 2.0, 0.757)] * 10
+    need = math.ceil(POUR_SHARE * 10)
+
+    def state(n_in: int, cup_pose=cup):
+        pts = inside[:n_in] + spilled[n_in:]
+        return _state({"/C": cup_pose, **{b: Pose(position=p) for b, p in zip(drink, pts, strict=True)}})
+
+    assert pour_success(inst, state(need)) == (True, "")
+    assert pour_success(inst, state(need - 1)) == (False, "not_poured")
+    moved = Pose(position=(1.05, 2.0, 0.75))
+    assert pour_success(inst, state(10, moved)) == (False, "cup_moved")
+    s = math.sqrt(0.5)
+    tipped = Pose(position=(1.0, 2.0, 0.75), orientation=(s, s, 0.0, 0.0))
+    assert pour_success(inst, state(10, tipped)) == (False, "cup_tipped")
+
+
+def test_serve_drinks_is_data_with_three_stages_and_asks_for_the_drink():
+    from stages.demos.multistage import MULTISTAGE, needs_drink, needs_household
+
+    spec = MULTISTAGE["serve_drinks"]
+    assert [s.skill for s in spec.stages] == ["pick_pitcher", "pour_drink", "place_pitcher"]
+    assert [s.final for s in spec.stages] == [False, True, True]
+    assert all(s.instruction for s in spec.stages)
+    assert needs_drink(["serve_drinks"]) and needs_drink(["pour_drink"])
+    assert not needs_drink(["clean_table", "pick_place_bowl"]) and not needs_household(["serve_drinks"])
+
+
+@pytest.mark.parametrize("params", [{**PITCHERS[0], "handle_reach": 0.028}, {**PITCHERS[1], "handle_reach": 0.04}])
+def test_the_handle_grip_is_on_the_outer_bar_under_the_loop_top(params):
+    from stages.demos.skill_pour import handle_grip
+
+    r, h, reach = params["radius"], params["height"], params["handle_reach"]
+    g = handle_grip(params, depth=0.0)
+    assert g[0] == 0.0
+    assert 0.575 * h < g[2] < 0.85 * h - 0.007            # above the loop's middle, under its top
+    assert r + 0.5 * reach < g[1] <= r + reach + 1e-9     # on the outer part of the loop, not the body
