@@ -6,7 +6,8 @@ MuJoCo (3.9+ semantics: the gap widens the detection distance) ran its convex co
 0.1 m margin, and for a box 3 mm into the thin hull it returned a separated contact (distance
 +2 mm, inactive) instead of the penetration. :class:`~stages.simulate.world.SimConfig`'s
 ``contact_gap`` (default :data:`~stages.simulate.world.CONTACT_GAP`) keeps the detection distance
-at 1 cm, where the depth is right.
+at 1 cm, where the depth is right. (MuJoCo-Warp, the batched engine's GPU solver, got the depth
+right with either gap; the slow test below checks it on the CPU.)
 """
 
 from __future__ import annotations
@@ -100,3 +101,40 @@ def test_a_fingertip_box_inside_a_thin_hull_gets_an_active_contact(disc_sim, dep
 def test_the_gap_is_recorded_and_small(disc_sim):
     assert disc_sim.settings.options["contact_gap"] <= 0.02
     assert float(disc_sim.model.shape_gap.numpy().max()) <= 0.02
+
+
+
+@pytest.mark.slow
+def test_mujoco_warp_gives_the_same_active_contact(tmp_path):
+    """The batched engine's solver (MuJoCo-Warp, here on the CPU) sees a 3 mm overlap too (it did with
+    the 0.1 m gap as well: only MuJoCo's C library, the one-world CPU path, lost the contact)."""
+    pytest.importorskip("mujoco_warp")
+    import mujoco
+    import newton
+
+    from stages.simulate.world import SolverSettings
+
+    depth = 0.003
+    desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
+    scene = write_disc_scene(tmp_path / "disc.usda")
+    sim = build_sim(SimConfig(scenes=(scene,), spawn=(1.5, 1.5, 0.0),
+                              solver=SolverSettings(use_mujoco_cpu=False, contact_check_every=0)),
+                    desc, np.random.default_rng(0))
+    tip = next(b for b, p in sim.scene.body_path.items() if p.endswith("/Tip"))
+    s = int(sim.model.joint_q_start.numpy()[int(np.nonzero(sim.model.joint_child.numpy() == tip)[0][0])])
+    q = sim.state_0.joint_q.numpy()
+    x, y, z = DISC_AT
+    q[s:s + 7] = (x + 0.003, y + 0.002, z + DISC_H / 2 + TIP[2] / 2 - depth, 0.0, 0.0, 0.0, 1.0)  # xyz, xyzw
+    sim.state_0.joint_q.assign(q)
+    newton.eval_fk(sim.model, sim.state_0.joint_q, sim.state_0.joint_qd, sim.state_0)
+    sim.step(1)
+    d, m = sim.solver.mjw_data, sim.solver.mj_model
+    n = int(d.nacon.numpy()[0])
+    geom, dist = d.contact.geom.numpy()[:n], d.contact.dist.numpy()[:n]
+    disc = next(g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH)
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(m.nbody)]
+    tip_body = next(b for b, nm in enumerate(names) if "Tip" in nm)
+    tip_geoms = set(np.nonzero(m.geom_bodyid == tip_body)[0].tolist())
+    pair = [float(dist[i]) for i in range(n) if disc in geom[i] and tip_geoms & set(geom[i].tolist())]
+    assert pair, "no contact between the fingertip box and the disc"
+    assert min(pair) == pytest.approx(-depth, abs=5e-4), f"contact distance {min(pair):+.4f} m"
