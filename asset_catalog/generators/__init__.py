@@ -151,7 +151,7 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("sponge", O.sponge, [KI, BA], SURF, M.RUBBER, (0.09, 0.06, 0.024), (0.13, 0.08, 0.045),
        interactable=True,
        rigid_format="obj", co_occurrence=("kitchen_counter",)),
-    _s("alarm_clock", A.alarm_clock, [BR], SURF, M.PLASTIC, (0.035, 0.09, 0.1), (0.06, 0.14, 0.16),
+    _s("alarm_clock", A.alarm_clock, [BR], SURF, M.PLASTIC, (0.035, 0.09, 0.1), (0.075, 0.14, 0.16),
        interactable=True,
        co_occurrence=("nightstand",)),
     _s("hanger", O.hanger, [BR, HW], SURF, M.PLASTIC, (0.13, 0.38, 0.003), (0.25, 0.47, 0.02),

@@ -108,6 +108,7 @@ class _JointDraft:
     role: str
     counterbalance: tuple[float, float] | None = None
     armature: float = 0.0
+    spring: float = 0.0
 
 
 class AssetBuilder:
@@ -147,13 +148,15 @@ class AssetBuilder:
     def link(self, name: str, *, parent: str, origin, joint: Literal["revolute", "prismatic"], axis,
              lower: float, upper: float, effort: float, velocity: float, damping: float = 0.0,
              friction: float = 0.0, role: str = "", counterbalance: tuple[float, float] | None = None,
-             armature: float = 0.0) -> str:
+             armature: float = 0.0, spring: float = 0.0) -> str:
         """Declare a moving link whose joint frame sits at ``origin`` (3,) [m] (root frame) with
         ``axis`` (3,) in the root frame; limits [rad] or [m]. ``counterbalance`` = (spring, hold)
         for a leaf hinged on a horizontal axis (an oven door): a hinge spring towards zero of
         stiffness ``spring * m g r`` [N m/rad] and joint friction ``hold * m g r`` [N m] (replacing
         ``friction``), m g r being the leaf's largest gravity torque about the axis, computed once
-        the link's mass is known. ``armature``: the mechanism's added inertia [kg m^2] or [kg]."""
+        the link's mass is known. ``armature``: the mechanism's added inertia [kg m^2] or [kg].
+        ``spring``: a return spring towards zero [N m/rad] or [N/m] (a push button that gravity
+        would otherwise hold pressed)."""
         if name in self.links:
             raise ValueError(f"duplicate link {name!r}")
         self.links[name] = _LinkDraft(name, np.asarray(origin, dtype=np.float64))
@@ -162,7 +165,7 @@ class AssetBuilder:
         self.joints.append(_JointDraft(f"{name}_joint", JointType(joint), parent, name,
                                        tuple(float(a) for a in ax), float(lower), float(upper),
                                        float(effort), float(velocity), float(damping), float(friction), role,
-                                       counterbalance, float(armature)))
+                                       counterbalance, float(armature), float(spring)))
         return name
 
     def add(self, link: str, shape: Manifold, material: str, *, density: float,
@@ -348,7 +351,7 @@ def _joint(j: _JointDraft, links: dict[str, _LinkDraft], child_mass: float, chil
     """The model joint of a draft; ``child_mass`` [kg] and ``child_com`` (3,) (root frame) of its
     moving link size a counterbalance; a door's or drawer's stops are ``LEAF_STOP_SOLREF``."""
     rel = links[j.child].origin - links[j.parent].origin
-    stiffness, friction = 0.0, j.friction
+    stiffness, friction = j.spring, j.friction
     if j.counterbalance is not None:
         mgr = _gravity_torque(child_mass, child_com, links[j.child].origin, j.axis)
         stiffness = float(f"{j.counterbalance[0] * mgr:.4g}")

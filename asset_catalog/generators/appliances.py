@@ -227,7 +227,27 @@ def room_door(b: AssetBuilder) -> float | None:
     return None
 
 
+#: the alarm clock's slide switch: travel range [m]; knob (width along the slide, protrusion from the
+#: back face, height) [m]; joint damping [N s/m], friction [N] and armature [kg]: a fingertip pushes
+#: it with ~0.2 N (a 0.2 kg clock slides on the counter at ~1 N), and it stays where it is left
+#: its top button's return spring [N/m] (the ~6 g button sags 0.2 mm under gravity; pressed in fully
+#: it pushes back ~1.5 N; without it gravity held the button pressed), damping [N s/m] and armature
+#: [kg]. The armature also stiffens the fingertip's contact: MuJoCo's soft contact pushes with a force
+#: in proportion to the contact's effective mass, and on a 16 g button the fingertip sank through the
+#: cap against the spring (measured: the button did not move, the tip went 8 mm past the cap)
+CLOCK_BUTTON_SPRING = 300.0
+CLOCK_BUTTON_DAMPING = 10.0
+CLOCK_BUTTON_ARMATURE = 0.5
+CLOCK_SWITCH_TRAVEL = (0.012, 0.018)
+CLOCK_KNOB = (0.008, 0.012, 0.014)
+CLOCK_SWITCH_DAMPING = 1.0
+CLOCK_SWITCH_FRICTION = 0.1
+CLOCK_SWITCH_ARMATURE = 0.3  # (the fingertip's contact on the knob, as the button's)
+
+
 def alarm_clock(b: AssetBuilder) -> float:
+    """A twin-bell (round) or boxy alarm clock: face +X, a push button on top (role ``button``,
+    pressed along -Z), an on/off slide switch on the back (role ``switch``, +Y, see CLOCK_*)."""
     body = b.material("body", pick_color(b, [(0.85, 0.2, 0.18), (0.15, 0.4, 0.75), (0.2, 0.2, 0.2),
                                              (0.9, 0.8, 0.2), (0.3, 0.65, 0.35)]), roughness=0.35)
     face = b.material("face", (0.97, 0.97, 0.95), roughness=0.6)
@@ -254,8 +274,25 @@ def alarm_clock(b: AssetBuilder) -> float:
             b.add("base", bell, metal, density=1500.0)
     travel = b.param("button_travel", 0.003, 0.005)
     b.link("button", parent="base", origin=(0, 0, top), joint="prismatic", axis=(0, 0, -1), lower=0.0,
-           upper=travel, effort=5.0, velocity=0.1, damping=0.05, friction=0.01, role="button")
+           upper=travel, effort=5.0, velocity=0.1, damping=CLOCK_BUTTON_DAMPING, friction=0.01, role="button",
+           spring=CLOCK_BUTTON_SPRING, armature=CLOCK_BUTTON_ARMATURE)
     b.add("button", g.cylinder(0.008, travel + 0.012, (0, 0, top + 0.006 - travel / 2 + 0.0005), n=16), metal,
           density=1000.0, collision="none")
     b.add("button", g.cylinder(0.013, 0.005, (0, 0, top + 0.009 + 0.0005), n=20), metal, density=1000.0)
+    # the alarm's on/off slide switch on the back face (-X), sliding along +Y (0 = off at -Y, upper = on)
+    sw = b.param("switch_travel", CLOCK_SWITCH_TRAVEL[0], CLOCK_SWITCH_TRAVEL[1])
+    xb, zs = -depth / 2, zc
+    kw, kh = CLOCK_KNOB[0], CLOCK_KNOB[2]
+    b.add("base", g.box_between((xb - 0.0015, -sw / 2 - kw / 2 - 0.003, zs - 0.003),
+                                (xb + 0.001, sw / 2 + kw / 2 + 0.003, zs + 0.003)), hands, density=700.0,
+          collision="none")  # the slot (visual)
+    b.link("switch", parent="base", origin=(xb, -sw / 2, zs), joint="prismatic", axis=(0, 1, 0), lower=0.0,
+           upper=sw, effort=5.0, velocity=0.2, damping=CLOCK_SWITCH_DAMPING, friction=CLOCK_SWITCH_FRICTION,
+           role="switch", armature=CLOCK_SWITCH_ARMATURE)
+    b.add("switch", g.box_between((xb - 0.004, -sw / 2 - 0.002, zs - 0.002), (xb + 0.003, -sw / 2 + 0.002,
+                                                                               zs + 0.002)), metal,
+          density=1000.0, collision="none")  # the stem in the slot (visual)
+    knob_lo = (xb - 0.0015 - CLOCK_KNOB[1], -sw / 2 - kw / 2, zs - kh / 2)
+    knob_hi = (xb - 0.002, -sw / 2 + kw / 2, zs + kh / 2)
+    b.add("switch", g.box_between(knob_lo, knob_hi), body, density=1000.0)
     return b.param("mass", 0.18, 0.45)

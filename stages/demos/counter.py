@@ -61,6 +61,17 @@ def approach_counter(inst, d: Driver, x: float, *, rot: np.ndarray | None = None
     d.drive_straight(goal)
 
 
+def leave_counter(inst, d: Driver) -> None:
+    """Raise the hand to the approach pose (clear of the counter), back the base COUNTER_STAGE away
+    (the tucked hand then hangs 0.2 m clear of the counter's front), tuck."""
+    w = inst.world
+    bx, by, th = base_pose(d.sim)
+    ready = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + 0.12])
+    d.move(_pose(ready, side_rot(0.0)), 1.2, segments=3, tol=APPROACH_TOL)
+    d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
+    d.home(1.0)
+
+
 def _side_pick(d: Driver, at: np.ndarray, rot: np.ndarray, lift: float, pre: float = 0.14) -> np.ndarray:
     """Side grasp of the mug whose grasp point is ``at`` (3,): in front, in, close, lift ``lift`` [m];
     returns the lifted TCP position."""

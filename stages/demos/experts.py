@@ -34,6 +34,7 @@ from stages.demos.counter import (
     _side_pick,
     approach_counter,
     facing_north_goal,
+    leave_counter,
     side_rot,
 )
 from stages.demos.driver import APPROACH_TOL, Driver, ExpertFailure, stow
@@ -42,6 +43,7 @@ from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
 from stages.demos.skill_fridge import pick_place_fridge
 from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
+from stages.demos.skill_press import press_clock_button, slide_clock_switch
 from stages.demos.skill_trash import throw_away
 from stages.demos.skill_wipe import wipe_plate
 from stages.demos.tasks import TASKS
@@ -234,17 +236,6 @@ def press_button(inst: TaskInstance, d: Driver) -> None:
     leave_counter(inst, d)
 
 
-def leave_counter(inst: TaskInstance, d: Driver) -> None:
-    """Raise the hand to the approach pose (clear of the counter), back the base COUNTER_STAGE away
-    (the tucked hand then hangs 0.2 m clear of the counter's front), tuck."""
-    w = inst.world
-    bx, by, th = base_pose(d.sim)
-    ready = np.array([bx + 0.35 * math.cos(th), by + 0.35 * math.sin(th), w.counter_z + 0.12])
-    d.move(_pose(ready, side_rot(0.0)), 1.2, segments=3, tol=APPROACH_TOL)
-    d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
-    d.home(1.0)
-
-
 def open_articulated(inst: TaskInstance, d: Driver) -> None:
     """Open the instance's part (door or drawer) with :func:`stages.demos.articulated.open_part`."""
     open_part(inst.part, d, _grid(inst))
@@ -259,7 +250,8 @@ EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_plac
            "pick_from_microwave": pick_from_microwave, "push_object": push_object,
            "press_button": press_button, "pick_place_fridge": pick_place_fridge,
            "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
-           "pour_drink": pour_drink, "place_pitcher": place_pitcher}
+           "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
+           "slide_clock_switch": slide_clock_switch}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

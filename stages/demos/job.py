@@ -323,11 +323,11 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
     lib = AssetLibrary.from_packages({k: Path(v) for k, v in params.packages.items()}, Path(params.generated))
-    from stages.demos.multistage import needs_drink, needs_household
+    from stages.demos.multistage import needs_clock, needs_drink, needs_household
 
     world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id,
                           rng=np.random.default_rng(params.world_seed), household=needs_household((params.task,)),
-                          drink=needs_drink((params.task,)))
+                          drink=needs_drink((params.task,)), clock=needs_clock((params.task,)))
     n = min(params.batch_worlds, params.episodes)
     from stages.demos.multistage import MULTISTAGE
 

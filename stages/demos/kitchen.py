@@ -40,9 +40,12 @@ log = logging.getLogger(__name__)
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
                       "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
-                      "pitcher", "cup")
+                      "alarm_clock", "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
-FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup")
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock")
+CLOCK_END_GAP = 0.35    # a parked clock stands this far [m] from the counter top's ends (the base's room)
+CLOCK_BUSY_GAP = 0.30   # ... and from the microwave and the mug's counter spot [m]
+CLOCK_FRONT = 0.075     # its centre this far [m] behind the counter's front edge
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y
@@ -241,6 +244,35 @@ def _dishes(lib: AssetLibrary, rng: np.random.Generator, table_rect, table_z: fl
     return out
 
 
+def _clock(lib: AssetLibrary, rng: np.random.Generator, counter_rect, counter_z: float,
+           busy: tuple[float, float]) -> dict[str, Placed]:
+    """An alarm clock parked on the counter top (when the catalog has one and the counter has room):
+    on the longer free stretch of the counter beside the microwave and the mug's spot (``busy``:
+    their x extent [m]), CLOCK_END_GAP from the counter's ends and CLOCK_BUSY_GAP from ``busy``,
+    CLOCK_FRONT behind the front edge, facing the wall (its back, with the switch, to the room)."""
+    if not lib.of("alarm_clock"):
+        return {}
+    x0, y0, x1, _ = counter_rect
+    spans = [(x0 + CLOCK_END_GAP, busy[0] - CLOCK_BUSY_GAP), (busy[1] + CLOCK_BUSY_GAP, x1 - CLOCK_END_GAP)]
+    lo, hi = max(spans, key=lambda s: s[1] - s[0])
+    if hi < lo:
+        log.warning("kitchen: no room for the alarm clock on the counter (%s)", counter_rect)
+        return {}
+    clock = _pick(lib, rng, ("alarm_clock",))
+    x = float(rng.uniform(lo, hi))
+    return {"clock": Placed("Clock", clock, (x, y0 + CLOCK_FRONT, counter_z + 0.002), math.pi / 2)}
+
+
+def watched_joints(world: KitchenWorld) -> list[str]:
+    """The momentary scene joints whose peaks the engines track: the microwave's button and a
+    parked clock's button (a world without a microwave, a house's, watches no microwave button)."""
+    out = [world.placed["microwave"].joint("button_joint")] if "microwave" in world.placed else []
+    if "clock" in world.placed:
+        joints = world.placed["clock"].info.get("joints", {})
+        out += [world.placed["clock"].joint(n) for n, role in joints.items() if role == "button"]
+    return out
+
+
 def _cavity(a: CatalogAsset) -> dict:
     cav = [s for s in a.info.get("surfaces", []) if s["inside"]]
     if not cav:
@@ -300,12 +332,14 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
 
 
 def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
-                  rng: np.random.Generator, household: bool = False, drink: bool = False) -> KitchenWorld:
+                  rng: np.random.Generator, household: bool = False, drink: bool = False,
+                  clock: bool = False) -> KitchenWorld:
     """Author one kitchen world in ``out_dir`` (``scene.usda``) from ``lib`` and ``rng`` (see module doc).
     ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
     tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
     as they were); ``drink``: also park a pitcher holding the drink's spheres and a cup
-    (stages.demos.skill_pour; :func:`stages.demos.multistage.needs_drink`)."""
+    (stages.demos.skill_pour; :func:`stages.demos.multistage.needs_drink`); ``clock``: also park an
+    alarm clock on the counter (the press and slide skills, :func:`stages.demos.multistage.needs_clock`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     micro = _pick(lib, rng, ("microwave",))
@@ -401,6 +435,11 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     # the table is deep enough), from a second child generator: nothing above changes with them
     if household:
         placed.update(_dishes(lib, rng.spawn(1)[0], table_rect, table_z))
+    if clock:  # from the third child generator, whether or not the dishes drew the second
+        spare = rng.spawn(2)[1] if not household else rng.spawn(1)[0]
+        mw_fp = placed["microwave"].footprint()
+        busy = (min(mw_fp[0], counter_spot[0]), max(mw_fp[2], counter_spot[0]))
+        placed.update(_clock(lib, spare, counter_rect, top_z, busy))
     drink_bodies: tuple[str, ...] = ()
     if drink:
         from stages.demos.skill_pour import park_drink

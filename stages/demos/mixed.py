@@ -186,11 +186,11 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     t0 = time.perf_counter()
     scene_id = f"kitchen_{params.world:03d}"
     lib = AssetLibrary.from_packages({k: Path(v) for k, v in params.packages.items()}, Path(params.generated))
-    from stages.demos.multistage import needs_drink, needs_household
+    from stages.demos.multistage import needs_clock, needs_drink, needs_household
 
     world = write_kitchen(ctx.out_dir / "world", lib, scene_id=scene_id,
                           rng=np.random.default_rng(params.world_seed), household=needs_household(params.tasks),
-                          drink=needs_drink(params.tasks))
+                          drink=needs_drink(params.tasks), clock=needs_clock(params.tasks))
     plan = plan_episodes(params.tasks, params.episodes_per_task, ctx.seed)
     n = min(params.batch_worlds, len(plan))
     from stages.demos.multistage import MULTISTAGE

@@ -275,3 +275,13 @@ def needs_drink(tasks) -> bool:
 
     return any(t in POUR_SKILLS or (t in MULTISTAGE and any(st.skill in POUR_SKILLS for st in MULTISTAGE[t].stages))
                for t in tasks)
+
+
+#: skills whose alarm clock a task kitchen parks only when asked (``write_kitchen(clock=True)``)
+CLOCK_SKILLS = ("press_clock_button", "slide_clock_switch")
+
+
+def needs_clock(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a clock skill or a multistage task with a clock skill's stage."""
+    return any(t in CLOCK_SKILLS or (t in MULTISTAGE and any(st.skill in CLOCK_SKILLS for st in MULTISTAGE[t].stages))
+               for t in tasks)

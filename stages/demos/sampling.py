@@ -110,7 +110,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
     # parked (stages.demos.kitchen): every episode starts them there
-    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup"):
+    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock"):
         if role in pl:
             objects[pl[role].body()] = (*pl[role].position, pl[role].yaw)
     objects.update(world.drink_parked() if hasattr(world, "drink_parked") else {})
@@ -160,6 +160,15 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="plate", tool="sponge")
         ids = [pl["plate"], pl["sponge"]]
         target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
+    if task_name in ("press_clock_button", "slide_clock_switch"):
+        from stages.demos.skill_press import clock_setup
+
+        moved, rest = clock_setup(world)
+        objects.update(moved)
+        joints.update(rest)
+        names.update(object="alarm clock")
+        ids = [pl["clock"]]
+        target = tuple(float(v) for v in pl["clock"].position[:2])
     if task_name == "throw_away":
         from stages.demos.skill_trash import trash_setup
 

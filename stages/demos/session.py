@@ -20,7 +20,7 @@ import numpy as np
 
 from stages.demos.experts import EXPERTS, Driver, ExpertFailure, timed_clik
 from stages.demos.record import Commands, EpisodeTimeout, Recorder, Timings
-from stages.demos.kitchen import FREE_ROLES, KitchenWorld
+from stages.demos.kitchen import FREE_ROLES, KitchenWorld, watched_joints
 from stages.demos.sampling import TaskInstance
 from stages.demos.tasks import task
 
@@ -136,7 +136,7 @@ class DemoWorld:
         self.build_seconds = time.perf_counter() - t0
         self._free = {p.body(): _free_joint_coords(self.sim, p.body())
                       for k, p in world.placed.items() if k in FREE_ROLES}
-        self.peaks = JointPeaks(self.sim, [world.placed["microwave"].joint("button_joint")])
+        self.peaks = JointPeaks(self.sim, watched_joints(world))
         qs = self.sim.model.joint_q_start.numpy()
         self._scene_joint = {p: int(qs[j]) for j, p in self.sim.scene.joint_path.items()}
 

@@ -26,6 +26,7 @@ from stages.demos.parts import part_closed, part_opened
 from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
 from stages.demos.skill_fridge import pick_place_fridge_success
 from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success, pour_success
+from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
 from stages.demos.skill_trash import throw_away_success
 from stages.demos.skill_wipe import wipe_plate_success
 
@@ -144,6 +145,12 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
              templates=("press the button on the {panel}", "push the {panel} button")),
+    TaskSpec(name="press_clock_button", family=Family.PUSH_PULL, max_seconds=30.0,
+             success=press_clock_button_success,
+             templates=("press the button on top of the {object}", "push the {object}'s button")),
+    TaskSpec(name="slide_clock_switch", family=Family.PUSH_PULL, max_seconds=30.0,
+             success=slide_clock_switch_success,
+             templates=("slide the switch on the back of the {object}", "switch the {object}'s alarm on")),
 )}
 
 
@@ -187,7 +194,8 @@ def _articulated_specs() -> list[TaskSpec]:
 TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
-SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher")
+SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
+               "press_clock_button", "slide_clock_switch")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the
 #: demos job's default
 BASIC_TASKS = tuple(t for t in TASKS if t not in SKILL_TASKS)

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from stages.demos.experts import timed_clik
-from stages.demos.kitchen import FREE_ROLES
+from stages.demos.kitchen import FREE_ROLES, watched_joints
 from stages.demos.record import Timings
 from stages.engine.capture import FrameCapture
 from stages.engine.lockstep import Lockstep
@@ -244,7 +244,7 @@ class BatchEngine:
         for body in getattr(world, "drink", ()):  # the drink's spheres (stages.demos.skill_pour)
             self._free[body] = int(qs[int(np.nonzero(child == sim.body_of_path(body))[0][0])])
         self._scene_coord = {p: int(qs[j]) for j, p in sim.scene.joint_path.items()}
-        self.watched = [world.placed["microwave"].joint("button_joint")] if "microwave" in world.placed else []
+        self.watched = watched_joints(world)
         for b in self.banks:
             b.peaks = Peaks(b.sim, self.watched, self._scene_coord)
         self._pending_reset: dict[int, dict[int, float]] = {}

@@ -21,9 +21,11 @@ rows), ``rows`` the constraint rows of one contact (elliptic cone: condim; pyram
 2 (condim - 1)), and ``ACTIVE`` the share of contact slots that make rows at once (a contact inside the gap but not
 touching makes none).
 The world with the most near pairs sets the size. The demos task kitchen (211 geoms, 19 of them
-the robot's): near = 1,691 pairs, nconmax 3,008, njmax 3,200; at rest MuJoCo-Warp's broadphase
-(with its oriented-box test) finds 497 candidate pairs, 427 contacts and 133 constraint rows. The
-fixed 1,024 used before overflowed its broadphase while the robot worked (issue 12).
+the robot's; every shape's gap 1 cm, ``stages.simulate.world.CONTACT_GAP``): near = 903 pairs,
+nconmax 1,856, njmax 3,008; at rest MuJoCo-Warp's broadphase (with its oriented-box test) finds 77
+candidate pairs, 77 contacts and 244 constraint rows (with Newton's 0.1 m gap: 1,691 near pairs,
+497 candidates, 427 contacts, the same 244 rows). The fixed 1,024 used before overflowed its
+broadphase while the robot worked (issue 12).
 
 :class:`OverflowMonitor` asks the solver for its per-world overflow bitmask
 (``ObservableKind.OVERFLOW``) and, after every step, ORs it into a sticky device array and keeps

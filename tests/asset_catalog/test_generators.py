@@ -119,12 +119,32 @@ def test_joints_have_intended_axes_and_limits(assets, category):
                 assert j.type == JointType.PRISMATIC and j.axis == (1.0, 0.0, 0.0) and 0.15 < j.upper < 0.6
             elif role == "button":
                 assert j.type == JointType.PRISMATIC and 0.002 <= j.upper <= 0.01
+            elif role == "switch":  # a slide switch: prismatic along a horizontal axis
+                assert j.type == JointType.PRISMATIC and abs(j.axis[2]) < 1e-9 and 0.008 <= j.upper <= 0.03
             elif role == "knob":
                 assert j.type == JointType.REVOLUTE and j.axis == (1.0, 0.0, 0.0)
             else:
                 pytest.fail(f"{a.model.name}: joint {j.name} has no role")
         if a.annotation.fixed_base is not None:
             assert a.annotation.fixed_base == GENERATORS_BY_CATEGORY[category].fixed_base
+
+
+def test_alarm_clock_has_a_top_button_and_a_back_slide_switch(assets):
+    """The set_alarm_clock task's parts (issue 16): a button pressed down from the top and a slide
+    switch on the back face, its knob clear of the body at both ends of its travel."""
+    for a in assets["alarm_clock"]:
+        roles = {j.role: j for j in a.joints}
+        joints = {j.name: j for j in a.model.joints}
+        button, switch = joints[roles["button"].name], joints[roles["switch"].name]
+        assert button.axis == (0.0, 0.0, -1.0)
+        assert switch.type == JointType.PRISMATIC and switch.axis == (0.0, 1.0, 0.0)
+        back = min(p.vertices[:, 0].min() for p in a.model.link("base").visuals)
+        knob = min(p.vertices[:, 0].min() + a.model.link(switch.child).pose.position[0]
+                   for p in a.model.link(switch.child).visuals)
+        assert knob < back - 0.008  # the knob stands proud of the back face
+        for val in (0.0, switch.upper):
+            pieces = _moved_pieces(a, switch.child, {switch.name: val})
+            assert _overlap(pieces, _moved_pieces(a, "base", {})) < 2e-6
 
 
 def _moved_pieces(a: GeneratedAsset, link: str, q: dict[str, float]):

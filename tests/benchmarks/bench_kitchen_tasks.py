@@ -31,7 +31,7 @@ def run(catalog: Path, work: Path, kitchens: list[int], tasks: list[str], seeds:
 
     from bench_demos import build_catalog
     from stages.demos.kitchen import AssetLibrary, write_kitchen
-    from stages.demos.multistage import needs_drink, needs_household
+    from stages.demos.multistage import needs_clock, needs_drink, needs_household
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
@@ -41,7 +41,7 @@ def run(catalog: Path, work: Path, kitchens: list[int], tasks: list[str], seeds:
     rows = []
     for k in kitchens:
         room = write_kitchen(work / f"kitchen_{k}", lib, scene_id=f"k{k}", rng=np.random.default_rng(k),
-                             household=needs_household(tasks), drink=needs_drink(tasks))
+                             household=needs_household(tasks), drink=needs_drink(tasks), clock=needs_clock(tasks))
         cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
         eng = BatchEngine(room, panda_root=None, work_dir=work / f"engine_{k}", config=cfg)
 
