@@ -42,7 +42,7 @@ KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", 
                       "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
                       "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
-FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup")
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "cushion")
 GRASP_MAX_DIAMETER = 0.076  # [m] widest mug body the Franka hand (80 mm stroke) grasps across
 WALL_T, WALL_H = 0.10, 2.5  # wall thickness and height [m]
 SOUTH = -math.pi / 2        # yaw of an asset whose front (+X) faces world -Y

@@ -6,7 +6,8 @@ long side facing the robot at -Y).
 - :func:`cushion_start`: the episode's cushion pose, lengthwise along the bed on the blanket's near
   band, just foot-ward of the blanket's start (``world.blanket_x``; ``world.foot``: -1 the bed's foot
   is to the west, +1 to the east);
-- :func:`place_pillow` (the expert): drive before the cushion, top-down grasp across its width at
+- :func:`place_pillow` (the expert): drive before the cushion (slide along the bed's side when the
+  base already stands before it), top-down grasp across its width at
   its middle, lift, drive straight along the bed's side to the head band's base pose
   (``world.pillow_base_x``), turn it across the bed and lower it over ``world.pillow_spot`` (on
   the mattress just foot-ward of the bed's own pillows), release, tuck;
@@ -65,6 +66,7 @@ def place_pillow(inst, d) -> None:
     """The expert (see the module doc)."""
     from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
+    from stages.demos.record import base_pose
     from stages.demos.skill_trash import _command_for
     from stages.simulate.control import top_down
     from stages.simulate.state import read_state
@@ -76,8 +78,15 @@ def place_pillow(inst, d) -> None:
     if width > MAX_CUSHION_WIDTH:
         raise ExpertFailure("object_too_wide", f"cushion {width * 1000:.0f} mm wide")
     cxy = np.asarray(inst.objects[c.body()][:2], float)
-    tuck = stow(d, on_the_way=True)
-    d.drive_to(facing_north_goal(w.table_rect[1], float(cxy[0])), w.grid(), tuck=tuck)
+    pick = facing_north_goal(w.table_rect[1], float(cxy[0]))
+    bx, by, th = base_pose(d.sim)
+    if abs(by - pick[1]) < 0.1 and abs(math.remainder(th - pick[2], 2 * math.pi)) < 0.2:
+        # already before the bed (the last stage's pose): slide along its side (the planner's
+        # inflated grid holds a base this near the bed as blocked: no_path)
+        stow(d)
+        d.drive_straight(pick)
+    else:
+        d.drive_to(pick, w.grid(), tuck=stow(d, on_the_way=True))
     st = read_state(d.sim).objects[c.body()]
     cxy, z0 = np.asarray(st.position[:2], float), float(st.position[2])
     q = st.orientation
