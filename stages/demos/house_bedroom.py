@@ -5,21 +5,27 @@ turned into the facts the bedroom skills read, on the shared house-room machiner
 :func:`house_bedroom` picks the bedroom's bed, with a piece of crumpled paper and a neck-roll cushion
 on it that the hand grasps, the trash can, and the nightstands (the household rules place them:
 ``stages/scene/rules/household_tasks.toml``). It turns the house by the multiple of 90 deg about +Z
-that lays the bed along X with its foot to the west and its head (the headboard, at the bed's local
--X) to the east, so that one long side faces world -Y (the experts work at a surface from its south
-side, facing +Y): the bed's blanket top is the work surface (``table_rect`` / ``table_z``, as the
-living room's coffee table; the paper is set at its west end, by the foot, as on the living room's
-table: :func:`stages.demos.skill_trash.trash_setup`). The trash can is moved onto the floor off the
-bed's foot (:data:`~stages.demos.house_living.CAN_GAP` off its footprint, 0.15 m north of the top's
-front), where it stands clear of the walls and the floor furniture. The head band (between the
-headboard and the blanket's start) is where the cushion goes (:mod:`stages.demos.skill_bed`); the
-base's pose for that stage stands as near the band as the floor allows (a nightstand on the robot's
-side takes the floor before the head). The task scene deactivates the other rooms' objects and the
-bed's other objects (the pillows and books: the pillows lie where the cushion and paper are set).
+that lays the bed along X with one long side facing world -Y (the experts work at a surface from its
+south side, facing +Y): first with the bed's foot (its local +X; the headboard is at local -X) to
+the west, else to the east (``foot`` -1 / +1), whichever leaves free floor for the base before the
+paper and before the head band and room for the trash can off the bed's foot. The trash can is moved
+onto the floor off the bed's foot (:data:`~stages.demos.house_living.CAN_GAP` off its footprint,
+0.15 m north of the top's front), where it stands clear of the walls and the floor furniture. The
+work surface (``table_rect`` / ``table_z``, as the living room's coffee table) is the strip of the
+blanket's top at the bed's foot where the paper is set (:func:`stages.demos.skill_trash.trash_setup`:
+``PAPER_AT`` in from the strip's west end), slid up to :data:`PAPER_SLIDE` head-ward where the base's
+pose before the foot is blocked. The head band (between the headboard and the blanket's start) is
+where the cushion goes (:mod:`stages.demos.skill_bed`: across the bed, just foot-ward of the bed's own
+pillows); the base's pose for it stands as near the spot as the floor allows (a nightstand on the
+robot's side takes the floor before the head). The task scene deactivates the other rooms' objects
+and the bed's other objects (the pillows and books: they lie where the cushion and paper go).
+Conversion needs about 1.05 m of free floor along the bed's side (the base's staging pose, inflated
+by its radius): many generated bedrooms lack it (ItemError names what failed on each side).
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "bed" (also "table"), "paper",
 "trash_can", "cushion" and, where present, "nightstand" (the first); ``head_band``: (xmin, ymin,
-xmax, ymax) of the bed's head band; ``mattress_z``: the mattress's top; ``pillow_spot``: (x, y) where
+xmax, ymax) of the bed's head band; ``blanket_x``: the blanket's start (the band's foot-side end);
+``foot``: -1 (the bed's foot to the west) or +1 (east); ``mattress_z``: the mattress's top; ``pillow_spot``: (x, y) where
 the cushion's centre is put; ``pillow_base_x``: the x of the base's pose (facing +Y) for the cushion.
 
 ::
@@ -48,7 +54,8 @@ from stages.demos.skill_trash import MAX_PAPER_RADIUS
 log = logging.getLogger(__name__)
 
 HEADBOARD = 0.06    # the bed generator's headboard thickness [m] (asset_catalog.generators.furniture.bed)
-PAPER_STRIP = 0.24  # table_rect: the blanket top's foot-end strip this long [m] (the paper PAPER_AT in from its west end)
+PAPER_STRIP = 0.24  # table_rect: the blanket top's foot-end strip this long [m] (the paper: PAPER_AT
+                    # in from its west end)
 PAPER_SLIDE = 0.15  # the strip slides this far [m] at most from the foot end (the can stays within reach)
 
 
@@ -76,7 +83,8 @@ def _bed_facts(bed: Placed, foot: int) -> tuple[tuple[float, float, float, float
     x0, y0, x1, y1 = bed.rect((-length / 2, bed.asset.lo[1]), (length / 2, bed.asset.hi[1]))
     head = x1 - HEADBOARD if foot < 0 else x0 + HEADBOARD
     blanket = head + foot * (length - 0.1) * bs
-    return (min(head, blanket), y0 + 0.04, max(head, blanket), y1 - 0.04), float(bed.position[2] + fh - 0.04 + mt), blanket
+    band = (min(head, blanket), y0 + 0.04, max(head, blanket), y1 - 0.04)
+    return band, float(bed.position[2] + fh - 0.04 + mt), blanket
 
 
 def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
@@ -99,7 +107,8 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
     x0, y0, x1, y1 = rf.area
     others = [p for n, p in furniture.items() if n != can["name"]]
     boxes = obstacles(others + [cp])
-    inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
+    inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
+              and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
     clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
     if not inside or clash:
         return "the can's place off the bed's foot is " + ("off the floor" if not inside else "taken")
@@ -139,7 +148,8 @@ def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     on_bed = (lambda r: bed is not None and r["support"] == bed["name"])
     paper = rs.one("crumpled_paper", lambda r: on_bed(r)
                    and float(rs.asset(r).params.get("radius", 1.0)) <= MAX_PAPER_RADIUS)
-    cushion = rs.one("cushion", lambda r: on_bed(r) and float(rs.asset(r).params.get("width", 1.0)) <= MAX_CUSHION_WIDTH)
+    cushion = rs.one("cushion", lambda r: on_bed(r)
+                     and float(rs.asset(r).params.get("width", 1.0)) <= MAX_CUSHION_WIDTH)
     can = rs.one("trash_can", lambda r: r["support"] is None)
     if bed is None or paper is None or cushion is None or can is None:
         lack = [w for w, r in (("a bed", bed),
