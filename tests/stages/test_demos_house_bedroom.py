@@ -47,7 +47,10 @@ def house(tmp_path_factory):
     pytest.importorskip("newton")
     from house_testutil import populate_flat
 
-    return populate_flat(tmp_path_factory.mktemp("bedroom") / "out", "bedroom", BEDROOM_PACKAGES, "bedroom")
+    # flat_003 (job seed 0, as bench_house_tasks.py --room bedroom): its bedroom converts (8 of the
+    # first 37 flats do: the rest lack 1.05 m of free floor beside the bed or room for the can)
+    return populate_flat(tmp_path_factory.mktemp("bedroom") / "out", "bedroom", BEDROOM_PACKAGES, "bedroom",
+                         count=4, settle=True, scene="flat_003_p0")
 
 
 @pytest.fixture(scope="module")
