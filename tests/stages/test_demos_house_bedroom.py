@@ -75,7 +75,7 @@ def test_house_bedroom_facts_lay_the_bed_along_x_with_its_side_free(world):
     bed = pl["bed"]
     fp = bed.footprint()
     assert fp[2] - fp[0] > fp[3] - fp[1]                       # the bed along X
-    assert abs(math.cos(bed.yaw) + world.foot) < 1e-6          # its foot (local +X) to world.foot
+    assert abs(math.cos(bed.yaw) - world.foot) < 1e-6          # its foot (local +X) to world.foot
     x0, y0, x1, y1 = world.head_band
     assert fp[0] < x0 < x1 < fp[2] and fp[1] < y0 < y1 < fp[3]
     head = x1 if world.foot < 0 else x0
