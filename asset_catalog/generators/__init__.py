@@ -148,6 +148,8 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
        interactable=True, rigid_format="obj", co_occurrence=("coffee_table", "dining_table")),
     _s("pillow", O.pillow, [BR, LR], SURF, M.FABRIC, (0.4, 0.3, 0.09), (0.65, 0.45, 0.16), interactable=True,
        rigid_format="obj", co_occurrence=("bed", "sofa", "armchair")),
+    _s("cushion", O.cushion, [BR, LR], SURF, M.FABRIC, (0.055, 0.28, 0.05), (0.07, 0.4, 0.065),
+       interactable=True, rigid_format="obj", co_occurrence=("bed", "sofa")),
     _s("sponge", O.sponge, [KI, BA], SURF, M.RUBBER, (0.09, 0.06, 0.024), (0.13, 0.08, 0.045),
        interactable=True,
        rigid_format="obj", co_occurrence=("kitchen_counter",)),

@@ -265,6 +265,17 @@ def pillow(b: AssetBuilder) -> float:
     return b.param("mass", 0.3, 0.9)
 
 
+def cushion(b: AssetBuilder) -> float:
+    """A neck-roll cushion: a soft rounded bar lying across a bed, narrow enough (width 55-70 mm) for
+    the Franka hand's 80 mm stroke to grasp across its middle (make the bed, issue 16); its flat
+    underside keeps it from rolling."""
+    fab = b.material("fabric", pick_color(b, FABRICS + [(0.95, 0.95, 0.93)], 0.05), roughness=0.95)
+    w, length = b.param("width", 0.055, 0.07), b.param("length", 0.28, 0.4)
+    h = b.param("height", 0.05, 0.065)
+    b.add("base", g.rounded_box((w, length, h), min(0.018, 0.3 * w), (0, 0, h / 2), n=8), fab, density=60.0)
+    return b.param("mass", 0.08, 0.2)
+
+
 def sponge(b: AssetBuilder) -> float:
     foam = b.material("foam", pick_color(b, [(0.95, 0.85, 0.3), (0.9, 0.6, 0.7), (0.5, 0.75, 0.9)], 0.04),
                       roughness=1.0)

@@ -41,6 +41,7 @@ from stages.demos.driver import APPROACH_TOL, Driver, ExpertFailure, stow
 from stages.demos.planner import NavGrid
 from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
+from stages.demos.skill_bed import place_pillow
 from stages.demos.skill_fridge import pick_place_fridge
 from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
@@ -251,7 +252,7 @@ EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_plac
            "press_button": press_button, "pick_place_fridge": pick_place_fridge,
            "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
            "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
-           "slide_clock_switch": slide_clock_switch}
+           "slide_clock_switch": slide_clock_switch, "place_pillow": place_pillow}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

@@ -42,7 +42,8 @@ KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", 
                       "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
                       "alarm_clock", "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
-FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock")
+FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock",
+              "cushion")
 CLOCK_END_GAP = 0.35    # a parked clock stands this far [m] from the counter top's ends (the base's room)
 CLOCK_BUSY_GAP = 0.30   # ... and from the microwave and the mug's counter spot [m]
 CLOCK_FRONT = 0.075     # its centre this far [m] behind the counter's front edge

@@ -176,6 +176,14 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="paper", container="trash can")
         ids = [pl["paper"], pl["trash_can"]]
         target = tuple(float(v) for v in pl["trash_can"].position[:2])
+    if task_name == "place_pillow":
+        names.update(object="cushion", container="bed")
+        ids = [pl["cushion"], pl["bed"]]
+        target = tuple(world.pillow_spot)
+    if "cushion" in pl:  # a bedroom (stages.demos.house_bedroom): every episode starts it on the blanket
+        from stages.demos.skill_bed import cushion_start
+
+        objects.update(cushion_start(world, seed))
     if task_name in POUR_SKILLS:
         from stages.demos.skill_pour import pour_setup
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from stages.demos.parts import part_closed, part_opened
 from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
+from stages.demos.skill_bed import place_pillow_success
 from stages.demos.skill_fridge import pick_place_fridge_success
 from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success, pour_success
 from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
@@ -141,6 +142,10 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
              templates=("pour the drink from the {object} into the {container}", "fill the {container}")),
     TaskSpec(name="place_pitcher", family=Family.PICK_PLACE, max_seconds=30.0, success=place_pitcher_success,
              templates=("put the {object} back on the table", "set the {object} down")),
+    # make the bed (stages.demos.skill_bed): the cushion on the blanket laid at the bed's head
+    TaskSpec(name="place_pillow", family=Family.PICK_PLACE, max_seconds=40.0, success=place_pillow_success,
+             templates=("put the {object} at the head of the {container}", "place the {object} by the pillows",
+                        "move the {object} to the head of the {container}")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
@@ -195,7 +200,7 @@ TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
 SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
-               "press_clock_button", "slide_clock_switch")
+               "press_clock_button", "slide_clock_switch", "place_pillow")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the
 #: demos job's default
 BASIC_TASKS = tuple(t for t in TASKS if t not in SKILL_TASKS)

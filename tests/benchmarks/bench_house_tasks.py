@@ -1,12 +1,12 @@
 """Scripted success of tasks in generated houses (issue 16), CPU: ``--houses`` 3-room flats from the
-layout stage, their ``--room`` (kitchen or living_room) populated by the scene stage with the
+layout stage, their ``--room`` (kitchen, living_room or bedroom) populated by the scene stage with the
 household-task rules from the default catalog's categories of that room (all 5 variants, ingested
 by the real job steps), each turned into a task world (:func:`stages.demos.house.house_kitchen`,
-:func:`stages.demos.house_living.house_living`) and run on the batched engine
+:func:`stages.demos.house_living.house_living`, :func:`stages.demos.house_bedroom.house_bedroom`) and run on the batched engine
 (``layout="per_world"``, one world, no cameras) for every task and seed.
 
 Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
-``... --room living_room --tasks clean_table_living`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+``... --room living_room --tasks clean_table_living``; ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
@@ -30,6 +30,10 @@ CATEGORIES = ("fridge", "kitchen_counter", "microwave", "dish_rack", "sponge", "
 #: the living room's (the household rules require the pillows on the sofa)
 LIVING_CATEGORIES = ("pillow", "sofa", "tv_stand", "coffee_table", "bookshelf", "trash_can", "crumpled_paper",
                      "book", "pitcher", "cup")
+#: the bedroom's (make the bed: stages.demos.house_bedroom)
+BEDROOM_CATEGORIES = ("bed", "nightstand", "wardrobe", "dresser", "chair", "rug", "pillow", "cushion",
+                      "crumpled_paper", "trash_can", "alarm_clock", "book", "hanger")
+ROOM_CATEGORIES = {"kitchen": CATEGORIES, "living_room": LIVING_CATEGORIES, "bedroom": BEDROOM_CATEGORIES}
 
 
 def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
@@ -39,7 +43,7 @@ def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
 
     job = {"job": {"name": "house_tasks", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
            "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": list(CATEGORIES if room == "kitchen" else LIVING_CATEGORIES)}},
+                     "config": {"variants": 5, "categories": list(ROOM_CATEGORIES[room])}},
                     {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog"}},
                     {"name": "layouts", "kind": "layout", "config": {"house": [
                         {"id": "flat", "count": n, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
@@ -53,12 +57,13 @@ def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
 
 def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str = "kitchen") -> dict:
     from stages.demos.house import house_kitchen
+    from stages.demos.house_bedroom import house_bedroom
     from stages.demos.house_living import house_living
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
     rows = []
-    make = house_kitchen if room == "kitchen" else house_living
+    make = {"kitchen": house_kitchen, "living_room": house_living, "bedroom": house_bedroom}[room]
     for scene in build_houses(work / "out", houses, room)[:houses]:
         try:
             w = make(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",
@@ -99,7 +104,7 @@ if __name__ == "__main__":
     ap.add_argument("--tasks", nargs="+", default=["heat_food"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--work", type=Path, default=None)
-    ap.add_argument("--room", choices=("kitchen", "living_room"), default="kitchen")
+    ap.add_argument("--room", choices=tuple(ROOM_CATEGORIES), default="kitchen")
     a = ap.parse_args()
     t0 = time.time()
     work = a.work or Path(tempfile.mkdtemp(prefix="house_tasks_"))

@@ -89,7 +89,8 @@ def test_task_objects_sit_where_the_tasks_look_for_them(house):
     assert on("dish_rack") == {"kitchen_counter"} and on("sponge") == {"kitchen_counter"}
     assert on("pitcher", "living_room") == {"coffee_table"} and "coffee_table" in on("book")
     assert on("mug", "kitchen") and {i.p.record.id for i in pop.insts if i.p.record.category == "mug"} == {"mug_04"}
-    assert on("crumpled_paper") == {"coffee_table"} and on("trash_can") == {"floor"}
+    assert on("crumpled_paper", "living_room") == {"coffee_table"} and on("trash_can") == {"floor"}
+    assert on("crumpled_paper", "bedroom") <= {"bed"}  # make the bed: the thing put away into the trash can
     assert on("pillow") >= {"bed"} and on("alarm_clock") == {"nightstand"}
     # a hanger lies inside its wardrobe: within its footprint, below its top
     for h in (i for i in pop.insts if i.p.record.category == "hanger"):

@@ -1,0 +1,191 @@
+"""A generated house's bedroom as the task world (issue 16, make the bed): the scene stage's output
+turned into the facts the bedroom skills read, on the shared house-room machinery
+(:mod:`stages.demos.house_room`).
+
+:func:`house_bedroom` picks the bedroom's bed, with a piece of crumpled paper and a neck-roll cushion
+on it that the hand grasps, the trash can, and the nightstands (the household rules place them:
+``stages/scene/rules/household_tasks.toml``). It turns the house by the multiple of 90 deg about +Z
+that lays the bed along X with one long side facing world -Y (the experts work at a surface from its
+south side, facing +Y): first with the bed's foot (its local +X; the headboard is at local -X) to
+the west, else to the east (``foot`` -1 / +1), whichever leaves free floor for the base before the
+paper and before the head band and room for the trash can off the bed's foot. The trash can is moved
+onto the floor off the bed's foot (:data:`~stages.demos.house_living.CAN_GAP` off its footprint,
+0.15 m north of the top's front), where it stands clear of the walls and the floor furniture. The
+work surface (``table_rect`` / ``table_z``, as the living room's coffee table) is the strip of the
+blanket's top at the bed's foot where the paper is set (:func:`stages.demos.skill_trash.trash_setup`:
+``PAPER_AT`` in from the strip's west end), slid up to :data:`PAPER_SLIDE` head-ward where the base's
+pose before the foot is blocked. The head band (between the headboard and the blanket's start) is
+where the cushion goes (:mod:`stages.demos.skill_bed`: across the bed, just foot-ward of the bed's own
+pillows); the base's pose for it stands as near the spot as the floor allows (a nightstand on the
+robot's side takes the floor before the head). The task scene deactivates the other rooms' objects
+and the bed's other objects (the pillows and books: they lie where the cushion and paper go).
+Conversion needs about 1.05 m of free floor along the bed's side (the base's staging pose, inflated
+by its radius): many generated bedrooms lack it (ItemError names what failed on each side).
+
+Facts (task frame, Z up, metres, radians): ``placed`` roles "bed" (also "table"), "paper",
+"trash_can", "cushion" and, where present, "nightstand" (the first); ``head_band``: (xmin, ymin,
+xmax, ymax) of the bed's head band; ``blanket_x``: the blanket's start (the band's foot-side end);
+``foot``: -1 (the bed's foot to the west) or +1 (east); ``mattress_z``: the mattress's top; ``pillow_spot``: (x, y) where
+the cushion's centre is put; ``pillow_base_x``: the x of the base's pose (facing +Y) for the cushion.
+
+::
+
+    world = house_bedroom(Path("out/scenes_household/scenes/flat_000_p0"), Path("out/task"),
+                          Path("out/scenes_household/catalog/default/generated.json"), scene_id="flat_000_p0")
+    inst = sample_task("make_bed", world, seed=1)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.types import ItemError
+from stages.demos.house_living import CAN_CLEAR, CAN_GAP, CAN_NORTH, PAPER_AT, _base_free, _overlaps, _top
+from stages.demos.house_room import HouseRoom, obstacles, read_room, room_frame, spawn_in, write_task_scene
+from stages.demos.packages import Placed
+from stages.demos.skill_bed import MAX_CUSHION_WIDTH, PILLOW_REACH, PILLOW_SPOT_IN
+from stages.demos.skill_trash import MAX_PAPER_RADIUS
+
+log = logging.getLogger(__name__)
+
+HEADBOARD = 0.06    # the bed generator's headboard thickness [m] (asset_catalog.generators.furniture.bed)
+PAPER_STRIP = 0.24  # table_rect: the blanket top's foot-end strip this long [m] (the paper: PAPER_AT
+                    # in from its west end)
+PAPER_SLIDE = 0.15  # the strip slides this far [m] at most from the foot end (the can stays within reach)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class HouseBedroom(HouseRoom):
+    """A :class:`~stages.demos.house_room.HouseRoom` whose room is a bedroom (see the module doc)."""
+
+    head_band: tuple[float, float, float, float]
+    mattress_z: float
+    blanket_x: float
+    foot: int
+    pillow_spot: tuple[float, float]
+    pillow_base_x: float
+
+
+def _bed_facts(bed: Placed, foot: int) -> tuple[tuple[float, float, float, float], float, float]:
+    """The bed's head band (task frame; the bed along X, its foot to ``foot`` (-1: west, +1: east)),
+    its mattress's top [m] and the blanket's start x [m] (the band's foot-side end), from the bed
+    generator's parameters."""
+    p = bed.asset.params
+    try:
+        length, fh, mt, bs = (float(p[k]) for k in ("length", "frame_height", "mattress_thickness", "blanket_start"))
+    except KeyError as e:
+        raise ItemError(f"{bed.asset.usd}: {bed.asset.asset_id} lacks the bed parameter {e}") from None
+    x0, y0, x1, y1 = bed.rect((-length / 2, bed.asset.lo[1]), (length / 2, bed.asset.hi[1]))
+    head = x1 - HEADBOARD if foot < 0 else x0 + HEADBOARD
+    blanket = head + foot * (length - 0.1) * bs
+    band = (min(head, blanket), y0 + 0.04, max(head, blanket), y1 - 0.04)
+    return band, float(bed.position[2] + fh - 0.04 + mt), blanket
+
+
+def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
+    """The bed turned with its foot to ``foot`` (-1: west, +1: east) and its free long side to -Y:
+    (frame, furniture, moved can, paper strip, surface z, band, mattress z, blanket x, goal of the
+    throw, the cushion's spot, the base's x for it) or a one-line reason why not."""
+    from stages.demos.counter import facing_north_goal
+
+    can_asset = rs.asset(can)
+    rf = room_frame(rs.house, rs.room, (math.pi if foot < 0 else 0.0) - bed["yaw"])
+    furniture = {n: rf.placed(r, rs.asset(r)) for n, r in rs.mine.items() if r["support"] is None}
+    bp = furniture[bed["name"]]
+    top, z = _top(bp)
+    band, mattress_z, blanket = _bed_facts(bp, foot)
+    bfp = bp.footprint()
+    cx = bfp[0] - CAN_GAP - can_asset.hi[0] if foot < 0 else bfp[2] + CAN_GAP - can_asset.lo[0]
+    cp = Placed(f"Objects/{can['name']}", can_asset, (float(cx), float(top[1] + CAN_NORTH), float(can["position"][2])),
+                0.0)
+    fp = cp.footprint()
+    x0, y0, x1, y1 = rf.area
+    others = [p for n, p in furniture.items() if n != can["name"]]
+    boxes = obstacles(others + [cp])
+    inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
+              and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
+    clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
+    if not inside or clash:
+        return "the can's place off the bed's foot is " + ("off the floor" if not inside else "taken")
+    # the paper's strip: the blanket top's foot end, slid head-ward up to PAPER_SLIDE where the base's
+    # pose before the foot is blocked (trash_setup sets the paper PAPER_AT in from the strip's west end)
+    for d in np.arange(0.0, PAPER_SLIDE + 1e-9, 0.05):
+        rect = ((top[0] + d, top[1], top[0] + d + PAPER_STRIP, top[3]) if foot < 0 else
+                (top[2] - d - PAPER_STRIP, top[1], top[2] - d, top[3]))
+        goal = facing_north_goal(rect[1], rect[0] + PAPER_AT[0])
+        if x0 < goal[0] < x1 and y0 < goal[1] < y1 and _base_free(goal, rf.walls, boxes):
+            break
+    else:
+        return "no room for the base before the bed's foot"
+    # the cushion's spot in the head band; the base's pose for it: the nearest free one foot-ward of the spot
+    head = band[2] if foot < 0 else band[0]
+    c = rs.asset(cushion)
+    spot = (float(head + foot * (PILLOW_SPOT_IN + 0.5 * c.params.get("width", 0.07))),
+            float(rect[1] - 0.03 + 0.5 * c.params.get("length", 0.4)))
+    base_x = next((float(spot[0] + foot * d) for d in np.arange(0.0, PILLOW_REACH + 1e-9, 0.05)
+                   if x0 < spot[0] + foot * d < x1
+                   and _base_free(facing_north_goal(rect[1], float(spot[0] + foot * d)), rf.walls, boxes)), None)
+    if base_x is None:
+        return f"no free floor for the base within {PILLOW_REACH} m of the head band"
+    return rf, furniture, cp, rect, z, band, mattress_z, blanket, goal, spot, base_x
+
+
+def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
+                  room: str | None = None) -> HouseBedroom:
+    """The task world of the bedroom ``room`` (default: the house's first populated bedroom) of the
+    scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc). ItemError names
+    what the room lacks or why neither long side of the bed works."""
+    from stages.demos.experts import COUNTER_STAGE
+
+    scene_dir, out_dir = Path(scene_dir), Path(out_dir)
+    rs = read_room(scene_dir, generated_json, "bedroom", room)
+    bed = rs.one("bed", lambda r: r["support"] is None)
+    on_bed = (lambda r: bed is not None and r["support"] == bed["name"])
+    paper = rs.one("crumpled_paper", lambda r: on_bed(r)
+                   and float(rs.asset(r).params.get("radius", 1.0)) <= MAX_PAPER_RADIUS)
+    cushion = rs.one("cushion", lambda r: on_bed(r)
+                     and float(rs.asset(r).params.get("width", 1.0)) <= MAX_CUSHION_WIDTH)
+    can = rs.one("trash_can", lambda r: r["support"] is None)
+    if bed is None or paper is None or cushion is None or can is None:
+        lack = [w for w, r in (("a bed", bed),
+                               (f"crumpled paper under {MAX_PAPER_RADIUS * 2000:.0f} mm on the bed", paper),
+                               (f"a cushion under {MAX_CUSHION_WIDTH * 1000:.0f} mm wide on the bed", cushion),
+                               ("a trash can", can)) if r is None]
+        raise ItemError(f"{scene_dir}: bedroom {rs.room} lacks {', '.join(lack)}")
+    sides = {foot: _side(rs, bed, can, cushion, foot) for foot in (-1, 1)}
+    ok = [s for s in sides.values() if not isinstance(s, str)]
+    if not ok:
+        raise ItemError(f"{scene_dir}: bedroom {rs.room}: no long side of the bed works (foot west: {sides[-1]}; "
+                        f"foot east: {sides[1]})")
+    rf, furniture, cp, rect, z, band, mattress_z, blanket, goal, spot, base_x = ok[0]
+    foot = -1 if ok[0] is sides[-1] else 1
+    bp = furniture[bed["name"]]
+    furniture[can["name"]] = cp
+    pl: dict[str, Placed] = {"bed": bp, "table": bp, "trash_can": cp, "paper": rf.placed(paper, rs.asset(paper)),
+                             "cushion": rf.placed(cushion, rs.asset(cushion))}
+    stand = rs.one("nightstand", lambda r: r["support"] is None)
+    if stand is not None:
+        pl["nightstand"] = furniture[stand["name"]]
+    cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items()
+                                      if on_bed(r) and n not in (paper["name"], cushion["name"])]
+    hxy = rf.to_house(cp.position[:2])
+    moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
+    usd = out_dir / "scene.usda"
+    write_task_scene(usd, rs.house, rf.frame, cut, moved)
+    paper_spot = (rect[0] + PAPER_AT[0], rect[1] + PAPER_AT[1])
+    w = HouseBedroom(
+        usd=usd, scene_id=scene_id, size=rf.size, wall_thickness=0.0, placed=pl, spawn=(0.0, 0.0, 0.0),
+        counter_z=z, counter_rect=rect, counter_spot=paper_spot, table_z=z, table_rect=rect,
+        cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0, cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0,
+        button_push=(0.0, 1.0, 0.0), mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None,
+        house=rs.house.resolve(), room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls, furniture=furniture,
+        cut=tuple(sorted(cut)), moved=moved, anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
+        head_band=band, mattress_z=mattress_z, blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x)
+    spawn_in(w)
+    log.info("house bedroom %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
+    return w
