@@ -100,7 +100,7 @@ class TableRig:
         from stages.demos import bimanual as bm
 
         x0, y0 = self.home_xy
-        if self.task in ("open_drawer", "close_drawer"):
+        if self.task in ("open_drawer", "close_drawer", "open_double_door"):
             return self.scene.reset(self, rng)
         if self.embodiment == "aloha":
             xy = (x0 + rng.uniform(-0.04, 0.04), y0 + rng.uniform(-0.03, 0.03))

@@ -45,10 +45,11 @@ __all__ = ["DRAWER_CLOSED", "DRAWER_OPEN", "HANDS", "PACKAGES", "PAIRS", "Outcom
 
 HANDS = ("allegro", "shadow")
 HAND_TASKS = ("pick_place_mug", "pick_place_can", "open_drawer", "close_drawer")
-ARM_TASKS = ("lift_tray", "hand_over")
+ARM_TASKS = ("lift_tray", "hand_over", "open_double_door")
 PAIRS = tuple(f"{h}/{t}" for h in HANDS for t in HAND_TASKS) + tuple(f"aloha/{t}" for t in ARM_TASKS)
 PACKAGES = {"pick_place_mug": "mug_04", "pick_place_can": "can_00", "open_drawer": "kitchen_counter_00",
-            "close_drawer": "kitchen_counter_00"}
+            "close_drawer": "kitchen_counter_00", "open_double_door": "wardrobe_01"}
+DOORS_XY = (0.70, 0.0)  # [m] the double door's handles' midpoint (nearer, the ViperX's wrist cannot turn to push)
 PLACE_TOL = 0.04  # [m] the placed object's axis from the target spot
 LIFT_SECONDS = 2.0  # [s] the lift after the grasp
 CARRY_SETTLE = 0.2  # [s] the held object comes to rest after the lift and after the carry
@@ -75,6 +76,8 @@ def build_rig(pair: str, work_dir: Path, *, assets: dict | None = None, shared_a
         from stages.simulate.bimanual_control import BimanualControl, BimanualIk
         from stages.simulate.dual_arm import write_dual_arm_urdf
 
+        if task == "open_double_door":
+            return _double_door_rig(pair, work_dir, assets, shared_assets, seed)
         obj, x0 = (bm.TraySpec(), 0.46) if task == "lift_tray" else (bm.BlockSpec(), 0.42)
         scene = bm.write_table_scene(work_dir / "scene.usda", obj, obj_xy=(x0, 0.0))
         desc = write_dual_arm_urdf(work_dir / "robot", shared_assets=shared_assets)
@@ -101,6 +104,28 @@ def build_rig(pair: str, work_dir: Path, *, assets: dict | None = None, shared_a
     ctl.commands = {None: 0.0}
     return TableRig(pair=pair, sim=sim, ctl=ctl, ik=Clik(desc), desc=desc, scene=scene, home_xy=HAND_OBJECT_XY,
                     asset_ids=(pkg,))
+
+
+def _double_door_rig(pair: str, work_dir: Path, assets: dict | None, shared_assets: Path | None,
+                     seed: int) -> TableRig:
+    """The dual-arm platform before the catalog's two-door wardrobe (:mod:`stages.demos.double_door`)."""
+    from stages.demos.double_door import PACKAGE, write_double_door_scene
+    from stages.embodiment.clik import ClikConfig
+    from stages.simulate.bimanual_control import BimanualControl, BimanualIk
+    from stages.simulate.dual_arm import write_dual_arm_urdf
+    from stages.simulate.world import SimConfig, build_sim
+
+    if not assets or PACKAGE not in assets:
+        raise ValueError(f"table tasks: {pair} needs the catalog package {PACKAGE} (assets)")
+    scene = write_double_door_scene(work_dir / "scene.usda", assets[PACKAGE], handles_xy=DOORS_XY)
+    desc = write_dual_arm_urdf(work_dir / "robot", shared_assets=shared_assets)
+    sim = build_sim(SimConfig(scenes=(scene.usd,), spawn=(0.0, 0.0, 0.0)), desc, np.random.default_rng(seed))
+    ctl = _remembering(BimanualControl)(sim)
+    ctl.commands = {a: 0.0 for a in desc.arms}
+    # the gripper turning from the handle's grip to pointing down converges slowly: 600 iterations
+    ik = BimanualIk(desc, ClikConfig(max_iters=600))
+    return TableRig(pair=pair, sim=sim, ctl=ctl, ik=ik, desc=desc, scene=scene, home_xy=DOORS_XY,
+                    asset_ids=(PACKAGE,))
 
 
 # --------------------------------------------------------------------------------------------
@@ -207,6 +232,8 @@ def instruction(rig: TableRig, sample: dict) -> str:
         return "pick up the block with the right gripper and hand it to the left gripper"
     if rig.task in ("open_drawer", "close_drawer"):
         return f"{rig.task.split('_')[0]} the top drawer of the counter"
+    if rig.task == "open_double_door":
+        return "open both doors of the wardrobe, one with each arm"
     obj = rig.task.removeprefix("pick_place_")
     side = "left" if sample["target"][1] > sample["xy"][1] else "right"
     return f"pick up the {obj} and place it to the {side}"
@@ -215,6 +242,7 @@ def instruction(rig: TableRig, sample: dict) -> str:
 def run_expert(rig: TableRig, sample: dict) -> Outcome:
     """Run the pair's expert from the state :meth:`TableRig.reset` left and judge the episode."""
     from stages.demos import bimanual as bm
+    from stages.demos import double_door as dd
 
     try:
         if rig.task == "lift_tray":
@@ -225,6 +253,10 @@ def run_expert(rig: TableRig, sample: dict) -> Outcome:
             fig = bm.hand_over(rig.sim, rig.ctl, rig.ik, rig.scene)
             return Outcome(success=fig.success(), reason="" if fig.success() else _handover_reason(fig),
                            detail=_rounded(vars(fig)))
+        if rig.task == "open_double_door":
+            fig = dd.open_doors(rig.sim, rig.ctl, rig.ik, rig.scene)
+            ok, reason, detail = dd.judge_doors(rig.scene.angles(rig.sim))
+            return Outcome(success=ok, reason=reason, detail={**vars(fig), **detail})
         if rig.task == "open_drawer":
             fig = open_drawer_hand(rig)
             return rig.scene.judge(rig, opened=True, detail=fig)
