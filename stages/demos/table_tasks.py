@@ -164,6 +164,10 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
         except RuntimeError as e:
             raise TaskFailure("ik_unreachable", str(e)) from None
 
+    # the first plan whose whole path the arm can follow from here (a failed pre-grasp move leaves the
+    # arm part-way, near a joint limit: record-table seed 1 episode 4 then missed its carry's waypoint)
+    plans = sorted(plans, key=lambda pl: not _path_reachable(rig, _pick_place_chain(pl, shape, target_xy, lift,
+                                                                                    place_gap)))
     for k, plan in enumerate(plans):   # 8 waypoints: with 3 the wrist's turn dipped the hand 13 cm
         try:
             move(plan.pre_grasp, 1.5, 8, 0.1)
@@ -198,6 +202,43 @@ def pick_place_hand(rig: TableRig, target_xy, *, lift: float = 0.10, place_gap: 
     away[2, 3] += 0.12
     move(away, 0.8, 2, 0.3)
     return {"lifted": round(lifted, 4), "carried": round(carried, 4), "contact_command": closing.contact_command}
+
+
+def _pick_place_chain(plan, shape, target_xy, lift: float, place_gap: float) -> list[tuple[np.ndarray, int]]:
+    """The TCP poses (4, 4) of :func:`pick_place_hand` for grasp ``plan``, each with its number of
+    IK waypoints: pre-grasp, grasp, lift, carry, set-down."""
+    up = plan.grasp.copy()
+    up[2, 3] += lift
+    shift = np.array([target_xy[0] - shape.center[0], target_xy[1] - shape.center[1], 0.0])
+    carry, down = up.copy(), plan.grasp.copy()
+    carry[:3, 3] += shift
+    down[:3, 3] += shift + [0.0, 0.0, place_gap]
+    return [(plan.pre_grasp, 8), (plan.grasp, 2), (up, 4), (carry, 4), (down, 2)]
+
+
+def _path_reachable(rig: TableRig, chain, *, tol: float = 0.005, rot_tol: float = float(np.deg2rad(2.0))) -> bool:
+    """Whether the arm can follow ``chain`` (TCP pose (4, 4), waypoints) from where it is now, the
+    way :func:`stages.simulate.control.move_ee` goes (straight lines, slerped orientations, each
+    waypoint's CLIK from the one before), solved without stepping the simulation."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    from stages.simulate.control import Clik, pose
+
+    sim, ik = rig.sim, rig.ik
+    q = ik.with_arm(ik.from_sim(sim), rig.ctl.arm_targets())
+    start = ik.fk(q)
+    for target, segments in chain:
+        goal = Clik.world_to_root(sim.spawn, target)
+        slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], goal[:3, :3]])))
+        for k in range(1, segments + 1):
+            a = k / segments
+            res = ik.solve(pose(start[:3, 3] + a * (goal[:3, 3] - start[:3, 3]), slerp([a]).as_matrix()[0]), q,
+                           max_iters=600)
+            if res.position_error > tol or res.rotation_error > rot_tol:
+                return False
+            q = res.q
+        start = goal
+    return True
 
 
 def judge_place(rig: TableRig, target_xy, *, max_tilt: float = 10.0) -> Outcome:
