@@ -218,7 +218,7 @@ class DoorPlan:
 
 def door_plan(door: Door, *, pull_deg: float = PULL_DEG, push_deg: float = PUSH_DEG, from_deg: float | None = None,
               push_at: float = PUSH_AT, push_below: float = PUSH_BELOW, standoff: float = 0.08,
-              step_deg: float = 10.0, gap: float = 0.03, width: float = 0.455, clear: float = 0.05) -> DoorPlan:
+              step_deg: float = 10.0, gap: float = 0.03, width: float = 0.455, clear: float = 0.10) -> DoorPlan:
     """The expert's waypoints for one arm and its ``door`` (see :class:`DoorPlan`), the door
     ``width`` [m] from its hinge line to its free edge: the pull to ``pull_deg`` in steps of at most
     ``step_deg`` [deg]; then, from the door at ``from_deg`` (default ``pull_deg``: the expert
@@ -255,7 +255,7 @@ def door_plan(door: Door, *, pull_deg: float = PULL_DEG, push_deg: float = PUSH_
     return DoorPlan(pre_grasp=pose(door.handle - standoff * r0[:, 2], r0), grasp=pose(door.handle, r0),
                     pull=pulls, release=pose(handle_on_swing(door, a1) - standoff * r1[:, 2], r1),
                     retract=pose(retract, fwd),
-                    around=down(leaf_point(door, a0, width + clear, behind=-0.06), a0, 0.05),
+                    around=down(leaf_point(door, a0, width + clear, behind=-clear), a0, 0.05),
                     past=down(leaf_point(door, a0, width + clear, behind=back), a0),
                     behind=down(leaf_point(door, a0 - math.radians(4.0), push_at, behind=back), a0),
                     push=pushes, away=away)

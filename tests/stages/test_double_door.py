@@ -110,3 +110,31 @@ def _door_frame_normal(door, angle):
     from stages.demos.double_door import _turn
 
     return _turn(np.array([1.0, 0.0, 0.0]), door.opening * angle)
+
+
+def test_the_double_door_pair_needs_the_wardrobe(tmp_path):
+    """record-table's aloha/open_double_door pair names its package (wardrobe_01) and refuses to
+    build without it."""
+    from stages.demos.table_tasks import PACKAGES, PAIRS, build_rig
+
+    assert "aloha/open_double_door" in PAIRS and PACKAGES["open_double_door"] == "wardrobe_01"
+    with pytest.raises(ValueError, match="wardrobe_01"):
+        build_rig("aloha/open_double_door", tmp_path, assets={})
+
+
+@pytest.mark.slow  # ~3 min on 2 shared cores (the wardrobe's catalog job, building the rig, one episode)
+def test_both_arms_open_the_wardrobe_doors_past_70_degrees(tmp_path, shared_assets):
+    """One real episode of aloha/open_double_door (record-table seed 0 episode 0): each arm pulls its
+    door open by the handle, goes round its free edge and pushes it on from behind; both doors end
+    at least 70 deg open."""
+    pytest.importorskip("newton")
+    from stages.demos.table_record import catalog_assets
+    from stages.demos.table_tasks import PAIRS, build_rig, run_expert
+
+    pair = "aloha/open_double_door"
+    assets = catalog_assets(tmp_path, None, ["wardrobe_01"])
+    rig = build_rig(pair, tmp_path / "rig", assets=assets, shared_assets=shared_assets)
+    out = run_expert(rig, rig.reset(np.random.default_rng([0, 0, PAIRS.index(pair)])))
+    assert out.success, out
+    assert min(out.detail["pulled_deg"].values()) > 40.0
+    assert min(out.detail["door_deg"].values()) >= 70.0
