@@ -158,7 +158,7 @@ def write_double_door_scene(path: Path, asset, *, handles_xy=(0.62, 0.0)) -> Dou
 
 PULL_DEG = 50.0   # [deg] each arm pulls its door this far by the handle (further, the wrist cannot follow the handle)
 PUSH_DEG = 86.0   # [deg] then pushes it on from behind to this angle (the hinge stops it at 90)
-PUSH_AT = 0.30    # [m] from the hinge, where the closed fingers push the door's back
+PUSH_AT = 0.40    # [m] from the hinge (5.5 cm in from the free edge), where the closed fingers push the door's back (at 0.30 the forearm, reaching round the edge, pushed the door shut: 50 -> 33 deg)
 PUSH_BELOW = 0.20  # [m] the push this far below the handle
 DOOR_THICKNESS = 0.018  # [m] the catalog's hinged doors (asset_catalog.generators._parts.hinged_door)
 
