@@ -1,6 +1,5 @@
 """The dual-arm platform's double-door task (issue 14: "open a double-door cabinet or fridge with
-both arms"): the scene, the geometry of the doors' swing and the success predicate. The expert
-(each arm takes one door's handle and swings its door open) is not built yet.
+both arms"): the scene, the geometry of the doors' swing, the expert and the success predicate.
 
 The catalog's two-door furniture (generators in :mod:`asset_catalog.generators`): ``wardrobe``
 (always two doors, hinged on the outer sides, vertical bar handles 5 cm either side of the middle,
@@ -61,6 +60,16 @@ class DoubleDoorScene:
             j = next(j for j, p in sim.scene.joint_path.items() if p == d.joint)
             out[arm] = float(q[int(sim.model.joint_q_start.numpy()[j])])
         return out
+
+    def reset(self, rig, rng: np.random.Generator) -> dict:
+        """An episode's start for the table rig ``rig`` (:class:`stages.demos.table_rig.TableRig`):
+        the base +-2 cm and +-0.03 rad off its spawn pose, the robot at its default posture with the
+        grippers open, both doors shut; 0.1 s to settle. Returns the sample (the base pose)."""
+        base = (rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02), rng.uniform(-0.03, 0.03))
+        rig.sim.reset(base=base)
+        rig.ctl.reset()
+        rig.sim.step(50)
+        return {"base": np.round(base, 4).tolist()}
 
 
 def handle_on_swing(door: Door, angle: float) -> np.ndarray:
@@ -141,3 +150,193 @@ def write_double_door_scene(path: Path, asset, *, handles_xy=(0.62, 0.0)) -> Dou
     w = table_world(table_xy=(-3.0, -3.0), table_size=(0.1, 0.1), table_height=0.05)   # no table in reach
     write_object_world(path, w, asset, pos, yaw)
     return DoubleDoorScene(usd=path, doors=doors_of(asset.info, joints, pos, yaw))
+
+
+# --------------------------------------------------------------------------------------------
+# the expert: pull each door open by its handle, let go, push it on from behind
+# --------------------------------------------------------------------------------------------
+
+PULL_DEG = 50.0   # [deg] each arm pulls its door this far by the handle (further, the wrist cannot follow the handle)
+PUSH_DEG = 86.0   # [deg] then pushes it on from behind to this angle (the hinge stops it at 90)
+PUSH_AT = 0.40    # [m] from the hinge (5.5 cm in from the free edge), where the closed fingers push the door's back (at 0.30 the forearm, reaching round the edge, pushed the door shut: 50 -> 33 deg)
+PUSH_BELOW = 0.20  # [m] the push this far below the handle
+DOOR_THICKNESS = 0.018  # [m] the catalog's hinged doors (asset_catalog.generators._parts.hinged_door)
+
+
+def _turn(v, angle: float) -> np.ndarray:
+    """Horizontal vector ``v`` (3,) turned ``angle`` [rad] about +Z."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
+
+
+def grasp_rotation(door: Door, angle: float) -> np.ndarray:
+    """TCP rotation (3, 3) gripping ``door``'s vertical bar handle with the door ``angle`` [rad]
+    open: TCP +Z (the fingers) into the door's front, turning with the door, the fingers closing
+    horizontally across the bar, TCP +X down."""
+    z = _turn((1.0, 0.0, 0.0), door.opening * angle)
+    x = np.array([0.0, 0.0, -1.0])
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+def leaf_point(door: Door, angle: float, along: float, *, behind: float = 0.0) -> np.ndarray:
+    """A point (3,) [m] at the handle's height, ``along`` [m] from the hinge line across ``door``
+    opened ``angle`` [rad], ``behind`` [m] behind the hinge line (its front face; the catalog's
+    doors hinge at their outer front corner): the back face is ``DOOR_THICKNESS`` behind, the space
+    between the open door's back and the carcass further (negative: before the front)."""
+    r = np.asarray(door.handle, float) - np.asarray(door.hinge, float)
+    u = np.array([r[0], r[1], 0.0])
+    u -= np.array([u[0], 0.0, 0.0])   # across the shut door (world Y)
+    u /= np.linalg.norm(u)
+    q = along * u + behind * np.array([1.0, 0.0, 0.0])
+    p = np.asarray(door.hinge, float) + _turn(q, door.opening * angle)
+    p[2] = door.handle[2]
+    return p
+
+
+@dataclass(frozen=True, kw_only=True)
+class DoorPlan:
+    """One arm's TCP poses (4, 4), world, for its door: pre_grasp (``standoff`` before the handle),
+    grasp (on the bar), pull (the handle's path to ``PULL_DEG``), release (backed off the handle),
+    retract (pointing ahead, 40 cm before the handle, 4 cm off the middle, 10 cm lower: past the
+    free edge of a door open 35-50 deg, reached in joint space, :func:`move_joints`, from the pull's posture, whose forearm
+    roll and wrist angle near their limits cannot turn the gripper down along a straight path),
+    around (before the door, past its free edge), past (past the free edge, behind the door's
+    back), behind (behind its back, ``PUSH_AT`` from the hinge), push (along the door's swing to
+    ``PUSH_DEG``), away (backed off towards the robot and the middle)."""
+
+    pre_grasp: np.ndarray
+    grasp: np.ndarray
+    pull: list[np.ndarray]
+    release: np.ndarray
+    retract: np.ndarray
+    around: np.ndarray
+    past: np.ndarray
+    behind: np.ndarray
+    push: list[np.ndarray]
+    away: np.ndarray
+
+
+def door_plan(door: Door, *, pull_deg: float = PULL_DEG, push_deg: float = PUSH_DEG, from_deg: float | None = None,
+              push_at: float = PUSH_AT, push_below: float = PUSH_BELOW, standoff: float = 0.08,
+              step_deg: float = 10.0, gap: float = 0.03, width: float = 0.455, clear: float = 0.10) -> DoorPlan:
+    """The expert's waypoints for one arm and its ``door`` (see :class:`DoorPlan`), the door
+    ``width`` [m] from its hinge line to its free edge: the pull to ``pull_deg`` in steps of at most
+    ``step_deg`` [deg]; then, from the door at ``from_deg`` (default ``pull_deg``: the expert
+    plans this part again with the angle the door was let go at), round the free edge ``clear``
+    [m] off it and push it to ``push_deg``, ``push_below`` [m] below the handle with the gripper
+    pointing down and its closed fingers across the door (the narrow side along it), the TCP
+    ``gap`` [m] behind the door's back face (a finger's thickness and a margin: the fingers lead
+    the door by a few degrees). (With the gripper pointing along +X, or at the door, the ViperX's
+    wrist missed the push's waypoints at the handle's height by 5-18 cm; pointing down 20 cm lower
+    it reaches them all.)"""
+    from stages.simulate.control import pose, top_down
+
+    a1, a2 = math.radians(pull_deg), math.radians(push_deg)
+    a0 = a1 if from_deg is None else math.radians(from_deg)
+    r0 = grasp_rotation(door, 0.0)
+    pulls = [pose(handle_on_swing(door, a), grasp_rotation(door, a))
+             for a in np.linspace(0.0, a1, int(math.ceil(pull_deg / step_deg)) + 1)[1:]]
+    r1 = grasp_rotation(door, a1)
+    back = DOOR_THICKNESS + gap
+    z = float(door.handle[2]) - push_below
+
+    def down(p, a, dz=0.0):
+        p = np.array(p, float)
+        p[2] = z + dz
+        return pose(p, top_down(door.opening * (a + math.pi / 2)))   # the wrist's roll away from its limit
+
+    n = int(math.ceil((push_deg - pull_deg) / step_deg)) + 1   # one count for both arms (from_deg differs)
+    pushes = [down(leaf_point(door, a, push_at, behind=back), a) for a in np.linspace(a0, a2, n + 1)[1:]]
+    away = pushes[-1].copy()
+    away[:3, 3] += np.array([-0.05, 0.0, 0.05])
+    fwd = np.stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]], axis=1)   # fingers along +X
+    # 40 cm before the handles, 4 cm off the middle: past the free edge of a door open 35-50 deg
+    retract = np.array([door.handle[0] - 0.40, 0.04 * np.sign(door.hinge[1]), door.handle[2] - 0.10])
+    return DoorPlan(pre_grasp=pose(door.handle - standoff * r0[:, 2], r0), grasp=pose(door.handle, r0),
+                    pull=pulls, release=pose(handle_on_swing(door, a1) - standoff * r1[:, 2], r1),
+                    retract=pose(retract, fwd),
+                    around=down(leaf_point(door, a0, width + clear, behind=-clear), a0, 0.05),
+                    past=down(leaf_point(door, a0, width + clear, behind=back), a0),
+                    behind=down(leaf_point(door, a0 - math.radians(4.0), push_at, behind=back), a0),
+                    push=pushes, away=away)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DoorOpening:
+    """What the double-door expert measured, per arm: gripped (fingers on the handle's door after
+    closing, 0-2), pulled_deg (the door's angle [deg] when the gripper let go), door_deg (at the
+    end)."""
+
+    gripped: dict[str, int]
+    pulled_deg: dict[str, float]
+    door_deg: dict[str, float]
+
+
+def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorOpening:
+    """The double-door expert in ``sim`` with ``ctl`` (a
+    :class:`stages.simulate.bimanual_control.BimanualControl`) and ``ik`` (``BimanualIk``), both
+    arms at once, each on its door of ``scene`` (:func:`door_plan`): open grippers to the
+    pre-grasp, onto the bar handles, close, pull the doors open along the handles' swing to
+    ``PULL_DEG``, let go and back off, close the gripper, go round the door's free edge to behind
+    it, push it on along its swing to ``PUSH_DEG``, back off. Raises RuntimeError (the CLIK's
+    "unreachable") when a waypoint is out of reach."""
+    from stages.demos.bimanual import close_gripper, gripper_contacts
+    from stages.simulate.bimanual_control import move_arms
+
+    plans = {a: door_plan(d) for a, d in scene.doors.items()}
+
+    def move(key, duration, segments, settle=0.0, k=None):
+        targets = {a: (getattr(p, key) if k is None else getattr(p, key)[k]) for a, p in plans.items()}
+        move_arms(sim, ctl, ik, targets, duration, segments=segments, settle=settle, world=world)
+
+    def deg() -> dict[str, float]:
+        return {a: round(math.degrees(v), 2) for a, v in scene.angles(sim).items()}
+
+    ctl.set_gripper(0.0, world)
+    move("pre_grasp", 2.0, 8, 0.2)
+    move("grasp", 1.0, 4, 0.2)
+    close_gripper(sim, ctl, None, 0.5, world=world)
+    gripped = {a: gripper_contacts(sim, ik.desc, sim.body_of_path(d.body, world), world)[a]
+               for a, d in scene.doors.items()}
+    for k in range(len(plans["left"].pull)):
+        move("pull", 0.5, 2, k=k)
+    sim.step(int(round(0.2 / sim.settings.dt)))
+    pulled = deg()
+    close_gripper(sim, ctl, None, 0.4, world=world, opening=True, settle=0.1)
+    move("release", 0.6, 2)
+    close_gripper(sim, ctl, None, 0.3, world=world, settle=0.0)
+    let_go = scene.angles(sim)
+    plans = {a: door_plan(d, from_deg=math.degrees(let_go[a])) for a, d in scene.doors.items()}
+    move_joints(sim, ctl, ik, {a: p.retract for a, p in plans.items()}, 1.5, world=world)
+    move("around", 1.2, 6)
+    move("past", 1.0, 4)
+    move("behind", 1.0, 4)
+    for k in range(len(plans["left"].push)):
+        move("push", 0.5, 2, k=k)
+    move("away", 0.8, 2, 0.3)
+    return DoorOpening(gripped=gripped, pulled_deg=pulled, door_deg=deg())
+
+
+def move_joints(sim, ctl, ik, targets_world, duration: float, *, world: int = 0, tol: float = 0.003) -> None:
+    """Move the arms named in ``targets_world`` (arm -> 4x4 world TCP pose) in joint space: their IK
+    solution from the default posture (not from where the arms are), the joint targets interpolated
+    linearly over ``duration`` [s]. Raises RuntimeError when a target is missed by more than
+    ``tol`` [m]."""
+    from stages.simulate.control import Clik
+
+    goals = {a: Clik.world_to_root(sim.spawn, t) for a, t in targets_world.items()}
+    res = ik.solve(goals, ik.clik.default_q())
+    if res.position_error.max() > tol:
+        raise RuntimeError(f"CLIK: joint-space target of {tuple(goals)} unreachable "
+                           f"(errors {np.round(res.position_error, 4).tolist()} m)")
+    arms0 = ctl.arm_targets()
+    arms1 = arms0.copy()
+    i = 0
+    for a, info in ik.desc.arms.items():
+        if a in goals:
+            arms1[i:i + len(info.joints)] = ik.arm_q(res.q[0], a)
+        i += len(info.joints)
+    steps = max(1, int(round(duration / sim.settings.dt)))
+    for k in range(0, steps, 10):
+        ctl.set_arm_targets(arms0 + (arms1 - arms0) * min(1.0, (k + 10) / steps), world)
+        sim.step(10)

@@ -142,14 +142,17 @@ def top_rotation(fingers: np.ndarray) -> np.ndarray:
 
 
 def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10, gap: float = 0.006,
-                   max_turn: float = float(np.deg2rad(60.0)), handle_side: int = 0) -> GraspPlan:
+                   max_turn: float = float(np.deg2rad(60.0)), handle_side: int = 0,
+                   handle_offset: float = 0.0) -> GraspPlan:
     """A top power grasp of ``shape`` by ``hand`` (:class:`stages.simulate.hands.HandInfo`) for a
     robot at ``robot_xy`` (2,) [m] (see the module docstring): the palm ``gap`` [m] above the
     object's top, the object's axis at ``hand.grasp_x`` along the fingers, the fingers pointing
     away from the robot so that they wrap the far side and the thumb the near side; for a handle,
     turned (at most ``max_turn``) so that the handle points across the fingers (along the TCP's
     Y), clear of the fingers' and the thumb's sweep; ``handle_side`` +1 / -1 puts it on the TCP's +Y /
-    -Y side only (0: whichever side needs the smaller turn). Pre-grasp: ``standoff`` [m] above."""
+    -Y side only (0: whichever side needs the smaller turn); ``handle_offset`` [rad] turns the hand
+    that much further about +Z (the handle that much off the TCP's Y axis: positive towards the
+    fingers with ``handle_side`` -1). Pre-grasp: ``standoff`` [m] above."""
     if not shape.upright:
         raise ValueError("plan_top_grasp: the object does not stand upright")
     direct = shape.center[:2] - np.asarray(robot_xy, float)
@@ -158,6 +161,7 @@ def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.1
         h = float(np.arctan2(shape.handle[1], shape.handle[0]))
         # fingers along h + 90 deg put the handle on the TCP's +Y side (TCP +Y = fingers - 90 deg)
         sides = {1: (h + np.pi / 2,), -1: (h - np.pi / 2,), 0: (h + np.pi / 2, h - np.pi / 2)}[int(handle_side)]
+        sides = tuple(c + handle_offset for c in sides)
         turns = [(c - az + np.pi) % (2 * np.pi) - np.pi for c in sides]
         turn = min(turns, key=abs)
         az += float(np.clip(turn, -max_turn, max_turn))
@@ -172,15 +176,24 @@ def plan_top_grasp(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.1
     return GraspPlan(pre_grasp=pre, grasp=grasp, approach=np.array([0.0, 0.0, -1.0]), shape=shape)
 
 
-def top_grasp_plans(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10) -> list[GraspPlan]:
+HANDLE_OFFSETS_DEG = (0.0, 12.0, -12.0, 25.0, -25.0)  # [deg] turns of the hand tried in turn, handle side kept
+
+
+def top_grasp_plans(shape: UprightShape, hand, robot_xy, *, standoff: float = 0.10,
+                    offsets_deg=HANDLE_OFFSETS_DEG) -> list[GraspPlan]:
     """The top grasps of ``shape`` to try in turn (:func:`plan_top_grasp`): for a hand with a
-    ``handle_side`` and an object with a handle, the handle on that side (any turn), then on the
-    other side (for a mug whose handle-side grasp needs a wrist turn past the Panda's limits: a mug
-    turned ~180 deg, record-table seed 1 episode 3); otherwise the one grasp."""
+    ``handle_side`` and an object with a handle, the handle on that side, exactly across the fingers
+    and then turned by each of ``offsets_deg`` [deg] (``handle_offset``); then on the other side.
+    (A mug turned 180-220 deg needs a wrist turn whose pre-grasp path the Panda cannot follow:
+    record-table seeds 1-2, 4 of 20 Allegro episodes; turned 12-25 deg further either way it can.
+    The other side puts the handle in the thumb's sweep: 3 of those 4 dropped the mug or missed the
+    grasp.) Otherwise the one grasp."""
     side = int(getattr(hand, "handle_side", 0))
-    sides = (side, -side) if side and shape.handle is not None else (side,)
-    return [plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=s,
-                           **({"max_turn": np.pi} if s else {})) for s in sides]
+    if not side or shape.handle is None:
+        return [plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=side)]
+    return ([plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=side, max_turn=np.pi,
+                            handle_offset=float(np.deg2rad(o)) * -side) for o in offsets_deg]
+            + [plan_top_grasp(shape, hand, robot_xy, standoff=standoff, handle_side=-side, max_turn=np.pi)])
 
 
 # --------------------------------------------------------------------------------------------

@@ -79,7 +79,8 @@ def camera_rig(rig: TableRig, spec):
     cams = []
     for c in spec.cameras:
         if c.name == "third_person":
-            eye, target = ((1.6, 0.9, 1.4), (0.4, 0.0, 0.6)) if rig.embodiment == "aloha" else \
+            eye, target = ((0.1, 1.3, 1.6), (0.55, 0.0, 0.9)) if rig.task == "open_double_door" else \
+                ((1.6, 0.9, 1.4), (0.4, 0.0, 0.6)) if rig.embodiment == "aloha" else \
                 ((0.15, 1.1, 1.45), (0.5, 0.0, 0.7)) if rig.task.endswith("drawer") else \
                 ((1.45, 0.6, 1.2), (0.72, 0.0, 0.62))
             cams.append(CameraSpec(name=c.name, width=c.width, height=c.height, vertical_fov=1.0,
@@ -256,7 +257,7 @@ def record_all(out: Path, pairs=PAIRS, *, episodes: int = 30, seed: int = 0, ima
     bad = [p for p in pairs if p not in PAIRS]
     if bad:
         raise ValueError(f"record-table: unknown pairs {bad}; known {list(PAIRS)}")
-    ids = {PACKAGES[p.split("/")[1]] for p in pairs if not p.startswith("aloha/")}
+    ids = {PACKAGES[p.split("/")[1]] for p in pairs if p.split("/")[1] in PACKAGES}
     assets = catalog_assets(out, catalog, ids) if ids else None
     report = {"episodes_per_pair": episodes, "seed": seed, "images": images, "pairs": {}}
     for pair in pairs:

@@ -248,6 +248,47 @@ def test_min_jerk_starts_and_stops_at_rest():
 
 
 @pytest.mark.slow  # ~1.5 min on 2 shared cores (building the rig, two episodes, no cameras)
+def test_allegro_mug_grasps_keep_the_handle_on_its_side_before_the_other():
+    """top_grasp_plans for the Allegro (handle_side -1) and a mug turned 180 deg: the handle across
+    the fingers on the TCP's -Y side, then on that side turned 12 and 25 deg either way, and only
+    then on the +Y side (the thumb's sweep)."""
+    from stages.demos.hand_grasps import HANDLE_OFFSETS_DEG, UprightShape, top_grasp_plans
+    from stages.simulate.hands import allegro_info
+
+    handle = np.array([0.03, -1.0, 0.0]) / np.hypot(0.03, 1.0)   # record-table seed 1 episode 4's mug
+    shape = UprightShape(center=np.array([0.72, 0.0, 0.6]), bottom=0.55, height=0.1, radius=0.037, handle=handle,
+                         upright=True)
+    plans = top_grasp_plans(shape, allegro_info(), (0.0, 0.0))
+    assert len(plans) == len(HANDLE_OFFSETS_DEG) + 1
+    for plan, off in zip(plans, HANDLE_OFFSETS_DEG, strict=False):
+        fingers, y = plan.grasp[:3, 0], plan.grasp[:3, 1]
+        assert float(np.dot(y, handle)) == pytest.approx(-np.cos(np.deg2rad(off)), abs=1e-9)   # on the -Y side
+        # positive offsets turn the handle towards the fingers
+        assert float(np.dot(fingers, handle)) == pytest.approx(np.sin(np.deg2rad(off)), abs=1e-9)
+    assert float(np.dot(plans[-1].grasp[:3, 1], handle)) == pytest.approx(1.0)
+
+
+@pytest.mark.slow  # ~2 min on 2 shared cores (building the rig, two episodes, no cameras)
+def test_allegro_mugs_turned_away_are_placed(tmp_path, kitchen_catalog, shared_assets):
+    """record-table allegro/pick_place_mug seed 1 episodes 4 and 6 (mug yaw 3.17 and 3.77 rad: the
+    handle to the right, a little away from the robot): the handle-side grasp's pre-grasp path is out
+    of the wrist's reach, and the other side's grasp (the handle in the thumb's sweep) dropped both
+    mugs (lifted 3.5 cm of 10, reason dropped, session 14's baseline run). The grasp turned 12-25
+    deg with the handle kept on its side, chosen by its whole path's reachability, places them."""
+    from stages.demos.table_record import catalog_assets
+    from stages.demos.table_tasks import PACKAGES, PAIRS, build_rig, run_expert
+
+    pair = "allegro/pick_place_mug"
+    assets = catalog_assets(tmp_path, kitchen_catalog, [PACKAGES["pick_place_mug"]])
+    rig = build_rig(pair, tmp_path / "rig", assets=assets, shared_assets=shared_assets, seed=1)
+    for k, yaw in ((4, 3.1744), (6, 3.767)):
+        sample = rig.reset(np.random.default_rng([1, k, PAIRS.index(pair)]))
+        assert sample["yaw"] == pytest.approx(yaw, abs=1e-3)   # the episode that failed
+        out = run_expert(rig, sample)
+        assert out.success, (k, out)
+        assert out.detail["carried"] > 0.09 and out.detail["place_error"] < 0.04
+
+
 def test_allegro_mugs_that_failed_are_placed(tmp_path, kitchen_catalog, shared_assets):
     """record-table allegro/pick_place_mug seed 1: episode 1 (mug yaw 2.59 rad, target 14 cm to the
     left): the mug, held from the top, tipped out of the hand where the lift stopped and the carry
