@@ -183,20 +183,20 @@ def open_drawer_hand(rig: TableRig, *, along: float = DRAWER_ALONG, gap: float =
     rig.sim.step(100)
     _move(rig, pose(tcp + pull * sc.slide, rot), 2.0, 4, 0.2)
     pulled = sc.opening(rig.sim)
-    _back_off(rig, open_hand=0.4)   # the arm held: a palm any nearer the base is out of reach with the base turned
+    _back_off(rig, open_for=0.4)   # the arm held: a palm any nearer the base is out of reach with the base turned
     return {"pulled": round(pulled, 4)}
 
 
-def _back_off(rig: TableRig, speed: float = 0.3, duration: float = 0.6, *, open_hand: float = 0.0) -> None:
+def _back_off(rig: TableRig, speed: float = 0.3, duration: float = 0.6, *, open_for: float = 0.0) -> None:
     """Drive the base straight back ``speed`` [m/s], the arm held, opening the hand along its hook
-    synergy in the first ``open_hand`` [s], for ``open_hand + duration`` [s]; then stop and wait
+    synergy in the first ``open_for`` [s], for ``open_for + duration`` [s]; then stop and wait
     0.3 s (the hand leaves a drawer that slides on out after it). Opening the hooked fingers in
     place swept their tips into the drawer's front and pushed the free-running drawer shut (3 of
     10 Allegro episodes, record-table seed 0; opened 18.7 cm, shut within 3 s); the hand going back
     at 0.3 m/s as they open drags the drawer 2-4 cm further out instead."""
     rig.ctl.set_base_velocity(-speed, 0.0, 0.0)
-    if open_hand > 0.0:
-        open_hand(rig, open_hand, hook=True)
+    if open_for > 0.0:
+        open_hand(rig, open_for, hooked=True)
     rig.sim.step(int(round(duration / rig.sim.settings.dt)))
     rig.ctl.set_base_velocity(0.0, 0.0, 0.0)
     rig.sim.step(int(round(0.3 / rig.sim.settings.dt)))

@@ -127,15 +127,15 @@ class TableRig:
 # --------------------------------------------------------------------------------------------
 
 
-def open_hand(rig: TableRig, duration: float, *, hook: bool = False) -> None:
+def open_hand(rig: TableRig, duration: float, *, hooked: bool = False) -> None:
     """Open the hand from its current command to 0 in ``duration`` [s], along the hook synergy
-    with ``hook``."""
+    (:func:`hook`) with ``hooked``."""
     sim, ctl = rig.sim, rig.ctl
     steps = max(1, int(round(duration / sim.settings.dt)))
     c0 = ctl.commands.get(None, 1.0)
     for i in range(0, steps, 10):
         c = c0 * (1.0 - min(1.0, (i + 10) / steps))
-        hook(rig, c) if hook else ctl.set_gripper(c)
+        hook(rig, c) if hooked else ctl.set_gripper(c)
         sim.step(10)
 
 
