@@ -51,3 +51,20 @@ def link_kitchen_catalog(catalog: Path, work_dir: Path) -> Path:
     work_dir.mkdir(parents=True, exist_ok=True)
     (work_dir / "catalog_job").symlink_to(catalog, target_is_directory=True)
     return work_dir
+
+
+def clock_library(out: Path, clocks: tuple[str, ...]):
+    """The kitchen categories plus the alarm clocks ``clocks`` (package ids) in ``out`` by the real
+    catalog and ingest steps (~20 s on 2 shared cores), as an ``AssetLibrary`` (the set_alarm_clock
+    tests: ``test_skill_press.py``, ``test_skill_press_engine.py``)."""
+    from pipeline import build_job, run_job
+    from stages.demos.kitchen import AssetLibrary
+
+    job = {"job": {"name": "clock", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog",
+                     "config": {"variants": 5, "categories": [*KITCHEN, "alarm_clock"]}},
+                    {"name": "assets", "kind": "ingest",
+                     "config": {"catalog_step": "catalog", "only": [*PACKAGES, *clocks]}}]}
+    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
+    return AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")

@@ -12,25 +12,14 @@ import math
 import numpy as np
 import pytest
 
-from kitchen_testutil import KITCHEN, PACKAGES
+from kitchen_testutil import clock_library
 
 CLOCKS = ("alarm_clock_00", "alarm_clock_02")
 
 
 @pytest.fixture(scope="module")
 def clock_lib(tmp_path_factory):
-    from pipeline import build_job, run_job
-    from stages.demos.kitchen import AssetLibrary
-
-    out = tmp_path_factory.mktemp("clock") / "out"
-    job = {"job": {"name": "clock", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": [*KITCHEN, "alarm_clock"]}},
-                    {"name": "assets", "kind": "ingest",
-                     "config": {"catalog_step": "catalog", "only": [*PACKAGES, *CLOCKS]}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
-    return AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+    return clock_library(tmp_path_factory.mktemp("clock") / "out", CLOCKS)
 
 
 def _state(objects: dict, joints: dict):

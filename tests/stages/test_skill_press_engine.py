@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from kitchen_testutil import KITCHEN, PACKAGES
+from kitchen_testutil import clock_library
 
 pytestmark = pytest.mark.slow
 
@@ -22,18 +22,10 @@ def clock_kitchen(tmp_path_factory):
     pytest.importorskip("newton")
     import numpy as np
 
-    from pipeline import build_job, run_job
-    from stages.demos.kitchen import AssetLibrary, write_kitchen
+    from stages.demos.kitchen import write_kitchen
 
     out = tmp_path_factory.mktemp("clockk") / "out"
-    job = {"job": {"name": "clockk", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
-           "step": [{"name": "catalog", "kind": "default_catalog",
-                     "config": {"variants": 5, "categories": [*KITCHEN, "alarm_clock"]}},
-                    {"name": "assets", "kind": "ingest",
-                     "config": {"catalog_step": "catalog", "only": [*PACKAGES, *CLOCKS]}}]}
-    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
-    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
-    lib = AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+    lib = clock_library(out, CLOCKS)
     return write_kitchen(out.parent / "kitchen", lib, scene_id="c", rng=np.random.default_rng(0), clock=True)
 
 
