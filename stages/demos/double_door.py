@@ -264,7 +264,8 @@ def push_plan(door: Door, from_deg: float, *, push_deg: float = PUSH_DEG, push_a
     """The push of ``door`` (``width`` [m] from its hinge line to its free edge), now ``from_deg``
     [deg] open, by the other arm (see :class:`PushPlan`): to ``push_deg`` in steps of at most
     ``step_deg`` [deg], ``push_below`` [m] below the handle, the gripper pointing down with its
-    closed fingers' broad side to the door, the TCP ``gap`` [m] behind the door's back face (a
+    fingers closing along the door (its 12 cm wide finger bar across, its edge hit the free edge on the
+    way in and pushed the door shut), the TCP ``gap`` [m] behind the door's back face (a
     finger's thickness and a margin: the fingers lead the door by a few degrees); ``clear`` [m]
     beyond the free edge on the way in."""
     from stages.simulate.control import pose, top_down
@@ -276,7 +277,7 @@ def push_plan(door: Door, from_deg: float, *, push_deg: float = PUSH_DEG, push_a
     def down(p, a):
         p = np.array(p, float)
         p[2] = z
-        return pose(p, top_down(door.opening * (a + math.pi / 2)))
+        return pose(p, top_down(door.opening * a))   # TCP +X into the door: the gripper's narrow side to it
 
     n = max(1, int(math.ceil((push_deg - from_deg) / step_deg)))
     pushes = [down(leaf_point(door, a, push_at, behind=back), a) for a in np.linspace(a0, a2, n + 1)[1:]]
