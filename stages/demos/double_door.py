@@ -170,8 +170,9 @@ PUSH_DEG = 86.0   # [deg] then the other arm pushes it on from behind to this an
 PUSH_AT = 0.40    # [m] from the hinge (5.5 cm in from the free edge), where the closed fingers push the door's back
 PUSH_BELOW = 0.30  # [m] the push this far below the handle (at 0.20 the other arm missed the last waypoints by 2-5 cm)
 BASE_SHIFT = 0.12  # [m] the base moves sideways towards the door being pushed (without, the other arm reaches 70 deg, not 86)
-TUCK = (0.22, 0.20, 0.80)  # [m] an arm out of the way, in the base frame (x, |y| on its own side, z): pointing down,
-                           # before the chassis and outside both doors' swing (more than 0.5 m from the hinges)
+TUCK = (0.18, 0.22, 0.70)  # [m] an arm out of the way, in the base frame (x, |y| on its own side, z), pointing down:
+                           # 0.57 m from its door's hinge (outside the door's swing), its chain 13 cm from the other
+                           # arm's pushing (at (0.22, 0.20, 0.80): 9 cm; the arms do not collide in the Sim)
 DOOR_THICKNESS = 0.018  # [m] the catalog's hinged doors (asset_catalog.generators._parts.hinged_door)
 
 
@@ -277,7 +278,8 @@ def push_plan(door: Door, from_deg: float, *, push_deg: float = PUSH_DEG, push_a
     def down(p, a):
         p = np.array(p, float)
         p[2] = z
-        return pose(p, top_down(door.opening * a))   # TCP +X into the door: the gripper's narrow side to it
+        # TCP +X into the door (the gripper's narrow side to it), the wrist camera (at TCP -X) away from it
+        return pose(p, top_down(door.opening * a + math.pi))
 
     n = max(1, int(math.ceil((push_deg - from_deg) / step_deg)))
     pushes = [down(leaf_point(door, a, push_at, behind=back), a) for a in np.linspace(a0, a2, n + 1)[1:]]
