@@ -14,6 +14,10 @@ The catalog's two-door furniture (generators in :mod:`asset_catalog.generators`)
 - :func:`handle_on_swing`: where a door's handle is when the door has turned by an angle (the
   expert's waypoints).
 - :func:`judge_doors`: success from both joint angles: each door open at least ``DOOR_OPEN_DEG``.
+- :func:`open_doors`: the expert: both arms pull their doors to ``PULL_DEG`` by the handles; then
+  door after door the base moves towards it and the OTHER arm, in through the gap between the
+  doors, pushes it on from behind to ``PUSH_DEG`` (:func:`door_plan`, :func:`push_plan`;
+  :func:`leaf_clearance` checks a plan's arm against the door's front).
 
 Frames: world, Z up, metres; angles in degrees where named ``*_deg``, else radians.
 """
