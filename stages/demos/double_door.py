@@ -336,27 +336,30 @@ def base_pose(sim, world: int = 0) -> tuple[float, float, float]:
     return tuple(float(q[sim.world_coord(n, world)]) for n in sim.desc.base_joints)
 
 
-def drive_base(sim, ctl, xy, *, world: int = 0, speed: float = 0.15, tol: float = 0.003, timeout: float = 4.0) -> None:
-    """Drive the holonomic base to ``xy`` (2,) [m] (root frame) keeping its yaw, at up to
-    ``speed`` [m/s] (a proportional command re-sent every 10 steps), then stop it. Raises
-    RuntimeError when it is not within ``tol`` [m] after ``timeout`` [s] (something blocks it)."""
-    x0, y0, yaw0 = base_pose(sim, world)
+def drive_base(sim, ctl, target, *, world: int = 0, speed: float = 0.15, turn: float = 0.3, tol: float = 0.003,
+               yaw_tol: float = 0.005, timeout: float = 4.0) -> None:
+    """Drive the holonomic base to ``target`` (x, y, yaw) [m, m, rad] (root frame) at up to
+    ``speed`` [m/s] and ``turn`` [rad/s] (a proportional command re-sent every 10 steps), then stop
+    it. Raises RuntimeError when it is not within 1 cm / 0.02 rad after ``timeout`` [s] (something
+    blocks it)."""
     steps = int(round(timeout / sim.settings.dt))
     for _ in range(0, steps, 10):
         x, y, yaw = base_pose(sim, world)
-        e = np.array([xy[0] - x, xy[1] - y])
-        if np.linalg.norm(e) < tol:
+        e = np.array([target[0] - x, target[1] - y])
+        e_yaw = math.remainder(target[2] - yaw, math.tau)
+        if np.linalg.norm(e) < tol and abs(e_yaw) < yaw_tol:
             break
         v = 4.0 * e
         v *= min(1.0, speed / max(np.linalg.norm(v), 1e-9))
         c, s = math.cos(yaw), math.sin(yaw)
-        ctl.set_base_velocity(c * v[0] + s * v[1], -s * v[0] + c * v[1], 2.0 * (yaw0 - yaw), world)
+        ctl.set_base_velocity(c * v[0] + s * v[1], -s * v[0] + c * v[1], float(np.clip(4.0 * e_yaw, -turn, turn)),
+                              world)
         sim.step(10)
     ctl.set_base_velocity(0.0, 0.0, 0.0, world)
     sim.step(int(round(0.1 / sim.settings.dt)))
-    x, y, _ = base_pose(sim, world)
-    if math.hypot(xy[0] - x, xy[1] - y) > max(tol, 0.01):
-        raise RuntimeError(f"drive_base: the base stopped at ({x:.3f}, {y:.3f}) m, short of {tuple(xy)}")
+    x, y, yaw = base_pose(sim, world)
+    if math.hypot(target[0] - x, target[1] - y) > max(tol, 0.01) or abs(math.remainder(target[2] - yaw, math.tau)) > 0.02:
+        raise RuntimeError(f"drive_base: the base stopped at ({x:.3f}, {y:.3f}, {yaw:.3f}), short of {tuple(target)}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -377,7 +380,8 @@ def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorO
     arms at once, each on its door of ``scene`` (:func:`door_plan`): open grippers to the
     pre-grasp, onto the bar handles, close, pull the doors open along the handles' swing to
     ``PULL_DEG``, let go and back off, close the grippers, tuck both arms; then door after door
-    (left first): the base moves ``BASE_SHIFT`` towards it, the other arm reaches in through the
+    (left first): the base drives to ``BASE_SHIFT`` beside its spawn pose towards it (the spawn's
+    x and yaw: the push's last waypoints are 1-2 cm inside the arm's reach), the other arm reaches in through the
     gap between the doors to behind it and pushes it on along its swing to ``PUSH_DEG``
     (:func:`push_plan`), backs off and tucks again. Raises RuntimeError (the CLIK's "unreachable")
     when a waypoint is out of reach."""
@@ -413,11 +417,10 @@ def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorO
     move("release", 0.6, 2)
     close_gripper(sim, ctl, None, 0.3, world=world, settle=0.0)
     move_joints(sim, ctl, ik, {a: tuck_pose(a, world_base()) for a in ARMS}, 1.5, world=world)
-    x0, _, _ = base_pose(sim, world)
     pushed_from = {}
     for arm in ARMS:
         side = 1.0 if arm == ARMS[0] else -1.0
-        drive_base(sim, ctl, (x0, side * BASE_SHIFT), world=world)
+        drive_base(sim, ctl, (0.0, side * BASE_SHIFT, 0.0), world=world)   # from the spawn pose, whatever the start
         pusher, now = other(arm), deg()[arm]
         pushed_from[arm] = now
         p = push_plan(scene.doors[arm], now)
