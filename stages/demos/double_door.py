@@ -14,6 +14,10 @@ The catalog's two-door furniture (generators in :mod:`asset_catalog.generators`)
 - :func:`handle_on_swing`: where a door's handle is when the door has turned by an angle (the
   expert's waypoints).
 - :func:`judge_doors`: success from both joint angles: each door open at least ``DOOR_OPEN_DEG``.
+- :func:`open_doors`: the expert: both arms pull their doors to ``PULL_DEG`` by the handles; then
+  door after door the base moves towards it and the OTHER arm, in through the gap between the
+  doors, pushes it on from behind to ``PUSH_DEG`` (:func:`door_plan`, :func:`push_plan`;
+  :func:`leaf_clearance` checks a plan's arm against the door's front).
 
 Frames: world, Z up, metres; angles in degrees where named ``*_deg``, else radians.
 """
@@ -153,14 +157,32 @@ def write_double_door_scene(path: Path, asset, *, handles_xy=(0.62, 0.0)) -> Dou
 
 
 # --------------------------------------------------------------------------------------------
-# the expert: pull each door open by its handle, let go, push it on from behind
+# the expert: pull both doors open by their handles, let go; then each door is pushed on from
+# behind by the OTHER arm, reaching in through the gap between the doors
 # --------------------------------------------------------------------------------------------
+#
+# Why the other arm: a door open 50 deg has its free edge towards the middle and its back towards
+# the middle and the carcass. The arm on the door's own side is in front of the door's plane
+# (its mount at y = +-0.22 m; the plane passes behind it only past ~77 deg), so its forearm must
+# wrap round the free edge and, pushing 5-15 cm in from the edge, lay across the door's front: it
+# pressed the doors shut again (session 14: pulled 49.7 deg, end 38-49 deg). The other arm's mount
+# lies behind the door's plane, beyond its free edge: reaching in through the gap between the
+# doors, its whole arm stays on the back side (:func:`arm_clearance`).
 
 PULL_DEG = 50.0   # [deg] each arm pulls its door this far by the handle (further, the wrist cannot follow the handle)
-PUSH_DEG = 86.0   # [deg] then pushes it on from behind to this angle (the hinge stops it at 90)
-PUSH_AT = 0.40    # [m] from the hinge (5.5 cm in from the free edge), where the closed fingers push the door's back (at 0.30 the forearm, reaching round the edge, pushed the door shut: 50 -> 33 deg)
-PUSH_BELOW = 0.20  # [m] the push this far below the handle
+PUSH_DEG = 86.0   # [deg] then the other arm pushes it on from behind to this angle (the hinge stops it at 90)
+PUSH_AT = 0.40    # [m] from the hinge (5.5 cm in from the free edge), where the closed fingers push the door's back
+PUSH_BELOW = 0.30  # [m] the push this far below the handle (at 0.20 the other arm missed the last waypoints by 2-5 cm)
+BASE_SHIFT = 0.12  # [m] the base moves sideways towards the door being pushed (without, the other arm reaches 70 deg, not 86)
+TUCK = (0.18, 0.22, 0.70)  # [m] an arm out of the way, in the base frame (x, |y| on its own side, z), pointing down:
+                           # 0.57 m from its door's hinge (outside the door's swing), its chain 13 cm from the other
+                           # arm's pushing (at (0.22, 0.20, 0.80): 9 cm; the arms do not collide in the Sim)
 DOOR_THICKNESS = 0.018  # [m] the catalog's hinged doors (asset_catalog.generators._parts.hinged_door)
+
+
+def other(arm: str) -> str:
+    """The other arm's name."""
+    return ARMS[1 - ARMS.index(arm)]
 
 
 def _turn(v, angle: float) -> np.ndarray:
@@ -184,8 +206,7 @@ def leaf_point(door: Door, angle: float, along: float, *, behind: float = 0.0) -
     doors hinge at their outer front corner): the back face is ``DOOR_THICKNESS`` behind, the space
     between the open door's back and the carcass further (negative: before the front)."""
     r = np.asarray(door.handle, float) - np.asarray(door.hinge, float)
-    u = np.array([r[0], r[1], 0.0])
-    u -= np.array([u[0], 0.0, 0.0])   # across the shut door (world Y)
+    u = np.array([0.0, r[1], 0.0])   # across the shut door (world Y)
     u /= np.linalg.norm(u)
     q = along * u + behind * np.array([1.0, 0.0, 0.0])
     p = np.asarray(door.hinge, float) + _turn(q, door.opening * angle)
@@ -193,93 +214,177 @@ def leaf_point(door: Door, angle: float, along: float, *, behind: float = 0.0) -
     return p
 
 
+def door_frame(door: Door, p, angle: float) -> tuple[float, float]:
+    """(along, front) [m] of point ``p`` (3,) in the frame of ``door`` opened ``angle`` [rad]:
+    along the door from its hinge line (its free edge at the door's width), and off its front face
+    (positive before it, negative behind; the back face at -``DOOR_THICKNESS``)."""
+    a = door.opening * angle
+    u = _turn(np.array([0.0, -np.sign(door.hinge[1]), 0.0]), a)
+    front = _turn(np.array([-1.0, 0.0, 0.0]), a)
+    r = np.asarray(p, float) - np.asarray(door.hinge, float)
+    return float(r[:2] @ u[:2]), float(r[:2] @ front[:2])
+
+
 @dataclass(frozen=True, kw_only=True)
 class DoorPlan:
-    """One arm's TCP poses (4, 4), world, for its door: pre_grasp (``standoff`` before the handle),
-    grasp (on the bar), pull (the handle's path to ``PULL_DEG``), release (backed off the handle),
-    retract (pointing ahead, 40 cm before the handle, 4 cm off the middle, 10 cm lower: past the
-    free edge of a door open 35-50 deg, reached in joint space, :func:`move_joints`, from the pull's posture, whose forearm
-    roll and wrist angle near their limits cannot turn the gripper down along a straight path),
-    around (before the door, past its free edge), past (past the free edge, behind the door's
-    back), behind (behind its back, ``PUSH_AT`` from the hinge), push (along the door's swing to
-    ``PUSH_DEG``), away (backed off towards the robot and the middle)."""
+    """One arm's TCP poses (4, 4), world, for its own door's pull: pre_grasp (``standoff`` before
+    the handle), grasp (on the bar), pull (the handle's path to ``PULL_DEG``), release (backed off
+    the handle)."""
 
     pre_grasp: np.ndarray
     grasp: np.ndarray
     pull: list[np.ndarray]
     release: np.ndarray
-    retract: np.ndarray
-    around: np.ndarray
+
+
+@dataclass(frozen=True, kw_only=True)
+class PushPlan:
+    """The other arm's TCP poses (4, 4), world, pushing a door on from behind: past (beyond the
+    door's free edge, behind its back: reached from the tuck through the gap between the doors),
+    behind (behind its back, ``PUSH_AT`` from the hinge), push (along the door's swing to
+    ``PUSH_DEG``), away (backed off the door's back towards the middle)."""
+
     past: np.ndarray
     behind: np.ndarray
     push: list[np.ndarray]
     away: np.ndarray
 
 
-def door_plan(door: Door, *, pull_deg: float = PULL_DEG, push_deg: float = PUSH_DEG, from_deg: float | None = None,
-              push_at: float = PUSH_AT, push_below: float = PUSH_BELOW, standoff: float = 0.08,
-              step_deg: float = 10.0, gap: float = 0.03, width: float = 0.455, clear: float = 0.10) -> DoorPlan:
-    """The expert's waypoints for one arm and its ``door`` (see :class:`DoorPlan`), the door
-    ``width`` [m] from its hinge line to its free edge: the pull to ``pull_deg`` in steps of at most
-    ``step_deg`` [deg]; then, from the door at ``from_deg`` (default ``pull_deg``: the expert
-    plans this part again with the angle the door was let go at), round the free edge ``clear``
-    [m] off it and push it to ``push_deg``, ``push_below`` [m] below the handle with the gripper
-    pointing down and its closed fingers across the door (the narrow side along it), the TCP
-    ``gap`` [m] behind the door's back face (a finger's thickness and a margin: the fingers lead
-    the door by a few degrees). (With the gripper pointing along +X, or at the door, the ViperX's
-    wrist missed the push's waypoints at the handle's height by 5-18 cm; pointing down 20 cm lower
-    it reaches them all.)"""
-    from stages.simulate.control import pose, top_down
+def door_plan(door: Door, *, pull_deg: float = PULL_DEG, standoff: float = 0.08, step_deg: float = 10.0) -> DoorPlan:
+    """The pull of ``door`` by its own arm (see :class:`DoorPlan`): along the handle's circle to
+    ``pull_deg`` in steps of at most ``step_deg`` [deg]."""
+    from stages.simulate.control import pose
 
-    a1, a2 = math.radians(pull_deg), math.radians(push_deg)
-    a0 = a1 if from_deg is None else math.radians(from_deg)
-    r0 = grasp_rotation(door, 0.0)
+    a1 = math.radians(pull_deg)
+    r0, r1 = grasp_rotation(door, 0.0), grasp_rotation(door, a1)
     pulls = [pose(handle_on_swing(door, a), grasp_rotation(door, a))
              for a in np.linspace(0.0, a1, int(math.ceil(pull_deg / step_deg)) + 1)[1:]]
-    r1 = grasp_rotation(door, a1)
+    return DoorPlan(pre_grasp=pose(door.handle - standoff * r0[:, 2], r0), grasp=pose(door.handle, r0),
+                    pull=pulls, release=pose(handle_on_swing(door, a1) - standoff * r1[:, 2], r1))
+
+
+def push_plan(door: Door, from_deg: float, *, push_deg: float = PUSH_DEG, push_at: float = PUSH_AT,
+              push_below: float = PUSH_BELOW, step_deg: float = 10.0, gap: float = 0.03, width: float = 0.455,
+              clear: float = 0.10) -> PushPlan:
+    """The push of ``door`` (``width`` [m] from its hinge line to its free edge), now ``from_deg``
+    [deg] open, by the other arm (see :class:`PushPlan`): to ``push_deg`` in steps of at most
+    ``step_deg`` [deg], ``push_below`` [m] below the handle, the gripper pointing down with its
+    fingers closing along the door (its 12 cm wide finger bar across, its edge hit the free edge on the
+    way in and pushed the door shut), the TCP ``gap`` [m] behind the door's back face (a
+    finger's thickness and a margin: the fingers lead the door by a few degrees); ``clear`` [m]
+    beyond the free edge on the way in."""
+    from stages.simulate.control import pose, top_down
+
+    a0, a2 = math.radians(from_deg), math.radians(push_deg)
     back = DOOR_THICKNESS + gap
     z = float(door.handle[2]) - push_below
 
-    def down(p, a, dz=0.0):
+    def down(p, a):
         p = np.array(p, float)
-        p[2] = z + dz
-        return pose(p, top_down(door.opening * (a + math.pi / 2)))   # the wrist's roll away from its limit
+        p[2] = z
+        # TCP +X into the door (the gripper's narrow side to it), the wrist camera (at TCP -X) away from it
+        return pose(p, top_down(door.opening * a + math.pi))
 
-    n = int(math.ceil((push_deg - pull_deg) / step_deg)) + 1   # one count for both arms (from_deg differs)
+    n = max(1, int(math.ceil((push_deg - from_deg) / step_deg)))
     pushes = [down(leaf_point(door, a, push_at, behind=back), a) for a in np.linspace(a0, a2, n + 1)[1:]]
-    away = pushes[-1].copy()
-    away[:3, 3] += np.array([-0.05, 0.0, 0.05])
-    fwd = np.stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]], axis=1)   # fingers along +X
-    # 40 cm before the handles, 4 cm off the middle: past the free edge of a door open 35-50 deg
-    retract = np.array([door.handle[0] - 0.40, 0.04 * np.sign(door.hinge[1]), door.handle[2] - 0.10])
-    return DoorPlan(pre_grasp=pose(door.handle - standoff * r0[:, 2], r0), grasp=pose(door.handle, r0),
-                    pull=pulls, release=pose(handle_on_swing(door, a1) - standoff * r1[:, 2], r1),
-                    retract=pose(retract, fwd),
-                    around=down(leaf_point(door, a0, width + clear, behind=-clear), a0, 0.05),
-                    past=down(leaf_point(door, a0, width + clear, behind=back), a0),
+    away = down(leaf_point(door, a2, push_at + 0.05, behind=back + clear), a2)
+    return PushPlan(past=down(leaf_point(door, a0, width + clear, behind=back), a0),
                     behind=down(leaf_point(door, a0 - math.radians(4.0), push_at, behind=back), a0),
                     push=pushes, away=away)
 
 
+def tuck_pose(arm: str, base) -> np.ndarray:
+    """``arm``'s TCP out of the way (4, 4), world (``TUCK`` in the frame of the base at ``base``
+    (x, y, yaw) [m, rad], world), pointing down."""
+    from stages.simulate.control import pose, top_down
+
+    x, y, yaw = base
+    side = 1.0 if arm == ARMS[0] else -1.0
+    p = np.array([x, y, 0.0]) + _turn((TUCK[0], side * TUCK[1], 0.0), yaw)
+    p[2] = TUCK[2]
+    return pose(p, top_down(yaw + math.pi))   # fingers closing along the base's Y, as the default posture's
+
+
+ARM_LINKS = ("upper_arm_link", "upper_forearm_link", "lower_forearm_link", "wrist_link", "gripper_link", "tcp")
+
+
+def arm_points(ik, q: np.ndarray, arm: str, spawn=(0.0, 0.0, 0.0), per_segment: int = 4) -> np.ndarray:
+    """Points (N, 3) [m], world, along ``arm``'s chain at configuration ``q`` (Pinocchio, ``ik`` a
+    ``BimanualIk``; the robot spawned at ``spawn`` (x, y, yaw)): its links' origins from the upper
+    arm to the TCP (``ARM_LINKS``) and ``per_segment`` - 1 points between consecutive ones."""
+    from stages.simulate.control import Clik
+
+    world = np.linalg.inv(Clik.root_from_world(spawn))
+    o = np.array([(world @ ik.clik.kin.frame_pose(q, f"{arm}_{link}"))[:3, 3] for link in ARM_LINKS])
+    t = np.linspace(0.0, 1.0, per_segment, endpoint=False)
+    pts = [o[k] + s * (o[k + 1] - o[k]) for k in range(len(o) - 1) for s in t]
+    return np.array([*pts, o[-1]])
+
+
+def leaf_clearance(door: Door, angle: float, points, *, width: float = 0.455, reach: float = 0.04) -> float:
+    """How far [m] the ``points`` (N, 3) that lie across ``door`` opened ``angle`` [rad] (between
+    its hinge line and ``reach`` beyond its free edge) keep behind its front face: the smallest
+    -front (:func:`door_frame`; positive: behind the front, the side the door opens away from);
+    inf when none lies across it. A link pressing the door's front has clearance < 0."""
+    c = [-f for a, f in (door_frame(door, p, angle) for p in np.asarray(points, float)) if 0.0 <= a <= width + reach]
+    return min(c) if c else math.inf
+
+
+def base_pose(sim, world: int = 0) -> tuple[float, float, float]:
+    """The base's (x, y, yaw) [m, m, rad] in the robot's root (spawn) frame, from the Sim."""
+    q = sim.state_0.joint_q.numpy()
+    return tuple(float(q[sim.world_coord(n, world)]) for n in sim.desc.base_joints)
+
+
+def drive_base(sim, ctl, target, *, world: int = 0, speed: float = 0.15, turn: float = 0.3, tol: float = 0.003,
+               yaw_tol: float = 0.005, timeout: float = 4.0) -> None:
+    """Drive the holonomic base to ``target`` (x, y, yaw) [m, m, rad] (root frame) at up to
+    ``speed`` [m/s] and ``turn`` [rad/s] (a proportional command re-sent every 10 steps), then stop
+    it. Raises RuntimeError when it is not within 1 cm / 0.02 rad after ``timeout`` [s] (something
+    blocks it)."""
+    steps = int(round(timeout / sim.settings.dt))
+    for _ in range(0, steps, 10):
+        x, y, yaw = base_pose(sim, world)
+        e = np.array([target[0] - x, target[1] - y])
+        e_yaw = math.remainder(target[2] - yaw, math.tau)
+        if np.linalg.norm(e) < tol and abs(e_yaw) < yaw_tol:
+            break
+        v = 4.0 * e
+        v *= min(1.0, speed / max(np.linalg.norm(v), 1e-9))
+        c, s = math.cos(yaw), math.sin(yaw)
+        ctl.set_base_velocity(c * v[0] + s * v[1], -s * v[0] + c * v[1], float(np.clip(4.0 * e_yaw, -turn, turn)),
+                              world)
+        sim.step(10)
+    ctl.set_base_velocity(0.0, 0.0, 0.0, world)
+    sim.step(int(round(0.1 / sim.settings.dt)))
+    x, y, yaw = base_pose(sim, world)
+    if math.hypot(target[0] - x, target[1] - y) > max(tol, 0.01) or abs(math.remainder(target[2] - yaw, math.tau)) > 0.02:
+        raise RuntimeError(f"drive_base: the base stopped at ({x:.3f}, {y:.3f}, {yaw:.3f}), short of {tuple(target)}")
+
+
 @dataclass(frozen=True, kw_only=True)
 class DoorOpening:
-    """What the double-door expert measured, per arm: gripped (fingers on the handle's door after
-    closing, 0-2), pulled_deg (the door's angle [deg] when the gripper let go), door_deg (at the
-    end)."""
+    """What the double-door expert measured, per arm's door: gripped (fingers on the handle's door
+    after closing, 0-2), pulled_deg (the door's angle [deg] when its arm let go), pushed_from_deg
+    (when the other arm began its push), door_deg (at the end)."""
 
     gripped: dict[str, int]
     pulled_deg: dict[str, float]
+    pushed_from_deg: dict[str, float]
     door_deg: dict[str, float]
 
 
 def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorOpening:
     """The double-door expert in ``sim`` with ``ctl`` (a
-    :class:`stages.simulate.bimanual_control.BimanualControl`) and ``ik`` (``BimanualIk``), both
+    :class:`stages.simulate.bimanual_control.BimanualControl`) and ``ik`` (``BimanualIk``): both
     arms at once, each on its door of ``scene`` (:func:`door_plan`): open grippers to the
     pre-grasp, onto the bar handles, close, pull the doors open along the handles' swing to
-    ``PULL_DEG``, let go and back off, close the gripper, go round the door's free edge to behind
-    it, push it on along its swing to ``PUSH_DEG``, back off. Raises RuntimeError (the CLIK's
-    "unreachable") when a waypoint is out of reach."""
+    ``PULL_DEG``, let go and back off, close the grippers, tuck both arms; then door after door
+    (left first): the base drives to ``BASE_SHIFT`` beside its spawn pose towards it (the spawn's
+    x and yaw: the push's last waypoints are 1-2 cm inside the arm's reach), the other arm reaches in through the
+    gap between the doors to behind it and pushes it on along its swing to ``PUSH_DEG``
+    (:func:`push_plan`), backs off and tucks again. Raises RuntimeError (the CLIK's "unreachable")
+    when a waypoint is out of reach."""
     from stages.demos.bimanual import close_gripper, gripper_contacts
     from stages.simulate.bimanual_control import move_arms
 
@@ -291,6 +396,12 @@ def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorO
 
     def deg() -> dict[str, float]:
         return {a: round(math.degrees(v), 2) for a, v in scene.angles(sim).items()}
+
+    def world_base() -> tuple[float, float, float]:
+        x, y, yaw = base_pose(sim, world)
+        sx, sy, syaw = sim.spawn
+        p = _turn((x, y, 0.0), syaw)
+        return sx + p[0], sy + p[1], syaw + yaw
 
     ctl.set_gripper(0.0, world)
     move("pre_grasp", 2.0, 8, 0.2)
@@ -305,27 +416,36 @@ def open_doors(sim, ctl, ik, scene: DoubleDoorScene, *, world: int = 0) -> DoorO
     close_gripper(sim, ctl, None, 0.4, world=world, opening=True, settle=0.1)
     move("release", 0.6, 2)
     close_gripper(sim, ctl, None, 0.3, world=world, settle=0.0)
-    let_go = scene.angles(sim)
-    plans = {a: door_plan(d, from_deg=math.degrees(let_go[a])) for a, d in scene.doors.items()}
-    move_joints(sim, ctl, ik, {a: p.retract for a, p in plans.items()}, 1.5, world=world)
-    move("around", 1.2, 6)
-    move("past", 1.0, 4)
-    move("behind", 1.0, 4)
-    for k in range(len(plans["left"].push)):
-        move("push", 0.5, 2, k=k)
-    move("away", 0.8, 2, 0.3)
-    return DoorOpening(gripped=gripped, pulled_deg=pulled, door_deg=deg())
+    move_joints(sim, ctl, ik, {a: tuck_pose(a, world_base()) for a in ARMS}, 1.5, world=world)
+    pushed_from = {}
+    for arm in ARMS:
+        side = 1.0 if arm == ARMS[0] else -1.0
+        drive_base(sim, ctl, (0.0, side * BASE_SHIFT, 0.0), world=world)   # from the spawn pose, whatever the start
+        pusher, now = other(arm), deg()[arm]
+        pushed_from[arm] = now
+        p = push_plan(scene.doors[arm], now)
+        move_arms(sim, ctl, ik, {pusher: p.past}, 1.2, segments=6, world=world)
+        move_arms(sim, ctl, ik, {pusher: p.behind}, 1.0, segments=4, world=world)
+        for t in p.push:
+            move_arms(sim, ctl, ik, {pusher: t}, 0.5, segments=2, world=world)
+        move_arms(sim, ctl, ik, {pusher: p.away}, 0.6, segments=2, world=world)
+        move_arms(sim, ctl, ik, {pusher: tuck_pose(pusher, world_base())}, 1.2, segments=6, settle=0.2, world=world)
+    return DoorOpening(gripped=gripped, pulled_deg=pulled, pushed_from_deg=pushed_from, door_deg=deg())
 
 
 def move_joints(sim, ctl, ik, targets_world, duration: float, *, world: int = 0, tol: float = 0.003) -> None:
     """Move the arms named in ``targets_world`` (arm -> 4x4 world TCP pose) in joint space: their IK
-    solution from the default posture (not from where the arms are), the joint targets interpolated
-    linearly over ``duration`` [s]. Raises RuntimeError when a target is missed by more than
-    ``tol`` [m]."""
+    solution from the default posture (not from where the arms are; the base where it is in the
+    Sim), the joint targets interpolated linearly over ``duration`` [s]. Raises RuntimeError when a
+    target is missed by more than ``tol`` [m]."""
     from stages.simulate.control import Clik
 
     goals = {a: Clik.world_to_root(sim.spawn, t) for a, t in targets_world.items()}
-    res = ik.solve(goals, ik.clik.default_q())
+    q0 = ik.clik.default_q()
+    now = ik.from_sim(sim, world)
+    for n in sim.desc.base_joints:
+        q0[ik.idx_q[n]] = now[ik.idx_q[n]]
+    res = ik.solve(goals, q0)
     if res.position_error.max() > tol:
         raise RuntimeError(f"CLIK: joint-space target of {tuple(goals)} unreachable "
                            f"(errors {np.round(res.position_error, 4).tolist()} m)")
