@@ -49,8 +49,9 @@ from stages.demos.part_grasps import (
     handle_pose,
     lateral,
 )
-from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
-from stages.demos.part_turn import is_vertical, plan_here, push_on, resolve, turn_about_hinge, turn_limit
+from stages.demos.part_planning import choose_base, is_free, reach, swept_grid
+from stages.demos.part_turn import is_vertical, plan_here, plan_stage_or_turn, push_on, resolve, turn_about_hinge
+from stages.demos.part_turn import turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -72,6 +73,7 @@ EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened furthe
 EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 EDGE_DONE = math.radians(4.0)        # a lifted bottom-hinged leaf this near closed counts as shut (tasks: 5 deg)
+INNER_FROM = 0.3  # a vertically hinged leaf opened this far [fraction of travel] may be pushed on by its inner face
 
 
 def _slide(d, distance: float, speed: float = 0.3) -> None:
@@ -190,6 +192,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     the joint value that ends it (default: 80 % of the travel opening, 2.5 deg from closed closing)."""
     opening = q1 > q0
     push, edge = mode == "push", mode == "edge"
+    fist = push or mode == "inner"  # the closed hand presses the leaf (inner: its inner face, opening it)
     if done_at is None:
         done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
 
@@ -213,10 +216,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         # a later stage (or a chained expert) first tries to go on from where the base stands
         stay = plan_here(d, part, grid, q, qs, mode, goal=part.closed - PUSH_OVERSHOOT if push else q1) \
             if stage > 0 or not _at_home(d) else None
-        base, pitch, n, sols, along = stay or plan_stage(d, part, plan, q, qs, mode)
-        if n < 2 and not done(qs[max(n - 1, 0)]) and not stay:
-            raise ExpertFailure("no_base_pose",
-                                f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
+        base, pitch, n, sols, along = stay or plan_stage_or_turn(
+            d, part, plan, grid, q, qs, mode, part.closed - PUSH_OVERSHOOT if push else q1, done, stage)
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
@@ -258,7 +259,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 continue
             if len(sols2) >= na:
                 sols, n = sols2, len(sols2) - na
-        d.grip(1.0 if push else 0.0, 0.4)
+        d.grip(1.0 if fist else 0.0, 0.4)
         # free-space approach waypoints by the Driver's pace, the last (onto the part) at CARRY_SPEED
         durs = [1.5] + [0.6] * (na - 2) + _carry_times(d, approach[-2], approach[-1:], [False])
         log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
@@ -274,7 +275,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             continue
         d.settle(0.2)
         k = 0
-        if not push:
+        if not fist:
             d.grip(1.0, 0.6)
             try:
                 _check_grasp(part, d, along=along,
@@ -311,7 +312,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         d.settle(0.4)
         last = turned if turn_to is not None else qs[k - 1] if k else q
         log.debug("%s: swing to %.3f -> %.3f", part.joint_path, last, d.sim.joint_q_of_path(part.joint_path))
-        _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
+        _retreat_from_leaf(part, d, last, grid, push=fist, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
@@ -563,7 +564,16 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
         _drawer(part, d, grid, part.closed, q1)
         return
     if abs(float(np.asarray(part.axis)[2])) > 0.7:
-        _swing(part, d, grid, part.closed, q1)
+        try:
+            _swing(part, d, grid, part.closed, q1)
+        except ExpertFailure as e:
+            # the handle's arc runs out of floor (a fridge between its hinge and a counter): push the
+            # half-open leaf's inner face on from before the opening
+            q = d.sim.joint_q_of_path(part.joint_path)
+            if e.reason not in ("no_base_pose", "not_reached") or q - part.closed < INNER_FROM * part.travel:
+                raise
+            log.info("%s: by the handle: %s; pushing the inner face on", part.joint_path, e)
+            _swing(part, d, grid, q, q1, mode="inner")
         return
     # a bottom-hinged (oven) door: by the handle while it faces the robot, then (a counterbalanced
     # leaf stays where it is let go of below ~30 deg) by its free edge until it drops open
