@@ -49,6 +49,7 @@ from stages.demos.part_grasps import (
     handle_pose,
     lateral,
 )
+from stages.demos.part_checks import _check_grasp
 from stages.demos.part_planning import choose_base, is_free, reach, swept_grid
 from stages.demos.part_turn import is_vertical, plan_here, plan_stage_or_turn, push_on, resolve, turn_about_hinge
 from stages.demos.part_turn import turn_limit
@@ -67,7 +68,6 @@ CARRY_SPEED = 0.3    # hand speed carrying a handle or pushing a leaf along its 
 CARRY_TURN = 0.7     # hand (and leaf) turn rate while carrying it [rad/s]
 SHIFT_SPEED = 0.5   # base speed of short straight shifts with the arm held [m/s]
 SHIFT_ACCEL = 1.2    # base acceleration of those shifts and of drawer slides [m/s^2]
-GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
 EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30 deg), then by the closed hand
@@ -435,38 +435,6 @@ def _joint_index(d, part: ArticulatedPart) -> int:
     raise KeyError(part.joint_path)
 
 
-def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False,
-                 along: float = 0.0, point=None) -> None:
-    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle (or ``point`` (3,),
-    a link point at closed) after closing (``across_axis``: only the offset perpendicular to a
-    drawer's axis counts)."""
-    hand = _tcp_world(d)
-    grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float) if point is None else point
-    handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
-    v = hand - handle
-    if across_axis:
-        v = v - np.dot(v, part.axis) * np.asarray(part.axis)
-    gap = float(np.linalg.norm(v))
-    log.debug("%s: grasp: hand %s handle %s (%.3f m), fingers %.3f", part.joint_path, np.round(hand, 3),
-              np.round(handle, 3), gap, _finger_gap(d))
-    if gap > tol:
-        raise ExpertFailure("grasp_missed", f"{part.joint_path}: hand {gap:.3f} m from the handle")
-
-
-def _finger_gap(d) -> float:
-    """Finger opening [m] now (sum of the two finger joints)."""
-    jq = d.sim.state_0.joint_q.numpy()
-    return float(sum(jq[d.sim.world_coord(n)] for n in d.sim.desc.gripper.finger_joints))
-
-
-def _tcp_world(d) -> np.ndarray:
-    """World position (3,) of the end-effector frame in the simulation now."""
-    from stages.simulate.control import Clik
-
-    m = np.linalg.inv(Clik.world_to_root(d.sim.spawn, np.eye(4))) @ d.ik.fk(d.ik.from_sim(d.sim))
-    return m[:3, 3]
-
-
 def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool = False, edge: bool = False) -> None:
     """Release the handle and take the hand clear of the leaf with base motions (arm held): back
     along the approach axis, then, from a door opened past 30 %, out along the leaf past its free
@@ -566,9 +534,7 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
     if abs(float(np.asarray(part.axis)[2])) > 0.7:
         try:
             _swing(part, d, grid, part.closed, q1)
-        except ExpertFailure as e:
-            # the handle's arc runs out of floor (a fridge between its hinge and a counter): push the
-            # half-open leaf's inner face on from before the opening
+        except ExpertFailure as e:  # the handle's arc runs out of floor: push the leaf's inner face on
             q = d.sim.joint_q_of_path(part.joint_path)
             if e.reason not in ("no_base_pose", "not_reached") or q - part.closed < INNER_FROM * part.travel:
                 raise

@@ -80,3 +80,29 @@ def test_bases_only_where_the_base_can_drive():
     assert all(south[room.cell_of(b[0], b[1])] for b in kept)
     # a start in a blocked cell counts from the nearest free one (where the experts escape to)
     assert connected(room, (1.0, 1.52))[room.cell_of(1.0, 1.1)]
+
+
+def test_counter_pose_beside_the_open_leaf():
+    """pick_place_fridge takes the mug from a counter pose whose planned drive ends before the
+    open leaf (flat_007: the counter 1.5 m before the fridge, the mug's usual pose 0.28 m from the
+    leaf at 90 deg: ``no_path``)."""
+    from stages.demos.counter import COUNTER_STAGE, facing_north_goal
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.part_planning import is_free, swept_grid
+    from stages.demos.skill_fridge import COUNTER_SHIFT, counter_x
+
+    part = _fridge_door()
+    room = _room()
+    room.occupied[int(2.2 / 0.05):, 20:66] = True  # the counter, its front at y = 2.2, x 1.0-3.3
+    open_leaf = swept_grid(room, part, math.pi / 2, math.pi / 2)
+    blocked = open_leaf.inflate(ROBOT_RADIUS)
+
+    def stage_free(x):
+        gx, gy, _ = facing_north_goal(2.2, x)
+        return is_free(open_leaf, blocked, gx, gy - COUNTER_STAGE)
+
+    assert not stage_free(2.33)
+    x = counter_x(open_leaf, 2.2, 2.33, 2.2)
+    assert x != 2.33 and stage_free(x) and abs(x - 2.33) <= COUNTER_SHIFT + 1e-9 and abs(x - 2.2) <= COUNTER_SHIFT
+    assert not stage_free(x + 0.011)  # the nearest free one
+    assert counter_x(room, 2.2, 2.33, 2.2) == 2.33  # the leaf closed: where it was
