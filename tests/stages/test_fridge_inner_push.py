@@ -89,7 +89,7 @@ def test_counter_pose_beside_the_open_leaf():
     from stages.demos.counter import COUNTER_STAGE, facing_north_goal
     from stages.demos.driver import ROBOT_RADIUS
     from stages.demos.part_planning import is_free, swept_grid
-    from stages.demos.skill_fridge import COUNTER_SHIFT, counter_x
+    from stages.demos.skill_fridge import COUNTER_SHIFT, MUG_OFF, counter_x
 
     part = _fridge_door()
     room = _room()
@@ -102,7 +102,9 @@ def test_counter_pose_beside_the_open_leaf():
         return is_free(open_leaf, blocked, gx, gy - COUNTER_STAGE)
 
     assert not stage_free(2.33)
-    x = counter_x(open_leaf, 2.2, 2.33, 2.2)
-    assert x != 2.33 and stage_free(x) and abs(x - 2.33) <= COUNTER_SHIFT + 1e-9 and abs(x - 2.2) <= COUNTER_SHIFT
+    # the mug beside the microwave on its handle side, towards the leaf (seed 1 of flat_007: 0.45 m off)
+    x = counter_x(open_leaf, 2.2, 2.33, 2.6)
+    assert x != 2.33 and stage_free(x) and abs(x - 2.33) <= COUNTER_SHIFT + 1e-9 and abs(x - 2.6) <= MUG_OFF
     assert not stage_free(x + 0.011)  # the nearest free one
+    assert counter_x(open_leaf, 2.2, 2.33, 2.9) == 2.33  # not further than MUG_OFF from the mug
     assert counter_x(room, 2.2, 2.33, 2.2) == 2.33  # the leaf closed: where it was
