@@ -74,6 +74,7 @@ EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 EDGE_DONE = math.radians(4.0)        # a lifted bottom-hinged leaf this near closed counts as shut (tasks: 5 deg)
 INNER_FROM = 0.3  # a vertically hinged leaf opened this far [fraction of travel] may be pushed on by its inner face
+ESCAPE_MARGIN = 0.1  # an escape from a blocked spot goes this far into the free region where it can [m]
 
 
 def _slide(d, distance: float, speed: float = 0.3) -> None:
@@ -381,23 +382,33 @@ def _escape(d, grid, reach: float = 0.5) -> None:
     near it), move it straight to the nearest free spot within ``reach`` [m] first."""
     from stages.demos.record import base_pose
 
-    blocked = grid.inflate(ROBOT_RADIUS)
     x, y, _ = base_pose(d.sim)
-    if is_free(grid, blocked, x, y):
-        return
-    best = None
-    for r in np.arange(0.05, reach + 1e-9, 0.05):
-        for a in np.radians(np.arange(0.0, 360.0, 15.0)):
-            px, py = x + r * math.cos(a), y + r * math.sin(a)
-            if is_free(grid, blocked, px, py):
-                best = (px, py)
-                break
-        if best:
-            break
+    best = escape_target(grid, x, y, reach)
     if best is None:
         return
     log.info("base at (%.2f, %.2f) is blocked for planning: moving to (%.2f, %.2f)", x, y, *best)
     _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]))
+
+
+def escape_target(grid, x: float, y: float, reach: float = 0.5, margin: float = ESCAPE_MARGIN):
+    """Where :func:`_escape` moves a base at (x, y) [m] that the planner counts blocked on ``grid``:
+    None where it is free (or nothing is within ``reach`` [m]); else the nearest free point (5 cm
+    rings, 15 deg apart) carried on up to ``margin`` [m] further the same way while that stays free
+    (a base shift ends a few cm short: on the free region's edge it would still be blocked)."""
+    blocked = grid.inflate(ROBOT_RADIUS)
+    if is_free(grid, blocked, x, y):
+        return None
+    for r in np.arange(0.05, reach + 1e-9, 0.05):
+        for a in np.radians(np.arange(0.0, 360.0, 15.0)):
+            c, s_ = math.cos(a), math.sin(a)
+            if is_free(grid, blocked, x + r * c, y + r * s_):
+                extra = 0.0
+                for e in np.arange(0.025, margin + 1e-9, 0.025):
+                    if not is_free(grid, blocked, x + (r + e) * c, y + (r + e) * s_):
+                        break
+                    extra = float(e)
+                return float(x + (r + extra) * c), float(y + (r + extra) * s_)
+    return None
 
 
 def _drive(d, base: tuple[float, float, float], grid, tuck=None) -> None:
