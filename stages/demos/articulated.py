@@ -49,8 +49,10 @@ from stages.demos.part_grasps import (
     handle_pose,
     lateral,
 )
-from stages.demos.part_planning import choose_base, is_free, plan_stage, reach, swept_grid
-from stages.demos.part_turn import is_vertical, plan_here, push_on, resolve, turn_about_hinge, turn_limit
+from stages.demos.part_checks import _check_grasp
+from stages.demos.part_planning import choose_base, is_free, reach, swept_grid
+from stages.demos.part_turn import is_vertical, plan_here, plan_stage_or_turn, push_on, resolve, turn_about_hinge
+from stages.demos.part_turn import turn_limit
 from stages.demos.parts import ArticulatedPart
 
 log = logging.getLogger(__name__)
@@ -66,12 +68,13 @@ CARRY_SPEED = 0.3    # hand speed carrying a handle or pushing a leaf along its 
 CARRY_TURN = 0.7     # hand (and leaf) turn rate while carrying it [rad/s]
 SHIFT_SPEED = 0.5   # base speed of short straight shifts with the arm held [m/s]
 SHIFT_ACCEL = 1.2    # base acceleration of those shifts and of drawer slides [m/s^2]
-GRASP_TOL = 0.03    # the hand centre within this of the handle centre after closing [m]
 SWING_TOL = 0.008   # CLIK position tolerance of waypoints along a door's arc [m]
 EDGE_LIFT_ABOVE = math.radians(22.0)  # close a bottom-hinged door opened further by lifting its edge first
 EDGE_LIFT_TO = math.radians(4.5)      # ... towards here (it stays put below ~30 deg), then by the closed hand
 EDGE_HOLD = math.radians(20.0)       # the lift ends once the leaf stays below this
 EDGE_DONE = math.radians(4.0)        # a lifted bottom-hinged leaf this near closed counts as shut (tasks: 5 deg)
+INNER_FROM = 0.3  # a vertically hinged leaf opened this far [fraction of travel] may be pushed on by its inner face
+ESCAPE_MARGIN = 0.1  # an escape from a blocked spot goes this far into the free region where it can [m]
 
 
 def _slide(d, distance: float, speed: float = 0.3) -> None:
@@ -190,6 +193,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
     the joint value that ends it (default: 80 % of the travel opening, 2.5 deg from closed closing)."""
     opening = q1 > q0
     push, edge = mode == "push", mode == "edge"
+    fist = push or mode == "inner"  # the closed hand presses the leaf (inner: its inner face, opening it)
     if done_at is None:
         done_at = (part.closed + 0.8 * part.travel) if opening else (part.closed + math.radians(2.5))
 
@@ -213,10 +217,8 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         # a later stage (or a chained expert) first tries to go on from where the base stands
         stay = plan_here(d, part, grid, q, qs, mode, goal=part.closed - PUSH_OVERSHOOT if push else q1) \
             if stage > 0 or not _at_home(d) else None
-        base, pitch, n, sols, along = stay or plan_stage(d, part, plan, q, qs, mode)
-        if n < 2 and not done(qs[max(n - 1, 0)]) and not stay:
-            raise ExpertFailure("no_base_pose",
-                                f"{part.joint_path}: stage {stage} reaches {n} arc steps from {q:.2f}")
+        base, pitch, n, sols, along = stay or plan_stage_or_turn(
+            d, part, plan, grid, q, qs, mode, part.closed - PUSH_OVERSHOOT if push else q1, done, stage)
         log.info("%s: stage %d from %.2f, base %s pitch %.2f, %d/%d steps", part.joint_path, stage, q,
                  tuple(round(v, 2) for v in base), pitch, n, len(qs))
         here = swept_grid(grid, part, q, q)
@@ -258,7 +260,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
                 continue
             if len(sols2) >= na:
                 sols, n = sols2, len(sols2) - na
-        d.grip(1.0 if push else 0.0, 0.4)
+        d.grip(1.0 if fist else 0.0, 0.4)
         # free-space approach waypoints by the Driver's pace, the last (onto the part) at CARRY_SPEED
         durs = [1.5] + [0.6] * (na - 2) + _carry_times(d, approach[-2], approach[-1:], [False])
         log.debug("%s: base at %s (planned %s)", part.joint_path, np.round(base_pose(d.sim), 3),
@@ -274,7 +276,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
             continue
         d.settle(0.2)
         k = 0
-        if not push:
+        if not fist:
             d.grip(1.0, 0.6)
             try:
                 _check_grasp(part, d, along=along,
@@ -311,7 +313,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         d.settle(0.4)
         last = turned if turn_to is not None else qs[k - 1] if k else q
         log.debug("%s: swing to %.3f -> %.3f", part.joint_path, last, d.sim.joint_q_of_path(part.joint_path))
-        _retreat_from_leaf(part, d, last, grid, push=push, edge=edge)
+        _retreat_from_leaf(part, d, last, grid, push=fist, edge=edge)
         log.debug("%s: retreat -> %.3f", part.joint_path, d.sim.joint_q_of_path(part.joint_path))
         _settle_part(part, d)
         q = d.sim.joint_q_of_path(part.joint_path)
@@ -380,23 +382,33 @@ def _escape(d, grid, reach: float = 0.5) -> None:
     near it), move it straight to the nearest free spot within ``reach`` [m] first."""
     from stages.demos.record import base_pose
 
-    blocked = grid.inflate(ROBOT_RADIUS)
     x, y, _ = base_pose(d.sim)
-    if is_free(grid, blocked, x, y):
-        return
-    best = None
-    for r in np.arange(0.05, reach + 1e-9, 0.05):
-        for a in np.radians(np.arange(0.0, 360.0, 15.0)):
-            px, py = x + r * math.cos(a), y + r * math.sin(a)
-            if is_free(grid, blocked, px, py):
-                best = (px, py)
-                break
-        if best:
-            break
+    best = escape_target(grid, x, y, reach)
     if best is None:
         return
     log.info("base at (%.2f, %.2f) is blocked for planning: moving to (%.2f, %.2f)", x, y, *best)
     _base_shift(d, np.array([best[0] - x, best[1] - y, 0.0]))
+
+
+def escape_target(grid, x: float, y: float, reach: float = 0.5, margin: float = ESCAPE_MARGIN):
+    """Where :func:`_escape` moves a base at (x, y) [m] that the planner counts blocked on ``grid``:
+    None where it is free (or nothing is within ``reach`` [m]); else the nearest free point (5 cm
+    rings, 15 deg apart) carried on up to ``margin`` [m] further the same way while that stays free
+    (a base shift ends a few cm short: on the free region's edge it would still be blocked)."""
+    blocked = grid.inflate(ROBOT_RADIUS)
+    if is_free(grid, blocked, x, y):
+        return None
+    for r in np.arange(0.05, reach + 1e-9, 0.05):
+        for a in np.radians(np.arange(0.0, 360.0, 15.0)):
+            c, s_ = math.cos(a), math.sin(a)
+            if is_free(grid, blocked, x + r * c, y + r * s_):
+                extra = 0.0
+                for e in np.arange(0.025, margin + 1e-9, 0.025):
+                    if not is_free(grid, blocked, x + (r + e) * c, y + (r + e) * s_):
+                        break
+                    extra = float(e)
+                return float(x + (r + extra) * c), float(y + (r + extra) * s_)
+    return None
 
 
 def _drive(d, base: tuple[float, float, float], grid, tuck=None) -> None:
@@ -432,38 +444,6 @@ def _joint_index(d, part: ArticulatedPart) -> int:
         if p == part.joint_path:
             return int(j)
     raise KeyError(part.joint_path)
-
-
-def _check_grasp(part: ArticulatedPart, d, tol: float = GRASP_TOL, across_axis: bool = False,
-                 along: float = 0.0, point=None) -> None:
-    """Raise ExpertFailure("grasp_missed") when the hand is not on the handle (or ``point`` (3,),
-    a link point at closed) after closing (``across_axis``: only the offset perpendicular to a
-    drawer's axis counts)."""
-    hand = _tcp_world(d)
-    grip = np.asarray(part.handle, float) + along * np.asarray(part.bar_axis, float) if point is None else point
-    handle = part.point_at(grip, d.sim.joint_q_of_path(part.joint_path))
-    v = hand - handle
-    if across_axis:
-        v = v - np.dot(v, part.axis) * np.asarray(part.axis)
-    gap = float(np.linalg.norm(v))
-    log.debug("%s: grasp: hand %s handle %s (%.3f m), fingers %.3f", part.joint_path, np.round(hand, 3),
-              np.round(handle, 3), gap, _finger_gap(d))
-    if gap > tol:
-        raise ExpertFailure("grasp_missed", f"{part.joint_path}: hand {gap:.3f} m from the handle")
-
-
-def _finger_gap(d) -> float:
-    """Finger opening [m] now (sum of the two finger joints)."""
-    jq = d.sim.state_0.joint_q.numpy()
-    return float(sum(jq[d.sim.world_coord(n)] for n in d.sim.desc.gripper.finger_joints))
-
-
-def _tcp_world(d) -> np.ndarray:
-    """World position (3,) of the end-effector frame in the simulation now."""
-    from stages.simulate.control import Clik
-
-    m = np.linalg.inv(Clik.world_to_root(d.sim.spawn, np.eye(4))) @ d.ik.fk(d.ik.from_sim(d.sim))
-    return m[:3, 3]
 
 
 def _retreat_from_leaf(part: ArticulatedPart, d, q: float, grid, *, push: bool = False, edge: bool = False) -> None:
@@ -563,7 +543,14 @@ def open_part(part: ArticulatedPart, d, grid, goal_fraction: float = 0.9) -> Non
         _drawer(part, d, grid, part.closed, q1)
         return
     if abs(float(np.asarray(part.axis)[2])) > 0.7:
-        _swing(part, d, grid, part.closed, q1)
+        try:
+            _swing(part, d, grid, part.closed, q1)
+        except ExpertFailure as e:  # the handle's arc runs out of floor: push the leaf's inner face on
+            q = d.sim.joint_q_of_path(part.joint_path)
+            if e.reason not in ("no_base_pose", "not_reached") or q - part.closed < INNER_FROM * part.travel:
+                raise
+            log.info("%s: by the handle: %s; pushing the inner face on", part.joint_path, e)
+            _swing(part, d, grid, q, q1, mode="inner")
         return
     # a bottom-hinged (oven) door: by the handle while it faces the robot, then (a counterbalanced
     # leaf stays where it is let go of below ~30 deg) by its free edge until it drops open

@@ -29,6 +29,11 @@ EDGE_FROM_BAR = 0.05   # bar centre to the leaf's free edge [m]
 EDGE_PINCH_IN = 0.015  # tool centre this far in from the edge [m]
 LEAF_HALF_THICKNESS = 0.019  # [m]
 EDGE_ALONG = (0.22, 0.12, 0.0)  # pinch offsets along the edge from its middle, towards the base [m]
+# opening a vertically hinged leaf further by pushing its inner face with the closed hand (from before
+# the opening, where a kitchen is too narrow to carry the handle round: issue 16, store_food):
+# catalog fridge doors are 5.7 cm thick behind the bar's base; the fist presses 0.2 m in from the free edge
+LEAF_THICKNESS = 0.057  # [m]
+INNER_INBOARD = 0.2     # [m]
 
 
 def heading(v) -> float:
@@ -51,14 +56,17 @@ _FINGERS_VERTICAL = np.stack([[0, 1, 0], [0, 0, 1], [1, 0, 0]], axis=1).astype(f
 _FINGERS_HORIZONTAL = np.stack([[0, 0, -1], [0, 1, 0], [1, 0, 0]], axis=1).astype(float)
 
 
-def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False, yaw: float = 0.0) -> np.ndarray:
+def grasp_rotation(part: ArticulatedPart, pitch: float, push: bool = False, yaw: float = 0.0,
+                   inner: bool = False) -> np.ndarray:
     """(3, 3) gripper rotation grasping the handle at closed: approach against the front normal,
     pitched ``pitch`` [rad] down, fingers closing across the bar (``push``: along it, so that the
     hand's width runs parallel to the bar); ``yaw`` [rad]: the approach turned that much about the
-    vertical towards the hinge (a push from beside the free edge)."""
+    vertical towards the hinge (a push from beside the free edge); ``inner``: along the front
+    normal (a push on the leaf's inner face, opening it)."""
     vertical_bar = abs(float(np.asarray(part.bar_axis)[2])) > 0.7
     base = _FINGERS_HORIZONTAL if vertical_bar != push else _FINGERS_VERTICAL
-    return _rz(heading(-np.asarray(part.front)) + toward_hinge(part) * yaw) @ _ry(pitch) @ base
+    face = np.asarray(part.front) if inner else -np.asarray(part.front)
+    return _rz(heading(face) + toward_hinge(part) * yaw) @ _ry(pitch) @ base
 
 
 def handle_pose(part: ArticulatedPart, q: float, pitch: float, back: float = 0.0) -> np.ndarray:
@@ -107,11 +115,11 @@ def door_pitch(z: float) -> float:
 
 
 def _tool_at(part: ArticulatedPart, p_closed, q: float, pitch: float, out: float = 0.0,
-             push: bool = False, yaw: float = 0.0) -> np.ndarray:
+             push: bool = False, yaw: float = 0.0, inner: bool = False) -> np.ndarray:
     """4x4 world gripper pose at the link point ``p_closed`` (3,) carried to joint value q, ``out``
-    [m] off the front face along its normal, turning with the part (``yaw``: see
+    [m] off the front face along its normal, turning with the part (``yaw``, ``inner``: see
     :func:`grasp_rotation`)."""
-    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push, yaw)
+    rot = part.rotation_at(q) @ grasp_rotation(part, pitch, push, yaw, inner)
     m = np.eye(4)
     m[:3, :3] = rot
     m[:3, 3] = part.point_at(p_closed, q) + out * part.front_at(q)
@@ -168,7 +176,8 @@ def gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mod
              along: float = 0.0):
     """(approach, arc): world gripper poses leading onto the part at q0 (for an opened door first
     round the leaf's free edge) and then carrying it along ``qs``. Grasp: on the handle bar,
-    ``along`` [m] off its centre along the bar. Push (``mode="push"``, closed hand): on the front
+    ``along`` [m] off its centre along the bar. Inner (``mode="inner"``, closed hand): on the inner
+    face :data:`INNER_INBOARD` from the free edge, pushing it open. Push (``mode="push"``, closed hand): on the front
     face 7 cm inboard of the bar, pressing along the arc; for a vertical hinge ``along`` is instead
     the fist's yaw [rad] towards the hinge (:data:`PUSH_YAWS`, :func:`grasp_rotation`). Edge
     (``mode="edge"``, bottom-hinged doors): pinching the leaf's free edge, ``pitch`` being the tilt
@@ -181,6 +190,13 @@ def gesture(part: ArticulatedPart, q0: float, qs: list[float], pitch: float, mod
     yaw = along if mode == "push" and _vertical_hinge(part) else 0.0
     h = np.asarray(part.handle, float) + (along - yaw) * np.asarray(part.bar_axis, float)
     front0 = np.asarray(part.front, float)
+    if mode == "inner":  # the closed hand on the inner face, INNER_INBOARD from the free edge, pushing it open
+        face = h - (part.clearance + part.grip_width / 2 + LEAF_THICKNESS) * front0 \
+            - (INNER_INBOARD - _edge_gap(part)) * lateral(part)
+        contact = _tool_at(part, face, q0, pitch, -PUSH_STANDOFF, push=True, inner=True)
+        pre = _tool_at(part, face, q0, pitch, -PUSH_STANDOFF - GRASP_BACK, push=True, inner=True)
+        approach = [pre, *(_lerp_pose(pre, contact, a) for a in (1 / 3, 2 / 3)), contact]
+        return approach, [_tool_at(part, face, q, pitch, push=True, inner=True) for q in qs]
     if mode == "push":
         inboard = PUSH_INBOARD + (LEVER_EXTRA if part.handle_kind == "lever" else 0.0)
         face = h - (part.clearance + part.grip_width / 2) * front0 - inboard * lateral(part)

@@ -185,16 +185,38 @@ def _at_limit(d, q: np.ndarray, margin: float = LIMIT_MARGIN, idx=None) -> bool:
     return bool(np.any(q[idx] < d.ik.lower[idx] + margin) or np.any(q[idx] > d.ik.upper[idx] - margin))
 
 
+def connected(grid, start_xy, reach: float = 0.5) -> np.ndarray:
+    """(ny, nx) bool: the cells where the base's footprint (ROBOT_RADIUS) is free on ``grid`` and
+    which the planner reaches from ``start_xy`` (x, y) [m] (or, where that is blocked, from the
+    free cell nearest it within ``reach`` [m], where the experts escape to first)."""
+    from scipy import ndimage
+
+    free = ~grid.inflate(ROBOT_RADIUS)
+    lab, _ = ndimage.label(free)
+    iy, ix = grid.cell_of(float(start_xy[0]), float(start_xy[1]))
+    cells = np.argwhere(lab > 0)
+    if not len(cells):
+        return free
+    dist = np.hypot(cells[:, 0] - iy, cells[:, 1] - ix) * grid.cell
+    k = int(np.argmin(dist))
+    if dist[k] > reach:
+        return np.zeros_like(free)
+    return lab == lab[tuple(cells[k])]
+
+
 def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
-                 spread: float = 100.0) -> list[tuple[float, float, float]]:
+                 spread: float = 100.0, inner: bool = False, within=None) -> list[tuple[float, float, float]]:
     """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
     around the handle at q0, in front of the leaf or beyond its free edge (up to ``spread`` [deg]
-    round from its front normal), facing the middle of the handle's path (+-0.4 rad); free on
-    ``grid``; nearest to the ideal reach first."""
+    round from its front normal; ``inner``: behind the leaf, round from its inner normal), facing
+    the middle of the handle's path (+-0.4 rad); free on ``grid`` (and true on ``within``, (ny, nx)
+    bool: :func:`connected`, where given); nearest to the ideal reach first."""
     blocked = grid.inflate(ROBOT_RADIUS)
+    if within is not None:
+        blocked = blocked | ~within
     h0 = part.handle_at(q0)
     mid = part.handle_at(qs[len(qs) // 2]) if qs else h0
-    f = part.front_at(q0)
+    f = -part.front_at(q0) if inner else part.front_at(q0)
     f = f[:2] / max(np.linalg.norm(f[:2]), 1e-9)
     out = []
     for rho in (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15):
@@ -227,14 +249,14 @@ def _robust(d, base, part: ArticulatedPart, targets, q_robot: np.ndarray | None 
 
 
 def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
-                max_checks: int = 70):
+                max_checks: int = 70, within=None):
     """(base, pitch, n, arm solutions, along): the base pose and grip (pitch, offset along the
     bar) from which the approach at q0 and the first n waypoints of ``qs`` are reachable, n as
     large as found (all of them ends the search), and the arm solutions of approach + those
     waypoints.
 
     The candidates (base poses by :func:`_swing_bases`, each with its :func:`grips`) are checked
-    in order, the first ``max_checks``; their reaches run in lockstep, up to 16 at a time
+    in order, the first ``max_checks`` (``within``: see :func:`_swing_bases`); their reaches run in lockstep, up to 16 at a time
     (:mod:`stages.simulate.clik_lanes`), and are judged in order as they complete."""
     z = float(part.handle_at(q0)[2])
     vertical = abs(float(np.asarray(part.axis)[2])) > 0.7
@@ -243,7 +265,8 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     # closing a vertical door, the turned fists (part_grasps.PUSH_YAWS) press its front face from
     # beside the free edge: bases further round it, before the fridge, not beyond the hinge
     push_yaws = mode == "push" and vertical
-    bases = _swing_bases(part, grid, q0, qs)
+    bases = _swing_bases(part, grid, q0, qs, spread=80.0 if mode == "inner" else 100.0, inner=mode == "inner",
+                         within=within)
     if mode == "edge":
         # a lying leaf is lifted from beside it (from in front, its edge runs out of reach as it
         # rises): bases about EDGE_SIDE off the bar's centre along it first
@@ -257,7 +280,7 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
         # it: on a room door a turned fist reaching as far left the leaf 0.29 rad open and took 3
         # more stages), then the turned fists (part_grasps.PUSH_YAWS, ``along`` != 0) from bases
         # further round the free edge, twice as many checks
-        turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0)
+        turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0, within=within)
                   for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
         cands = [c for c in cands if c[2] == 0.0][:max_checks] + turned[:2 * max_checks]
     else:

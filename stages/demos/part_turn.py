@@ -55,13 +55,15 @@ def turned(base, part: ArticulatedPart, dq: float) -> tuple[float, float, float]
     return float(p[0]), float(p[1]), (yaw + math.pi) % (2 * math.pi) - math.pi
 
 
-def turn_limit(part: ArticulatedPart, d, grid, q_from: float, q_to: float, step: float = math.radians(2.0)) -> float:
+def turn_limit(part: ArticulatedPart, d, grid, q_from: float, q_to: float, step: float = math.radians(2.0),
+               base=None, blocked=None) -> float:
     """The joint value, from ``q_from`` towards ``q_to``, up to which the base turned with the
-    leaf from where it stands keeps its footprint (ROBOT_RADIUS) free on ``grid``."""
+    leaf from where it stands (or from ``base`` (x, y, yaw)) keeps its footprint (ROBOT_RADIUS)
+    free on ``grid`` (``blocked``: its inflation, where the caller has it)."""
     from stages.demos.record import base_pose
 
-    base = base_pose(d.sim)
-    blocked = grid.inflate(ROBOT_RADIUS)
+    base = base_pose(d.sim) if base is None else base
+    blocked = grid.inflate(ROBOT_RADIUS) if blocked is None else blocked
     sgn = math.copysign(1.0, q_to - q_from)
     last = q_from
     for dq in np.arange(step, abs(q_to - q_from) + step, step):
@@ -195,3 +197,67 @@ def plan_here(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: 
                      max(n, 0), len(qs))
             return base, pitch, n, sols, along
     return None
+
+
+def plan_turn(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str, goal: float,
+              max_checks: int = 24, min_turn: float = math.radians(10.0)):
+    """(base, pitch, n, arm solutions, along) as :func:`stages.demos.part_planning.plan_stage`
+    returns, for a vertically hinged leaf at ``q0`` whose arc the arm alone cannot carry (a
+    half-open fridge door between its hinge and a counter): the base pose on the handle's rings
+    (:func:`~stages.demos.part_planning._swing_bases`, clear of the leaf where it stands, not of the
+    arc it sweeps) from which the base turned with the leaf keeps its footprint free on ``grid``
+    furthest towards ``goal`` (at least ``min_turn`` [rad]) and the approach onto the handle (or
+    face) at ``q0`` is reachable, also with the base stopped 2 cm off; None when there is none (the
+    stage's arm plan stands)."""
+    from stages.demos.part_grasps import door_pitch, gesture, grips
+    from stages.demos.part_planning import _robust, _swing_bases, connected, reach, swept_grid
+    from stages.demos.record import base_pose
+
+    here = swept_grid(grid, part, q0, q0)
+    blocked = grid.inflate(ROBOT_RADIUS)
+    ranked = []
+    for k, b in enumerate(_swing_bases(part, here, q0, qs, within=connected(here, base_pose(d.sim)[:2]))):
+        lim = turn_limit(part, d, grid, q0, goal, base=b, blocked=blocked)
+        if abs(lim - q0) >= min_turn:
+            ranked.append((-round(abs(lim - q0) / math.radians(6.0)), k, b))
+    ranked.sort()
+    p0 = door_pitch(float(part.handle_at(q0)[2]))
+    for _, _, b in ranked[:max_checks]:
+        for pitch, along in grips(part, b, p0, True, push=mode == "push"):
+            approach, arc = gesture(part, q0, qs, pitch, mode, along)
+            sols = reach(d, b, approach + arc[:1])
+            if len(sols) >= len(approach) and _robust(d, b, part, approach):
+                log.info("%s: turn plan from %.2f: base %s turns the leaf to %.2f", part.joint_path, q0,
+                         tuple(round(v, 2) for v in b), turn_limit(part, d, grid, q0, goal, base=b, blocked=blocked))
+                return b, pitch, len(sols) - len(approach), sols, along
+    return None
+
+
+
+def plan_stage_or_turn(d, part: ArticulatedPart, plan, grid, q0: float, qs: list[float], mode: str, goal: float,
+                       done, stage: int):
+    """A stage's plan: :func:`stages.demos.part_planning.plan_stage` on ``plan`` (the room's grid
+    with the arc swept), or, where that reaches fewer than 2 arc steps short of ``done`` (a
+    predicate on joint values) on a vertically hinged leaf, :func:`plan_turn` on ``grid``;
+    ExpertFailure("no_base_pose") when neither has one."""
+    from stages.demos.driver import ExpertFailure
+    from stages.demos.part_planning import connected, plan_stage, swept_grid
+    from stages.demos.record import base_pose
+
+    turns = is_vertical(part) and mode in ("grasp", "push")
+    # only bases the planner reaches from where the base stands (the leaf where it is now)
+    within = connected(swept_grid(grid, part, q0, q0), base_pose(d.sim)[:2])
+    try:
+        best = plan_stage(d, part, plan, q0, qs, mode, within=within)
+    except ExpertFailure as e:
+        if not turns or e.reason != "no_base_pose":
+            raise
+        best, err = None, e
+    if best is not None and (best[2] >= 2 or done(qs[max(best[2] - 1, 0)])):
+        return best
+    turn = plan_turn(d, part, grid, q0, qs, mode, goal) if turns else None
+    if turn is not None:
+        return turn
+    if best is None:
+        raise err
+    raise ExpertFailure("no_base_pose", f"{part.joint_path}: stage {stage} reaches {best[2]} arc steps from {q0:.2f}")

@@ -34,6 +34,8 @@ BASE_GAP = 0.08          # the base's front before the fridge's (closed) front [
 HALF_WIDTH = 0.25 + 0.06  # the chassis half width and a margin to the open leaf [m]
 CHASSIS = 0.60           # chassis length [m]
 HAND_AWAY = 0.15         # a hand this far from the mug [m] does not hold it, open or closed
+COUNTER_SHIFT = 0.25     # the base takes the mug up to this far along the counter from its usual spot [m]
+MUG_OFF = 0.5            # ... and up to this far beside the mug [m] (the side grasp reaches it)
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,26 @@ def fridge_base(world, part, shelf: Shelf, q: float) -> tuple[tuple[float, float
     raise ExpertFailure("no_base_pose", f"{part.joint_path}: the leaf at {q:.2f} rad leaves no room before the fridge")
 
 
+def counter_x(grid, front_y: float, x: float, mug_x: float, most: float = COUNTER_SHIFT,
+              mug_off: float = MUG_OFF) -> float:
+    """Where along the counter (its front at ``front_y`` [m], facing -Y) the base takes the mug
+    (x [m]): ``x``, or where the open fridge
+    leaf (on ``grid``) blocks the planned drive's end COUNTER_STAGE before the counter pose there,
+    the nearest x up to ``most`` [m] aside, and at most ``mug_off`` [m] from the mug at ``mug_x``, where it
+    does not (the straight drive in from there passes the leaf); ``x`` when there is none (the drive
+    reports no_path)."""
+    from stages.demos.counter import COUNTER_STAGE, facing_north_goal
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.part_planning import is_free
+
+    blocked = grid.inflate(ROBOT_RADIUS)
+    for dx in sorted(np.arange(-most, most + 1e-9, 0.01), key=lambda v: (round(abs(v), 6), v)):
+        gx, gy, _ = facing_north_goal(front_y, x + float(dx))
+        if abs(gx - mug_x) <= max(mug_off, abs(x - mug_x)) and is_free(grid, blocked, gx, gy - COUNTER_STAGE):
+            return float(gx)
+    return x
+
+
 def _grid_with_leaf(world, part, q: float):
     from stages.demos.part_planning import swept_grid
 
@@ -212,7 +234,9 @@ def pick_place_fridge(inst, d) -> None:
     from stages.demos.articulated import _escape
 
     _escape(d, grid, reach=1.0)
-    approach_counter(inst, d, float((start[0] + 0.5 * (cav[0] + cav[2])) / 2), grid=grid)
+    x = counter_x(grid, w.placed["counter"].footprint()[1], float((start[0] + 0.5 * (cav[0] + cav[2])) / 2),
+                  float(start[0]))
+    approach_counter(inst, d, x, grid=grid)
     gz = SIDE_HEIGHT * h
     _side_pick(d, start + [0.0, -0.003, gz], side_rot(SIDE_PITCH), 0.03)
     # hold it before the base, clear of the counter, and back away from the counter

@@ -20,7 +20,10 @@ from stages.scene.rules import HOUSEHOLD_TASK_RULES, load_rules
 RULES = load_rules(HOUSEHOLD_TASK_RULES)
 KITCHEN_CATEGORIES = ("fridge", "kitchen_counter", "oven", "dining_table", "chair", "microwave", "dish_rack",
                       "sponge", "mug", "plate")
-LAYOUT_SEEDS = (1, 2, 3, 4, 5, 6, 7)   # layout 0's kitchen holds no counter with either rules
+# layout 0's kitchen holds no counter with either rules; layouts 1 and 2 have no wall with the fridge's
+# clearance before it (store_food's open door needs 1.75 m: test_a_kitchen_too_small_for_store_food_is_not_furnished)
+LAYOUT_SEEDS = (3, 4, 5, 6, 7)
+SMALL_KITCHENS = (1, 2)
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +108,84 @@ def test_fridge_door_has_base_poses(catalog, seed):
     bases = _swing_bases(part, swept_grid(grid, part, part.closed, q1), part.closed, qs)
     assert len(bases) >= 10, (f"layout {seed}: {fridge.p.record.id} at {np.round(fridge.p.position[:2], 2)} "
                               f"yaw {math.degrees(fridge.p.yaw):.0f}: {len(bases)} base poses to open it")
+
+
+def _kitchen_with_fridge(catalog, seed: int):
+    """(plan, room, its floor instances, the fridge's door part, NavGrid of walls and floor
+    furniture) of layout ``seed``'s kitchen populated with the household rules."""
+    from stages.demos.parts import parts_of_package
+    from stages.demos.planner import NavGrid
+    from stages.layout.build import generate_layout
+    from stages.layout.floorplan import load_floor_plan
+    from stages.layout.spec import LayoutSpec
+    from stages.scene.solver import PlacementFailure, Populator
+
+    lib, info, root = catalog
+    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
+                          root / f"layout_{seed}")
+    plan = load_floor_plan(lay.plan_json)
+    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == "kitchen")
+    why = []
+    for attempt in range(4):
+        pop = Populator(plan, lay.usd, lib, RULES, np.random.default_rng([seed, attempt]))
+        try:
+            pop.populate_room(room)
+            break
+        except PlacementFailure as e:
+            why.append(str(e))
+    else:
+        pytest.fail(f"layout {seed}: the kitchen was not populated in 4 attempts: {why}")
+    mine = [i for i in pop.insts if i.p.room == room.id and i.on_floor]
+    fridge = next(i for i in mine if i.p.record.category == "fridge")
+    boxes = [w.box for w in plan.floors[room.floor].walls]
+    boxes += [(*i.footprint.min(axis=0), *i.footprint.max(axis=0)) for i in mine if i.block is not None]
+    poly = np.asarray(room.polygon)
+    (x0, y0), (x1, y1) = poly.min(axis=0), poly.max(axis=0)
+    grid = NavGrid.from_boxes((x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2), np.asarray(boxes, float))
+    parts = parts_of_package(info[fridge.p.record.id], asset_id=fridge.p.record.id, prim_root="/World/fridge",
+                             pose=(*fridge.p.position, fridge.p.yaw), package_usd=lib.usd(fridge.p.record))
+    part = min((q for q in parts if q.role == "door"), key=lambda q: abs(q.handle[2] - 1.0))
+    return fridge, part, grid
+
+
+@pytest.mark.parametrize("seed", LAYOUT_SEEDS)
+def test_open_fridge_door_leaves_the_kitchen_in_one_piece(catalog, seed):
+    """store_food (issue 16): the base puts the mug in before the opening, then pushes the door shut
+    from beyond its free edge or hinge. The rule's ``clearance`` keeps enough floor before the
+    fridge that the door opened to 90 % of its travel (as open_fridge leaves it) does not cut the
+    kitchen's free floor in two (for the planner's 0.40 m base disc). With 1.2 m (s14) the door split
+    layouts 2, 3 and 6 here and flats 1, 2 and 7 of job seed 0 (close_fridge: no_base_pose x3); with
+    1.6 m still layout 6 and flat 1 (0.8 m of floor beyond the leaf's tip)."""
+    from scipy import ndimage
+
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.part_planning import swept_grid
+
+    fridge, part, grid = _kitchen_with_fridge(catalog, seed)
+    q1 = part.closed + 0.9 * part.travel
+    closed, _ = ndimage.label(~swept_grid(grid, part, part.closed, part.closed).inflate(ROBOT_RADIUS))
+    opened, _ = ndimage.label(~swept_grid(grid, part, q1, q1).inflate(ROBOT_RADIUS))
+    for lab in range(1, int(closed.max()) + 1):
+        pieces = np.bincount(opened[(closed == lab) & (opened > 0)])
+        big = [k for k, n in enumerate(pieces) if k and n >= 8]   # 8 cells: 0.02 m^2 of base positions
+        assert len(big) <= 1, (f"layout {seed}: {fridge.p.record.id} at {np.round(fridge.p.position[:2], 2)} yaw "
+                               f"{math.degrees(fridge.p.yaw):.0f}: the open door cuts the floor into "
+                               f"{sorted(int(pieces[k]) for k in big)} cells")
+
+
+@pytest.mark.parametrize("seed", SMALL_KITCHENS)
+def test_a_kitchen_too_small_for_store_food_is_not_furnished(catalog, seed):
+    """A kitchen with no wall that has the fridge's clearance before it is not populated (one line
+    naming the fridge and why), rather than furnished with a fridge whose open door cuts it in two."""
+    from stages.layout.build import generate_layout
+    from stages.layout.floorplan import load_floor_plan
+    from stages.layout.spec import LayoutSpec
+    from stages.scene.solver import PlacementFailure, Populator
+
+    lib, _, root = catalog
+    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
+                          root / f"layout_{seed}")
+    plan = load_floor_plan(lay.plan_json)
+    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == "kitchen")
+    with pytest.raises(PlacementFailure, match="required fridge .*clearance"):
+        Populator(plan, lay.usd, lib, RULES, np.random.default_rng([seed, 0])).populate_room(room)
