@@ -37,10 +37,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from pipeline.types import ItemError
-from stages.demos.house_room import HouseRoom, obstacles, read_room, room_frame, spawn_in, write_task_scene
+from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
+                                     spawn_in, top_surface, write_task_scene)
 from stages.demos.packages import Placed
 from stages.demos.skill_trash import MAX_PAPER_RADIUS
 
@@ -63,15 +62,6 @@ class HouseLiving(HouseRoom):
     shelves: tuple[tuple[float, float, float, float, float, float], ...] = field(default=())
 
 
-def _top(table: Placed) -> tuple[tuple[float, float, float, float], float]:
-    """The table's highest top surface: its rectangle and height in the task frame [m]."""
-    tops = [s for s in table.info.get("surfaces", []) if not s["inside"]]
-    if not tops:
-        raise ItemError(f"{table.asset.usd}: {table.asset.asset_id} has no top surface")
-    top = max(tops, key=lambda s: s["z"])
-    return table.rect(top["lo"], top["hi"]), float(table.position[2] + top["z"])
-
-
 def _shelves(shelf: Placed) -> tuple:
     """The bookshelf's inside boards (task frame)."""
     out = []
@@ -79,26 +69,6 @@ def _shelves(shelf: Placed) -> tuple:
         out.append((*shelf.rect(s["lo"], s["hi"]), float(shelf.position[2] + s["z"]),
                     float(s.get("clear_height", 0.0))))
     return tuple(out)
-
-
-def _overlaps(a, b, margin: float) -> bool:
-    return a[0] < b[2] + margin and b[0] < a[2] + margin and a[1] < b[3] + margin and b[1] < a[3] + margin
-
-
-def _base_free(goal, walls, boxes) -> bool:
-    """Whether the staging pose of base pose ``goal`` (x, y, yaw facing +Y), COUNTER_STAGE behind it,
-    is free of ``walls`` and ``boxes`` (the base inflated by its radius, as the planner does; the goal
-    itself stands nearer the table than that, as in the task kitchen: stages.demos.house._reachable_y)."""
-    from stages.demos.driver import ROBOT_RADIUS
-    from stages.demos.experts import COUNTER_STAGE
-    from stages.demos.planner import NavGrid
-
-    xs = [b[0] for b in walls] + [b[2] for b in walls]
-    ys = [b[1] for b in walls] + [b[3] for b in walls]
-    grid = NavGrid.from_boxes((min(xs), min(ys), max(xs), max(ys)), np.asarray(list(walls) + list(boxes), float))
-    blocked = grid.inflate(ROBOT_RADIUS)
-    cells = [grid.cell_of(goal[0] + dx, goal[1] - COUNTER_STAGE) for dx in (-0.05, 0.0, 0.05)]
-    return all(0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix] for iy, ix in cells)
 
 
 def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
@@ -137,7 +107,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         rf = room_frame(rs.house, rs.room, -table["yaw"] + k * math.pi / 2)
         furniture = {n: rf.placed(r, rs.asset(r)) for n, r in rs.mine.items() if r["support"] is None}
         tp = furniture[table["name"]]
-        rect, z = _top(tp)
+        rect, z = top_surface(tp)
         cx = tp.footprint()[0] - CAN_GAP - can_asset.hi[0]
         cp = Placed(f"Objects/{can['name']}", can_asset, (float(cx), float(rect[1] + CAN_NORTH),
                                                           float(can["position"][2])), 0.0)
@@ -146,9 +116,9 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         others = [p for n, p in furniture.items() if n != can["name"]]
         inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
                   and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
-        clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
+        clash = [b for b in list(rf.walls) + obstacles(others) if overlaps(fp, b, CAN_CLEAR)]
         goal = facing_north_goal(rect[1], rect[0] + PAPER_AT[0])
-        ok_base = x0 < goal[0] < x1 and y0 < goal[1] < y1 and _base_free(goal, rf.walls, obstacles(others + [cp]))
+        ok_base = x0 < goal[0] < x1 and y0 < goal[1] < y1 and base_free(goal, rf.walls, obstacles(others + [cp]))
         if inside and not clash and ok_base:
             break
         tried.append(f"{math.degrees(rf.frame[2]):.0f} deg: " + ("the can's place is off the floor" if not inside else
@@ -169,13 +139,9 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
     write_task_scene(usd, rs.house, rf.frame, cut, moved)
     spot = (rect[0] + PAPER_AT[0], rect[1] + PAPER_AT[1])
     w = HouseLiving(
-        usd=usd, scene_id=scene_id, size=rf.size, wall_thickness=0.0, placed=pl, spawn=(0.0, 0.0, 0.0),
-        counter_z=z, counter_rect=rect, counter_spot=spot, table_z=z, table_rect=rect,
-        cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0, cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0,
-        button_push=(0.0, 1.0, 0.0), mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None,
-        house=rs.house.resolve(), room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls, furniture=furniture,
-        cut=tuple(sorted(cut)), moved=moved, anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
-        shelves=_shelves(pl["bookshelf"]) if shelf is not None else ())
+        usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
+        anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
+        shelves=_shelves(pl["bookshelf"]) if shelf is not None else (), **room_fields(rs, rf, rect, z, spot))
     spawn_in(w)
     log.info("house living room %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
     return w

@@ -73,7 +73,8 @@ def test_household_rules_admit_only_paper_the_hand_grasps(house):
 
 def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(world):
     from stages.demos.counter import facing_north_goal
-    from stages.demos.house_living import CAN_GAP, PAPER_AT, _overlaps
+    from stages.demos.house_living import CAN_GAP, PAPER_AT
+    from stages.demos.house_room import overlaps
     from stages.demos.skill_trash import MAX_PAPER_RADIUS
 
     pl = world.placed
@@ -88,7 +89,7 @@ def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(wo
     tfp = pl["table"].footprint()
     assert can[2] == pytest.approx(tfp[0] - CAN_GAP, abs=1e-6) and y0 < pl["trash_can"].position[1] < y1
     others = [p.footprint() for n, p in world.furniture.items() if p is not pl["trash_can"]]
-    assert not any(_overlaps(can, b, 0.0) for b in list(world.walls) + others)
+    assert not any(overlaps(can, b, 0.0) for b in list(world.walls) + others)
     assert world.moved and world.moved[0] == pl["trash_can"].name.split("/")[-1]
     # the robot's base before the paper's spot, its staging pose behind it, and its start: free floor
     grid = world.grid()
