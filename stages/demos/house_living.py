@@ -71,6 +71,21 @@ def _shelves(shelf: Placed) -> tuple:
     return tuple(out)
 
 
+def _books(rs, table: str) -> list[dict]:
+    """The room's first :data:`~stages.demos.skill_books.BOOKS` books a hand grasps across their
+    thickness (:data:`~stages.demos.skill_books.THICKNESS`), those on the table first (organize
+    books stands them on it; none when the room has fewer)."""
+    from stages.demos.skill_books import BOOKS, THICKNESS
+
+    def fits(r: dict) -> bool:
+        a = rs.asset(r)
+        return THICKNESS[0] - 1e-6 <= a.hi[2] - a.lo[2] <= THICKNESS[1] + 1e-6
+
+    found = sorted((r for r in rs.mine.values() if r["category"] == "book" and r["support"] is not None and fits(r)),
+                   key=lambda r: (r["support"] != table, r["name"]))
+    return found[:BOOKS] if len(found) >= BOOKS else []
+
+
 def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
                  room: str | None = None) -> HouseLiving:
     """The task world of the living room ``room`` (default: the house's first populated living room)
@@ -96,6 +111,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
                                ("a trash can", can)) if r is None]
         raise ItemError(f"{scene_dir}: living room {rs.room} lacks {', '.join(lack)}")
     shelf = rs.one("bookshelf", lambda r: r["support"] is None)
+    books = _books(rs, table["name"])
     can_asset = rs.asset(can)
 
     # the turn: the table's long side along X first; the first whose south side has room
@@ -131,8 +147,10 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
     pl: dict[str, Placed] = {"table": tp, "trash_can": cp, "paper": rf.placed(paper, rs.asset(paper))}
     if shelf is not None:
         pl["bookshelf"] = furniture[shelf["name"]]
-    cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items()
-                                      if r["support"] == table["name"] and n != paper["name"]]
+        pl.update({f"book_{k + 1}": rf.placed(b, rs.asset(b)) for k, b in enumerate(books)})
+    keep = {paper["name"]} | ({b["name"] for b in books} if shelf is not None else set())
+    cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items() if n not in keep and r["support"] is not None
+                                      and r["support"] in (table["name"], shelf["name"] if shelf else None)]
     hxy = rf.to_house(cp.position[:2])
     moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
     usd = out_dir / "scene.usda"
