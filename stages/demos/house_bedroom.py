@@ -45,12 +45,12 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.demos.house_living import CAN_CLEAR, CAN_GAP, CAN_NORTH, PAPER_AT
+from stages.demos.house_living import CAN_CLEAR, CAN_GAP, CAN_NORTH
 from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
                                      spawn_in, top_surface, write_task_scene)
 from stages.demos.packages import Placed
 from stages.demos.skill_bed import MAX_CUSHION_WIDTH, PILLOW_REACH, PILLOW_SPOT_IN
-from stages.demos.skill_trash import MAX_PAPER_RADIUS
+from stages.demos.skill_trash import MAX_PAPER_RADIUS, PAPER_AT
 
 log = logging.getLogger(__name__)
 

@@ -11,15 +11,18 @@ end (the experts work at a table from its south side, facing +Y; the coffee tabl
 not that one), the table's long side first, and moves the trash can onto the floor off the table's
 west end (as the task kitchen parks it: :data:`CAN_GAP` off the table's footprint, 0.15 m north of
 the top's front), where it stands clear of the walls and the floor furniture. The
-task scene deactivates the other rooms' objects and the table's objects other than the task's paper
-(a book, a pitcher and cups: organize books and serve drinks are not built; a book left at the
-table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
+task scene deactivates the other rooms' objects, the table's objects other than the task's paper and
+books (a pitcher and cups: serve drinks is not built here) and the bookshelf's own books (its boards
+take organize books' books); the room's first two books 20-46 mm thick (the household rules put two
+on the table) become roles "book_1", "book_2", which every living-room episode stands spine up on
+the table's near band east of the paper (:func:`stages.demos.skill_books.book_setup`: a book left
+lying at the table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
 can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room,
 where the planner finds a path to the staging pose before the paper (``anchor``; a pocket behind
 the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path).
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "table", "paper", "trash_can" and
-where present "bookshelf"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
+where present "bookshelf" and (with it) "book_1", "book_2"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
 bookshelf's boards inside it as (xmin, ymin, xmax, ymax, z, clear height) [m]. The kitchen-only
 facts (counter, microwave cavity, button) are the table's top or zero.
 
@@ -41,7 +44,7 @@ from pipeline.types import ItemError
 from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
                                      spawn_in, top_surface, write_task_scene)
 from stages.demos.packages import Placed
-from stages.demos.skill_trash import MAX_PAPER_RADIUS
+from stages.demos.skill_trash import MAX_PAPER_RADIUS, PAPER_AT
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +53,6 @@ CAN_CLEAR = 0.03      # the moved can keeps this far [m] from walls and floor fu
 CAN_GAP = 0.04        # the can's east side this far [m] off the table's west end (its legs and apron:
                       # a coffee table's top surface lies up to 0.2 m inside its footprint)
 CAN_NORTH = 0.15      # the can's centre this far [m] north of the table's front (the task kitchen's park)
-PAPER_AT = (0.12, 0.10)  # the paper's spot (trash_setup): this far [m] in from the table's west end, front
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -8,20 +8,28 @@ The catalog's books (:func:`asset_catalog.generators.objects.book`: length along
 along Y with the spine at -Y, thickness along Z, lying flat) are 110-190 mm wide, more than the Franka
 hand's 80 mm stroke, but 10-50 mm thick: the household rules put books :data:`THICKNESS` thick on
 the coffee table, and the task stands them upright there, spine up (local -Y to world +Z), their length
-along the table's depth, so that a horizontal hand grasps one across its covers from the robot's side.
+along the table's depth, so that a hand over the spine grasps one across its covers.
 
 - :func:`book_setup`: the episode's poses: the books standing on the table's near band east of the
   paper's spot, :data:`BOOK_DX` apart, their near ends :data:`BOOK_IN` behind the top's front edge;
-  the paper parked on its spot (``house_living.PAPER_AT``);
+  the paper parked on its spot (``skill_trash.PAPER_AT``). A start pose may carry a roll
+  (:func:`stages.demos.sampling.object_coords`);
 - :func:`shelf_spot`: where book k goes: the board :data:`BOARD_Z` high (nearest
-  :data:`BOARD_PREFER`) with room above it, the books side by side :data:`SPOT_DX` apart across it,
-  their near ends :data:`SPOT_IN` behind its front edge, length along the shelf's depth;
-- :func:`shelve_book` (the expert): drive before the book, side-grasp its near end across the covers
-  (hand pitched :data:`PITCH` down), lift, draw it off the table, raise it to the board's height,
-  back away, drive before the bookshelf (staged :data:`STAGE` back) and straight in, the book
-  entering the compartment above the board; slide it to its spot, lower, release, back out;
-- :func:`shelve_book_success` (the predicate): the book's centre over a board (1 cm in), resting on
-  it (its bottom within 2 cm of the board), standing (spine within 25 deg of up), released.
+  :data:`BOARD_PREFER`) with :data:`HAND_ROOM` above the tallest book, the books side by side
+  :data:`SPOT_DX` apart across it, their centres :data:`EDGE_IN` behind its front edge, length along
+  the shelf's depth (the near end stands out of the shelf by up to 6 cm: the arm over a book set
+  deeper meets the board above);
+- :func:`shelve_book` (the expert): the base :data:`REACH_TABLE` behind the book's centre, the hand
+  pitched :data:`PITCH` down over it (a joint-space reach: a straight path from the tucked hand turns
+  the wrist through its limits) grasps it across its covers :data:`GRIP_DOWN` below the spine, above
+  its centre of mass (held by one end, the 0.5-1 kg book swung down in the fingers); lift, draw back,
+  carry it high by the base (:data:`CARRY`), drive before the bookshelf
+  (:func:`stages.demos.skill_fridge.staging`), hold it :data:`LIFT` over the board's height, drive
+  straight in, set it down on its spot, release, draw the open fingers out along its covers, back
+  out the way in;
+- :func:`shelve_book_success` (the predicate): the book's centre over a board (1 cm in), its
+  lowest corner within 2 cm of that board, its spine within 25 deg of up, the hand open wider than
+  the book and away from it.
 
 Frame: world, Z up, metres, radians.
 """
@@ -41,15 +49,13 @@ log = logging.getLogger(__name__)
 THICKNESS = (0.02, 0.046)  # books this thick [m] stand (>= 20 mm) and fit the hand's 80 mm stroke
 BOOKS = 2                  # books a living room needs for organize_books
 BOOK_X0 = 0.30             # the first book's centre this far [m] in from the table top's west end
-BOOK_DX = 0.14             # the books' centres this far apart [m] along the table
+BOOK_DX = 0.20             # the books' centres this far apart [m] along the table (0.14: the hand over
+                           # the first one turned the second by 25-45 deg)
 BOOK_IN = 0.07             # a book's near end this far [m] behind the table top's front edge
 BOARD_Z = (0.45, 1.15)     # boards this high [m] take a book from a horizontal hand
 BOARD_PREFER = 0.75        # of those, the one nearest this height [m]
 HAND_ROOM = 0.11           # free height above a standing book a board needs [m] (the pitched hand over it)
 SPOT_DX = 0.15             # the books' centres this far apart [m] across the board
-SPOT_IN = 0.02             # a book's near end this far [m] behind the board's front edge (a book too long
-                           # for that: its far end SPOT_BACK before the board's back, its near end out)
-SPOT_BACK = 0.012
 GRIP_DOWN = 0.025          # the fingers' centre this far [m] below the spine, over the book's centre (a grasp
                            # at its near end let the 0.5-1 kg book swing down in the fingers)
 PITCH = 60.0               # the hand pitched down [deg]: the pads reach 25 mm down the covers below the spine
@@ -63,7 +69,7 @@ STAGE = 0.25               # the drive before the bookshelf ends at least this f
                            # further back or aside where that is blocked), straight in after
 EDGE_IN = 0.06             # the book set down with its centre this far [m] behind the board's front edge
 CARRY = (0.35, 1.0)        # the carried TCP this far ahead of the base's centre, this high [m] while driving
-BACK = 0.10                # the base backs this far [m] from the table before it turns
+BACK = 0.10                # the base backs at least this far [m] from the table before it turns
 HOLD = 0.50                # the carried TCP this far [m] ahead of the base's centre while driving in
 
 
@@ -110,7 +116,7 @@ def book_setup(world, seed: int) -> dict:
     table's near band, the paper on its spot (its own random stream: the other draws do not change).
     ItemError when the world has fewer than :data:`BOOKS` books."""
     from pipeline.types import ItemError
-    from stages.demos.house_living import PAPER_AT
+    from stages.demos.skill_trash import PAPER_AT
 
     roles = book_roles(world)
     if len(roles) < BOOKS:
@@ -159,18 +165,17 @@ def shelf_spot(world, k: int) -> ShelfSpot:
         x0, y0, x1, y1, z, clear = b
         depth = abs(float(np.dot([x1 - x0, y1 - y0], np.abs(n))))
         width = abs(float(np.dot([x1 - x0, y1 - y0], np.abs(lat))))
-        if (BOARD_Z[0] <= z <= BOARD_Z[1] and clear >= tall + HAND_ROOM and depth >= 0.5 * deep + 0.04
+        if (BOARD_Z[0] <= z <= BOARD_Z[1] and clear >= tall + HAND_ROOM and depth >= 0.5 * deep + EDGE_IN + 0.01
                 and width >= (len(dims) - 1) * SPOT_DX + 2 * max(d[2] for d in dims) + 0.04):
             ok.append(b)
     if not ok:
         raise ExpertFailure("no_board", f"no board {BOARD_Z[0]}-{BOARD_Z[1]} m high with "
-                                        f"{tall + HAND_ROOM:.2f} m above it and {0.5 * deep + 0.04:.2f} m deep")
+                                        f"{tall + HAND_ROOM:.2f} m above it and {0.5 * deep + EDGE_IN + 0.01:.2f} m deep")
     b = min(ok, key=lambda s: abs(s[4] - BOARD_PREFER))
     mid = np.array([0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])])
     half_depth = 0.5 * abs(float(np.dot([b[2] - b[0], b[3] - b[1]], np.abs(n))))
     edge = mid + half_depth * n + ((k - 0.5 * (len(dims) - 1)) * SPOT_DX) * lat
-    depth = 2.0 * half_depth
-    centre = edge - (min(SPOT_IN, depth - SPOT_BACK - dims[k][0]) + 0.5 * dims[k][0]) * n
+    centre = edge - EDGE_IN * n
     return ShelfSpot(board=b, centre=(float(centre[0]), float(centre[1])), front=(float(n[0]), float(n[1])),
                      edge=(float(edge[0]), float(edge[1])))
 
@@ -268,10 +273,10 @@ def shelve_book(inst, d, k: int) -> None:
     along = r[:, 0] * (1.0 if r[1, 0] >= 0 else -1.0)  # its length axis, pointing away from the robot
     along = np.array([along[0], along[1], 0.0]) / max(float(np.linalg.norm(along[:2])), 1e-6)
     grasp = np.array([c[0], c[1], w.table_z + tall - GRIP_DOWN])
-    # the base REACH_TABLE behind the grasp, facing along the book; its drive staged where the other
-    # table skills' drives are (0.35 m behind their pose, 0.08 m before the top)
-    heading = math.atan2(along[1], along[0])
-    goal = (float(grasp[0] - REACH_TABLE * along[0]), float(grasp[1] - REACH_TABLE * along[1]), heading)
+    # the base REACH_TABLE behind the grasp facing the table (+Y; a standing book creeps round its
+    # vertical by up to ~45 deg in a stage: the hand turns with it, the base does not); its drive
+    # staged where the other table skills' drives are (0.35 m behind their pose, 0.08 m before the top)
+    goal = (float(grasp[0]), float(grasp[1] - REACH_TABLE), math.pi / 2)
     back = max(0.0, goal[1] - (w.table_rect[1] - 0.08 - 0.30 - 0.35))
     d.drive_to(goal, w.grid(), approach=back, tuck=stow(d, on_the_way=True))
     c, r = book_state(read_state(d.sim), b)
@@ -293,12 +298,13 @@ def shelve_book(inst, d, k: int) -> None:
     bx, by, th = base_pose(d.sim)
     d.move(_pose([bx + CARRY[0] * math.cos(th), by + CARRY[0] * math.sin(th), CARRY[1]], rot), 1.2, segments=2,
            carry=True, tol=APPROACH_TOL)
-    d.drive_straight((bx - BACK * math.cos(th), by - BACK * math.sin(th), th))
+    back = max(back, BACK)  # (to where its drive came straight in from: free for the planner)
+    d.drive_straight((bx - back * math.cos(th), by - back * math.sin(th), th))
     # before the bookshelf: facing into it (-front), REACH_SHELF behind the TCP's place point; the
     # book held LIFT above the board's height HOLD ahead, then the base straight in
     n = np.asarray(spot.front)
     heading = math.atan2(-n[1], -n[0])
-    place = np.asarray(spot.edge) - EDGE_IN * n
+    place = np.asarray(spot.centre)
     goal_xy = place + REACH_SHELF * n
     goal = (float(goal_xy[0]), float(goal_xy[1]), heading)
     grid = w.grid()
@@ -319,7 +325,7 @@ def shelve_book(inst, d, k: int) -> None:
     bc, _ = book_state(st, b)
     offset = np.asarray(st.robot.ee_pose.position, float) - bc
     n3 = np.array([*n, 0.0])
-    first = np.array([*(np.asarray(spot.edge) - EDGE_IN * n), spot.board[4] + 0.5 * tall + 0.004])
+    first = np.array([*spot.centre, spot.board[4] + 0.5 * tall + 0.004])
     target = first + offset
     d.move(_pose(target + [0, 0, LIFT], inward), 1.5, segments=3, carry=True, tol=APPROACH_TOL)
     d.move(_pose(target, inward), 0.6, segments=1, carry=True, settle=0.2)
