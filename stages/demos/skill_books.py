@@ -52,7 +52,7 @@ BOOK_X0 = 0.30             # the first book's centre this far [m] in from the ta
 BOOK_DX = 0.20             # the books' centres this far apart [m] along the table (0.14: the hand over
                            # the first one turned the second by 25-45 deg)
 BOOK_IN = 0.07             # a book's near end this far [m] behind the table top's front edge
-BOARD_Z = (0.45, 1.15)     # boards this high [m] take a book from a horizontal hand
+BOARD_Z = (0.45, 1.15)     # boards this high [m] take a book from the pitched hand
 BOARD_PREFER = 0.75        # of those, the one nearest this height [m]
 HAND_ROOM = 0.11           # free height above a standing book a board needs [m] (the pitched hand over it)
 SPOT_DX = 0.15             # the books' centres this far apart [m] across the board
