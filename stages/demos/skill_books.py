@@ -63,7 +63,7 @@ PITCH = 60.0               # the hand pitched down [deg]: the pads reach 25 mm d
 PRE = 0.12                 # the grasp approached from this far [m] back along the hand
 REACH_TABLE = 0.66         # the grasp's TCP this far [m] ahead of the base's centre (nearer: ik_unreachable)
 REACH_SHELF = 0.66         # the place's TCP this far [m] ahead of the base's centre
-DRAW = 0.05                # the lifted book drawn back off the table, its far end this far [m] past the near end
+RAISE = 0.10               # the lifted book raised this far [m] over the table before it is carried off
 LIFT = 0.025               # the book lifted / held this far [m] above the table or board
 STAGE = 0.25               # the drive before the bookshelf ends at least this far [m] back (skill_fridge.staging:
                            # further back or aside where that is blocked), straight in after
@@ -292,9 +292,9 @@ def shelve_book(inst, d, k: int) -> None:
               read_state(d.sim).robot.gripper_opening, np.round(read_state(d.sim).robot.ee_pose.position, 3).tolist())
     if book_state(read_state(d.sim), b)[0][2] < c[2] + 0.5 * LIFT:
         raise ExpertFailure("grasp_missed", "the book stayed on the table")
-    # drawn back over the table's edge, held high near the base (its disc) while the base drives
-    off = grasp - (0.5 * length + DRAW) * along
-    d.move(_pose([*off[:2], grasp[2] + 2 * LIFT], rot), 1.0, segments=2, carry=True)
+    # raised clear of the table (drawn back low, a book swinging in the fingers met the table's edge
+    # and fell: flat_003, seeds 3 and 5), held high near the base (its disc) while the base drives
+    d.move(_pose(grasp + [0, 0, RAISE], rot), 1.0, segments=2, carry=True)
     bx, by, th = base_pose(d.sim)
     d.move(_pose([bx + CARRY[0] * math.cos(th), by + CARRY[0] * math.sin(th), CARRY[1]], rot), 1.2, segments=2,
            carry=True, tol=APPROACH_TOL)
