@@ -22,8 +22,8 @@ along the table's depth, so that a hand over the spine grasps one across its cov
 - :func:`shelve_book` (the expert): the base :data:`REACH_TABLE` behind the book's centre, the hand
   pitched :data:`PITCH` down over it (a joint-space reach: a straight path from the tucked hand turns
   the wrist through its limits) grasps it across its covers :data:`GRIP_DOWN` below the spine, above
-  its centre of mass (held by one end, the 0.5-1 kg book swung down in the fingers); lift, draw back,
-  carry it high by the base (:data:`CARRY`), drive before the bookshelf
+  its centre of mass (held by one end, the 0.5-1 kg book swung down in the fingers); lift, raise it
+  :data:`RAISE` over the table, carry it high by the base (:data:`CARRY`), drive before the bookshelf
   (:func:`stages.demos.skill_fridge.staging`), hold it :data:`LIFT` over the board's height, drive
   straight in, set it down on its spot, release, draw the open fingers out along its covers, back
   out the way in;
