@@ -42,6 +42,7 @@ from stages.demos.planner import NavGrid
 from stages.demos.record import base_pose
 from stages.demos.sampling import TaskInstance
 from stages.demos.skill_bed import place_pillow
+from stages.demos.skill_books import shelve_book_1, shelve_book_2
 from stages.demos.skill_fridge import pick_place_fridge
 from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
@@ -252,7 +253,8 @@ EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_plac
            "press_button": press_button, "pick_place_fridge": pick_place_fridge,
            "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
            "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
-           "slide_clock_switch": slide_clock_switch, "place_pillow": place_pillow}
+           "slide_clock_switch": slide_clock_switch, "place_pillow": place_pillow,
+           "shelve_book_1": shelve_book_1, "shelve_book_2": shelve_book_2}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

@@ -45,11 +45,12 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.types import ItemError
-from stages.demos.house_living import CAN_CLEAR, CAN_GAP, CAN_NORTH, PAPER_AT, _base_free, _overlaps, _top
-from stages.demos.house_room import HouseRoom, obstacles, read_room, room_frame, spawn_in, write_task_scene
+from stages.demos.house_living import CAN_CLEAR, CAN_GAP, CAN_NORTH
+from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
+                                     spawn_in, top_surface, write_task_scene)
 from stages.demos.packages import Placed
 from stages.demos.skill_bed import MAX_CUSHION_WIDTH, PILLOW_REACH, PILLOW_SPOT_IN
-from stages.demos.skill_trash import MAX_PAPER_RADIUS
+from stages.demos.skill_trash import MAX_PAPER_RADIUS, PAPER_AT
 
 log = logging.getLogger(__name__)
 
@@ -97,7 +98,7 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
     rf = room_frame(rs.house, rs.room, (math.pi if foot < 0 else 0.0) - bed["yaw"])
     furniture = {n: rf.placed(r, rs.asset(r)) for n, r in rs.mine.items() if r["support"] is None}
     bp = furniture[bed["name"]]
-    top, z = _top(bp)
+    top, z = top_surface(bp)
     band, mattress_z, blanket = _bed_facts(bp, foot)
     bfp = bp.footprint()
     cx = bfp[0] - CAN_GAP - can_asset.hi[0] if foot < 0 else bfp[2] + CAN_GAP - can_asset.lo[0]
@@ -109,7 +110,7 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
     boxes = obstacles(others + [cp])
     inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
               and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
-    clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
+    clash = [b for b in list(rf.walls) + obstacles(others) if overlaps(fp, b, CAN_CLEAR)]
     if not inside or clash:
         return "the can's place off the bed's foot is " + ("off the floor" if not inside else "taken")
     # the paper's strip: the blanket top's foot end, slid head-ward up to PAPER_SLIDE where the base's
@@ -118,7 +119,7 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
         rect = ((top[0] + d, top[1], top[0] + d + PAPER_STRIP, top[3]) if foot < 0 else
                 (top[2] - d - PAPER_STRIP, top[1], top[2] - d, top[3]))
         goal = facing_north_goal(rect[1], rect[0] + PAPER_AT[0])
-        if x0 < goal[0] < x1 and y0 < goal[1] < y1 and _base_free(goal, rf.walls, boxes):
+        if x0 < goal[0] < x1 and y0 < goal[1] < y1 and base_free(goal, rf.walls, boxes):
             break
     else:
         return "no room for the base before the bed's foot"
@@ -129,7 +130,7 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
             float(rect[1] - 0.03 + 0.5 * c.params.get("length", 0.4)))
     base_x = next((float(spot[0] + foot * d) for d in np.arange(0.0, PILLOW_REACH + 1e-9, 0.05)
                    if x0 < spot[0] + foot * d < x1
-                   and _base_free(facing_north_goal(rect[1], float(spot[0] + foot * d)), rf.walls, boxes)), None)
+                   and base_free(facing_north_goal(rect[1], float(spot[0] + foot * d)), rf.walls, boxes)), None)
     if base_x is None:
         return f"no free floor for the base within {PILLOW_REACH} m of the head band"
     return rf, furniture, cp, rect, z, band, mattress_z, blanket, goal, spot, base_x
@@ -179,13 +180,10 @@ def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     write_task_scene(usd, rs.house, rf.frame, cut, moved)
     paper_spot = (rect[0] + PAPER_AT[0], rect[1] + PAPER_AT[1])
     w = HouseBedroom(
-        usd=usd, scene_id=scene_id, size=rf.size, wall_thickness=0.0, placed=pl, spawn=(0.0, 0.0, 0.0),
-        counter_z=z, counter_rect=rect, counter_spot=paper_spot, table_z=z, table_rect=rect,
-        cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0, cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0,
-        button_push=(0.0, 1.0, 0.0), mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None,
-        house=rs.house.resolve(), room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls, furniture=furniture,
-        cut=tuple(sorted(cut)), moved=moved, anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
-        head_band=band, mattress_z=mattress_z, blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x)
+        usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
+        anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)), head_band=band, mattress_z=mattress_z,
+        blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x,
+        **room_fields(rs, rf, rect, z, paper_spot))
     spawn_in(w)
     log.info("house bedroom %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
     return w

@@ -11,15 +11,18 @@ end (the experts work at a table from its south side, facing +Y; the coffee tabl
 not that one), the table's long side first, and moves the trash can onto the floor off the table's
 west end (as the task kitchen parks it: :data:`CAN_GAP` off the table's footprint, 0.15 m north of
 the top's front), where it stands clear of the walls and the floor furniture. The
-task scene deactivates the other rooms' objects and the table's objects other than the task's paper
-(a book, a pitcher and cups: organize books and serve drinks are not built; a book left at the
-table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
+task scene deactivates the other rooms' objects, the table's objects other than the task's paper and
+books (a pitcher and cups: serve drinks is not built here) and the bookshelf's own books (its boards
+take organize books' books); the room's first two books 20-46 mm thick (the household rules put two
+on the table) become roles "book_1", "book_2", which every living-room episode stands spine up on
+the table's near band east of the paper (:func:`stages.demos.skill_books.book_setup`: a book left
+lying at the table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
 can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room,
 where the planner finds a path to the staging pose before the paper (``anchor``; a pocket behind
 the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path).
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "table", "paper", "trash_can" and
-where present "bookshelf"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
+where present "bookshelf" and (with it) "book_1", "book_2"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
 bookshelf's boards inside it as (xmin, ymin, xmax, ymax, z, clear height) [m]. The kitchen-only
 facts (counter, microwave cavity, button) are the table's top or zero.
 
@@ -37,12 +40,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from pipeline.types import ItemError
-from stages.demos.house_room import HouseRoom, obstacles, read_room, room_frame, spawn_in, write_task_scene
+from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
+                                     spawn_in, top_surface, write_task_scene)
 from stages.demos.packages import Placed
-from stages.demos.skill_trash import MAX_PAPER_RADIUS
+from stages.demos.skill_trash import MAX_PAPER_RADIUS, PAPER_AT
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +53,6 @@ CAN_CLEAR = 0.03      # the moved can keeps this far [m] from walls and floor fu
 CAN_GAP = 0.04        # the can's east side this far [m] off the table's west end (its legs and apron:
                       # a coffee table's top surface lies up to 0.2 m inside its footprint)
 CAN_NORTH = 0.15      # the can's centre this far [m] north of the table's front (the task kitchen's park)
-PAPER_AT = (0.12, 0.10)  # the paper's spot (trash_setup): this far [m] in from the table's west end, front
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -63,15 +64,6 @@ class HouseLiving(HouseRoom):
     shelves: tuple[tuple[float, float, float, float, float, float], ...] = field(default=())
 
 
-def _top(table: Placed) -> tuple[tuple[float, float, float, float], float]:
-    """The table's highest top surface: its rectangle and height in the task frame [m]."""
-    tops = [s for s in table.info.get("surfaces", []) if not s["inside"]]
-    if not tops:
-        raise ItemError(f"{table.asset.usd}: {table.asset.asset_id} has no top surface")
-    top = max(tops, key=lambda s: s["z"])
-    return table.rect(top["lo"], top["hi"]), float(table.position[2] + top["z"])
-
-
 def _shelves(shelf: Placed) -> tuple:
     """The bookshelf's inside boards (task frame)."""
     out = []
@@ -81,24 +73,19 @@ def _shelves(shelf: Placed) -> tuple:
     return tuple(out)
 
 
-def _overlaps(a, b, margin: float) -> bool:
-    return a[0] < b[2] + margin and b[0] < a[2] + margin and a[1] < b[3] + margin and b[1] < a[3] + margin
+def _books(rs, table: str) -> list[dict]:
+    """The room's first :data:`~stages.demos.skill_books.BOOKS` books a hand grasps across their
+    thickness (:data:`~stages.demos.skill_books.THICKNESS`), those on the table first (organize
+    books stands them on it; none when the room has fewer)."""
+    from stages.demos.skill_books import BOOKS, THICKNESS
 
+    def fits(r: dict) -> bool:
+        a = rs.asset(r)
+        return THICKNESS[0] - 1e-6 <= a.hi[2] - a.lo[2] <= THICKNESS[1] + 1e-6
 
-def _base_free(goal, walls, boxes) -> bool:
-    """Whether the staging pose of base pose ``goal`` (x, y, yaw facing +Y), COUNTER_STAGE behind it,
-    is free of ``walls`` and ``boxes`` (the base inflated by its radius, as the planner does; the goal
-    itself stands nearer the table than that, as in the task kitchen: stages.demos.house._reachable_y)."""
-    from stages.demos.driver import ROBOT_RADIUS
-    from stages.demos.experts import COUNTER_STAGE
-    from stages.demos.planner import NavGrid
-
-    xs = [b[0] for b in walls] + [b[2] for b in walls]
-    ys = [b[1] for b in walls] + [b[3] for b in walls]
-    grid = NavGrid.from_boxes((min(xs), min(ys), max(xs), max(ys)), np.asarray(list(walls) + list(boxes), float))
-    blocked = grid.inflate(ROBOT_RADIUS)
-    cells = [grid.cell_of(goal[0] + dx, goal[1] - COUNTER_STAGE) for dx in (-0.05, 0.0, 0.05)]
-    return all(0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix] for iy, ix in cells)
+    found = sorted((r for r in rs.mine.values() if r["category"] == "book" and r["support"] is not None and fits(r)),
+                   key=lambda r: (r["support"] != table, r["name"]))
+    return found[:BOOKS] if len(found) >= BOOKS else []
 
 
 def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
@@ -126,6 +113,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
                                ("a trash can", can)) if r is None]
         raise ItemError(f"{scene_dir}: living room {rs.room} lacks {', '.join(lack)}")
     shelf = rs.one("bookshelf", lambda r: r["support"] is None)
+    books = _books(rs, table["name"])
     can_asset = rs.asset(can)
 
     # the turn: the table's long side along X first; the first whose south side has room
@@ -137,7 +125,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         rf = room_frame(rs.house, rs.room, -table["yaw"] + k * math.pi / 2)
         furniture = {n: rf.placed(r, rs.asset(r)) for n, r in rs.mine.items() if r["support"] is None}
         tp = furniture[table["name"]]
-        rect, z = _top(tp)
+        rect, z = top_surface(tp)
         cx = tp.footprint()[0] - CAN_GAP - can_asset.hi[0]
         cp = Placed(f"Objects/{can['name']}", can_asset, (float(cx), float(rect[1] + CAN_NORTH),
                                                           float(can["position"][2])), 0.0)
@@ -146,9 +134,9 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         others = [p for n, p in furniture.items() if n != can["name"]]
         inside = (x0 + CAN_CLEAR <= fp[0] and fp[2] <= x1 - CAN_CLEAR
                   and y0 + CAN_CLEAR <= fp[1] and fp[3] <= y1 - CAN_CLEAR)
-        clash = [b for b in list(rf.walls) + obstacles(others) if _overlaps(fp, b, CAN_CLEAR)]
+        clash = [b for b in list(rf.walls) + obstacles(others) if overlaps(fp, b, CAN_CLEAR)]
         goal = facing_north_goal(rect[1], rect[0] + PAPER_AT[0])
-        ok_base = x0 < goal[0] < x1 and y0 < goal[1] < y1 and _base_free(goal, rf.walls, obstacles(others + [cp]))
+        ok_base = x0 < goal[0] < x1 and y0 < goal[1] < y1 and base_free(goal, rf.walls, obstacles(others + [cp]))
         if inside and not clash and ok_base:
             break
         tried.append(f"{math.degrees(rf.frame[2]):.0f} deg: " + ("the can's place is off the floor" if not inside else
@@ -161,21 +149,19 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
     pl: dict[str, Placed] = {"table": tp, "trash_can": cp, "paper": rf.placed(paper, rs.asset(paper))}
     if shelf is not None:
         pl["bookshelf"] = furniture[shelf["name"]]
-    cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items()
-                                      if r["support"] == table["name"] and n != paper["name"]]
+        pl.update({f"book_{k + 1}": rf.placed(b, rs.asset(b)) for k, b in enumerate(books)})
+    keep = {paper["name"]} | ({b["name"] for b in books} if shelf is not None else set())
+    cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items() if n not in keep and r["support"] is not None
+                                      and r["support"] in (table["name"], shelf["name"] if shelf else None)]
     hxy = rf.to_house(cp.position[:2])
     moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
     usd = out_dir / "scene.usda"
     write_task_scene(usd, rs.house, rf.frame, cut, moved)
     spot = (rect[0] + PAPER_AT[0], rect[1] + PAPER_AT[1])
     w = HouseLiving(
-        usd=usd, scene_id=scene_id, size=rf.size, wall_thickness=0.0, placed=pl, spawn=(0.0, 0.0, 0.0),
-        counter_z=z, counter_rect=rect, counter_spot=spot, table_z=z, table_rect=rect,
-        cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0, cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0,
-        button_push=(0.0, 1.0, 0.0), mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None,
-        house=rs.house.resolve(), room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls, furniture=furniture,
-        cut=tuple(sorted(cut)), moved=moved, anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
-        shelves=_shelves(pl["bookshelf"]) if shelf is not None else ())
+        usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
+        anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
+        shelves=_shelves(pl["bookshelf"]) if shelf is not None else (), **room_fields(rs, rf, rect, z, spot))
     spawn_in(w)
     log.info("house living room %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
     return w

@@ -4,8 +4,10 @@ task frame (:class:`RoomFrame`: a multiple of 90 deg about +Z, the room's corner
 task scene layer that sublayers the house, moves it, deactivates cut instances and moves single
 instances (:func:`write_task_scene`), and the world base class whose planner obstacles are the
 floor's walls and the room's floor furniture and whose robot starts inside the room
-(:class:`HouseRoom`). The kitchen (:mod:`stages.demos.house`) and the living room
-(:mod:`stages.demos.house_living`) build on it.
+(:class:`HouseRoom`, its kitchen-only fields filled by :func:`room_fields`), and the checks the rooms
+share (:func:`top_surface`, :func:`overlaps`, :func:`base_free`). The kitchen
+(:mod:`stages.demos.house`), the living room (:mod:`stages.demos.house_living`) and the bedroom
+(:mod:`stages.demos.house_bedroom`) build on it.
 
 Frame: the task frame, Z up, metres, radians: ``p_task = Rz(theta) p_house + t``
 (:attr:`HouseRoom.frame` = (tx, ty, theta)).
@@ -69,6 +71,50 @@ class HouseRoom(KitchenWorld):
 def obstacles(placed) -> list[tuple[float, float, float, float]]:
     """Footprints [m] of the floor furniture among ``placed`` that the base cannot cross (rugs can)."""
     return [p.footprint() for p in placed if p.asset.hi[2] - p.asset.lo[2] >= FLOOR_MIN_HEIGHT]
+
+
+def room_fields(rs: RoomScene, rf: RoomFrame, rect: tuple[float, float, float, float], z: float,
+                spot: tuple[float, float]) -> dict:
+    """The :class:`HouseRoom` fields a non-kitchen room fills the same way: its work surface
+    ``rect`` (xmin, ymin, xmax, ymax) at height ``z`` [m] as both the table and the counter (``spot``
+    (x, y) [m]: the counter spot), the kitchen-only facts (microwave cavity, button, mug, bowl, looks)
+    zero, the spawn to be drawn (:func:`spawn_in`), and the house, room and frame of ``rs`` / ``rf``."""
+    return dict(size=rf.size, wall_thickness=0.0, spawn=(0.0, 0.0, 0.0), counter_z=z, counter_rect=rect,
+                counter_spot=spot, table_z=z, table_rect=rect, cavity=(0.0, 0.0, 0.0, 0.0), cavity_z=0.0,
+                cavity_height=0.0, button=(0.0, 0.0, 0.0), button_travel=0.0, button_push=(0.0, 1.0, 0.0),
+                mug_radius=0.0, mug_height=0.0, bowl_radius=0.0, materials={}, look=None, house=rs.house.resolve(),
+                room=rs.room, frame=rf.frame, area=rf.area, walls=rf.walls)
+
+
+def top_surface(placed: Placed) -> tuple[tuple[float, float, float, float], float]:
+    """The highest top (not inside) surface of furniture ``placed``: its rectangle (xmin, ymin, xmax,
+    ymax) and height in the task frame [m]. ItemError when it has none."""
+    tops = [s for s in placed.info.get("surfaces", []) if not s["inside"]]
+    if not tops:
+        raise ItemError(f"{placed.asset.usd}: {placed.asset.asset_id} has no top surface")
+    top = max(tops, key=lambda s: s["z"])
+    return placed.rect(top["lo"], top["hi"]), float(placed.position[2] + top["z"])
+
+
+def overlaps(a, b, margin: float) -> bool:
+    """Whether boxes ``a`` and ``b`` (xmin, ymin, xmax, ymax) [m] come nearer than ``margin`` [m]."""
+    return a[0] < b[2] + margin and b[0] < a[2] + margin and a[1] < b[3] + margin and b[1] < a[3] + margin
+
+
+def base_free(goal, walls, boxes) -> bool:
+    """Whether the staging pose of base pose ``goal`` (x, y, yaw facing +Y), COUNTER_STAGE behind it,
+    is free of ``walls`` and ``boxes`` (the base inflated by its radius, as the planner does; the goal
+    itself stands nearer the table than that, as in the task kitchen: stages.demos.house._reachable_y)."""
+    from stages.demos.driver import ROBOT_RADIUS
+    from stages.demos.experts import COUNTER_STAGE
+    from stages.demos.planner import NavGrid
+
+    xs = [b[0] for b in walls] + [b[2] for b in walls]
+    ys = [b[1] for b in walls] + [b[3] for b in walls]
+    grid = NavGrid.from_boxes((min(xs), min(ys), max(xs), max(ys)), np.asarray(list(walls) + list(boxes), float))
+    blocked = grid.inflate(ROBOT_RADIUS)
+    cells = [grid.cell_of(goal[0] + dx, goal[1] - COUNTER_STAGE) for dx in (-0.05, 0.0, 0.05)]
+    return all(0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1] and not blocked[iy, ix] for iy, ix in cells)
 
 
 def rot2(theta: float) -> np.ndarray:

@@ -28,6 +28,7 @@ MICROWAVE_OPEN = math.radians(88.0)  # microwave door opening of the microwave t
 FRIDGE_OPEN = 0.9  # fridge door opening of pick_place_fridge [fraction of its travel], as open_fridge leaves it
 PUSH_DIRECTION = (0.0, 1.0)
 POUR_SKILLS = ("pick_pitcher", "pour_drink", "place_pitcher")  # stages.demos.skill_pour
+BOOK_SKILLS = ("shelve_book_1", "shelve_book_2")  # stages.demos.skill_books: the k-th book of the world
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,6 +54,15 @@ class TaskInstance:
     asset_ids: tuple[str, ...]
     part: object = None
     place: object = None
+
+
+def object_coords(pose) -> tuple[float, ...]:
+    """A free body's start pose (x, y, z, yaw) or (x, y, z, yaw, roll) [m, rad] (roll about the
+    body's X, then yaw about world Z) as its free joint's coordinates: position, quaternion x, y, z, w."""
+    x, y, z, yaw, *rest = (float(v) for v in pose)
+    roll = rest[0] if rest else 0.0
+    cz, sz, cx, sx = math.cos(yaw / 2), math.sin(yaw / 2), math.cos(roll / 2), math.sin(roll / 2)
+    return (x, y, z, cz * sx, sz * sx, sz * cx, cz * cx)
 
 
 def free_start(world: KitchenWorld, rng: np.random.Generator) -> tuple[float, float, float]:
@@ -169,6 +179,15 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="alarm clock")
         ids = [pl["clock"]]
         target = tuple(float(v) for v in pl["clock"].position[:2])
+    if "book_1" in pl:  # a living room with books (stages.demos.house_living): standing on the table
+        from stages.demos.skill_books import book_setup
+
+        objects.update(book_setup(world, seed))
+    if task_name in BOOK_SKILLS:
+        k = BOOK_SKILLS.index(task_name)
+        names.update(object="book", container="bookshelf", which=("first", "second")[k])
+        ids = [pl[f"book_{k + 1}"], pl["bookshelf"]]
+        target = tuple(float(v) for v in pl["bookshelf"].position[:2])
     if task_name == "throw_away":
         from stages.demos.skill_trash import trash_setup
 

@@ -21,7 +21,7 @@ import numpy as np
 from stages.demos.experts import EXPERTS, Driver, ExpertFailure, timed_clik
 from stages.demos.record import Commands, EpisodeTimeout, Recorder, Timings
 from stages.demos.kitchen import FREE_ROLES, KitchenWorld, watched_joints
-from stages.demos.sampling import TaskInstance
+from stages.demos.sampling import TaskInstance, object_coords
 from stages.demos.tasks import task
 
 log = logging.getLogger(__name__)
@@ -158,10 +158,9 @@ class DemoWorld:
         sim.reset(base=inst.start_base)
         self.ctl.reset()
         values = {}
-        for body, (x, y, z, yaw) in inst.objects.items():
+        for body, pose in inst.objects.items():
             # free joint: position, then quaternion x, y, z, w
-            values.update(dict(enumerate((x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
-                                         start=self._free[body])))
+            values.update(dict(enumerate(object_coords(pose), start=self._free[body])))
         for path, v in inst.joints.items():
             values[self._scene_joint[path]] = v
         set_coords(sim, values)

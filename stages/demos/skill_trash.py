@@ -24,6 +24,7 @@ DROP_ABOVE = 0.10        # the paper is let go this far [m] above the can's rim
 MAX_PAPER_RADIUS = 0.0315  # crumpled paper (bumps up to +18 %) the Franka hand's 80 mm stroke grasps [m]
 BIN_GAP = 0.10           # the can stands this far [m] off the table's west end
 PINCH = 0.008            # the fingers are commanded this far [m] inside the paper's width
+PAPER_AT = (0.12, 0.10)  # the paper's spot: this far [m] in from the table top's west end, front
 CREEP_LEAD = 0.8         # the grasp leads the paper's creep by this long [s] (the descent and settle)
 
 
@@ -47,7 +48,8 @@ def trash_setup(world, rng: np.random.Generator) -> dict:
     if "paper" not in pl or "trash_can" not in pl:
         raise ItemError(f"{world.usd}: no crumpled paper and trash can in this kitchen")
     x0, y0, _, _ = world.table_rect
-    return {pl["paper"].body(): (x0 + 0.12 + float(rng.uniform(-0.02, 0.02)), y0 + 0.10 + float(rng.uniform(0, 0.02)),
+    return {pl["paper"].body(): (x0 + PAPER_AT[0] + float(rng.uniform(-0.02, 0.02)),
+                                 y0 + PAPER_AT[1] + float(rng.uniform(0, 0.02)),
                                  world.table_z + 0.002, float(rng.uniform(-np.pi, np.pi))),
             pl["trash_can"].body(): (*pl["trash_can"].position, 0.0)}
 

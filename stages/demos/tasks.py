@@ -25,6 +25,7 @@ import numpy as np
 from stages.demos.parts import part_closed, part_opened
 from stages.demos.predicates import _inside, _placed_check, _released, _upright  # noqa: F401 (re-exported)
 from stages.demos.skill_bed import place_pillow_success
+from stages.demos.skill_books import shelve_book_1_success, shelve_book_2_success
 from stages.demos.skill_fridge import pick_place_fridge_success
 from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success, pour_success
 from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
@@ -146,6 +147,13 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="place_pillow", family=Family.PICK_PLACE, max_seconds=40.0, success=place_pillow_success,
              templates=("put the {object} at the head of the {container}", "place the {object} by the pillows",
                         "move the {object} to the head of the {container}")),
+    # organize books (stages.demos.skill_books): the world's k-th book from the coffee table onto the bookshelf
+    TaskSpec(name="shelve_book_1", family=Family.PICK_PLACE, max_seconds=60.0, success=shelve_book_1_success,
+             templates=("put the {which} {object} on the {container}", "shelve the {which} {object}",
+                        "stand the {which} {object} on a board of the {container}")),
+    TaskSpec(name="shelve_book_2", family=Family.PICK_PLACE, max_seconds=60.0, success=shelve_book_2_success,
+             templates=("put the {which} {object} on the {container}", "shelve the {which} {object}",
+                        "stand the {which} {object} on a board of the {container}")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
@@ -200,7 +208,7 @@ TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
 SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
-               "press_clock_button", "slide_clock_switch", "place_pillow")
+               "press_clock_button", "slide_clock_switch", "place_pillow", "shelve_book_1", "shelve_book_2")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the
 #: demos job's default
 BASIC_TASKS = tuple(t for t in TASKS if t not in SKILL_TASKS)

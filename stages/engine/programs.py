@@ -25,6 +25,7 @@ import numpy as np
 from stages.demos.experts import EXPERTS, Driver, ExpertFailure
 from stages.demos.multistage import MULTISTAGE, run_stages, sample_task, task_spec
 from stages.demos.record import Commands, EpisodeTimeout
+from stages.demos.sampling import object_coords
 
 log = logging.getLogger(__name__)
 
@@ -73,9 +74,8 @@ def instance_coords(inst, info, free: dict[str, int], scene_coord: dict[str, int
     local = (cs * dx + sn * dy, -sn * dx + cs * dy, byaw - yaw0)
     for name, v in zip(info.desc.base_joints, local, strict=True):
         values[info.robot.coord[name]] = v
-    for body, (x, y, z, yaw) in inst.objects.items():
-        vals = (x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-        values.update(dict(enumerate(vals, start=free[body])))
+    for body, pose in inst.objects.items():
+        values.update(dict(enumerate(object_coords(pose), start=free[body])))
     for path, v in inst.joints.items():
         values[scene_coord[path]] = v
     return values

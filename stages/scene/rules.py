@@ -93,11 +93,20 @@ class ObjectRule(_Entry):
     align: bool = False
     inside: bool = False
     max_width: float | None = Field(default=None, gt=0.0)
+    thickness: tuple[float, float] | None = None
 
     def fits(self, record, geo=None) -> bool:
         """Whether a catalog record's narrower horizontal extent [m] is at most ``max_width`` (a
-        hand grasps it across)."""
+        hand grasps it across) and its smallest extent [m] within ``thickness`` (a book's covers)."""
+        if self.thickness is not None and not self.thickness[0] <= min(record.dimensions) <= self.thickness[1]:
+            return False
         return self.max_width is None or min(record.dimensions[:2]) <= self.max_width
+
+    def problems(self) -> list[str]:
+        errs = super().problems()
+        if self.thickness is not None and not 0.0 < self.thickness[0] <= self.thickness[1]:
+            errs.append(f"thickness {list(self.thickness)} must be [min, max] with 0 < min <= max")
+        return errs
 
 
 class RoomRules(_Strict):

@@ -6,7 +6,7 @@ by the real job steps), each turned into a task world (:func:`stages.demos.house
 (``layout="per_world"``, one world, no cameras) for every task and seed.
 
 Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
-``... --room living_room --tasks clean_table_living``; ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+``... --room living_room --tasks clean_table_living`` (or ``organize_books``); ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """

@@ -64,7 +64,7 @@ def world(house, tmp_path_factory):
 @pytest.mark.slow
 def test_house_bedroom_facts_lay_the_bed_along_x_with_its_side_free(world):
     from stages.demos.counter import facing_north_goal
-    from stages.demos.house_living import _base_free, _overlaps
+    from stages.demos.house_room import base_free, overlaps
     from stages.demos.house_room import obstacles
     from stages.demos.multistage import sample_task
     from stages.demos.skill_bed import PILLOW_REACH
@@ -88,14 +88,14 @@ def test_house_bedroom_facts_lay_the_bed_along_x_with_its_side_free(world):
     assert (can[2] <= fp[0]) if world.foot < 0 else (can[0] >= fp[2])
     assert not [b for b in list(world.walls) + obstacles(p for n, p in world.furniture.items()
                                                          if not n.startswith("trash_can"))
-                if _overlaps(can, b, 0.0)]
+                if overlaps(can, b, 0.0)]
     assert float(pl["paper"].asset.params["radius"]) <= MAX_PAPER_RADIUS
     # the cushion's spot inside the head band, the base's pose for it free and near enough
     sx, sy = world.pillow_spot
     assert x0 <= sx <= x1 and y0 <= sy <= y1
     assert abs(world.pillow_base_x - sx) <= PILLOW_REACH + 1e-9
     boxes = obstacles(world.furniture.values())
-    assert _base_free(facing_north_goal(world.table_rect[1], world.pillow_base_x), world.walls, boxes)
+    assert base_free(facing_north_goal(world.table_rect[1], world.pillow_base_x), world.walls, boxes)
     # the other rooms' objects and the bed's pillows and books are cut; the task's two stay
     assert not {pl["paper"].prim.split("/")[-1], pl["cushion"].prim.split("/")[-1]} & set(world.cut)
     inst = sample_task("make_bed", world, 1)

@@ -71,9 +71,29 @@ def test_household_rules_admit_only_paper_the_hand_grasps(house):
     assert fits == {"crumpled_paper_00": True, "crumpled_paper_01": False}
 
 
+def test_household_rules_put_two_books_the_hand_grasps_on_the_coffee_table(house, world):
+    """Organize books: the coffee table holds two books THICKNESS thick (their covers fit the hand's
+    80 mm stroke); the task world keeps them as book_1 / book_2 and cuts the bookshelf's own books
+    away (their boards are where the task's books go)."""
+    from stages.demos.skill_books import THICKNESS, book_dims, book_roles
+
+    scene, _ = house
+    inst = {i["name"]: i for i in json.loads((scene / "scene.json").read_text())["instances"]}
+    table = next(n for n, i in inst.items() if i["category"] == "coffee_table")
+    on_table = [n for n, i in inst.items() if i["category"] == "book" and i["support"] == table]
+    assert len(on_table) == 2
+    assert book_roles(world) == ["book_1", "book_2"]
+    for role in book_roles(world):
+        assert THICKNESS[0] <= book_dims(world.placed[role])[2] <= THICKNESS[1]
+        assert world.placed[role].name.split("/")[-1] not in world.cut
+    shelf = world.placed["bookshelf"].name.split("/")[-1]
+    assert all(n in world.cut for n, i in inst.items() if i["support"] == shelf)
+
+
 def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(world):
     from stages.demos.counter import facing_north_goal
-    from stages.demos.house_living import CAN_GAP, PAPER_AT, _overlaps
+    from stages.demos.house_living import CAN_GAP, PAPER_AT
+    from stages.demos.house_room import overlaps
     from stages.demos.skill_trash import MAX_PAPER_RADIUS
 
     pl = world.placed
@@ -88,7 +108,7 @@ def test_house_living_facts_put_the_table_south_facing_with_the_can_beside_it(wo
     tfp = pl["table"].footprint()
     assert can[2] == pytest.approx(tfp[0] - CAN_GAP, abs=1e-6) and y0 < pl["trash_can"].position[1] < y1
     others = [p.footprint() for n, p in world.furniture.items() if p is not pl["trash_can"]]
-    assert not any(_overlaps(can, b, 0.0) for b in list(world.walls) + others)
+    assert not any(overlaps(can, b, 0.0) for b in list(world.walls) + others)
     assert world.moved and world.moved[0] == pl["trash_can"].name.split("/")[-1]
     # the robot's base before the paper's spot, its staging pose behind it, and its start: free floor
     grid = world.grid()
@@ -191,5 +211,21 @@ def test_clean_table_living_succeeds_in_a_generated_living_room(world, tmp_path)
     eng = BatchEngine(world, panda_root=None, work_dir=tmp_path / "w", config=cfg)
     results = []
     eng.run(Listed(world, {0: [("clean_table_living", 1, None)]}), begin=lambda w, t: None,
+            end=lambda w, t, r: results.append(r))
+    assert results[0].success, (results[0].reason, results[0].detail)
+
+
+@pytest.mark.slow
+def test_organize_books_succeeds_in_a_generated_living_room(world, tmp_path):
+    """One real organize_books episode (two books from the coffee table onto a bookshelf board, one
+    stage each) on the batched engine (CPU ~50 s of wall with the scene built): the whole-task predicate
+    holds both books standing on a board, released."""
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
+    eng = BatchEngine(world, panda_root=None, work_dir=tmp_path / "w", config=cfg)
+    results = []
+    eng.run(Listed(world, {0: [("organize_books", 1, None)]}), begin=lambda w, t: None,
             end=lambda w, t, r: results.append(r))
     assert results[0].success, (results[0].reason, results[0].detail)
