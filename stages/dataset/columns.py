@@ -70,10 +70,12 @@ class FrameColumns:
 
 
 def frame_images(images: Images, row: int, copy: bool = False) -> tuple[dict, dict]:
-    """The RGB and depth images (by camera) of row ``row`` of stacked buffers: views, or copies."""
-    if copy:
-        return {c: im[0][row].copy() for c, im in images.items()}, {c: im[1][row].copy() for c, im in images.items()}
-    return {c: im[0][row] for c, im in images.items()}, {c: im[1][row] for c, im in images.items()}
+    """The RGB and depth images (by camera) of row ``row`` of stacked buffers (either may be None:
+    that camera records no such image): views, or copies."""
+    def pick(k: int) -> dict:
+        return {c: (im[k][row].copy() if copy else im[k][row]) for c, im in images.items() if im[k] is not None}
+
+    return pick(0), pick(1)
 
 
 def _images_ok(spec: DatasetSpec, images: Images) -> bool:
