@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from stages.dataset import CameraSpec, DatasetSpec, FrameError, list_shards, open_shard  # noqa: E402
+from stages.dataset import CameraSpec, DatasetSpec, FrameError, list_shards  # noqa: E402
 from stages.dataset.columns import NUMERIC, FrameColumns, suspect_rows  # noqa: E402
 from stages.dataset.pool import PoolConfig, ShardPool  # noqa: E402
 from stages.dataset.schema import frame_problems  # noqa: E402
