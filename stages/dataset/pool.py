@@ -523,11 +523,24 @@ def pool_target(sink) -> tuple[ShardPool, int] | None:
     return (owner.pool, owner.i) if isinstance(owner, PoolShard) else None
 
 
+def ring_slots(shards: int, workers: int, slot_bytes: int, *, steps: int = 2, least: int = 32,
+               max_bytes: int = 1 << 30) -> int:
+    """Slots per writer for ``shards`` shards written by ``workers`` processes: ``steps`` frame steps
+    of a worker's shards (an engine hands every world's frame over at once, then simulates while the
+    writers catch up: a ring smaller than one step's frames makes it wait mid-step for the writers),
+    at least ``least``, at most ``max_bytes`` [bytes] of shared memory per worker. Measured on the CPU
+    (``bench_handoff.py --worlds 32 --gap 1.5 --writer-procs 2``, 16 shards per writer): 4 slots
+    waited 0.62 s in 4 steps, 32 slots 0.0 s."""
+    per_worker = -(-shards // max(1, workers))
+    return max(1, min(max(least, steps * per_worker), max_bytes // max(1, slot_bytes)))
+
+
 @contextmanager
 def open_shards(shards_dir: Path, shard_ids: list[str], spec: DatasetSpec, writer_procs: int = 0,
-                slots: int = 32) -> Iterator[list]:
+                slots: int | None = None) -> Iterator[list]:
     """Writers of the shards ``shard_ids`` (one per engine world): inline shard writers when
-    ``writer_procs`` is 0, else :class:`PoolShard` handles of a :class:`ShardPool` of that many processes.
+    ``writer_procs`` is 0, else :class:`PoolShard` handles of a :class:`ShardPool` of that many processes
+    (``slots`` per process; None: :func:`ring_slots`, two frame steps of its shards).
     Leaving the block publishes them; an exception removes them."""
     from .shards import open_shard
 
@@ -535,5 +548,7 @@ def open_shards(shards_dir: Path, shard_ids: list[str], spec: DatasetSpec, write
         with ExitStack() as stack:
             yield [stack.enter_context(open_shard(shards_dir, sid, spec)) for sid in shard_ids]
         return
+    if slots is None:
+        slots = ring_slots(len(shard_ids), min(writer_procs, max(1, len(shard_ids))), _slot_bytes(_layout(spec)))
     with ShardPool(shards_dir, shard_ids, spec, PoolConfig(workers=writer_procs, slots=slots)) as pool:
         yield [PoolShard(pool, i) for i in range(len(shard_ids))]

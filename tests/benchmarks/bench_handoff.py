@@ -161,6 +161,7 @@ def run_mode(mode: str, args, work: Path) -> dict:
                         else (_capture_collect, _capture_deliver))
     cpu, wall, waits = [], [], []
     for step in range(args.warmup + args.steps):
+        time.sleep(args.gap)  # the engine busy elsewhere (physics, programs): the writers catch up
         _move(images, step)
         st = _state(n, step)
         w0, c0, t0 = pool.wait_s, time.thread_time(), time.perf_counter()
@@ -180,7 +181,7 @@ def run_mode(mode: str, args, work: Path) -> dict:
     if frames != n * (args.warmup + args.steps):
         raise RuntimeError(f"bench_handoff {mode}: {frames} frames written, expected {n * (args.warmup + args.steps)}")
     shutil.rmtree(root, ignore_errors=True)
-    res = {"mode": mode, "worlds": n, "steps": args.steps, "frames_written": frames,
+    res = {"mode": mode, "worlds": n, "steps": args.steps, "slots": args.slots, "frames_written": frames,
            "cpu_ms_per_frame": round(1000 * statistics.median(cpu) / n, 4),
            "wall_ms_per_frame": round(1000 * statistics.median(wall) / n, 4),
            "cpu_ms_per_frame_all": [round(1000 * c / n, 4) for c in cpu],
@@ -198,6 +199,9 @@ def main(argv=None) -> dict:
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--writer-procs", type=int, default=2)
     p.add_argument("--slots", type=int, default=32, help="PoolConfig.slots (frames in flight per writer)")
+    p.add_argument("--gap", type=float, default=0.0,
+                   help="[s] between frame steps, the engine's other work (simulation, programs), when the "
+                        "writers catch up: with it, wait_s shows whether the ring absorbs a step's burst")
     p.add_argument("--modes", nargs="+", default=["legacy", "per_frame", "batched"],
                    choices=("legacy", "per_frame", "batched"))
     p.add_argument("--out", type=Path, default=REPO / "bench_results" / "handoff.json")
@@ -208,7 +212,7 @@ def main(argv=None) -> dict:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     doc = {"size": [args.height, args.width], "cameras": len(CAMERAS), "writer_procs": args.writer_procs,
-           "slots": args.slots, "results": results}
+           "slots": args.slots, "gap_s": args.gap, "results": results}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(doc, indent=1))
     return doc

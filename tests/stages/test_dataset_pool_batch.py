@@ -133,3 +133,16 @@ def test_the_screen_passes_no_frame_the_per_frame_check_rejects():
                 assert bool(frame_problems(spec, f)) == bool(sus[j]), (trial, j, frame_problems(spec, f))
             flagged += int(sus.sum())
         assert flagged > 30  # the breakage was seen (most of it is invalid)
+
+
+def test_the_engine_pools_ring_holds_two_frame_steps_of_a_writers_shards(tmp_path):
+    """A ring smaller than one frame step's frames per writer made the engine wait mid-step for the
+    writers (bench_handoff --gap: 4 slots for 16 shards waited, 32 did not): open_shards sizes it."""
+    from stages.dataset.pool import open_shards, ring_slots
+
+    slot = 3 * (240 * 320 * 3 + 240 * 320 * 2)  # 3 cameras at 240x320, RGB + depth [bytes]
+    assert ring_slots(256, 4, slot) == 128  # 64 shards per writer: two steps
+    assert ring_slots(8, 2, slot) == 32  # at least 32
+    assert ring_slots(1024, 1, 4 * slot) == (1 << 30) // (4 * slot)  # 480x640: 1 GiB of shared memory
+    with open_shards(tmp_path, [f"w{i:02d}" for i in range(40)], FULL, writer_procs=1) as shards:
+        assert shards[0].pool.config.slots == 80
