@@ -146,3 +146,25 @@ def test_the_engine_pools_ring_holds_two_frame_steps_of_a_writers_shards(tmp_pat
     assert ring_slots(1024, 1, 4 * slot) == (1 << 30) // (4 * slot)  # 480x640: 1 GiB of shared memory
     with open_shards(tmp_path, [f"w{i:02d}" for i in range(40)], FULL, writer_procs=1) as shards:
         assert shards[0].pool.config.slots == 80
+
+
+def test_the_engines_hand_over_batches_pool_sinks_and_gives_other_sinks_frames(tmp_path):
+    """stages.engine.capture.hand_over: a pool's sinks get their frames through add_frames (the
+    pool counts them), any other sink one Frame per call, with copies unless it takes views."""
+    from stages.engine.capture import collected, hand_over
+
+    frames = [synthetic_frame(FULL, s, 0, 3) for s in range(3)]
+    cols, images = _batch(FULL, frames, [2, 0, 1])
+    got: list = []
+    with ShardPool(tmp_path, ["s0", "s1"], FULL, PoolConfig(workers=1)) as pool:
+        for s in range(2):
+            pool.begin_episode(s, synthetic_episode_info(s, 0))
+        c = collected([pool.sink(0), got.append, pool.sink(1)], [7, 7, 7], [2, 0, 1], cols.fields)
+        hand_over(c, {7: images})
+        assert pool._frames == [1, 1]
+        for s in range(2):
+            pool.end_episode(s, success=True)
+    (f,) = got
+    assert np.array_equal(f.arm_joint_pos, frames[1].arm_joint_pos) and f.gripper == frames[1].gripper
+    assert isinstance(f.mode, int) and f.mode == frames[1].mode
+    assert np.array_equal(f.rgb["head"], frames[1].rgb["head"]) and not np.shares_memory(f.rgb["head"], images["head"][0])
