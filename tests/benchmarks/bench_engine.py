@@ -17,7 +17,11 @@ prints
   records), encoding only (with ``--write``: the last recorded frame of every world written again
   into fresh shards by the same writers, N at a time), and the end-to-end rate as a fraction of
   the slowest of them;
-- completed episodes, successes per hour and the median episode length per task [frames].
+- completed episodes, successes per hour and the median episode length per task [frames];
+- with ``--writer-procs``: ``pool_wait_s``, the time the engine's hand-off waited for a free slot of
+  the writer processes (part of "encoding"), and ``handoff_ms_per_frame``, the engine's encoding
+  time less that wait per recorded frame: a large wait says the writers limit, a large hand-off the
+  engine's own thread (per engine process with ``--procs``).
 
 ``--tasks`` replaces the basic tasks by any list of task names, e.g. the multistage tasks (issue 16:
 episodes per hour of the multistage job on the batched engine; the kitchen then parks the household
@@ -113,8 +117,10 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
 
     def begin(w, inst):
         add = shards.begin(w, inst) if shards is not None else None
+        if add is not None and args.writer_procs > 0 and w != 0:
+            return add  # the pool's own sink: the engine hands a frame step's frames over in batches
 
-        def sink(frame):
+        def sink(frame):  # world 0's keeps its last frame (the encoding-only measurement writes it)
             held["frames"] += 1
             held["last"] = frame  # keep one frame alive (its arrays are real copies)
             if add is not None:
@@ -154,13 +160,14 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
     if prof is not None:
         prof.disable()
         _write_profile(prof, args.out.with_name(f"{args.out.stem}_profile_{n}.txt"))
+    pool_wait = shards.wait_s() if shards is not None else None  # [s] the hand-off waiting for writers
     if shards is not None:
         shards.stop(keep=True, reopen=False)  # episodes cut by the window are written too: encoding counts
     wall = time.perf_counter() - t0 - (eng.stats.startup_seconds - start0)  # worker start-up excluded
     s1 = eng.stats.to_json()["timings"]
     split = {k: round(s1[k] - s0[k], 3) for k in ("simulation", "rendering", "control", "encoding")}
     world_steps = n * steps  # every world's steps in the window, held ones included
-    frames = held["frames"]
+    frames = s1["frames"] - s0["frames"]  # every recording world has a sink: all are handed over
     e2e = frames / wall
 
     # standalone maxima, same engine, same worlds
@@ -212,6 +219,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "holds": eng.stats.holds, "held_world_seconds": round(eng.stats.held_steps / eng.steps_per_second, 2),
         "yields": eng.stats.yields, "program_yield": args.program_yield,
         "control_ms_per_world_step": round(1000 * split["control"] / world_steps, 4),
+        "pool_wait_s": None if pool_wait is None else round(pool_wait, 3),
+        "handoff_ms_per_frame": round(1000 * (split["encoding"] - (pool_wait or 0.0)) / max(frames, 1), 4),
         "engine_steps": eng.stats.advances, "physics_steps": eng.stats.steps,
     }
     print(json.dumps(res), flush=True)
@@ -245,6 +254,10 @@ class _Shards:
                                             seed=inst.seed, asset_ids=inst.asset_ids))
         self.live.add(w)
         return self.w[w].add_frame
+
+    def wait_s(self) -> float:
+        """[s] the engine waited for a free writer slot in this window's pool (0: inline writers)."""
+        return self.w[0].pool.wait_s if self.procs > 0 and self.w else 0.0
 
     def end(self, w: int, res) -> None:
         self.w[w].end_episode(success=res.success, reason=res.reason)
@@ -341,6 +354,8 @@ def bench_pool(n: int, args) -> dict:
            "recorded_timesteps_per_second": round(e2e, 1), "standalone_timesteps_per_second": maxima,
            "fraction_of_slowest_component": round(e2e / min(maxima.values()), 3),
            "split_seconds_per_process": [r["split_seconds"] for r in parts],
+           "pool_wait_s_per_process": [r["pool_wait_s"] for r in parts],
+           "handoff_ms_per_frame_per_process": [r["handoff_ms_per_frame"] for r in parts],
            "control_ms_per_world_step_median": statistics.median(r["control_ms_per_world_step"]
                                                                  for r in parts),
            "episodes_completed": sum(r["episodes_completed"] for r in parts),
