@@ -71,38 +71,8 @@ def test_stand_zone_is_beside_the_handle(catalog):
 def test_fridge_door_has_base_poses(catalog, seed):
     """In a populated flat's kitchen the open-door planner has free base poses for the fridge."""
     from stages.demos.part_planning import _swing_bases, swept_grid
-    from stages.demos.parts import parts_of_package
-    from stages.demos.planner import NavGrid
-    from stages.layout.build import generate_layout
-    from stages.layout.floorplan import load_floor_plan
-    from stages.layout.spec import LayoutSpec
-    from stages.scene.solver import PlacementFailure, Populator
 
-    lib, info, root = catalog
-    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
-                          root / f"layout_{seed}")
-    plan = load_floor_plan(lay.plan_json)
-    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == "kitchen")
-    why = []
-    for attempt in range(4):
-        pop = Populator(plan, lay.usd, lib, RULES, np.random.default_rng([seed, attempt]))
-        try:
-            pop.populate_room(room)
-            break
-        except PlacementFailure as e:
-            why.append(str(e))
-    else:
-        pytest.fail(f"layout {seed}: the kitchen was not populated in 4 attempts: {why}")
-    mine = [i for i in pop.insts if i.p.room == room.id and i.on_floor]
-    fridge = next(i for i in mine if i.p.record.category == "fridge")
-    boxes = [w.box for w in plan.floors[room.floor].walls]
-    boxes += [(*i.footprint.min(axis=0), *i.footprint.max(axis=0)) for i in mine if i.block is not None]
-    poly = np.asarray(room.polygon)
-    (x0, y0), (x1, y1) = poly.min(axis=0), poly.max(axis=0)
-    grid = NavGrid.from_boxes((x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2), np.asarray(boxes, float))
-    parts = parts_of_package(info[fridge.p.record.id], asset_id=fridge.p.record.id, prim_root="/World/fridge",
-                             pose=(*fridge.p.position, fridge.p.yaw), package_usd=lib.usd(fridge.p.record))
-    part = min((q for q in parts if q.role == "door"), key=lambda q: abs(q.handle[2] - 1.0))
+    fridge, part, grid = _kitchen_with_fridge(catalog, seed)
     q1 = part.closed + 0.9 * part.travel
     qs = [float(v) for v in np.arange(part.closed + math.radians(6), q1 + math.radians(3), math.radians(6))]
     bases = _swing_bases(part, swept_grid(grid, part, part.closed, q1), part.closed, qs)
@@ -111,8 +81,8 @@ def test_fridge_door_has_base_poses(catalog, seed):
 
 
 def _kitchen_with_fridge(catalog, seed: int):
-    """(plan, room, its floor instances, the fridge's door part, NavGrid of walls and floor
-    furniture) of layout ``seed``'s kitchen populated with the household rules."""
+    """(the fridge's instance, its door part, NavGrid of walls and floor furniture) of layout
+    ``seed``'s kitchen populated with the household rules."""
     from stages.demos.parts import parts_of_package
     from stages.demos.planner import NavGrid
     from stages.layout.build import generate_layout
