@@ -92,7 +92,10 @@ class SimConfig:
     robot_radius: clearance radius of the base footprint [m] used to pick the spawn;
     contact_ke / contact_kd: default contact stiffness and damping of shapes without their own
     (MuJoCo maps them to solref: time constant 2/kd = 5 ms, damping ratio 1; Newton's default
-    20 ms lets a squeezing gripper sink centimetres into light objects)."""
+    20 ms lets a squeezing gripper sink centimetres into light objects); contact_gap: each shape's
+    contact detection band [m] (Newton's ``rigid_gap``; forces act only on touch either way): with
+    Newton's 0.1 m (0.2 m a pair) MuJoCo's native CCD reports a box pushed 2-12 mm into a thin convex
+    mesh as apart, so a finger pad closed through a pitcher's 14 mm handle bar."""
 
     scenes: tuple[Path, ...] = ()
     world_count: int = 1
@@ -103,6 +106,7 @@ class SimConfig:
     robot_radius: float = 0.45
     contact_ke: float = 4.0e4
     contact_kd: float = 400.0
+    contact_gap: float = 0.01
     solver: SolverSettings = field(default_factory=SolverSettings)
     gains: DriveGains = field(default_factory=DriveGains)
 
@@ -465,6 +469,7 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
 
     b = newton.ModelBuilder()
     b.default_shape_cfg.ke, b.default_shape_cfg.kd = cfg.contact_ke, cfg.contact_kd
+    b.rigid_gap = cfg.contact_gap
     SolverMuJoCo.register_custom_attributes(b)
     loaded = load_scene(b, scene)
     spawn = cfg.spawn or find_free_spawn(b, rng, radius=cfg.robot_radius, near=cfg.spawn_near)
@@ -574,6 +579,7 @@ def build_sim(cfg: SimConfig, desc: RobotDescription, rng: np.random.Generator) 
             **{k: v for k, v in opts.items() if v is not None},
             "contact_ke": cfg.contact_ke,
             "contact_kd": cfg.contact_kd,
+            "contact_gap": cfg.contact_gap,
             "cuda_graph": cfg.solver.cuda_graph and pipeline is None and cfg.device.startswith("cuda"),
             **({"contact_capacity": capacity.to_json()} if capacity is not None else {}),
         },
