@@ -413,7 +413,10 @@ def level_turn(pitcher_quat, hand_rot: np.ndarray) -> np.ndarray:
 def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) -> None:
     """Turn the hand until the held pitcher stands within ``tol`` [rad] of upright: the pour's roll
     lets the pitcher turn 10-20 deg about the handle bar between the pads, and one tilted that far
-    tips over when it is set down (its base's tipping angle is about 23 deg)."""
+    tips over when it is set down (its base's tipping angle is about 23 deg). A turn the arm cannot
+    reach is tried at half the angle, then left out (the pitcher is set down as it hangs)."""
+    from scipy.spatial.transform import Rotation
+
     from stages.demos.counter import _pose
     from stages.simulate.state import read_state
 
@@ -423,8 +426,19 @@ def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) ->
         if math.radians(_tilt_deg(q)) < tol:
             return
         ee = st.robot.ee_pose
-        rot = level_turn(q, ee.matrix()[:3, :3])
-        d.move(_pose(np.asarray(ee.position, float), rot), 0.8, segments=2, carry=True, settle=0.2)
+        cur = ee.matrix()[:3, :3]
+        full = Rotation.from_matrix(level_turn(q, cur) @ cur.T).as_rotvec()
+        for share in (1.0, 0.5):
+            try:
+                d.move(_pose(np.asarray(ee.position, float), Rotation.from_rotvec(share * full).as_matrix() @ cur),
+                       0.8, segments=2, carry=True, settle=0.2)
+                break
+            except ExpertFailure as e:
+                if e.reason != "ik_unreachable":
+                    raise
+        else:
+            log.debug("place_pitcher: no reachable turn levels the pitcher")
+            return
         _log_pitcher(d, plan, "place_pitcher: levelled")
 
 
@@ -437,17 +451,21 @@ def place_pitcher(inst, d) -> None:
     from stages.simulate.state import read_state
 
     w, plan = inst.world, inst.place
-    _level(d, plan)
-    st = read_state(d.sim)
-    pit = np.asarray(st.objects[plan.pitcher].position, float)
-    ee = np.asarray(st.robot.ee_pose.position, float)
-    arm = ee - pit
-    rot = st.robot.ee_pose.matrix()[:3, :3]
     home = np.array([plan.home[0], plan.home[1], w.table_z + 0.005])
+
+    def over_home():
+        st = read_state(d.sim)
+        ee = np.asarray(st.robot.ee_pose.position, float)
+        arm = ee - np.asarray(st.objects[plan.pitcher].position, float)
+        return arm, st.robot.ee_pose.matrix()[:3, :3], ee
+
+    arm, rot, ee = over_home()
     over = home + arm + [0.0, 0.0, 0.06]
     d.move(_pose(np.array([over[0], over[1], max(over[2], ee[2])]), rot), 2.0, segments=3, carry=True,
            tol=APPROACH_TOL)
     _log_pitcher(d, plan, "place_pitcher: over home")
+    _level(d, plan)       # over home: the arm nearer the middle of its reach than beside the cup
+    arm, rot, ee = over_home()
     d.move(_pose(home + arm, rot), 1.0, segments=2, settle=0.2)
     _log_pitcher(d, plan, "place_pitcher: down")
     d.grip(0.0, 0.6)
