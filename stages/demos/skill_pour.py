@@ -42,6 +42,7 @@ POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
 HANDLE_DEPTH = 0.0        # the TCP this far [m] past the bar's centre line (0.004: 9.6 mm chord; 0.015: missed)
+PLACE_STEP = 0.03         # the pitcher is lowered onto the table in steps of this [m]
 FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's upper curve above the fingertips
 
 
@@ -465,8 +466,13 @@ def place_pitcher(inst, d) -> None:
            tol=APPROACH_TOL)
     _log_pitcher(d, plan, "place_pitcher: over home")
     _level(d, plan)       # over home: the arm nearer the middle of its reach than beside the cup
-    arm, rot, ee = over_home()
-    d.move(_pose(home + arm, rot), 1.0, segments=2, settle=0.2)
+    for _ in range(8):    # down in 3 cm steps, levelled again after each (a fast descent swung it 40 deg)
+        arm, rot, ee = over_home()
+        z = max(home[2], ee[2] - arm[2] - PLACE_STEP)
+        d.move(_pose(np.array([home[0], home[1], z]) + arm, rot), 0.6, segments=1, settle=0.3)
+        if z <= home[2]:
+            break
+        _level(d, plan, tries=1)
     _log_pitcher(d, plan, "place_pitcher: down")
     d.grip(0.0, 0.6)
     _log_pitcher(d, plan, "place_pitcher: released")
