@@ -12,7 +12,7 @@ handle, pours the spheres into the cup and puts the pitcher back (tasks ``pick_p
   the hand pointing +Y with the fingers closing along X, lift), :func:`pour_drink` (carry the
   pitcher beside the cup, its east rim over the cup, roll the hand about its approach axis to
   :data:`POUR_TILT` about a pivot at that rim, hold, roll back upright),
-  :func:`place_pitcher` (down on its home spot, release, back off);
+  :func:`place_pitcher` (levelled in the hand, down on its home spot in steps, release, back off);
 - the predicates: :func:`in_cup` (which sphere centres lie in the cup's cavity) and
   :func:`pour_success` (at least :data:`POUR_SHARE` of the spheres in the cavity, the cup upright
   and where it stood; see its doc for why this predicate).
@@ -444,9 +444,11 @@ def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) ->
 
 
 def place_pitcher(inst, d) -> None:
-    """The expert of ``place_pitcher`` (the pitcher held, upright): over its home spot, down until
-    its bottom is 5 mm above the table, release, back the hand off along -Y, tuck; a pitcher that
-    turned in the grasp while pouring is stood upright first (:func:`_level`)."""
+    """The expert of ``place_pitcher`` (the pitcher held): over its home spot, stood upright in the
+    hand (:func:`_level`: it turned 18-21 deg about the handle bar while pouring), down in
+    :data:`PLACE_STEP` steps, levelled again after each (it swings back at the first move after a
+    levelling), until its bottom is 5 mm above the table; release, back the hand off along -Y,
+    tuck."""
     from stages.demos.counter import _pose
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
