@@ -12,7 +12,7 @@ handle, pours the spheres into the cup and puts the pitcher back (tasks ``pick_p
   the hand pointing +Y with the fingers closing along X, lift), :func:`pour_drink` (carry the
   pitcher beside the cup, its east rim over the cup, roll the hand about its approach axis to
   :data:`POUR_TILT` about a pivot at that rim, hold, roll back upright),
-  :func:`place_pitcher` (down on its home spot, release, back off);
+  :func:`place_pitcher` (levelled in the hand, down on its home spot in steps, release, back off);
 - the predicates: :func:`in_cup` (which sphere centres lie in the cup's cavity) and
   :func:`pour_success` (at least :data:`POUR_SHARE` of the spheres in the cavity, the cup upright
   and where it stood; see its doc for why this predicate).
@@ -42,6 +42,7 @@ POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
 HANDLE_DEPTH = 0.0        # the TCP this far [m] past the bar's centre line (0.004: 9.6 mm chord; 0.015: missed)
+PLACE_STEP = 0.03         # the pitcher is lowered onto the table in steps of this [m]
 FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's upper curve above the fingertips
 
 
@@ -266,6 +267,22 @@ def write_drink(w, centres: dict) -> None:
 # -- the experts -----------------------------------------------------------------------------------
 
 
+def _tilt_deg(q) -> float:
+    """Tilt [deg] of a body's +Z from world +Z (q: w, x, y, z)."""
+    w, x, y, z = (float(v) for v in q)
+    return math.degrees(math.acos(float(np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0))))
+
+
+def _log_pitcher(d, plan: PourPlan, what: str) -> None:
+    from stages.simulate.state import read_state
+
+    if log.isEnabledFor(logging.DEBUG):
+        st = read_state(d.sim)
+        p = st.objects[plan.pitcher]
+        log.debug("%s: pitcher at %s tilt %.1f deg, hand %s, opening %.4f", what, np.round(p.position, 3),
+                  _tilt_deg(p.orientation), np.round(st.robot.ee_pose.position, 3), st.robot.gripper_opening)
+
+
 def _yaw(q) -> float:
     w, x, y, z = (float(v) for v in q)
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
@@ -276,9 +293,7 @@ def handle_grip(params: dict, depth: float = HANDLE_DEPTH, below: float = FINGER
     generator's loop: from 0.3 to 0.85 of the height, ``handle_reach`` out, a 7 mm rod), ``depth``
     past the bar's centre line into the loop's opening, as high as leaves the fingertips (taken
     9 mm past the TCP) ``below`` under the loop's upper curve: a pitcher that pitches about the
-    fingers would land its upper curve on the fingertips. (Measured: the Franka pads close on an
-    8-11 mm chord of the 14 mm bar and the bar slides out of them as the hand lifts; see
-    :func:`pick_pitcher`.)"""
+    fingers would land its upper curve on the fingertips."""
     r, h = float(params["radius"]), float(params["height"])
     reach, rod = float(params["handle_reach"]), 0.007
     zm, rz = 0.575 * h, 0.275 * h
@@ -305,9 +320,9 @@ def _ry(theta: float) -> np.ndarray:
 def pick_pitcher(inst, d) -> None:
     """The expert of ``pick_pitcher``: drive before the table between the pitcher and the cup, side
     grasp of the handle's bar (hand along +Y, fingers closing along X, :func:`handle_grip`), lift
-    8 cm. Does not hold yet: in 10 of 10 CPU episodes the Franka pads closed on the bar (8-11 mm
-    of its 14 mm; twice beside it) and the bar slid out of them as the hand rose, the 0.8-1.3 kg
-    pitcher pitching 4-12 deg on the table (``grasp_missed``)."""
+    8 cm. (Session 13's 0 of 10, ``grasp_missed``, was the pads passing through the bar: MuJoCo's
+    native CCD missed the overlap with Newton's 0.1 m contact gap, see
+    :class:`stages.simulate.world.SimConfig` ``contact_gap``; the pads now close on the 14 mm bar.)"""
     from stages.demos.counter import _pose, facing_north_goal, side_rot
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
@@ -373,29 +388,96 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     for k in range(1, steps + 1):
         d.move(at(tilt * k / steps), 0.4, segments=1, carry=True)
     d.step(1.5)
+    _log_pitcher(d, plan, "pour_drink: tilted")
     for k in range(steps - 1, -1, -1):
         d.move(at(tilt * k / steps), 0.4, segments=1, carry=True)
     d.settle(0.3)
+    _log_pitcher(d, plan, "pour_drink: upright again")
+
+
+def level_turn(pitcher_quat, hand_rot: np.ndarray) -> np.ndarray:
+    """The hand rotation (3, 3) that stands a held pitcher upright: the turn that takes the pitcher's
+    +Z (from ``pitcher_quat``, w, x, y, z) to world +Z, applied to ``hand_rot`` (3, 3) in the world
+    (the hand turned about its TCP; the pitcher turns with it where the grasp holds)."""
+    from scipy.spatial.transform import Rotation
+
+    w, x, y, z = (float(v) for v in pitcher_quat)
+    up = Rotation.from_quat([x, y, z, w]).apply([0.0, 0.0, 1.0])
+    axis = np.cross(up, [0.0, 0.0, 1.0])
+    s, c = float(np.linalg.norm(axis)), float(up[2])
+    if s < 1e-9:
+        return np.asarray(hand_rot, float)
+    turn = Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
+    return turn @ np.asarray(hand_rot, float)
+
+
+def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) -> None:
+    """Turn the hand until the held pitcher stands within ``tol`` [rad] of upright: the pour's roll
+    lets the pitcher turn 10-20 deg about the handle bar between the pads, and one tilted that far
+    tips over when it is set down (its base's tipping angle is about 23 deg). A turn the arm cannot
+    reach is tried at half the angle, then left out (the pitcher is set down as it hangs)."""
+    from scipy.spatial.transform import Rotation
+
+    from stages.demos.counter import _pose
+    from stages.simulate.state import read_state
+
+    for _ in range(tries):
+        st = read_state(d.sim)
+        q = st.objects[plan.pitcher].orientation
+        if math.radians(_tilt_deg(q)) < tol:
+            return
+        ee = st.robot.ee_pose
+        cur = ee.matrix()[:3, :3]
+        full = Rotation.from_matrix(level_turn(q, cur) @ cur.T).as_rotvec()
+        for share in (1.0, 0.5):
+            try:
+                d.move(_pose(np.asarray(ee.position, float), Rotation.from_rotvec(share * full).as_matrix() @ cur),
+                       0.8, segments=2, carry=True, settle=0.2)
+                break
+            except ExpertFailure as e:
+                if e.reason != "ik_unreachable":
+                    raise
+        else:
+            log.debug("place_pitcher: no reachable turn levels the pitcher")
+            return
+        _log_pitcher(d, plan, "place_pitcher: levelled")
 
 
 def place_pitcher(inst, d) -> None:
-    """The expert of ``place_pitcher`` (the pitcher held, upright): over its home spot, down until
-    its bottom is 5 mm above the table, release, back the hand off along -Y, tuck."""
-    from stages.demos.counter import _pose, side_rot
+    """The expert of ``place_pitcher`` (the pitcher held): over its home spot, stood upright in the
+    hand (:func:`_level`: it turned 18-21 deg about the handle bar while pouring), down in
+    :data:`PLACE_STEP` steps, levelled again after each (it swings back at the first move after a
+    levelling), until its bottom is 5 mm above the table; release, back the hand off along -Y,
+    tuck."""
+    from stages.demos.counter import _pose
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
 
     w, plan = inst.world, inst.place
-    st = read_state(d.sim)
-    pit = np.asarray(st.objects[plan.pitcher].position, float)
-    ee = np.asarray(st.robot.ee_pose.position, float)
-    arm = ee - pit
-    rot = side_rot(0.0)
     home = np.array([plan.home[0], plan.home[1], w.table_z + 0.005])
+
+    def over_home():
+        st = read_state(d.sim)
+        ee = np.asarray(st.robot.ee_pose.position, float)
+        arm = ee - np.asarray(st.objects[plan.pitcher].position, float)
+        return arm, st.robot.ee_pose.matrix()[:3, :3], ee
+
+    arm, rot, ee = over_home()
     over = home + arm + [0.0, 0.0, 0.06]
     d.move(_pose(np.array([over[0], over[1], max(over[2], ee[2])]), rot), 2.0, segments=3, carry=True,
            tol=APPROACH_TOL)
-    d.move(_pose(home + arm, rot), 1.0, segments=2, settle=0.2)
+    _log_pitcher(d, plan, "place_pitcher: over home")
+    _level(d, plan)       # over home: the arm nearer the middle of its reach than beside the cup
+    for _ in range(8):    # down in 3 cm steps, levelled again after each (a fast descent swung it 40 deg)
+        arm, rot, ee = over_home()
+        z = max(home[2], ee[2] - arm[2] - PLACE_STEP)
+        d.move(_pose(np.array([home[0], home[1], z]) + arm, rot), 0.6, segments=1, settle=0.3)
+        if z <= home[2]:
+            break
+        _level(d, plan, tries=1)
+    _log_pitcher(d, plan, "place_pitcher: down")
     d.grip(0.0, 0.6)
+    _log_pitcher(d, plan, "place_pitcher: released")
     d.move(_pose(home + arm - [0.0, 0.12, 0.0], rot), 0.8, segments=2, tol=APPROACH_TOL)
+    _log_pitcher(d, plan, "place_pitcher: backed off")
     stow(d)

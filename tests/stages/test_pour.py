@@ -117,3 +117,19 @@ def test_the_handle_grip_is_on_the_outer_bar_under_the_loop_top(params):
     assert g[0] == 0.0
     assert 0.575 * h < g[2] < 0.85 * h - 0.007            # above the loop's middle, under its top
     assert r + 0.5 * reach < g[1] <= r + reach + 1e-9     # on the outer part of the loop, not the body
+
+
+def test_level_turn_stands_a_pitcher_held_tilted_upright():
+    from scipy.spatial.transform import Rotation
+
+    from stages.demos.counter import side_rot
+    from stages.demos.skill_pour import level_turn
+
+    hand = side_rot(0.0)
+    for tilt in (Rotation.from_euler("y", 20, degrees=True), Rotation.from_euler("xy", [6, -15], degrees=True)):
+        x, y, z, w = tilt.as_quat()
+        new = level_turn((w, x, y, z), tilt.as_matrix() @ hand)      # the grasp turned with the pitcher
+        pitcher = new @ hand.T                                        # the pitcher turns with the hand
+        assert np.allclose(pitcher @ [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], atol=1e-9)
+        assert np.allclose(new.T @ new, np.eye(3), atol=1e-9)
+    assert np.allclose(level_turn((1.0, 0.0, 0.0, 0.0), hand), hand)  # upright: the hand stays
