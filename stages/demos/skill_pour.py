@@ -41,9 +41,12 @@ POUR_SHARE = 0.6          # share of the spheres that must end in the cup
 POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
-HANDLE_DEPTH = 0.0        # the TCP this far [m] past the bar's centre line (0.004: 9.6 mm chord; 0.015: missed)
+HANDLE_DEPTH = 0.003      # the fingertips this far [m] past the strap handle's inner face
+TIP_PAST = 0.009          # the Franka fingertips this far [m] past the TCP
+PAD_LENGTH = 0.0235       # a Franka finger pad's length [m] back from the tip (along the approach)
+PAD_WIDTH = 0.0175        # and its width [m] (across the approach and the closing direction)
 PLACE_STEP = 0.03         # the pitcher is lowered onto the table in steps of this [m]
-FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's upper curve above the fingertips
+FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's inner upper curve above the fingertips
 
 
 @dataclass(frozen=True)
@@ -214,11 +217,14 @@ def place_pitcher_success(inst, state, peaks=None) -> tuple[bool, str]:
 
 
 def pitcher_ok(a) -> bool:
-    """A pitcher whose floor holds a ring of spheres and whose handle bar the Franka hand grasps
-    (a loop handle with clearance for a fingertip)."""
+    """A pitcher whose floor holds a ring of spheres and whose handle the Franka hand grasps: a flat
+    strap loop (the generator's ``handle_depth``: pads on a round rod let the pitcher turn about it)
+    with clearance for a fingertip."""
     try:
         drink_positions(a.params)
     except (ValueError, KeyError):
+        return False
+    if "handle_depth" not in a.params:
         return False
     return any(h.get("kind") == "loop" and float(h.get("clearance", 0.0)) >= 0.018 for h in a.info.get("handles", []))
 
@@ -289,20 +295,24 @@ def _yaw(q) -> float:
 
 
 def handle_grip(params: dict, depth: float = HANDLE_DEPTH, below: float = FINGER_BELOW) -> np.ndarray:
-    """The side grasp's TCP (3,) [m] in the pitcher frame: on the loop handle's outer bar (the
-    generator's loop: from 0.3 to 0.85 of the height, ``handle_reach`` out, a 7 mm rod), ``depth``
-    past the bar's centre line into the loop's opening, as high as leaves the fingertips (taken
-    9 mm past the TCP) ``below`` under the loop's upper curve: a pitcher that pitches about the
-    fingers would land its upper curve on the fingertips."""
-    r, h = float(params["radius"]), float(params["height"])
-    reach, rod = float(params["handle_reach"]), 0.007
-    zm, rz = 0.575 * h, 0.275 * h
-    tip_y = r + reach - depth - 0.009                     # the fingertips' front
-    a = math.acos(np.clip((tip_y - r + rod) / (reach + rod), -1.0, 1.0))
-    z = zm + rz * math.sin(a) - rod - below               # the fingers' top under the curve
-    b = math.asin(np.clip((z - zm) / rz, -1.0, 1.0))
-    bar_y = r - rod + (reach + rod) * math.cos(b)         # the bar's centre line at that height
-    return np.array([0.0, bar_y - depth, z])
+    """The side grasp's TCP (3,) [m] in the pitcher frame on the strap handle
+    (:func:`asset_catalog.generators.objects.pitcher_handle_path`): the fingertips (taken
+    :data:`TIP_PAST` past the TCP) ``depth`` past the strap's inner face into the loop's opening, so
+    that the pads (:data:`PAD_LENGTH` long back from the tips) lie on its flat sides; as high as
+    leaves the fingers' top (:data:`PAD_WIDTH` / 2 over the TCP) ``below`` - :data:`PAD_WIDTH` / 2
+    under the loop's inner upper curve above the fingertips: a pitcher that pitches about the fingers
+    lands that curve on the fingertips."""
+    from asset_catalog.generators.objects import pitcher_handle_path
+
+    centre, normal = pitcher_handle_path(params)
+    inner = centre - 0.5 * float(params["handle_depth"]) * normal   # the loop's inner surface (a polyline)
+    up = inner[len(inner) // 2:]                                     # its upper half: y falls, z rises
+    z = float(up[0, 2])
+    for _ in range(4):                                               # the grasp height and the face's y agree
+        face_y = float(np.interp(z, up[:, 2], up[:, 1]))
+        tip_y = face_y - depth
+        z = float(np.interp(tip_y, up[::-1, 1], up[::-1, 2])) - below
+    return np.array([0.0, tip_y + TIP_PAST, z])
 
 
 def _to_world(local, position, yaw: float) -> np.ndarray:
