@@ -39,7 +39,11 @@ DRINK_DENSITY = 1000.0    # water [kg/m^3]: 1.44 g a sphere
 DRINK_FRICTION = 0.2      # low: the spheres roll and slide out like a liquid
 POUR_SHARE = 0.6          # share of the spheres that must end in the cup
 POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
-RIM_CLEARANCE = 0.03      # the pitcher's pouring rim this far [m] above the cup's rim
+RIM_CLEARANCE = 0.02      # the pitcher's pouring rim this far [m] above the cup's rim
+LIP_IN = 0.5              # the pouring rim this share of the cup's rim radius west of its axis
+POUR_SLOW_FROM = math.radians(80.0)   # from this roll [rad] on the pitcher turns slowly: the drink
+POUR_SLOW_STEP = math.radians(2.5)    # runs out as soon as the wall slopes down to the rim, slowly
+POUR_SLOW_SECONDS = 0.25              # (each POUR_SLOW_STEP takes this long [s])
 CUP_MOVED = 0.03          # the cup may be pushed at most this far [m]
 HANDLE_DEPTH = 0.003      # the fingertips this far [m] past the strap handle's inner face
 TIP_PAST = 0.009          # the Franka fingertips this far [m] past the TCP
@@ -285,8 +289,13 @@ def _log_pitcher(d, plan: PourPlan, what: str) -> None:
     if log.isEnabledFor(logging.DEBUG):
         st = read_state(d.sim)
         p = st.objects[plan.pitcher]
-        log.debug("%s: pitcher at %s tilt %.1f deg, hand %s, opening %.4f", what, np.round(p.position, 3),
-                  _tilt_deg(p.orientation), np.round(st.robot.ee_pose.position, 3), st.robot.gripper_opening)
+        from scipy.spatial.transform import Rotation
+
+        w, x, y, z = (float(v) for v in p.orientation)
+        rel = Rotation.from_matrix(st.robot.ee_pose.matrix()[:3, :3].T @ Rotation.from_quat([x, y, z, w]).as_matrix())
+        log.debug("%s: pitcher at %s tilt %.1f deg, hand %s, opening %.4f, pitcher in the hand (rotvec deg) %s",
+                  what, np.round(p.position, 3), _tilt_deg(p.orientation), np.round(st.robot.ee_pose.position, 3),
+                  st.robot.gripper_opening, np.round(np.degrees(rel.as_rotvec()), 1))
 
 
 def _yaw(q) -> float:
@@ -360,16 +369,30 @@ def pick_pitcher(inst, d) -> None:
     log.debug("pick_pitcher: lifted: hand %s, pitcher %s %s, opening %.4f", np.round(st.robot.ee_pose.position, 3),
               np.round(st.objects[plan.pitcher].position, 3), np.round(st.objects[plan.pitcher].orientation, 3),
               st.robot.gripper_opening)
+    _log_pitcher(d, plan, "pick_pitcher: lifted")
     if st.objects[plan.pitcher].position[2] < z + 0.04:
         raise ExpertFailure("grasp_missed", "the pitcher stayed on the table")
 
 
+def pour_schedule(tilt: float = POUR_TILT, steps: int = 10) -> list[tuple[float, float]]:
+    """The pour's roll angles [rad] and each step's duration [s], upright to ``tilt``: ``steps`` even
+    steps of 0.4 s up to :data:`POUR_SLOW_FROM`, then :data:`POUR_SLOW_STEP` steps of
+    :data:`POUR_SLOW_SECONDS`. Why: the spheres lie on the pitcher's floor until its wall slopes down
+    to the rim (past ~88 deg), then roll its whole height (0.17-0.25 m) out; rolled 12.5 deg a step
+    they left at 100-112 deg with ~1 m/s and flew over the cup (0 of 24 in it, a pitcher that did not
+    turn in the hand); turned slowly through that range they leave at ~0.5 m/s, as the slope allows."""
+    fast = [tilt * k / steps for k in range(1, steps + 1) if tilt * k / steps < POUR_SLOW_FROM]
+    start = fast[-1] if fast else 0.0
+    n = max(1, math.ceil((tilt - start) / POUR_SLOW_STEP))
+    return [(a, 0.4) for a in fast] + [(start + (tilt - start) * k / n, POUR_SLOW_SECONDS) for k in range(1, n + 1)]
+
+
 def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     """The expert of ``pour_drink`` (the pitcher held, upright): carry it so that its east rim
-    stands over the cup's west half, the pitcher's bottom clear above the cup; roll the hand about
-    world +Y in ``steps`` steps to ``tilt`` about a pivot on that rim (the rim lowered to
-    :data:`RIM_CLEARANCE` over the cup's rim by 60 deg, the pitcher's bottom west of the cup by
-    then), hold while the spheres run out, roll back the same way."""
+    stands over the cup's west half (:data:`LIP_IN`), the pitcher's bottom clear above the cup; roll
+    the hand about world +Y by :func:`pour_schedule` to ``tilt`` about a pivot on that rim (the rim
+    lowered to :data:`RIM_CLEARANCE` over the cup's rim by 60 deg, the pitcher's bottom west of the
+    cup by then), hold while the spheres run out, roll back the same way, fast."""
     from stages.demos.counter import _pose, side_rot
     from stages.simulate.state import read_state
 
@@ -383,7 +406,7 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     arm = ee - lip0                                      # the hand from that rim
     cup = np.asarray(st.objects[plan.cup].position, float)
     cup_r, cup_h = float(cp.asset.params["rim_radius"]), float(cp.asset.params["height"])
-    target = np.array([cup[0] - 0.3 * cup_r, cup[1], cup[2] + cup_h + RIM_CLEARANCE])
+    target = np.array([cup[0] - LIP_IN * cup_r, cup[1], cup[2] + cup_h + RIM_CLEARANCE])
     rot0 = side_rot(0.0)
     high = target + [0.0, 0.0, h]  # upright with the lip there: the bottom RIM_CLEARANCE over the cup's rim
 
@@ -395,14 +418,26 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     d.move(_pose(np.maximum(ee, high + arm) * [0, 0, 1] + ee * [1, 1, 0], rot0), 1.0, segments=2, carry=True,
            tol=APPROACH_TOL)
     d.move(at(0.0), 2.0, segments=3, carry=True, settle=0.2, tol=APPROACH_TOL)
-    for k in range(1, steps + 1):
-        d.move(at(tilt * k / steps), 0.4, segments=1, carry=True)
+    for k, (theta, seconds) in enumerate(pour_schedule(tilt, steps), 1):
+        d.move(at(theta), seconds, segments=1, carry=True)
+        if log.isEnabledFor(logging.DEBUG):
+            st = read_state(d.sim)
+            off = np.linalg.norm(_drink_points(plan, st) - np.asarray(st.objects[plan.pitcher].position), axis=1)
+            log.debug("pour_drink: step %d (%.1f deg): %d spheres within %.3f m of the pitcher's origin", k,
+                      math.degrees(theta), (off < h + r).sum(), h + r)
     d.step(1.5)
     _log_pitcher(d, plan, "pour_drink: tilted")
     for k in range(steps - 1, -1, -1):
         d.move(at(tilt * k / steps), 0.4, segments=1, carry=True)
     d.settle(0.3)
     _log_pitcher(d, plan, "pour_drink: upright again")
+    if log.isEnabledFor(logging.DEBUG):
+        st = read_state(d.sim)
+        pts = _drink_points(plan, st)
+        c = st.objects[plan.cup]
+        inside = in_cup(pts, c.position, c.orientation, cp.asset.params)
+        log.debug("pour_drink: %d of %d in the cup (at %s); the others at %s", inside.sum(), len(pts),
+                  np.round(c.position, 3), np.round(pts[~inside], 3).tolist())
 
 
 def level_turn(pitcher_quat, hand_rot: np.ndarray) -> np.ndarray:

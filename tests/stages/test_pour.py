@@ -171,3 +171,17 @@ def test_level_turn_stands_a_pitcher_held_tilted_upright():
         assert np.allclose(pitcher @ [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], atol=1e-9)
         assert np.allclose(new.T @ new, np.eye(3), atol=1e-9)
     assert np.allclose(level_turn((1.0, 0.0, 0.0, 0.0), hand), hand)  # upright: the hand stays
+
+
+def test_the_pour_turns_slowly_where_the_drink_runs_out():
+    """Past :data:`POUR_SLOW_FROM` (before the wall slopes down to the rim at ~88 deg) every step is
+    at most :data:`POUR_SLOW_STEP`: rolled 12.5 deg a step the spheres left at ~1 m/s and flew over
+    the cup (0 of 24 in it); the schedule rises to the tilt and starts fast."""
+    from stages.demos.skill_pour import POUR_SLOW_FROM, POUR_SLOW_STEP, POUR_TILT, pour_schedule
+
+    plan = pour_schedule(POUR_TILT, 10)
+    angles = np.array([0.0] + [a for a, _ in plan])
+    assert np.all(np.diff(angles) > 0) and angles[-1] == pytest.approx(POUR_TILT)
+    late = np.diff(angles)[angles[1:] > POUR_SLOW_FROM]
+    assert len(late) >= 10 and late.max() <= POUR_SLOW_STEP + 1e-9
+    assert plan[0][0] == pytest.approx(POUR_TILT / 10)   # the first steps as before
