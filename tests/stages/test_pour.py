@@ -185,3 +185,26 @@ def test_the_pour_turns_slowly_where_the_drink_runs_out():
     late = np.diff(angles)[angles[1:] > POUR_SLOW_FROM]
     assert len(late) >= 10 and late.max() <= POUR_SLOW_STEP + 1e-9
     assert plan[0][0] == pytest.approx(POUR_TILT / 10)   # the first steps as before
+
+
+def test_pour_lip_is_the_lowest_rim_point_and_the_throw_follows_the_mouth():
+    """pour_drink aims the pitcher's actual lip (a pitcher that sags or turns in the hand poured off a
+    36 mm cup's aim, 9-11 of 24 in it): rolled 100 deg about +Y (handle towards -Y, yaw pi) the lip is
+    the east rim point and the throw points east; pitched 8 deg more about +X the throw turns north."""
+    from scipy.spatial.transform import Rotation
+
+    from stages.demos.skill_pour import pour_lip
+
+    params = {**STRAPS[0], "spout": 0.03}
+    r, h = params["radius"], params["height"]
+    at = np.array([1.0, 2.0, 1.0])
+    roll = Rotation.from_euler("y", 100, degrees=True) * Rotation.from_euler("z", 180, degrees=True)
+    x, y, z, w = roll.as_quat()
+    lip, u = pour_lip(at, (w, x, y, z), params)
+    t = math.radians(100)
+    assert np.allclose(lip, at + [r * math.cos(t) + h * math.sin(t), 0.0, -r * math.sin(t) + h * math.cos(t)], atol=1e-3)
+    assert np.allclose(u, [1.0, 0.0], atol=1e-9)
+    pitched = Rotation.from_euler("x", 8, degrees=True) * roll
+    x, y, z, w = pitched.as_quat()
+    lip2, u2 = pour_lip(at, (w, x, y, z), params)
+    assert u2[1] > 0.0 and lip2[1] > at[1]
