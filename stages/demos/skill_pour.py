@@ -8,10 +8,12 @@ handle, pours the spheres into the cup and puts the pitcher back (tasks ``pick_p
 - :func:`pour_setup`: the episode's pitcher (handle towards the robot, -Y) and cup on the table's
   near band, the spheres in the pitcher, the mug, bowl and pushed object moved to the far band;
   a :class:`PourPlan` (the pitcher's home, the drink's bodies);
-- the experts: :func:`pick_pitcher` (drive before the table, side grasp of the handle's outer bar,
-  the hand pointing +Y with the fingers closing along X, lift), :func:`pour_drink` (carry the
-  pitcher beside the cup, its east rim over the cup, roll the hand about its approach axis to
-  :data:`POUR_TILT` about a pivot at that rim, hold, roll back upright),
+- the experts: :func:`pick_pitcher` (drive before the table, side grasp of the flat strap handle's
+  outer part, :func:`handle_grip`, the hand pointing +Y with the fingers closing along X, lift),
+  :func:`pour_drink` (carry the pitcher beside the cup, its east rim over the cup, roll the hand
+  about its approach axis to :data:`POUR_TILT` about a pivot at that rim, slowly where the drink
+  runs out, :func:`pour_schedule`, the hand shifted to keep the actual rim on the aim,
+  :func:`pour_lip`, hold, roll back upright),
   :func:`place_pitcher` (levelled in the hand, down on its home spot in steps, release, back off);
 - the predicates: :func:`in_cup` (which sphere centres lie in the cup's cavity) and
   :func:`pour_success` (at least :data:`POUR_SHARE` of the spheres in the cavity, the cup upright
@@ -344,7 +346,9 @@ def pick_pitcher(inst, d) -> None:
     grasp of the handle's bar (hand along +Y, fingers closing along X, :func:`handle_grip`), lift
     8 cm. (Session 13's 0 of 10, ``grasp_missed``, was the pads passing through the bar: MuJoCo's
     native CCD missed the overlap with Newton's 0.1 m contact gap, see
-    :class:`stages.simulate.world.SimConfig` ``contact_gap``; the pads now close on the 14 mm bar.)"""
+    :class:`stages.simulate.world.SimConfig` ``contact_gap``; the pads now close on the handle. On
+    session 14's round 14 mm rod the pitcher turned 18-20 deg about it while pouring; the handle is a
+    flat strap now, the pads on its flat sides.)"""
     from stages.demos.counter import _pose, facing_north_goal, side_rot
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
@@ -511,7 +515,8 @@ def level_turn(pitcher_quat, hand_rot: np.ndarray) -> np.ndarray:
 
 def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) -> None:
     """Turn the hand until the held pitcher stands within ``tol`` [rad] of upright: the pour's roll
-    lets the pitcher turn 10-20 deg about the handle bar between the pads, and one tilted that far
+    let the pitcher turn 10-20 deg about a round handle bar between the pads (the strap handle turns
+    5-10 deg: it sags in the hand), and one tilted that far
     tips over when it is set down (its base's tipping angle is about 23 deg). A turn the arm cannot
     reach is tried at half the angle, then left out (the pitcher is set down as it hangs)."""
     from scipy.spatial.transform import Rotation
@@ -543,7 +548,7 @@ def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) ->
 
 def place_pitcher(inst, d) -> None:
     """The expert of ``place_pitcher`` (the pitcher held): over its home spot, stood upright in the
-    hand (:func:`_level`: it turned 18-21 deg about the handle bar while pouring), down in
+    hand (:func:`_level`: it turned 10-20 deg in the hand while pouring), down in
     :data:`PLACE_STEP` steps, levelled again after each (it swings back at the first move after a
     levelling), until its bottom is 5 mm above the table; release, back the hand off along -Y,
     tuck."""
