@@ -480,8 +480,11 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
         if log.isEnabledFor(logging.DEBUG):
             st = read_state(d.sim)
             off = np.linalg.norm(_drink_points(plan, st) - np.asarray(st.objects[plan.pitcher].position), axis=1)
-            log.debug("pour_drink: step %d (%.1f deg): %d spheres within %.3f m of the pitcher's origin", k,
-                      math.degrees(theta), (off < h + r).sum(), h + r)
+            pq = st.objects[plan.pitcher]
+            log.debug("pour_drink: step %d (%.1f deg): %d spheres within %.3f m of the pitcher's origin; "
+                      "lip %s aimed %s, pitcher tilt %.1f", k, math.degrees(theta), (off < h + r).sum(), h + r,
+                      np.round(pour_lip(pq.position, pq.orientation, pp.asset.params)[0], 3),
+                      np.round(goal[:3, 3] - (_ry(theta) @ arm), 3), _tilt_deg(pq.orientation))
     d.step(1.5)
     _log_pitcher(d, plan, "pour_drink: tilted")
     for k in range(steps - 1, -1, -1):
