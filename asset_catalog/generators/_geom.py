@@ -92,6 +92,16 @@ def tube_path(points: np.ndarray, radius: float, n: int = 12) -> list[Manifold]:
             for a, b in zip(pts[:-1], pts[1:], strict=True)]
 
 
+def strap_path(points: np.ndarray, normals: np.ndarray, width: float, depth: float) -> list[Manifold]:
+    """A bent flat strap along a polyline ``points`` (K, 3) [m] in a plane normal to X: one convex hull
+    per segment of the rectangle ``width`` (along X) by ``depth`` (along ``normals`` (K, 3), unit, in
+    the plane) at each end; its sides are flat planes at x = +-width/2 of the line."""
+    pts, nrm = np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64)
+    ex = np.array([width / 2, 0.0, 0.0])
+    rect = [pts + sx * ex + sn * depth / 2 * nrm for sx in (-1, 1) for sn in (-1, 1)]  # 4 x (K, 3)
+    return [hull_points(np.array([c[i] for c in rect] + [c[i + 1] for c in rect])) for i in range(len(pts) - 1)]
+
+
 def _orient_z_to(m: Manifold, axis: str) -> Manifold:
     if axis == "z":
         return m

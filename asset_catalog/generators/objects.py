@@ -113,10 +113,35 @@ def pitcher(b: AssetBuilder) -> None:
     tip = [(0.0, -(r + b.param("spout", 0.02, 0.035)), h + 0.008)]
     spout = g.hull_points(np.array(rim_pts + tip))
     b.add("base", spout, m, density=CERAMIC)
-    _loop_handle(b, m, CERAMIC, r_body=r, z_lo=h * 0.3, z_hi=h * 0.85, reach=b.param("handle_reach", 0.028,
-                                                                                     0.04),
-                 rod=0.007)
+    reach = b.param("handle_reach", 0.032, 0.042)
+    width, depth = b.param("handle_width", 0.011, 0.014), b.param("handle_depth", 0.018, 0.022)
+    centre, normal = pitcher_handle_path(b.params)
+    segs = g.strap_path(centre, normal, width, depth)
+    b.add("base", g.union(segs), m, density=CERAMIC, collision=segs)
+    b.handle("base", (0.0, r + reach, h * 0.575), width, reach - depth / 2, (0.0, 0.0, 1.0), kind="loop")
     return None
+
+
+def pitcher_handle_path(params: dict, k: int = 11) -> tuple[np.ndarray, np.ndarray]:
+    """The pitcher's strap handle (a C on the +Y side, from 0.3 to 0.85 of the height, in the YZ
+    plane): its centre line (k, 3) [m] and the unit in-plane normal there (k, 3), outward. The strap's
+    section is ``handle_width`` across (X, what a hand closes on) by ``handle_depth`` along the normal
+    (a flat, deep section as moulded jug handles have: a parallel gripper's pads clamp its flat
+    sides, so the pitcher cannot turn about the strap as it did about a round rod). The centre line
+    is ``handle_reach`` out from the body at mid-height; its ends run into the body's wall (half the
+    wall deep) along Y. ``params``: the generator's (radius, height, wall, bulge, handle_reach)."""
+    r, h, wall = float(params["radius"]), float(params["height"]), float(params["wall"])
+    outer, _ = _vessel_profile(r * 0.85, r, h, wall, 0.008, float(params["bulge"]), k=6)
+    z_lo, z_hi = 0.3 * h, 0.85 * h
+    zm, rz = (z_lo + z_hi) / 2, (z_hi - z_lo) / 2
+    y_lo, y_hi = (float(np.interp(z, outer[:, 1], outer[:, 0])) - wall / 2 for z in (z_lo, z_hi))
+    a = np.linspace(-np.pi / 2, np.pi / 2, k)
+    base = y_lo + (y_hi - y_lo) * (np.sin(a) + 1) / 2
+    y = base + (r + float(params["handle_reach"]) - base) * np.cos(a)
+    z = zm + rz * np.sin(a)
+    ty, tz = np.gradient(y, a), np.gradient(z, a)
+    n = np.column_stack([np.zeros(k), tz, -ty]) / np.hypot(ty, tz)[:, None]
+    return np.column_stack([np.zeros(k), y, z]), n
 
 
 def bottle(b: AssetBuilder) -> float:

@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python tests/benchmarks/bench_kitchen_tasks.py --kitchens 0 1 2 --tasks store_food
 --seeds 1 2 --catalog /tmp/kcat`` (the catalog work dir is built there by the real job steps, as
-``bench_demos.build_catalog``, when it does not hold one yet: ~20 s). Each kitchen (world seed) runs
+``bench_demos.build_catalog``, when it does not hold one yet: ~20 s; with 5 pitchers and 5 cups
+when a task needs the drink). Each kitchen (world seed) runs
 on the batched engine (``layout="per_world"``, one world, no cameras) every task with every seed,
 each to its end or the task's time limit. Prints one line per episode (kitchen, task, seed, success,
 reason, frames, wall seconds) and per task the successes and the failures by reason (a multistage
@@ -26,6 +27,24 @@ for p in (REPO, Path(__file__).parent):
         sys.path.insert(0, str(p))
 
 
+def build_drink_catalog(out: Path) -> Path:
+    """``bench_demos.build_catalog``'s kitchen catalog plus the pitchers and cups (5 of each) a task
+    with the drink needs (serve_drinks), built by the real job steps in the work dir ``out``."""
+    from bench_demos import KITCHEN, PACKAGES
+    from pipeline import build_job, run_job
+
+    extra = [f"{c}_{i:02d}" for c in ("pitcher", "cup") for i in range(5)]
+    data = {"job": {"name": "bench_drink_catalog", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+            "step": [{"name": "catalog", "kind": "default_catalog",
+                      "config": {"variants": 5, "categories": [*KITCHEN, "pitcher", "cup"]}},
+                     {"name": "assets", "kind": "ingest",
+                      "config": {"catalog_step": "catalog", "only": [*PACKAGES, *extra]}}]}
+    summary = run_job(build_job(data, source="<bench>", base_dir=out.parent), progress=False)
+    if summary.status != "ok":
+        raise RuntimeError(f"drink catalog for the benchmark failed: {summary}")
+    return out
+
+
 def run(catalog: Path, work: Path, kitchens: list[int], tasks: list[str], seeds: list[int]) -> dict:
     import numpy as np
 
@@ -36,7 +55,7 @@ def run(catalog: Path, work: Path, kitchens: list[int], tasks: list[str], seeds:
     from stages.engine.programs import Listed
 
     if not (catalog / "catalog" / "default" / "generated.json").is_file():
-        build_catalog(catalog)
+        (build_drink_catalog if needs_drink(tasks) else build_catalog)(catalog)
     lib = AssetLibrary.from_folder(catalog / "assets", catalog / "catalog" / "default" / "generated.json")
     rows = []
     for k in kitchens:
