@@ -213,6 +213,8 @@ def bench_worlds(room, work: Path, n: int, args, *, barrier=None, seed_base: int
         "episodes_completed": len(done), "successes": sum(ok for _, ok, _, _ in done),
         "successful_episodes_per_hour": round(sum(ok for _, ok, _, _ in done) / wall * 3600, 1),
         "failures": dict(sorted(_count(r for _, ok, _, r in done if not ok).items())),
+        "failures_by_task": {t: dict(sorted(_count(r for tt, ok, _, r in done if tt == t and not ok).items()))
+                             for t in sorted({tt for tt, ok, _, _ in done if not ok})},
         "median_episode_frames": {t: int(statistics.median(v)) for t, v in sorted(lengths.items())},
         "frames": frames, "lengths": {t: v for t, v in lengths.items()},
         "render_split_seconds_per_frame": render_split,
