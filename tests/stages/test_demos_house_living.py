@@ -202,17 +202,22 @@ def test_clean_table_living_samples_the_paper_at_the_table_end(world):
     assert inst.objects[pl["trash_can"].body()][:3] == pytest.approx(pl["trash_can"].position)
 
 
-def test_clean_table_living_succeeds_in_a_generated_living_room(world, tmp_path):
-    """One real episode on the batched engine (CPU ~30 s with the scene built)."""
+def _episode(world, task: str, work):
+    """One episode of ``task`` (seed 1) in ``world`` on the batched engine (one world, CPU, no images)."""
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
     cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
-    eng = BatchEngine(world, panda_root=None, work_dir=tmp_path / "w", config=cfg)
+    eng = BatchEngine(world, panda_root=None, work_dir=work, config=cfg)
     results = []
-    eng.run(Listed(world, {0: [("clean_table_living", 1, None)]}), begin=lambda w, t: None,
-            end=lambda w, t, r: results.append(r))
-    assert results[0].success, (results[0].reason, results[0].detail)
+    eng.run(Listed(world, {0: [(task, 1, None)]}), begin=lambda w, t: None, end=lambda w, t, r: results.append(r))
+    return results[0]
+
+
+def test_clean_table_living_succeeds_in_a_generated_living_room(world, tmp_path):
+    """One real episode on the batched engine (CPU ~30 s with the scene built)."""
+    result = _episode(world, "clean_table_living", tmp_path / "w")
+    assert result.success, (result.reason, result.detail)
 
 
 @pytest.mark.slow
@@ -220,12 +225,5 @@ def test_organize_books_succeeds_in_a_generated_living_room(world, tmp_path):
     """One real organize_books episode (two books from the coffee table onto a bookshelf board, one
     stage each) on the batched engine (CPU ~50 s of wall with the scene built): the whole-task predicate
     holds both books standing on a board, released."""
-    from stages.engine import BatchEngine, EngineConfig
-    from stages.engine.programs import Listed
-
-    cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
-    eng = BatchEngine(world, panda_root=None, work_dir=tmp_path / "w", config=cfg)
-    results = []
-    eng.run(Listed(world, {0: [("organize_books", 1, None)]}), begin=lambda w, t: None,
-            end=lambda w, t, r: results.append(r))
-    assert results[0].success, (results[0].reason, results[0].detail)
+    result = _episode(world, "organize_books", tmp_path / "w")
+    assert result.success, (result.reason, result.detail)

@@ -18,6 +18,7 @@ import pytest
 pytest.importorskip("newton")
 pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
 
+from contact_testutil import add_free_box, floor_stage  # noqa: E402
 from stages.simulate.robot import find_panda_description, write_robot_urdf  # noqa: E402
 from stages.simulate.world import SimConfig, build_sim  # noqa: E402
 
@@ -31,20 +32,11 @@ def write_bar_scene(path: Path) -> Path:
     """A floor, a static bar (the pitcher generator's handle rod: a convex-hull tube of radius BAR_R,
     40 mm along X, its far end 8 mm off along Y, axis at (3, 3, BAR_Z)) and a 17.5 x 18.5 x BOX_H mm
     box of 20 g that starts OVERLAP into it from above (as a pad that closed onto it in one step)."""
-    from pxr import Gf, Usd, UsdGeom, UsdPhysics
+    from pxr import Gf, UsdGeom, UsdPhysics
 
     import asset_catalog.generators._geom as geom
 
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(stage.GetPrimAtPath("/World"))
-    floor = UsdGeom.Cube.Define(stage, "/World/Floor")
-    floor.CreateSizeAttr(1.0)
-    UsdGeom.XformCommonAPI(floor).SetTranslate(Gf.Vec3d(3.0, 3.0, -0.05))
-    UsdGeom.XformCommonAPI(floor).SetScale(Gf.Vec3f(6.0, 6.0, 0.1))
-    UsdPhysics.CollisionAPI.Apply(floor.GetPrim())
+    stage = floor_stage(path)
     ends = np.array([[2.98, 2.996, BAR_Z], [3.02, 3.004, BAR_Z]])
     mesh = geom.tube_path(ends, BAR_R, n=10)[0].to_mesh()
     bar = UsdGeom.Mesh.Define(stage, "/World/Bar")
@@ -54,13 +46,7 @@ def write_bar_scene(path: Path) -> Path:
     bar.CreateFaceVertexIndicesAttr([int(i) for i in tris.ravel()])
     UsdPhysics.CollisionAPI.Apply(bar.GetPrim())
     UsdPhysics.MeshCollisionAPI.Apply(bar.GetPrim()).CreateApproximationAttr("convexHull")
-    box = UsdGeom.Cube.Define(stage, "/World/Box")
-    box.CreateSizeAttr(1.0)
-    UsdGeom.XformCommonAPI(box).SetTranslate(Gf.Vec3d(3.0, 3.0, BAR_Z + BAR_R + BOX_H / 2 - OVERLAP))
-    UsdGeom.XformCommonAPI(box).SetScale(Gf.Vec3f(0.0175, 0.0185, BOX_H))
-    UsdPhysics.CollisionAPI.Apply(box.GetPrim())
-    UsdPhysics.RigidBodyAPI.Apply(box.GetPrim())
-    UsdPhysics.MassAPI.Apply(box.GetPrim()).CreateMassAttr(0.02)
+    add_free_box(stage, "/World/Box", (3.0, 3.0, BAR_Z + BAR_R + BOX_H / 2 - OVERLAP), (0.0175, 0.0185, BOX_H), 0.02)
     stage.Save()
     return path
 

@@ -22,6 +22,7 @@ pytest.importorskip("newton")
 pytest.importorskip("mujoco")
 pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
 
+from contact_testutil import add_free_box, floor_stage  # noqa: E402
 from stages.simulate.robot import find_panda_description, write_robot_urdf  # noqa: E402
 from stages.simulate.world import SimConfig, build_sim  # noqa: E402
 
@@ -33,18 +34,9 @@ DISC_AT = (4.0, 4.0, 0.80)                 # the cap's centre [m]
 def write_disc_scene(path: Path) -> Path:
     """A floor, a fixed thin disc (convex-hull mesh collider) at DISC_AT and a free fingertip-sized
     box (cube prim) beside it."""
-    from pxr import Gf, Usd, UsdGeom, UsdPhysics
+    from pxr import Gf, UsdGeom, UsdPhysics
 
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(stage.GetPrimAtPath("/World"))
-    floor = UsdGeom.Cube.Define(stage, "/World/Floor")
-    floor.CreateSizeAttr(1.0)
-    UsdGeom.XformCommonAPI(floor).SetTranslate(Gf.Vec3d(3.0, 3.0, -0.05))
-    UsdGeom.XformCommonAPI(floor).SetScale(Gf.Vec3f(6.0, 6.0, 0.1))
-    UsdPhysics.CollisionAPI.Apply(floor.GetPrim())
+    stage = floor_stage(path)
     disc = UsdGeom.Mesh.Define(stage, "/World/Disc")
     a = [2 * math.pi * k / SIDES for k in range(SIDES)]
     x, y, z = DISC_AT
@@ -57,13 +49,7 @@ def write_disc_scene(path: Path) -> Path:
     disc.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
     UsdPhysics.CollisionAPI.Apply(disc.GetPrim())
     UsdPhysics.MeshCollisionAPI.Apply(disc.GetPrim()).CreateApproximationAttr("convexHull")
-    tip = UsdGeom.Cube.Define(stage, "/World/Tip")
-    tip.CreateSizeAttr(1.0)
-    UsdGeom.XformCommonAPI(tip).SetTranslate(Gf.Vec3d(DISC_AT[0] + 0.3, DISC_AT[1], TIP[2] / 2))
-    UsdGeom.XformCommonAPI(tip).SetScale(Gf.Vec3f(*TIP))
-    UsdPhysics.CollisionAPI.Apply(tip.GetPrim())
-    UsdPhysics.RigidBodyAPI.Apply(tip.GetPrim())
-    UsdPhysics.MassAPI.Apply(tip.GetPrim()).CreateMassAttr(0.02)
+    add_free_box(stage, "/World/Tip", (DISC_AT[0] + 0.3, DISC_AT[1], TIP[2] / 2), TIP, 0.02)
     stage.Save()
     return path
 
