@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import re
-import time
 
 import pytest
 
@@ -91,24 +90,49 @@ def test_h1_env_stands_one_second_under_its_default_pose_pd(h1_env):
     assert int(env.episode_length_buf.min()) == 50
 
 
-@needs_h1
-def test_h1_ppo_iterations_run_and_export_names_the_robot(tmp_path):
+@pytest.fixture(scope="module")
+def h1_policy(tmp_path_factory):
     pytest.importorskip("rsl_rl")
-    from stages.locomotion.policy import PolicyRuntime, export_from_checkpoint_dir, policy_humanoid
+    from stages.locomotion.policy import export_from_checkpoint_dir
     from stages.locomotion.train import train
 
+    tmp = tmp_path_factory.mktemp("h1")
     cfg = TrainConfig(env=EnvConfig(robot="h1", num_worlds=2, device="cpu", seed=5),
                       ppo=PPOConfig(num_steps_per_env=3, hidden_dims=(16, 16), num_mini_batches=1,
                                     num_learning_epochs=1),
-                      iterations=2, save_every=1, checkpoint_dir=str(tmp_path / "run"))
-    t0 = time.time()
+                      iterations=2, save_every=1, checkpoint_dir=str(tmp / "run"))
     summary = train(cfg)
-    assert summary["iteration"] == 2 and time.time() - t0 > 0
-    assert policy_humanoid(tmp_path / "run" / "model_2.pt") == "h1"
-    export_from_checkpoint_dir(tmp_path / "run", tmp_path / "policy")
-    meta = json.loads((tmp_path / "policy" / "policy.json").read_text())
+    export_from_checkpoint_dir(tmp / "run", tmp / "policy")
+    return tmp, summary
+
+
+@needs_h1
+def test_h1_ppo_iterations_run_and_export_names_the_robot(h1_policy):
+    from stages.locomotion.policy import PolicyRuntime, policy_humanoid
+
+    tmp, summary = h1_policy
+    assert summary["iteration"] == 2
+    assert policy_humanoid(tmp / "run" / "model_2.pt") == "h1"
+    meta = json.loads((tmp / "policy" / "policy.json").read_text())
     assert meta["humanoid"] == "h1" and meta["num_obs"] == 61 and meta["num_actions"] == 11
     assert list(meta["default_pos"]) == list(H1.joints) and meta["action_scale"]["torso_joint"] == 0.25
-    assert policy_humanoid(tmp_path / "policy") == "h1"
-    actions = PolicyRuntime.load(tmp_path / "policy").act(torch.zeros(4, 61))
+    assert policy_humanoid(tmp / "policy") == "h1"
+    actions = PolicyRuntime.load(tmp / "policy").act(torch.zeros(4, 61))
     assert actions.shape == (4, 11) and torch.isfinite(actions).all()
+
+
+@needs_h1
+def test_humanoid_runtime_builds_the_policy_s_robot(h1_policy):
+    import warp as wp
+
+    from stages.locomotion.runtime import HumanoidWorlds, HumanoidWorldsConfig, LeggedRuntimeConfig
+
+    tmp, _ = h1_policy
+    worlds = HumanoidWorlds(HumanoidWorldsConfig(num_worlds=2, runtime=LeggedRuntimeConfig(
+        policy=str(tmp / "policy"), spec="h1")))
+    labels = {lbl.rsplit("/", 1)[-1] for lbl in worlds.model.joint_label}
+    assert "torso_joint" in labels and "waist_yaw_joint" not in labels
+    for _ in range(5):  # 0.1 s of the (barely trained) policy
+        worlds.step()
+    q = wp.to_torch(worlds.state.joint_q).view(2, -1)
+    assert q.shape[1] == 26 and torch.isfinite(q).all() and float(q[:, 2].min()) > 0.9
