@@ -6,6 +6,12 @@ mjlab's seven foot capsules) and the ground plane; links keep the URDF's inertia
 dynamics are the robot's. Gains follow mjlab's ``g1_constants.py``: armature is the reflected
 inertia of each actuator's two-stage planetary gearbox, stiffness = armature * (2*pi*10 Hz)^2,
 damping = 2 * 2.0 * armature * 2*pi*10 Hz; ankles and waist roll/pitch are two 5020 actuators.
+
+``HumanoidDescription`` is what the locomotion stack needs of any humanoid (model file, sole
+spheres, joints, default pose, drives, fall thresholds); ``G1`` holds this module's constants,
+``stages.locomotion.h1.H1`` the H1's, ``stages.locomotion.humanoids`` names them.
+``humanoid_builder`` / ``build_humanoid_model`` build either (``g1_builder`` / ``build_g1_model``:
+the G1's).
 """
 
 from __future__ import annotations
