@@ -1,4 +1,5 @@
-"""``agentworld loco-train`` / ``loco-eval`` / ``loco-export``: the G1 velocity policy's commands.
+"""``agentworld loco-train`` / ``loco-eval`` / ``loco-export``: the humanoid (G1, H1) velocity policies'
+commands.
 
 Each ``*_main(argv) -> int`` parses its own arguments (registered in ``stages.commands``). Logs go to
 ``<checkpoint dir>/locomotion.log``; the console gets one line per progress report.
@@ -13,7 +14,8 @@ import sys
 import time
 from pathlib import Path
 
-from stages.locomotion.config import ROBOT_NAMES, EnvConfig, PPOConfig, Randomization, RewardWeights, TerrainConfig, TrainConfig
+from stages.locomotion.config import (ROBOT_NAMES, EnvConfig, PPOConfig, Randomization, RewardWeights, TerrainConfig,
+                                      TrainConfig)
 
 DEFAULT_DIR = "out/locomotion/g1_velocity"
 
@@ -46,14 +48,16 @@ def _report(result: dict, json_path: str) -> None:
 
 def train_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-train",
-                                description="train a humanoid's (G1, H1) velocity-tracking policy with PPO; resumes from the "
+                                description="train a humanoid's (G1, H1) velocity-tracking policy with PPO; "
+                                            "resumes from the "
                                             "latest checkpoint in --checkpoint-dir")
     _env_args(p, worlds=4096)
     p.add_argument("--robot", default="g1", choices=ROBOT_NAMES, help="the humanoid to train")
     p.add_argument("--iterations", type=int, default=1000, help="PPO iterations to add in this run")
     p.add_argument("--max-wall-s", type=float, default=0.0, help="stop after this many seconds (0: no limit)")
     p.add_argument("--save-every", type=int, default=100)
-    p.add_argument("--checkpoint-dir", default="", help=f"default {DEFAULT_DIR} (out/locomotion/<robot>_velocity)")
+    p.add_argument("--checkpoint-dir", default="",
+                   help=f"default {DEFAULT_DIR} (out/locomotion/<robot>_velocity)")
     p.add_argument("--no-resume", action="store_true")
     p.add_argument("--print-every", type=int, default=25)
     p.add_argument("--init-from", default="", help="checkpoint to start from when --checkpoint-dir has none "
@@ -68,7 +72,8 @@ def train_main(argv: list[str]) -> int:
                                                             "(counter-height reaching) instead of +-0.6 rad")
     a = p.parse_args(argv)
     a.checkpoint_dir = a.checkpoint_dir or f"out/locomotion/{a.robot}_velocity"
-    env = EnvConfig(robot=a.robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph,
+    env = EnvConfig(robot=a.robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed,
+                    cuda_graph=not a.no_graph,
                     terrain=TerrainConfig(enabled=a.terrain),
                     rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0,
                                           ang_vel_xy=a.ang_vel_xy if a.terrain else 0.0),
@@ -99,7 +104,8 @@ def train_main(argv: list[str]) -> int:
 
 def eval_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-eval",
-                                description="evaluate a humanoid velocity policy (the robot comes from its policy.json): tracking error and falls over R rollouts")
+                                description="evaluate a humanoid velocity policy (the robot comes from its "
+                                            "policy.json): tracking error and falls over R rollouts")
     _env_args(p, worlds=100)
     p.add_argument("--policy", required=True, help="exported TorchScript policy (.pt) or a training checkpoint")
     p.add_argument("--seconds", type=float, default=20.0, help="length of each rollout [s]")
@@ -113,7 +119,8 @@ def eval_main(argv: list[str]) -> int:
     except FileNotFoundError as e:
         print(f"agentworld loco-eval: {e}", file=sys.stderr)
         return 2
-    env = EnvConfig(robot=robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph)
+    env = EnvConfig(robot=robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed,
+                    cuda_graph=not a.no_graph)
     t0 = time.time()
     result = evaluate(EvalConfig(env=env, policy=a.policy, seconds=a.seconds))
     result["wall_s"] = round(time.time() - t0, 1)

@@ -80,7 +80,8 @@ class G1VelocityEnv:
         self.default_q = tensor([desc.default_pose.get(j, 0.0) for j in self.joint_names])
         self.action_scale = tensor([desc.joint_action_scale(j) for j in self.policy_joints])
         self.posture_std = tensor([desc.joint_posture_std(j) for j in self.policy_joints])
-        self.reach_lo, self.reach_hi = tensor([[desc.reach_range(j)[i] for j in desc.arm_joints] for i in (0, 1)])
+        self.reach_lo, self.reach_hi = tensor([[desc.reach_range(j)[i] for j in desc.arm_joints]
+                                               for i in (0, 1)])
         lo = self.model.joint_limit_lower.numpy()[6:6 + len(self.joint_names)]
         hi = self.model.joint_limit_upper.numpy()[6:6 + len(self.joint_names)]
         mid, half = (lo + hi) / 2, (hi - lo) / 2 * SOFT_LIMIT_FACTOR
@@ -299,7 +300,8 @@ class G1VelocityEnv:
         ground = torch.stack([self.terrain.height_at(feet[:, i, 0:2]) if self.terrain is not None
                               else torch.zeros(self.num_worlds, device=self.device)
                               for i in range(feet.shape[1])], dim=1)
-        return R.foot_clearance(feet[..., 2] - self.robot.sole_below_ankle - ground, speed, w.clearance_height)
+        sole = feet[..., 2] - self.robot.sole_below_ankle
+        return R.foot_clearance(sole - ground, speed, w.clearance_height)
 
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
                                                       torch.Tensor]:

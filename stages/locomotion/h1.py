@@ -14,7 +14,8 @@ from __future__ import annotations
 from stages.locomotion.robot import HumanoidDescription, JointGains
 
 LEG_JOINTS: tuple[str, ...] = tuple(
-    f"{side}_{j}_joint" for side in ("left", "right") for j in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle"))
+    f"{side}_{j}_joint" for side in ("left", "right")
+    for j in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle"))
 WAIST_JOINTS: tuple[str, ...] = ("torso_joint",)
 ARM_JOINTS: tuple[str, ...] = tuple(
     f"{side}_{j}_joint" for side in ("left", "right")
@@ -48,7 +49,8 @@ H1 = HumanoidDescription(
     base_height=1.035,  # the ankles 0.0358 m under the base at 1.0 m (FK), the soles 0.07 m under them
     drives=tuple((pattern, JointGains(ARMATURE, kp, kd, effort)) for pattern, kp, kd, effort in _DRIVES),
     action_scale=0.25,
-    posture_std=((r".*hip_pitch.*", 0.3), (r".*hip_roll.*", 0.15), (r".*hip_yaw.*", 0.15), (r".*knee.*", 0.35),
+    posture_std=((r".*hip_pitch.*", 0.3), (r".*hip_roll.*", 0.15), (r".*hip_yaw.*", 0.15),
+                 (r".*knee.*", 0.35),
                  (r".*ankle.*", 0.25), (r"torso_joint", 0.15), (r".*shoulder_pitch.*", 0.35),
                  (r".*shoulder_roll.*", 0.15), (r".*shoulder_yaw.*", 0.1), (r".*elbow.*", 0.25)),
     # the G1's wide draw without wrists (not re-derived by FK for the H1's longer arms)

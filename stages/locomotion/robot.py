@@ -262,7 +262,8 @@ G1 = HumanoidDescription(
     name="g1", label="unitree_g1_29dof_rev_1_0 (example-robot-data)", source_origin="example-robot-data",
     source_file=f"robots/g1_description/urdf/{URDF_NAME}", num_joints=29, base_body=BASE_BODY,
     foot_bodies=FOOT_BODIES, foot_spheres=FOOT_SPHERES, foot_sphere_radius=FOOT_SPHERE_RADIUS,
-    sole_below_ankle=SOLE_BELOW_ANKLE, leg_joints=LEG_JOINTS, waist_joints=WAIST_JOINTS, arm_joints=ARM_JOINTS,
+    sole_below_ankle=SOLE_BELOW_ANKLE, leg_joints=LEG_JOINTS, waist_joints=WAIST_JOINTS,
+    arm_joints=ARM_JOINTS,
     default_pose=DEFAULT_POSE, base_height=DEFAULT_BASE_HEIGHT,
     drives=tuple((pattern, JointGains(a, a * _OMEGA**2, 2.0 * _ZETA * a * _OMEGA, effort))
                  for pattern, a, effort in _ACTUATORS),
@@ -325,7 +326,8 @@ def humanoid_builder(desc: HumanoidDescription, *, foot_mu: float = 0.6,
     joint_names = tuple(label.rsplit("/", 1)[-1] for label in robot.joint_label[1:])
     if len(joint_names) != desc.num_joints or robot.joint_coord_count != 7 + desc.num_joints:
         raise RuntimeError(f"{path}: unexpected {desc.name} layout: {len(joint_names)} joints, "
-                           f"{robot.joint_coord_count} coords (expected {desc.num_joints}, {7 + desc.num_joints})")
+                           f"{robot.joint_coord_count} coords "
+                           f"(expected {desc.num_joints}, {7 + desc.num_joints})")
     foot_shapes = []
     for foot in desc.foot_bodies:
         for center in desc.foot_spheres:
@@ -345,7 +347,8 @@ def humanoid_builder(desc: HumanoidDescription, *, foot_mu: float = 0.6,
     layout = G1Layout(joint_names=joint_names, coords_per_world=robot.joint_coord_count,
                       dofs_per_world=robot.joint_dof_count, bodies_per_world=robot.body_count,
                       shapes_per_world=robot.shape_count, base_body=body_names.index(desc.base_body),
-                      foot_shapes=tuple(foot_shapes), foot_bodies=tuple(body_names.index(f) for f in desc.foot_bodies))
+                      foot_shapes=tuple(foot_shapes),
+                      foot_bodies=tuple(body_names.index(f) for f in desc.foot_bodies))
     return robot, layout
 
 

@@ -204,7 +204,8 @@ class TerrainWorlds:
 
 def build_terrain_model(num_worlds: int, device: Any, terrain: TerrainWorlds, *, foot_mu: float = 0.6,
                         floor_mu: float = 0.3, robot: Any = None) -> tuple[Any, Any]:
-    """``robot.build_humanoid_model`` of ``robot`` (a ``HumanoidDescription``, default the G1) with the terrain's ``B`` static boxes in every world, placed by
+    """``robot.build_humanoid_model`` of ``robot`` (a ``HumanoidDescription``, default the G1)
+    with the terrain's ``B`` static boxes in every world, placed by
     ``terrain`` (its kinds and levels). Returns ``(model, layout)``; ``layout.shapes_per_world``
     counts the boxes (they follow the robot's shapes in each world)."""
     import newton

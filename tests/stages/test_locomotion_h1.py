@@ -27,7 +27,8 @@ def test_g1_description_gives_the_trained_policy_s_values():
     from stages.locomotion import robot as g1
 
     desc = humanoid("g1")
-    assert desc.joints == g1.LEG_JOINTS + g1.WAIST_JOINTS + g1.ARM_JOINTS and desc.base_height == g1.DEFAULT_BASE_HEIGHT
+    assert desc.joints == g1.LEG_JOINTS + g1.WAIST_JOINTS + g1.ARM_JOINTS
+    assert desc.base_height == g1.DEFAULT_BASE_HEIGHT
     for j in desc.joints:
         assert desc.gains(j) == g1.joint_gains(j)
         assert desc.joint_posture_std(j) == g1.posture_std(j)
@@ -47,7 +48,8 @@ def test_h1_description_covers_its_mjcf_joints():
     text = H1_FILE.read_text()
     joints = tuple(re.findall(r'<joint name="([a-z_]+)"', text))
     assert joints == H1.joints and H1.num_joints == 19
-    ctrl = dict(re.findall(r'<motor class="h1" name="[a-z_]+" joint="([a-z_]+)" ctrlrange="-?[\d.]+ ([\d.]+)"', text))
+    motor = r'<motor class="h1" name="[a-z_]+" joint="([a-z_]+)" ctrlrange="-?[\d.]+ ([\d.]+)"'
+    ctrl = dict(re.findall(motor, text))
     for j in H1.joints:
         g = H1.gains(j)
         assert g.effort_limit == float(ctrl[j]) and g.stiffness > 0 and g.damping > 0 and g.armature == 0.1
