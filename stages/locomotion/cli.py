@@ -1,4 +1,5 @@
-"""``agentworld loco-train`` / ``loco-eval`` / ``loco-export``: the G1 velocity policy's commands.
+"""``agentworld loco-train`` / ``loco-eval`` / ``loco-export``: the humanoid (G1, H1) velocity policies'
+commands.
 
 Each ``*_main(argv) -> int`` parses its own arguments (registered in ``stages.commands``). Logs go to
 ``<checkpoint dir>/locomotion.log``; the console gets one line per progress report.
@@ -13,7 +14,8 @@ import sys
 import time
 from pathlib import Path
 
-from stages.locomotion.config import EnvConfig, PPOConfig, Randomization, RewardWeights, TerrainConfig, TrainConfig
+from stages.locomotion.config import (ROBOT_NAMES, EnvConfig, PPOConfig, Randomization, RewardWeights, TerrainConfig,
+                                      TrainConfig)
 
 DEFAULT_DIR = "out/locomotion/g1_velocity"
 
@@ -46,13 +48,16 @@ def _report(result: dict, json_path: str) -> None:
 
 def train_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-train",
-                                description="train the G1 velocity-tracking policy with PPO; resumes from the "
+                                description="train a humanoid's (G1, H1) velocity-tracking policy with PPO; "
+                                            "resumes from the "
                                             "latest checkpoint in --checkpoint-dir")
     _env_args(p, worlds=4096)
+    p.add_argument("--robot", default="g1", choices=ROBOT_NAMES, help="the humanoid to train")
     p.add_argument("--iterations", type=int, default=1000, help="PPO iterations to add in this run")
     p.add_argument("--max-wall-s", type=float, default=0.0, help="stop after this many seconds (0: no limit)")
     p.add_argument("--save-every", type=int, default=100)
-    p.add_argument("--checkpoint-dir", default=DEFAULT_DIR)
+    p.add_argument("--checkpoint-dir", default="",
+                   help=f"default {DEFAULT_DIR} (out/locomotion/<robot>_velocity)")
     p.add_argument("--no-resume", action="store_true")
     p.add_argument("--print-every", type=int, default=25)
     p.add_argument("--init-from", default="", help="checkpoint to start from when --checkpoint-dir has none "
@@ -66,7 +71,9 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--arm-reach", action="store_true", help="arm targets over the wide reach ranges "
                                                             "(counter-height reaching) instead of +-0.6 rad")
     a = p.parse_args(argv)
-    env = EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph,
+    a.checkpoint_dir = a.checkpoint_dir or f"out/locomotion/{a.robot}_velocity"
+    env = EnvConfig(robot=a.robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed,
+                    cuda_graph=not a.no_graph,
                     terrain=TerrainConfig(enabled=a.terrain),
                     rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0,
                                           ang_vel_xy=a.ang_vel_xy if a.terrain else 0.0),
@@ -97,15 +104,23 @@ def train_main(argv: list[str]) -> int:
 
 def eval_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="agentworld loco-eval",
-                                description="evaluate a G1 velocity policy: tracking error and falls over R rollouts")
+                                description="evaluate a humanoid velocity policy (the robot comes from its "
+                                            "policy.json): tracking error and falls over R rollouts")
     _env_args(p, worlds=100)
     p.add_argument("--policy", required=True, help="exported TorchScript policy (.pt) or a training checkpoint")
     p.add_argument("--seconds", type=float, default=20.0, help="length of each rollout [s]")
     p.add_argument("--json", default="", help="also write the result here")
     a = p.parse_args(argv)
     from stages.locomotion.evaluate import EvalConfig, evaluate
+    from stages.locomotion.policy import policy_humanoid
 
-    env = EnvConfig(num_worlds=a.num_worlds, device=a.device, seed=a.seed, cuda_graph=not a.no_graph)
+    try:
+        robot = policy_humanoid(a.policy)
+    except FileNotFoundError as e:
+        print(f"agentworld loco-eval: {e}", file=sys.stderr)
+        return 2
+    env = EnvConfig(robot=robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed,
+                    cuda_graph=not a.no_graph)
     t0 = time.time()
     result = evaluate(EvalConfig(env=env, policy=a.policy, seconds=a.seconds))
     result["wall_s"] = round(time.time() - t0, 1)
@@ -179,11 +194,18 @@ def export_main(argv: list[str]) -> int:
                                 description="export a training checkpoint's policy as TorchScript with its metadata, "
                                             "training config, reward curve CSV and PNG")
     p.add_argument("--checkpoint-dir", default=DEFAULT_DIR)
-    p.add_argument("--out", default="stages/locomotion/policies/g1_velocity")
+    p.add_argument("--out", default="", help="default stages/locomotion/policies/<robot>_velocity (the "
+                                             "checkpoint's robot)")
     a = p.parse_args(argv)
-    from stages.locomotion.policy import export_from_checkpoint_dir
+    from stages.locomotion.policy import export_from_checkpoint_dir, policy_humanoid
+    from stages.locomotion.train import latest_checkpoint
 
-    written = export_from_checkpoint_dir(Path(a.checkpoint_dir), Path(a.out))
+    ckpt = latest_checkpoint(Path(a.checkpoint_dir))
+    if ckpt is None:
+        print(f"agentworld loco-export: {a.checkpoint_dir}: no model_<iteration>.pt there", file=sys.stderr)
+        return 2
+    out = a.out or f"stages/locomotion/policies/{policy_humanoid(ckpt)}_velocity"
+    written = export_from_checkpoint_dir(Path(a.checkpoint_dir), Path(out))
     for path in written:
         print(path)
     return 0

@@ -1,4 +1,4 @@
-"""Typed configuration of the G1 velocity-tracking task and its PPO training.
+"""Typed configuration of the humanoid (G1, H1) velocity-tracking task and its PPO training.
 
 Plain frozen dataclasses (no heavy imports): the CLI builds them from arguments, the trainer
 writes them as JSON beside each checkpoint, and ``from_dict`` reads them back. Units are in the
@@ -15,6 +15,9 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
+
+ROBOT_NAMES = ("g1", "h1")
+"""the humanoids ``EnvConfig.robot`` may name (``stages.locomotion.humanoids.ROBOTS``' keys)"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -159,7 +162,7 @@ class TerrainConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class EnvConfig:
-    """One batched G1 environment: N worlds in one Newton model, stepped together."""
+    """One batched humanoid environment: N worlds in one Newton model, stepped together."""
 
     num_worlds: int = 4096
     device: str = "cuda:0"
@@ -172,10 +175,12 @@ class EnvConfig:
     """timeout [s]"""
     solver_iterations: int = 10
     ls_iterations: int = 20
-    fall_height: float = 0.3
-    """base height under which a world has fallen [m]"""
-    fall_tilt_deg: float = 70.0
-    """base tilt over which a world has fallen [deg]"""
+    robot: str = "g1"
+    """the humanoid (``stages.locomotion.humanoids.ROBOTS``): g1 or h1"""
+    fall_height: float | None = None
+    """base height under which a world has fallen [m]; None: the robot's (G1 0.3, H1 0.4)"""
+    fall_tilt_deg: float | None = None
+    """base tilt over which a world has fallen [deg]; None: the robot's (70)"""
     use_waist: bool = True
     """the policy also drives the 3 waist joints (else they are held at the default pose)"""
     cuda_graph: bool = True
@@ -186,6 +191,8 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         problems = []
+        if self.robot not in ROBOT_NAMES:
+            problems.append(f"robot must be one of {', '.join(ROBOT_NAMES)}, got {self.robot!r}")
         if self.num_worlds < 1:
             problems.append(f"num_worlds must be positive, got {self.num_worlds}")
         if self.decimation < 1 or self.decimation % 2:

@@ -1,10 +1,12 @@
-"""Batched G1 velocity-tracking environment: N worlds in one Newton model, torch tensors on the device.
+"""Batched humanoid velocity-tracking environment (``EnvConfig.robot``: G1, H1; its
+``robot.HumanoidDescription``): N worlds in one Newton model, torch tensors on the device.
 
 The Newton state's arrays are viewed as torch tensors (``wp.to_torch``, shared memory): observation,
 reward, termination and reset logic run as torch operations on the device; the physics of one
 control step (``decimation`` SolverMuJoCo steps) is one CUDA graph launch on the GPU.
 
-Shapes: ``N`` worlds, ``J = 29`` joints, ``A`` policy actions (12 legs + 3 waist by default),
+Shapes: ``N`` worlds, ``J`` joints (G1 29, H1 19), ``A`` policy actions (legs + waist by default:
+G1 12 + 3, H1 10 + 1 torso),
 ``O = 12 + 2 J + A`` observations: base linear velocity (3, body frame, m/s), base angular velocity
 (3, body frame, rad/s), projected gravity (3), command (vx m/s, vy m/s, yaw rate rad/s), joint
 positions relative to the default pose (J, rad), joint velocities (J, rad/s), last actions (A).
@@ -18,9 +20,8 @@ from typing import Any
 import torch
 
 from stages.locomotion.config import EnvConfig
-from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_BASE_HEIGHT, DEFAULT_POSE, LEG_JOINTS, SOLE_BELOW_ANKLE,
-                                     WAIST_JOINTS, G1Layout, build_g1_model, joint_gains, posture_std,
-                                     reach_arm_range)
+from stages.locomotion.humanoids import humanoid
+from stages.locomotion.robot import G1Layout, build_humanoid_model
 from stages.locomotion import rewards as R
 from stages.locomotion.terrain import FLAT, THRESHOLD, TerrainWorlds, build_terrain_model
 
@@ -37,7 +38,7 @@ def quat_rotate_inverse(q_xyzw: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
 
 
 class G1VelocityEnv:
-    """N G1 worlds tracking planar velocity commands; arms follow random PD targets.
+    """N humanoid worlds (``cfg.robot``) tracking planar velocity commands; arms follow random PD targets.
 
     ``step(actions)`` takes (N, A) actions, advances one control step, resets the worlds that fell or
     timed out and returns ``(obs, critic_obs, reward, terminated, timed_out)``: (N, O), (N, O), (N,),
@@ -53,6 +54,9 @@ class G1VelocityEnv:
         self.device = torch.device(cfg.device)
         self.wp_device = wp.get_device(cfg.device)
         self.num_worlds = n = cfg.num_worlds
+        self.robot = desc = humanoid(cfg.robot)
+        self.fall_height = cfg.fall_height if cfg.fall_height is not None else desc.fall_height
+        self.fall_tilt_deg = cfg.fall_tilt_deg if cfg.fall_tilt_deg is not None else desc.fall_tilt_deg
         self.gen = torch.Generator(device=self.device)
         self.gen.manual_seed(cfg.seed)
 
@@ -60,23 +64,24 @@ class G1VelocityEnv:
         """per-world terrain and curriculum (``cfg.terrain.enabled``), else flat floors only"""
         if cfg.terrain.enabled:
             self.terrain = TerrainWorlds(cfg.terrain, n, self.device, self.gen)
-            self.model, self.layout = build_terrain_model(n, self.wp_device, self.terrain)
+            self.model, self.layout = build_terrain_model(n, self.wp_device, self.terrain, robot=desc)
         else:
-            self.model, self.layout = build_g1_model(n, self.wp_device)
+            self.model, self.layout = build_humanoid_model(desc, n, self.wp_device)
         lay: G1Layout = self.layout
         self.joint_names = lay.joint_names
-        self.policy_joints = LEG_JOINTS + (WAIST_JOINTS if cfg.use_waist else ())
+        self.policy_joints = desc.leg_joints + (desc.waist_joints if cfg.use_waist else ())
         self.num_actions = len(self.policy_joints)
         self.num_obs = 12 + 2 * len(self.joint_names) + self.num_actions
         self.max_episode_length = int(round(cfg.episode_length_s / cfg.control_dt))
         dev = self.device
         tensor = lambda x, dt=torch.float32: torch.as_tensor(x, dtype=dt, device=dev)  # noqa: E731
         self.act_idx = tensor(lay.index(self.policy_joints), torch.long)
-        self.arm_idx = tensor(lay.index(ARM_JOINTS), torch.long)
-        self.default_q = tensor([DEFAULT_POSE.get(j, 0.0) for j in self.joint_names])
-        self.action_scale = tensor([joint_gains(j).action_scale for j in self.policy_joints])
-        self.posture_std = tensor([posture_std(j) for j in self.policy_joints])
-        self.reach_lo, self.reach_hi = tensor([[reach_arm_range(j)[i] for j in ARM_JOINTS] for i in (0, 1)])
+        self.arm_idx = tensor(lay.index(desc.arm_joints), torch.long)
+        self.default_q = tensor([desc.default_pose.get(j, 0.0) for j in self.joint_names])
+        self.action_scale = tensor([desc.joint_action_scale(j) for j in self.policy_joints])
+        self.posture_std = tensor([desc.joint_posture_std(j) for j in self.policy_joints])
+        self.reach_lo, self.reach_hi = tensor([[desc.reach_range(j)[i] for j in desc.arm_joints]
+                                               for i in (0, 1)])
         lo = self.model.joint_limit_lower.numpy()[6:6 + len(self.joint_names)]
         hi = self.model.joint_limit_upper.numpy()[6:6 + len(self.joint_names)]
         mid, half = (lo + hi) / 2, (hi - lo) / 2 * SOFT_LIMIT_FACTOR
@@ -222,7 +227,7 @@ class G1VelocityEnv:
             return
         k = len(ids)
         q = self.init_q.repeat(k, 1)
-        q[:, 2] = DEFAULT_BASE_HEIGHT
+        q[:, 2] = self.robot.base_height
         yaw = self._uniform((k,), -math.pi, math.pi)
         if self.terrain is not None:
             spread = self.cfg.terrain.spawn_yaw
@@ -295,7 +300,8 @@ class G1VelocityEnv:
         ground = torch.stack([self.terrain.height_at(feet[:, i, 0:2]) if self.terrain is not None
                               else torch.zeros(self.num_worlds, device=self.device)
                               for i in range(feet.shape[1])], dim=1)
-        return R.foot_clearance(feet[..., 2] - SOLE_BELOW_ANKLE - ground, speed, w.clearance_height)
+        sole = feet[..., 2] - self.robot.sole_below_ankle
+        return R.foot_clearance(sole - ground, speed, w.clearance_height)
 
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
                                                       torch.Tensor]:
@@ -311,7 +317,7 @@ class G1VelocityEnv:
         lin_b, ang_b, grav = self.base_velocities()
         jpos = self.q[:, 7:]
         height = self.q[:, 2] if self.terrain is None else self.q[:, 2] - self.terrain.height_at(self.q[:, 0:2])
-        fell = (height < cfg.fall_height) | (grav[:, 2] > -math.cos(math.radians(cfg.fall_tilt_deg)))
+        fell = (height < self.fall_height) | (grav[:, 2] > -math.cos(math.radians(self.fall_tilt_deg)))
         fell |= ~torch.isfinite(self.q).all(dim=1) | ~torch.isfinite(self.qd).all(dim=1)
         timed_out = (self.episode_length_buf >= self.max_episode_length) & ~fell
         terms = R.reward_terms(
@@ -351,3 +357,7 @@ class G1VelocityEnv:
         self._hold_heading()
         self.obs, self.critic_obs = self._observations()
         return self.obs, self.critic_obs, reward, fell, timed_out
+
+
+HumanoidVelocityEnv = G1VelocityEnv
+"""the same class under a robot-neutral name"""

@@ -1,4 +1,4 @@
-"""Export of the trained G1 velocity policy (TorchScript + metadata) and its batched runtime.
+"""Export of a trained humanoid (G1, H1) velocity policy (TorchScript + metadata) and its batched runtime.
 
 An exported policy folder holds:
 - ``policy.pt``: TorchScript module, observations (N, O) float32 -> actions (N, A) (deterministic mean)
@@ -39,26 +39,42 @@ def actor_from_state_dict(state: dict[str, torch.Tensor], num_obs: int, num_acti
 
 
 def policy_metadata(env_cfg: Any, *, iteration: int) -> dict[str, Any]:
-    """The runtime's metadata of a policy trained on ``env_cfg`` (an EnvConfig)."""
-    from stages.locomotion.robot import (ARM_JOINTS, DEFAULT_POSE, LEG_JOINTS, WAIST_JOINTS, joint_gains)
-    from stages.locomotion.robot import g1_urdf_path  # noqa: F401  (documents the source)
+    """The runtime's metadata of a policy trained on ``env_cfg`` (an EnvConfig); ``humanoid`` is
+    the robot's registry name (``stages.locomotion.humanoids``) the runtime and evaluation build."""
+    from stages.locomotion.humanoids import humanoid
 
-    joints = LEG_JOINTS + WAIST_JOINTS + ARM_JOINTS
-    policy_joints = LEG_JOINTS + (WAIST_JOINTS if env_cfg.use_waist else ())
+    desc = humanoid(env_cfg.robot)
+    joints = desc.joints
+    policy_joints = desc.leg_joints + (desc.waist_joints if env_cfg.use_waist else ())
+    nj = len(joints)
     return {
-        "robot": "unitree_g1_29dof_rev_1_0 (example-robot-data)",
+        "robot": desc.label, "humanoid": desc.name,
         "iteration": iteration, "seed": env_cfg.seed,
         "control_dt": env_cfg.control_dt, "sim_dt": env_cfg.sim_dt, "decimation": env_cfg.decimation,
-        "num_obs": 12 + 2 * 29 + len(policy_joints), "num_actions": len(policy_joints),
-        "obs_layout": list(OBS_LAYOUT),
+        "num_obs": 12 + 2 * nj + len(policy_joints), "num_actions": len(policy_joints),
+        "obs_layout": [line.replace("[29]", f"[{nj}]") for line in OBS_LAYOUT],
         "policy_joints": list(policy_joints),
-        "default_pos": {j: DEFAULT_POSE.get(j, 0.0) for j in joints},
-        "action_scale": {j: joint_gains(j).action_scale for j in policy_joints},
-        "stiffness": {j: joint_gains(j).stiffness for j in joints},
-        "damping": {j: joint_gains(j).damping for j in joints},
+        "default_pos": {j: desc.default_pose.get(j, 0.0) for j in joints},
+        "action_scale": {j: desc.joint_action_scale(j) for j in policy_joints},
+        "stiffness": {j: desc.gains(j).stiffness for j in joints},
+        "damping": {j: desc.gains(j).damping for j in joints},
         "command_ranges": {"vx": list(env_cfg.commands.vx), "vy": list(env_cfg.commands.vy),
                            "yaw_rate": list(env_cfg.commands.yaw_rate)},
     }
+
+
+def policy_humanoid(folder_or_file: Path | str) -> str:
+    """The humanoid an exported policy (folder or ``policy.pt``) or a training checkpoint was
+    trained on (``policy.json``'s ``humanoid``, the checkpoint config's ``env.robot``; "g1" for
+    files from before the H1)."""
+    path = Path(folder_or_file)
+    js = (path if path.is_dir() else path.parent) / "policy.json"
+    if path.suffix == ".pt" and path.name != "policy.pt":
+        data = torch.load(path, map_location="cpu", weights_only=False)
+        return str(data.get("infos", {}).get("config", {}).get("env", {}).get("robot", "g1"))
+    if not js.is_file():
+        raise FileNotFoundError(f"{js}: no policy.json beside the policy")
+    return str(json.loads(js.read_text()).get("humanoid", "g1"))
 
 
 def export_policy(checkpoint: Path, out_dir: Path) -> list[Path]:

@@ -6,6 +6,12 @@ mjlab's seven foot capsules) and the ground plane; links keep the URDF's inertia
 dynamics are the robot's. Gains follow mjlab's ``g1_constants.py``: armature is the reflected
 inertia of each actuator's two-stage planetary gearbox, stiffness = armature * (2*pi*10 Hz)^2,
 damping = 2 * 2.0 * armature * 2*pi*10 Hz; ankles and waist roll/pitch are two 5020 actuators.
+
+``HumanoidDescription`` is what the locomotion stack needs of any humanoid (model file, sole
+spheres, joints, default pose, drives, fall thresholds); ``G1`` holds this module's constants,
+``stages.locomotion.h1.H1`` the H1's, ``stages.locomotion.humanoids`` names them.
+``humanoid_builder`` / ``build_humanoid_model`` build either (``g1_builder`` / ``build_g1_model``:
+the G1's).
 """
 
 from __future__ import annotations
@@ -134,14 +140,106 @@ def posture_std(name: str) -> float:
     raise KeyError(f"no posture std for joint {name!r}")
 
 
+@dataclass(frozen=True, kw_only=True)
+class HumanoidDescription:
+    """One humanoid as the locomotion stack trains it: where its model file is, its sole spheres,
+    the policy's and the PD-held arms' joints, default pose, drives and fall thresholds.
+
+    Joint-keyed tables are ``(regex, value)`` tuples, first full match wins. Positions in metres,
+    angles in radians, gains in N m / rad and N m s / rad, efforts in N m, armature in kg m^2.
+    """
+
+    name: str
+    """registry key (``humanoids.ROBOTS``), ``EnvConfig.robot``"""
+    label: str
+    """what the model is (written to ``policy.json`` as ``robot``)"""
+    source_origin: str
+    """"example-robot-data" (the installed package) or "shared" (the shared third-party assets)"""
+    source_file: str
+    """URDF (``.urdf``) or MJCF (``.xml``) path inside its origin"""
+    num_joints: int
+    """actuated joints (the model's coordinates are 7 + num_joints)"""
+    base_body: str
+    foot_bodies: tuple[str, str]
+    """left, right"""
+    foot_spheres: tuple[tuple[float, float, float], ...]
+    """sole sphere centres in each foot body's frame [m] (the feet's only collision shapes)"""
+    foot_sphere_radius: float
+    sole_below_ankle: float
+    """height of the foot body's origin over the sole's lowest point [m]"""
+    leg_joints: tuple[str, ...]
+    waist_joints: tuple[str, ...]
+    """driven by the policy when ``EnvConfig.use_waist``, else held at the default pose"""
+    arm_joints: tuple[str, ...]
+    """held by PD at random targets redrawn every ``arm_resample_steps``"""
+    default_pose: dict[str, float]
+    """joint positions the actions are offsets from (others 0) [rad]"""
+    base_height: float
+    """base body height at the default pose with the soles on z = 0 [m]"""
+    drives: tuple[tuple[str, JointGains], ...]
+    action_scale: float | None
+    """action-to-target scale [rad]; None: 0.25 * effort / stiffness per joint (mjlab)"""
+    posture_std: tuple[tuple[str, float], ...]
+    reach_ranges: dict[str, tuple[float, float]]
+    """left-arm joint (name without side and ``_joint``) -> wide-draw range; the right arm mirrors
+    the roll and yaw joints"""
+    fall_height: float
+    """base height under which a world has fallen [m]"""
+    fall_tilt_deg: float = 70.0
+    """base tilt over which a world has fallen [deg]"""
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """all actuated joints, legs, waist, arms (the model order of the G1 and H1)"""
+        return self.leg_joints + self.waist_joints + self.arm_joints
+
+    def gains(self, joint: str) -> JointGains:
+        """PD drive of a joint; KeyError for a joint no drive matches."""
+        for pattern, gains in self.drives:
+            if re.fullmatch(pattern, joint):
+                return gains
+        raise KeyError(f"{self.name}: no drive matches joint {joint!r}")
+
+    def joint_action_scale(self, joint: str) -> float:
+        """action-to-target scale of a policy joint [rad]"""
+        return self.gains(joint).action_scale if self.action_scale is None else self.action_scale
+
+    def joint_posture_std(self, joint: str) -> float:
+        """std of the posture reward for a joint [rad]"""
+        for pattern, std in self.posture_std:
+            if re.fullmatch(pattern, joint):
+                return std
+        raise KeyError(f"{self.name}: no posture std for joint {joint!r}")
+
+    def reach_range(self, joint: str) -> tuple[float, float]:
+        """(low, high) [rad] of an arm joint's wide draw (mirrored for the right arm)"""
+        side, rest = joint.split("_", 1)
+        lo, hi = self.reach_ranges[rest.removesuffix("_joint")]
+        if side == "right" and rest.split("_")[-2] in ("roll", "yaw"):
+            lo, hi = -hi, -lo
+        return lo, hi
+
+    def source_path(self) -> Path:
+        """The model file; FileNotFoundError naming what is missing."""
+        if self.source_origin == "example-robot-data":
+            import sys
+            for root in map(Path, sys.path):
+                candidate = root / "cmeel.prefix/share/example-robot-data" / self.source_file
+                if candidate.is_file():
+                    return candidate
+            raise FileNotFoundError(f"{self.source_file} not found: is example-robot-data installed?")
+        from stages.embodiment.sources import default_shared_assets
+
+        path = default_shared_assets() / self.source_file
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: the {self.name} model is missing (shared third-party assets)")
+        return path
+
+
+
 def g1_urdf_path() -> Path:
     """The G1 URDF inside the installed example-robot-data package."""
-    import sys
-    for root in map(Path, sys.path):
-        candidate = root / "cmeel.prefix/share/example-robot-data/robots/g1_description/urdf" / URDF_NAME
-        if candidate.is_file():
-            return candidate
-    raise FileNotFoundError(f"{URDF_NAME} not found: is example-robot-data installed?")
+    return G1.source_path()
 
 
 def _urdf_without_geometry(path: Path) -> str:
@@ -150,11 +248,34 @@ def _urdf_without_geometry(path: Path) -> str:
     return re.sub(r"<visual>.*?</visual>", "", text, flags=re.S)
 
 
+def _mjcf_without_geometry(path: Path) -> str:
+    """The MJCF's bodies, joints and inertials only: geoms, meshes, sites, actuators (the drives
+    are set from the description), sensors and keyframes removed."""
+    text = path.read_text()
+    for tag in ("actuator", "sensor", "keyframe", "asset"):
+        text = re.sub(rf"<{tag}>.*?</{tag}>", "", text, flags=re.S)
+    text = re.sub(r"<geom\b[^>]*/>", "", text)
+    return re.sub(r"<site\b[^>]*/>", "", text)
+
+
+G1 = HumanoidDescription(
+    name="g1", label="unitree_g1_29dof_rev_1_0 (example-robot-data)", source_origin="example-robot-data",
+    source_file=f"robots/g1_description/urdf/{URDF_NAME}", num_joints=29, base_body=BASE_BODY,
+    foot_bodies=FOOT_BODIES, foot_spheres=FOOT_SPHERES, foot_sphere_radius=FOOT_SPHERE_RADIUS,
+    sole_below_ankle=SOLE_BELOW_ANKLE, leg_joints=LEG_JOINTS, waist_joints=WAIST_JOINTS,
+    arm_joints=ARM_JOINTS,
+    default_pose=DEFAULT_POSE, base_height=DEFAULT_BASE_HEIGHT,
+    drives=tuple((pattern, JointGains(a, a * _OMEGA**2, 2.0 * _ZETA * a * _OMEGA, effort))
+                 for pattern, a, effort in _ACTUATORS),
+    action_scale=None, posture_std=POSTURE_STD, reach_ranges=REACH_ARM_RANGES, fall_height=0.3)
+"""the G1 as trained for ``policies/g1_velocity`` (the module constants above)"""
+
+
 @dataclass(frozen=True)
 class G1Layout:
-    """Where the G1's joints sit in one world's coordinate and DoF vectors.
+    """Where a humanoid's joints sit in one world's coordinate and DoF vectors.
 
-    ``joint_names`` are the 29 actuated joints in model order; coordinate ``7 + i`` and DoF ``6 + i``
+    ``joint_names`` are the actuated joints in model order; coordinate ``7 + i`` and DoF ``6 + i``
     belong to joint ``i`` (7 free-base coordinates: position, quaternion xyzw; 6 base DoFs:
     linear then angular velocity, world frame).
     """
@@ -168,19 +289,22 @@ class G1Layout:
     foot_shapes: tuple[int, ...]
     """shape indices in a world of the feet's sole spheres (left foot's first)"""
     foot_bodies: tuple[int, ...] = ()
-    """body indices in a world of the feet (``FOOT_BODIES``: left, right)"""
+    """body indices in a world of the feet (``foot_bodies`` of the description: left, right)"""
 
     def index(self, names: tuple[str, ...]) -> list[int]:
-        """joint indices (0..28) of the named joints"""
+        """joint indices of the named joints"""
         return [self.joint_names.index(n) for n in names]
 
 
-def g1_builder(*, foot_mu: float = 0.6, base_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
-               ) -> tuple[Any, G1Layout]:
-    """A Newton builder holding one G1 as trained: inertials of the URDF, sole spheres as the only
-    collision shapes, position drives with mjlab's gains, the default pose standing with its base
-    at ``base_pose`` = (x [m], y [m], yaw [rad]), ``DEFAULT_BASE_HEIGHT`` above z = 0. Returns
-    ``(builder, layout)``; add it to a scene with ``ModelBuilder.add_builder`` or ``replicate``."""
+HumanoidLayout = G1Layout
+
+
+def humanoid_builder(desc: HumanoidDescription, *, foot_mu: float = 0.6,
+                     base_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[Any, G1Layout]:
+    """A Newton builder holding one humanoid as trained: inertials of its model file, sole spheres as
+    the only collision shapes, position drives with the description's gains, the default pose
+    standing with its base at ``base_pose`` = (x [m], y [m], yaw [rad]), ``desc.base_height`` above
+    z = 0. Returns ``(builder, layout)``; add it to a scene with ``add_builder`` or ``replicate``."""
     import newton
     import warp as wp
 
@@ -189,45 +313,61 @@ def g1_builder(*, foot_mu: float = 0.6, base_pose: tuple[float, float, float] = 
     newton.solvers.SolverMuJoCo.register_custom_attributes(robot)
     robot.default_shape_cfg.mu = foot_mu
     rot = wp.quat(0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-    robot.add_urdf(_urdf_without_geometry(g1_urdf_path()), floating=True, collapse_fixed_joints=True,
-                   enable_self_collisions=False, xform=wp.transform((x, y, DEFAULT_BASE_HEIGHT), rot))
+    xform = wp.transform((x, y, desc.base_height), rot)
+    path = desc.source_path()
+    if path.suffix == ".urdf":
+        robot.add_urdf(_urdf_without_geometry(path), floating=True, collapse_fixed_joints=True,
+                       enable_self_collisions=False, xform=xform)
+    else:
+        robot.add_mjcf(_mjcf_without_geometry(path), floating=True, collapse_fixed_joints=True,
+                       enable_self_collisions=False, xform=xform, override_root_xform=True,
+                       parse_sites=False, parse_visuals=False)
     body_names = [label.rsplit("/", 1)[-1] for label in robot.body_label]
     joint_names = tuple(label.rsplit("/", 1)[-1] for label in robot.joint_label[1:])
-    if len(joint_names) != 29 or robot.joint_coord_count != 36:
-        raise RuntimeError(f"unexpected G1 layout: {len(joint_names)} joints, {robot.joint_coord_count} coords")
+    if len(joint_names) != desc.num_joints or robot.joint_coord_count != 7 + desc.num_joints:
+        raise RuntimeError(f"{path}: unexpected {desc.name} layout: {len(joint_names)} joints, "
+                           f"{robot.joint_coord_count} coords "
+                           f"(expected {desc.num_joints}, {7 + desc.num_joints})")
     foot_shapes = []
-    for foot in FOOT_BODIES:
-        for center in FOOT_SPHERES:
+    for foot in desc.foot_bodies:
+        for center in desc.foot_spheres:
             foot_shapes.append(robot.shape_count)
             robot.add_shape_sphere(body_names.index(foot), xform=wp.transform(center, wp.quat_identity()),
-                                   radius=FOOT_SPHERE_RADIUS)
+                                   radius=desc.foot_sphere_radius)
     for i, name in enumerate(joint_names):
-        gains = joint_gains(name)
+        gains = desc.gains(name)
         dof = 6 + i
         robot.joint_armature[dof] = gains.armature
         robot.joint_target_ke[dof] = gains.stiffness
         robot.joint_target_kd[dof] = gains.damping
         robot.joint_effort_limit[dof] = gains.effort_limit
         robot.joint_target_mode[dof] = int(newton.JointTargetMode.POSITION)
-        robot.joint_q[7 + i] = DEFAULT_POSE.get(name, 0.0)
-        robot.joint_target_q[7 + i] = DEFAULT_POSE.get(name, 0.0)
+        robot.joint_q[7 + i] = desc.default_pose.get(name, 0.0)
+        robot.joint_target_q[7 + i] = desc.default_pose.get(name, 0.0)
     layout = G1Layout(joint_names=joint_names, coords_per_world=robot.joint_coord_count,
                       dofs_per_world=robot.joint_dof_count, bodies_per_world=robot.body_count,
-                      shapes_per_world=robot.shape_count, base_body=body_names.index(BASE_BODY),
-                      foot_shapes=tuple(foot_shapes), foot_bodies=tuple(body_names.index(f) for f in FOOT_BODIES))
+                      shapes_per_world=robot.shape_count, base_body=body_names.index(desc.base_body),
+                      foot_shapes=tuple(foot_shapes),
+                      foot_bodies=tuple(body_names.index(f) for f in desc.foot_bodies))
     return robot, layout
 
 
-def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_mu: float = 0.3
-                   ) -> tuple[Any, G1Layout]:
-    """One Newton model holding ``num_worlds`` G1s on a shared ground plane, one world each.
+def g1_builder(*, foot_mu: float = 0.6, base_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+               ) -> tuple[Any, G1Layout]:
+    """``humanoid_builder`` of the G1."""
+    return humanoid_builder(G1, foot_mu=foot_mu, base_pose=base_pose)
 
-    Returns ``(model, layout)``. Joint targets are in position mode with mjlab's gains; the default
-    pose is the model's initial state.
+
+def build_humanoid_model(desc: HumanoidDescription, num_worlds: int, device: Any, *, foot_mu: float = 0.6,
+                         floor_mu: float = 0.3) -> tuple[Any, G1Layout]:
+    """One Newton model holding ``num_worlds`` humanoids on a shared ground plane, one world each.
+
+    Returns ``(model, layout)``. Joint targets are in position mode with the description's gains;
+    the default pose is the model's initial state.
     """
     import newton
 
-    robot, layout = g1_builder(foot_mu=foot_mu)
+    robot, layout = humanoid_builder(desc, foot_mu=foot_mu)
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
     scene.replicate(robot, num_worlds)
@@ -235,3 +375,9 @@ def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_
     scene.add_ground_plane(cfg=floor_cfg)
     model = scene.finalize(device=device)
     return model, layout
+
+
+def build_g1_model(num_worlds: int, device: Any, *, foot_mu: float = 0.6, floor_mu: float = 0.3
+                   ) -> tuple[Any, G1Layout]:
+    """``build_humanoid_model`` of the G1."""
+    return build_humanoid_model(G1, num_worlds, device, foot_mu=foot_mu, floor_mu=floor_mu)

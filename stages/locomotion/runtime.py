@@ -447,12 +447,15 @@ class HumanoidWorlds:
         import newton
         import warp as wp
 
-        from stages.locomotion.robot import build_g1_model
+        from stages.locomotion.humanoids import humanoid
+        from stages.locomotion.policy import policy_humanoid
+        from stages.locomotion.robot import build_humanoid_model
 
         self.cfg = cfg = cfg or HumanoidWorldsConfig()
         rt_cfg = cfg.runtime if cfg.runtime.device == cfg.device else _with_device(cfg.runtime, cfg.device)
-        if model is None:
-            model, _ = build_g1_model(cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
+        if model is None:  # the robot the policy was trained on (policy.json's humanoid)
+            model, _ = build_humanoid_model(humanoid(policy_humanoid(rt_cfg.policy)), cfg.num_worlds,
+                                            wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
         self.model = model
         self.runtime = LeggedPolicyRuntime(self.model, rt_cfg)
         meta = self.runtime.policy.meta

@@ -203,15 +203,16 @@ class TerrainWorlds:
 
 
 def build_terrain_model(num_worlds: int, device: Any, terrain: TerrainWorlds, *, foot_mu: float = 0.6,
-                        floor_mu: float = 0.3) -> tuple[Any, Any]:
-    """``robot.build_g1_model`` with the terrain's ``B`` static boxes in every world, placed by
+                        floor_mu: float = 0.3, robot: Any = None) -> tuple[Any, Any]:
+    """``robot.build_humanoid_model`` of ``robot`` (a ``HumanoidDescription``, default the G1)
+    with the terrain's ``B`` static boxes in every world, placed by
     ``terrain`` (its kinds and levels). Returns ``(model, layout)``; ``layout.shapes_per_world``
     counts the boxes (they follow the robot's shapes in each world)."""
     import newton
 
-    from stages.locomotion.robot import g1_builder
+    from stages.locomotion.robot import G1, humanoid_builder
 
-    robot, layout = g1_builder(foot_mu=foot_mu)
+    robot, layout = humanoid_builder(robot or G1, foot_mu=foot_mu)
     first_box = terrain.add_boxes(robot, mu=floor_mu)
     layout = dataclasses.replace(layout, shapes_per_world=robot.shape_count)
     scene = newton.ModelBuilder()

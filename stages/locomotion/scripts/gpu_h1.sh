@@ -1,0 +1,67 @@
+#!/bin/bash
+# Device-side driver of the H1's flat-floor velocity training from scratch (issue 13, humanoids):
+#   bash stages/locomotion/scripts/gpu_h1.sh TRAIN_S WORLDS EVAL_WORLDS EVAL_S FROM
+# Run from the repository root on the GPU machine. Installs the staged wheels like gpu_terrain.sh (a
+# $HOME/stash bundle, or .whl/ for rsl-rl), trains `loco-train --robot h1` on flat floors for
+# TRAIN_S seconds (setup included), then exports the policy and evaluates it with loco-eval (flat
+# floor, EVAL_WORLDS rollouts of EVAL_S s) with the time left. Results land in $OUT: the newest
+# model_<iter>.pt, curve.csv, train_config.json, policy.pt, policy.json, eval.json, locomotion.log.
+# The H1 model: its MJCF (13 kB; the meshes are not needed, the trainer drops them) from
+# $AGENTWORLD_SHARED_ASSETS, else .loco/assets (carry it), else ../shared/assets; set it up with
+#   mkdir -p .loco/assets/robots/unitree_h1__newton_assets/mjcf && cp ../shared/assets/robots/\
+#   unitree_h1__newton_assets/mjcf/h1.xml .loco/assets/robots/unitree_h1__newton_assets/mjcf/
+# FROM picks the start:
+#   scratch  a fresh policy, ignoring any carried or earlier H1 checkpoint;
+#   resume   (default) resume from the newest model_<iter>.pt of .loco/ckpt_h1/ (carried from an
+#            earlier machine: copy $OUT's model_<iter>.pt and curve.csv there between calls) or of
+#            $HOME/ck_h1 (an earlier run on this one); a fresh policy when there is none.
+# Every step says what it did; a failed or skipped step prints why (no silent failures).
+R=$PWD
+T0=$(date +%s)
+if [ ! -d $HOME/site ]; then
+  ls $HOME/stash/part0* >/dev/null 2>&1 || { echo "NO STASH"; exit 5; }
+  (cd $HOME/stash && cat part0* | tar -x && python3 -m pip install -q --no-index --no-deps --no-compile \
+     --no-cache-dir --target $HOME/site wheels/*.whl) || { echo SETUP FAILED; exit 3; }
+fi
+[ -d $HOME/site/rsl_rl ] || python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir \
+   --target $HOME/site $R/.whl/*.whl || { echo WHEELS FAILED; exit 3; }
+ERD=$R/.loco/erd; [ -d $ERD ] || ERD=
+export PYTHONPATH=$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$R:$ERD
+export WARP_CACHE_PATH=$HOME/stash/warp-cache PYTHONUNBUFFERED=1
+MJCF=robots/unitree_h1__newton_assets/mjcf/h1.xml
+if [ -z "$AGENTWORLD_SHARED_ASSETS" ]; then
+  for d in $R/.loco/assets $R/../shared/assets; do [ -f $d/$MJCF ] && export AGENTWORLD_SHARED_ASSETS=$d && break; done
+fi
+[ -f "$AGENTWORLD_SHARED_ASSETS/$MJCF" ] || { echo "NO H1 MJCF: carry .loco/assets/$MJCF (see the header)"; exit 7; }
+echo "H1 model: $AGENTWORLD_SHARED_ASSETS/$MJCF"
+CK=$HOME/ck_h1
+newest() { ls $1/model_*.pt 2>/dev/null | sed 's/.*model_\([0-9]*\)\.pt$/\1 &/' | sort -n | tail -1 | cut -d' ' -f2; }
+if [ "${5:-resume}" = scratch ]; then
+  rm -rf $CK; mkdir -p $CK; echo "start: a fresh policy (FROM=scratch)"
+else
+  mkdir -p $CK
+  if [ -d $R/.loco/ckpt_h1 ]; then
+    cp $R/.loco/ckpt_h1/* $CK/ || { echo "COPY OF .loco/ckpt_h1 FAILED"; exit 4; }
+  fi
+  chmod -R u+w $CK
+  m=$(newest $CK); echo "start: ${m:-a fresh policy (no H1 checkpoint carried or left here)}"
+fi
+nvidia-smi -L
+python3 -m stages.locomotion.cli train --robot h1 --num-worlds ${2:-4096} --iterations 100000 \
+  --max-wall-s ${1:-420} --save-every 50 --print-every 10 --checkpoint-dir $CK > $CK/stdout.log 2>&1
+[ $? = 0 ] || echo "TRAINING FAILED (see the log tail below)"
+tail -n 40 $CK/stdout.log
+m=$(newest $CK); [ -n "$m" ] && cp $m $OUT/ && echo "checkpoint: $(basename $m)"
+cp $CK/curve.csv $CK/train_config.json $OUT/ 2>/dev/null; tail -c 100000 $CK/locomotion.log > $OUT/locomotion.log
+rm -rf $HOME/exp_h1
+python3 -m stages.locomotion.cli export --checkpoint-dir $CK --out $HOME/exp_h1 > /dev/null && \
+  cp $HOME/exp_h1/policy.pt $HOME/exp_h1/policy.json $OUT/ || { echo "EXPORT FAILED"; exit 6; }
+left() { echo $(( 585 - ($(date +%s) - T0) )); }
+if [ $(left) -lt 40 ]; then
+  echo "loco-eval SKIPPED: $(left) s left; run: agentworld loco-eval --policy <exported folder> --json eval.json"
+  exit 0
+fi
+echo "loco-eval (flat floor) with $(left) s left"
+timeout $(left) python3 -m stages.locomotion.cli eval --policy $HOME/exp_h1 \
+  --num-worlds ${3:-100} --seconds ${4:-20} --json $OUT/eval.json 2> $OUT/eval.err
+rc=$?; [ $rc = 0 ] || { echo "loco-eval FAILED (rc $rc; 124: out of time):"; tail -n 5 $OUT/eval.err; }
