@@ -29,6 +29,10 @@ OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base plan
 BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
 LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
+# a bottom-hinged (oven) leaf carried by its handle over at most these arcs [rad] beyond where it
+# stands, from bases clear of only that much of its sweep (below ~30 deg its counterbalanced hinge
+# holds it where it is let go of: it cannot drop onto a base standing that near)
+SHORT_ARCS = (0.45, 0.3)
 
 
 def _robot_q(d) -> np.ndarray:
@@ -315,3 +319,28 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     if best[0] is None or best[2] < 0:
         raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
     return best
+
+
+def plan_short_arc(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
+                   within=None, arcs=SHORT_ARCS):
+    """A stage over the first steps of ``qs`` only (at most ``arcs`` [rad] from q0, the longest
+    first): :func:`plan_stage` with the bases clear of the leaf's sweep over that arc alone, on
+    ``grid`` (the room's grid, no sweep). A bottom-hinged leaf's full sweep (0.7 m out, 0.8 m wide,
+    plus the base's radius) leaves free only bases 1.05-1.15 m from its handle, at the arm's reach;
+    the nearer bases before it carry the first ~25 deg, after which the leaf is opened on from
+    further off. Returns plan_stage's tuple (its n counts steps of ``qs``, a prefix of which was
+    planned) or None where no arc gets 2 steps."""
+    for arc in arcs:
+        sub = [q for q in qs if abs(q - q0) <= arc + 1e-9]
+        if len(sub) < 2:
+            continue
+        try:
+            best = plan_stage(d, part, swept_grid(grid, part, min(q0, sub[-1]), max(q0, sub[-1])), q0, sub, mode,
+                              within=within)
+        except ExpertFailure:
+            continue
+        if best[2] >= 2:
+            log.info("%s: short arc of %.2f rad from %.2f: base %s reaches %d of %d", part.joint_path, arc, q0,
+                     tuple(round(v, 2) for v in best[0]), best[2], len(sub))
+            return best
+    return None
