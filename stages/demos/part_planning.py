@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from stages.demos.driver import ROBOT_RADIUS, ExpertFailure
+from stages.demos.driver import NEAR_STAGING, ROBOT_RADIUS, ExpertFailure
 from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips, heading, lateral, toward_hinge
 from stages.demos.parts import ArticulatedPart
 from stages.simulate.cooperative import checkpoint
@@ -209,12 +209,14 @@ def connected(grid, start_xy, reach: float = 0.5) -> np.ndarray:
 
 
 def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
-                 spread: float = 100.0, inner: bool = False, within=None) -> list[tuple[float, float, float]]:
+                 spread: float = 100.0, inner: bool = False, within=None,
+                 staging: float = STAGING) -> list[tuple[float, float, float]]:
     """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
     around the handle at q0, in front of the leaf or beyond its free edge (up to ``spread`` [deg]
     round from its front normal; ``inner``: behind the leaf, round from its inner normal), facing
     the middle of the handle's path (+-0.4 rad); free on ``grid`` (and true on ``within``, (ny, nx)
-    bool: :func:`connected`, where given); nearest to the ideal reach first."""
+    bool: :func:`connected`, where given), and so is the point ``staging`` [m] behind them where the
+    drive's straight leg starts; nearest to the ideal reach first."""
     blocked = grid.inflate(ROBOT_RADIUS)
     if within is not None:
         blocked = blocked | ~within
@@ -234,7 +236,7 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
             reach = float(np.linalg.norm(mid[:2] - xy))
             for dyaw in (0.0, 0.4, -0.4):
                 yaw = to_mid + dyaw
-                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
+                stage = xy - staging * np.array([math.cos(yaw), math.sin(yaw)])
                 if not is_free(grid, blocked, float(stage[0]), float(stage[1])):
                     continue
                 out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
@@ -287,6 +289,13 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
         turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0, within=within)
                   for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
         cands = [c for c in cands if c[2] == 0.0][:max_checks] + turned[:2 * max_checks]
+        # then, on a tight floor (the open leaf's free edge near a wall), the turned fists from bases
+        # whose staging point only NEAR_STAGING behind is free (Driver.drive_to stages there)
+        seen = set(bases) | {c[0] for c in turned}
+        near = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0, within=within,
+                                                              staging=NEAR_STAGING) if base not in seen
+                for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
+        cands += near[:max_checks]
     else:
         cands = cands[:max_checks]
     gestures: dict = {}  # the approach and arc of a grip do not depend on the base
