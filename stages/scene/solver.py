@@ -50,6 +50,8 @@ log = logging.getLogger(__name__)
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
+SWING_MARGIN = 0.1         # [m] a clearance kept clear of swings (clear_of_swings) spares its sides this much (a
+                           # fridge leaf opened beside a counter 2-10 cm off it stands over the counter's edge)
 
 
 class PlacementFailure(Exception):
@@ -86,7 +88,7 @@ class _Inst:
     zones: list[np.ndarray]        # world keep-out zones (its swings first, clearance, stand zones)
     on_floor: bool
     swings: int = 0                  # how many of ``zones`` are door/drawer swings
-    clear: np.ndarray | None = None  # world front clearance zone, or None
+    clear: np.ndarray | None = None  # world front clearance zone less SWING_MARGIN a side, or None
     reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
     _pieces: list[ConvexPiece] | None = None
     _normals: dict[int, np.ndarray] = field(default_factory=dict)  # id of its outline -> edge_normals
@@ -243,7 +245,8 @@ class Populator:
             front = np.array([math.cos(yaw), math.sin(yaw)])
             side = np.array([-front[1], front[0]])
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
-            zones.append(clear := _rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
+            zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
+            clear = _rect(c, side, max((geo.hi[1] - geo.lo[1]) / 2 - SWING_MARGIN, 0.05), front, clearance)
         zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1])]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
         return _Inst(p, geo, (R3, t), fp, block, zones, support is None, swings=len(geo.swings), clear=clear)
