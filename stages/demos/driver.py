@@ -20,6 +20,7 @@ from stages.demos.record import Commands, Recorder, base_pose
 
 ROBOT_RADIUS = 0.40  # planning footprint radius of the base with the arm tucked [m]
 APPROACH_TOL = 0.015  # CLIK position tolerance of free-space approach and retreat waypoints [m]
+NEAR_STAGING = 0.15  # drive_to's staging distance where the one asked for is blocked for the planner [m]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -206,7 +207,9 @@ class Driver:
     def drive_to(self, goal: tuple[float, float, float], grid: NavGrid, *, approach: float = 0.35,
                  timeout: float = 15.0, tuck: np.ndarray | None = None) -> None:
         """Drive the base to ``goal`` (x, y, yaw): A* to a staging point ``approach`` [m] behind the
-        goal (backed away from the furniture along the goal heading), then straight in. ``tuck``:
+        goal (backed away from the furniture along the goal heading), then straight in; where that
+        staging point is blocked for the planner (a tight floor: a wall behind the goal), from one
+        NEAR_STAGING behind the goal. ``tuck``:
         arm joint targets (7,) [rad] the arm moves to while the base sets off (:func:`stow`)."""
         t0 = time.perf_counter()
         x, y, th = base_pose(self.sim)
@@ -215,7 +218,13 @@ class Driver:
         try:
             path = plan_path(grid, (x, y), stage, ROBOT_RADIUS)
         except NoPathError as e:
-            raise ExpertFailure("no_path", str(e)) from None
+            near = (gx - NEAR_STAGING * math.cos(gyaw), gy - NEAR_STAGING * math.sin(gyaw))
+            try:
+                if approach <= NEAR_STAGING:
+                    raise
+                path = plan_path(grid, (x, y), near, ROBOT_RADIUS)
+            except NoPathError:
+                raise ExpertFailure("no_path", str(e)) from None
         path = np.vstack([path, [gx, gy]])
         self.plan_seconds += time.perf_counter() - t0
         self.follow(path, gyaw, timeout=timeout, tuck=tuck)

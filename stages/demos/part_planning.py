@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from stages.demos.driver import ROBOT_RADIUS, ExpertFailure
+from stages.demos.driver import NEAR_STAGING, ROBOT_RADIUS, ExpertFailure
 from stages.demos.part_grasps import door_pitch, drawer_pitch, gesture, grips, heading, lateral, toward_hinge
 from stages.demos.parts import ArticulatedPart
 from stages.simulate.cooperative import checkpoint
@@ -29,6 +29,10 @@ OVEN_HALF_WIDTH = 0.4  # half width of a bottom-hinged door's leaf for base plan
 BASE_SLACK = 0.02    # plans must hold with the base this much further from the handle [m]
 LIMIT_MARGIN = 0.05  # planned arm joints keep this far from their limits [rad]
 EDGE_SIDE = 0.8  # preferred base offset along the bar from its centre when lifting by the edge [m]
+# a bottom-hinged (oven) leaf carried by its handle over at most these arcs [rad] beyond where it
+# stands, from bases clear of only that much of its sweep (below ~30 deg its counterbalanced hinge
+# holds it where it is let go of: it cannot drop onto a base standing that near)
+SHORT_ARCS = (0.45, 0.3)
 
 
 def _robot_q(d) -> np.ndarray:
@@ -205,12 +209,14 @@ def connected(grid, start_xy, reach: float = 0.5) -> np.ndarray:
 
 
 def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
-                 spread: float = 100.0, inner: bool = False, within=None) -> list[tuple[float, float, float]]:
+                 spread: float = 100.0, inner: bool = False, within=None,
+                 staging: float = STAGING) -> list[tuple[float, float, float]]:
     """Candidate base poses for carrying the handle from q0 along ``qs``: on rings 0.55-1.15 m
     around the handle at q0, in front of the leaf or beyond its free edge (up to ``spread`` [deg]
     round from its front normal; ``inner``: behind the leaf, round from its inner normal), facing
     the middle of the handle's path (+-0.4 rad); free on ``grid`` (and true on ``within``, (ny, nx)
-    bool: :func:`connected`, where given); nearest to the ideal reach first."""
+    bool: :func:`connected`, where given), and so is the point ``staging`` [m] behind them where the
+    drive's straight leg starts; nearest to the ideal reach first."""
     blocked = grid.inflate(ROBOT_RADIUS)
     if within is not None:
         blocked = blocked | ~within
@@ -230,7 +236,7 @@ def _swing_bases(part: ArticulatedPart, grid, q0: float, qs: list[float],
             reach = float(np.linalg.norm(mid[:2] - xy))
             for dyaw in (0.0, 0.4, -0.4):
                 yaw = to_mid + dyaw
-                stage = xy - STAGING * np.array([math.cos(yaw), math.sin(yaw)])
+                stage = xy - staging * np.array([math.cos(yaw), math.sin(yaw)])
                 if not is_free(grid, blocked, float(stage[0]), float(stage[1])):
                     continue
                 out.append((abs(reach - 0.7) + 0.1 * abs(dyaw), (float(xy[0]), float(xy[1]), to_mid + dyaw)))
@@ -283,6 +289,13 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
         turned = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0, within=within)
                   for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
         cands = [c for c in cands if c[2] == 0.0][:max_checks] + turned[:2 * max_checks]
+        # then, on a tight floor (the open leaf's free edge near a wall), the turned fists from bases
+        # whose staging point only NEAR_STAGING behind is free (Driver.drive_to stages there)
+        seen = set(bases) | {c[0] for c in turned}
+        near = [(base, pitch, along) for base in _swing_bases(part, grid, q0, qs, spread=140.0, within=within,
+                                                              staging=NEAR_STAGING) if base not in seen
+                for pitch, along in grips(part, base, p0, vertical, push=True) if along != 0.0]
+        cands += near[:max_checks]
     else:
         cands = cands[:max_checks]
     gestures: dict = {}  # the approach and arc of a grip do not depend on the base
@@ -315,3 +328,28 @@ def plan_stage(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode:
     if best[0] is None or best[2] < 0:
         raise ExpertFailure("no_base_pose", f"{part.joint_path}: no base pose of {checks} reaches the handle")
     return best
+
+
+def plan_short_arc(d, part: ArticulatedPart, grid, q0: float, qs: list[float], mode: str = "grasp",
+                   within=None, arcs=SHORT_ARCS):
+    """A stage over the first steps of ``qs`` only (at most ``arcs`` [rad] from q0, the longest
+    first): :func:`plan_stage` with the bases clear of the leaf's sweep over that arc alone, on
+    ``grid`` (the room's grid, no sweep). A bottom-hinged leaf's full sweep (0.7 m out, 0.8 m wide,
+    plus the base's radius) leaves free only bases 1.05-1.15 m from its handle, at the arm's reach;
+    the nearer bases before it carry the first ~25 deg, after which the leaf is opened on from
+    further off. Returns plan_stage's tuple (its n counts steps of ``qs``, a prefix of which was
+    planned) or None where no arc gets 2 steps."""
+    for arc in arcs:
+        sub = [q for q in qs if abs(q - q0) <= arc + 1e-9]
+        if len(sub) < 2:
+            continue
+        try:
+            best = plan_stage(d, part, swept_grid(grid, part, min(q0, sub[-1]), max(q0, sub[-1])), q0, sub, mode,
+                              within=within)
+        except ExpertFailure:
+            continue
+        if best[2] >= 2:
+            log.info("%s: short arc of %.2f rad from %.2f: base %s reaches %d of %d", part.joint_path, arc, q0,
+                     tuple(round(v, 2) for v in best[0]), best[2], len(sub))
+            return best
+    return None

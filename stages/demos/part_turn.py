@@ -238,23 +238,30 @@ def plan_stage_or_turn(d, part: ArticulatedPart, plan, grid, q0: float, qs: list
                        done, stage: int):
     """A stage's plan: :func:`stages.demos.part_planning.plan_stage` on ``plan`` (the room's grid
     with the arc swept), or, where that reaches fewer than 2 arc steps short of ``done`` (a
-    predicate on joint values) on a vertically hinged leaf, :func:`plan_turn` on ``grid``;
-    ExpertFailure("no_base_pose") when neither has one."""
+    predicate on joint values) on a vertically hinged leaf, :func:`plan_turn` on ``grid``, on a
+    bottom-hinged one by its handle :func:`~stages.demos.part_planning.plan_short_arc`;
+    ExpertFailure("no_base_pose") when none has one."""
     from stages.demos.driver import ExpertFailure
-    from stages.demos.part_planning import connected, plan_stage, swept_grid
+    from stages.demos.part_planning import connected, plan_short_arc, plan_stage, swept_grid
     from stages.demos.record import base_pose
 
     turns = is_vertical(part) and mode in ("grasp", "push")
+    # a bottom-hinged (oven) leaf by its handle: where its full sweep keeps the base out of the
+    # arm's reach, a shorter arc from nearer (part_planning.plan_short_arc)
+    short = mode == "grasp" and part.kind == "revolute" and not is_vertical(part)
     # only bases the planner reaches from where the base stands (the leaf where it is now)
     within = connected(swept_grid(grid, part, q0, q0), base_pose(d.sim)[:2])
     try:
         best = plan_stage(d, part, plan, q0, qs, mode, within=within)
     except ExpertFailure as e:
-        if not turns or e.reason != "no_base_pose":
+        if not (turns or short) or e.reason != "no_base_pose":
             raise
         best, err = None, e
     if best is not None and (best[2] >= 2 or done(qs[max(best[2] - 1, 0)])):
         return best
+    nearer = plan_short_arc(d, part, grid, q0, qs, mode, within=within) if short else None
+    if nearer is not None:
+        return nearer
     turn = plan_turn(d, part, grid, q0, qs, mode, goal) if turns else None
     if turn is not None:
         return turn

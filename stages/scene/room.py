@@ -5,7 +5,7 @@ windows' keep-out zones (``RoomContext``), the layout's collider boxes, and the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 import math
 
@@ -254,3 +254,19 @@ def room_context(plan: FloorPlan, room: RoomModel, door_clearance: float) -> Roo
         along = np.array([-n_in[1], n_in[0]])
         wins.append((_rect(c, along, w.width / 2, n_in, 0.6), float(w.sill)))
     return RoomContext(room, interior, tuple(pts), tuple(zones), tuple(wins), fl.elevation, fl.ceiling_height)
+
+
+@dataclass
+class RoomReport:
+    """What happened in one room: placed counts per category, rejected candidates by reason, and
+    the arrangements of the room that were given up (a required entry failed) with the reason."""
+
+    room: str
+    room_type: str
+    placed: dict[str, int] = field(default_factory=dict)
+    rejected: dict[str, int] = field(default_factory=dict)
+    skipped: list[str] = field(default_factory=list)
+    arrangements_rejected: list[str] = field(default_factory=list)
+
+    def reject(self, reason: str) -> None:
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1

@@ -64,6 +64,7 @@ class FurnitureRule(_Entry):
     snap: float = Field(default=0.0, ge=0.0, le=1.0)
     min_top: float | None = Field(default=None, gt=0.0)
     stand: tuple[float, float] = (0.0, 0.0)
+    clear_of_swings: bool = False
 
     def fits(self, record, geo) -> bool:
         """Whether the longest top surface of the package (within 2 cm of its highest surface), along

@@ -7,7 +7,7 @@ candidate is kept only if
 - its 2-D footprint lies inside the room's interior (wall faces), keeps ``min_gap`` to other
   floor-standing assets and stays out of keep-out zones (room doors, windows for tall assets, the
   front clearances and door/drawer swings of assets already placed), and its own clearance and
-  swing zones are inside the room and free;
+  swing zones are inside the room and free (with ``clear_of_swings``, its clearance also out of their swings);
 - its colliders do not penetrate the layout's colliders or any placed asset's by more than 1 mm
   (``stages.scene.collide``, on the convex collider pieces);
 - the robot path stays connected: on the floor's occupancy grid with the footprints added, the
@@ -41,7 +41,7 @@ from stages.scene.geom import (
     convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
 )
 from stages.scene.library import Library
-from stages.scene.room import PathGrid, RoomContext, _edges, _rect, layout_pieces, room_context
+from stages.scene.room import PathGrid, RoomContext, RoomReport, _edges, _rect, layout_pieces, room_context
 from stages.scene.rules import FurnitureRule, ObjectRule, PlacementRules
 from stages.scene.support import REST_GAP, tips_over
 
@@ -50,6 +50,8 @@ log = logging.getLogger(__name__)
 PLACE_GAP = 0.0005         # [m] while sampling, a new asset keeps this gap to every collider (it rests
                            # REST_GAP above its support): touching neighbours would be pushed apart
 WINDOW_SILL_MARGIN = 0.3   # [m] assets taller than a window's sill + this stay away from it
+SWING_MARGIN = 0.1         # [m] a clearance kept clear of swings (clear_of_swings) spares its sides this much (a
+                           # fridge leaf opened beside a counter 2-10 cm off it stands over the counter's edge)
 
 
 class PlacementFailure(Exception):
@@ -83,8 +85,10 @@ class _Inst:
     pose: tuple[np.ndarray, np.ndarray]  # (rotation (3, 3), translation (3,)) of its pieces
     footprint: np.ndarray          # world (K, 2)
     block: np.ndarray | None       # world footprint that blocks the robot, or None
-    zones: list[np.ndarray]        # world keep-out zones (clearance, swings)
+    zones: list[np.ndarray]        # world keep-out zones (its swings first, clearance, stand zones)
     on_floor: bool
+    swings: int = 0                  # how many of ``zones`` are door/drawer swings
+    clear: np.ndarray | None = None  # world front clearance zone less SWING_MARGIN a side, or None
     reach: np.ndarray | None = None  # cached reach-zone mask on its floor's path grid
     _pieces: list[ConvexPiece] | None = None
     _normals: dict[int, np.ndarray] = field(default_factory=dict)  # id of its outline -> edge_normals
@@ -104,22 +108,6 @@ class _Inst:
             R3, t = self.pose
             self._pieces = [p.transformed(R3, t, owner=self.p.inst) for p in self.geo.pieces]
         return self._pieces
-
-
-@dataclass
-class RoomReport:
-    """What happened in one room: placed counts per category, rejected candidates by reason, and
-    the arrangements of the room that were given up (a required entry failed) with the reason."""
-
-    room: str
-    room_type: str
-    placed: dict[str, int] = field(default_factory=dict)
-    rejected: dict[str, int] = field(default_factory=dict)
-    skipped: list[str] = field(default_factory=list)
-    arrangements_rejected: list[str] = field(default_factory=list)
-
-    def reject(self, reason: str) -> None:
-        self.rejected[reason] = self.rejected.get(reason, 0) + 1
 
 
 class Populator:
@@ -252,15 +240,16 @@ class Populator:
         fp = geo.footprint @ R2.T + xy
         gfp = geo.ground_footprint
         block = gfp @ R2.T + xy if gfp is not None else None
-        zones = [s @ R2.T + xy for s in geo.swings]
+        zones, clear = [s @ R2.T + xy for s in geo.swings], None
         if clearance > 0:
             front = np.array([math.cos(yaw), math.sin(yaw)])
             side = np.array([-front[1], front[0]])
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
+            clear = _rect(c, side, max((geo.hi[1] - geo.lo[1]) / 2 - SWING_MARGIN, 0.05), front, clearance)
         zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1])]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
-        return _Inst(p, geo, (R3, t), fp, block, zones, support is None)
+        return _Inst(p, geo, (R3, t), fp, block, zones, support is None, swings=len(geo.swings), clear=clear)
 
     # -- furniture ------------------------------------------------------------------------------
 
@@ -478,6 +467,10 @@ class Populator:
             for z in inst.zones:
                 if convex_overlap(z, o.footprint, normals=(inst.normals(z), o.normals(o.footprint))):
                     return f"its swing/clearance zone hits {o.p.record.category}"
+            if rule.clear_of_swings and inst.clear is not None and any(
+                    convex_overlap(inst.clear, z, normals=(inst.normals(inst.clear), o.normals(z)))
+                    for z in o.zones[:o.swings]):
+                return f"its clearance is in a door swing of {o.p.record.category}"
         return None
 
     def _collides(self, inst: _Inst) -> str | None:

@@ -80,17 +80,38 @@ def test_fridge_door_has_base_poses(catalog, seed):
                               f"yaw {math.degrees(fridge.p.yaw):.0f}: {len(bases)} base poses to open it")
 
 
-def _kitchen_with_fridge(catalog, seed: int):
-    """(the fridge's instance, its door part, NavGrid of walls and floor furniture) of layout
-    ``seed``'s kitchen populated with the household rules."""
-    from stages.demos.parts import parts_of_package
-    from stages.demos.planner import NavGrid
+@pytest.mark.parametrize("seed", LAYOUT_SEEDS)
+def test_counter_front_is_out_of_the_fridge_door_swing(catalog, seed):
+    """store_food (issue 16): the household counter's rule ``clear_of_swings`` keeps its clearance zone
+    (the floor before it where the base stands to take the mug) out of the fridge door's swing (flat_003
+    of job seed 0: the fridge on the wall across the corner, hinged on the counter's side, opened over
+    the counter's front: s2 no_path x3)."""
+    from stages.scene.geom import convex_overlap
+
+    assert next(r for r in RULES.for_room("kitchen").furniture if r.category == "kitchen_counter").clear_of_swings
+    pop, room, _ = _populated(catalog, seed)
+    mine = [i for i in pop.insts if i.p.room == room.id and i.on_floor]
+    fridge = next(i for i in mine if i.p.record.category == "fridge")
+    counter = next(i for i in mine if i.p.record.category == "kitchen_counter")
+    assert fridge.swings >= 1 and counter.clear is not None
+    assert not any(convex_overlap(counter.clear, z) for z in fridge.zones[:fridge.swings]), (
+        f"layout {seed}: {counter.p.record.id} at {np.round(counter.p.position[:2], 2)}")
+
+
+_POPULATED: dict = {}
+
+
+def _populated(catalog, seed: int):
+    """(Populator, kitchen room, floor plan) of layout ``seed``'s kitchen populated with the household
+    rules (once per seed)."""
     from stages.layout.build import generate_layout
     from stages.layout.floorplan import load_floor_plan
     from stages.layout.spec import LayoutSpec
     from stages.scene.solver import PlacementFailure, Populator
 
-    lib, info, root = catalog
+    if seed in _POPULATED:
+        return _POPULATED[seed]
+    lib, _, root = catalog
     lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
                           root / f"layout_{seed}")
     plan = load_floor_plan(lay.plan_json)
@@ -105,6 +126,18 @@ def _kitchen_with_fridge(catalog, seed: int):
             why.append(str(e))
     else:
         pytest.fail(f"layout {seed}: the kitchen was not populated in 4 attempts: {why}")
+    _POPULATED[seed] = pop, room, plan
+    return _POPULATED[seed]
+
+
+def _kitchen_with_fridge(catalog, seed: int):
+    """(the fridge's instance, its door part, NavGrid of walls and floor furniture) of layout
+    ``seed``'s kitchen populated with the household rules."""
+    from stages.demos.parts import parts_of_package
+    from stages.demos.planner import NavGrid
+
+    lib, info, _ = catalog
+    pop, room, plan = _populated(catalog, seed)
     mine = [i for i in pop.insts if i.p.room == room.id and i.on_floor]
     fridge = next(i for i in mine if i.p.record.category == "fridge")
     boxes = [w.box for w in plan.floors[room.floor].walls]
