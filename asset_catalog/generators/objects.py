@@ -324,7 +324,7 @@ def hanger(b: AssetBuilder) -> float | None:
     z = rod
     pts = [np.array([[-hh, 0, z], [0, -w / 2, z]]), np.array([[0, -w / 2, z], [0, w / 2, z]]),
            np.array([[0, w / 2, z], [-hh, 0, z]])]
-    hr = b.param("hook_radius", 0.018, 0.025)
+    hr = b.param("hook_radius", 0.018, 0.025) + rod   # the hook's inner radius 18-25 mm (a rail up to ~16 mm fits)
     neck = np.array([[-hh, 0, z], [-hh - 0.035, 0, z]])
     a = np.linspace(0, 1.35 * np.pi, 8)
     cx = -hh - 0.035 - hr
