@@ -1,0 +1,261 @@
+"""The hang-on-rail skill (issue 16, organize the wardrobe): a clothes hanger lying on the bed hung by
+its hook over the wardrobe's lower rail (task ``hang_on_rail``; the multistage task
+``organize_wardrobe`` opens the wardrobe's door first and closes it after), in a generated bedroom
+(:mod:`stages.demos.house_bedroom`: the bed along X, its long side facing the robot at -Y; the
+wardrobe anywhere in the room, facing any way).
+
+Simplifications (the Franka hand cannot do the real thing): the hanger lies flat on the bed's near
+edge with its neck and hook sticking out over the edge (:func:`hanger_start`), so that the fingers,
+closing vertically, pinch its neck from the side (the hand horizontal, pointing along the edge); the
+hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across the rail)
+and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail; the upper
+one at 1.4-1.7 m is out of the arm's reach).
+
+- :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
+  generator parameters;
+- :func:`hanger_start`: the episode's hanger pose on the bed;
+- :func:`hang_on_rail` (the expert): drive before the bed, pinch the neck, lift, turn the hanger
+  upright beside the base, drive before the open half of the wardrobe, bring the hook in over the
+  rail through its opening (the hook's tip inward), lower it onto the rail, release, back out;
+- :func:`hang_on_rail_success` (the predicate): the hook's centre within a few cm of the rail's axis,
+  below it by about the hook's inner radius (the rail inside the hook's top), between the rail's
+  ends, the hanger hanging from it (its neck within 30 deg of vertical, the expert lets it settle),
+  released.
+
+Frame: world, Z up, metres, radians. Hanger frame (the generator's): the shoulder bar along local Y at
+x = 0, the neck from x = -shoulder_height to 0.035 m further along -X, the hook's centre beyond it;
+the hook's tip towards local +Y.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from stages.demos.driver import APPROACH_TOL, ExpertFailure
+
+GRIP_AT = 0.1           # the fingers pinch the neck this far along it from the shoulders' apex [fraction]: the pads
+                        # take the shoulders' first centimetre too (a neck alone rolls between them)
+OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
+RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
+HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
+HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vertical (it hangs from the hook)
+PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
+PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
+HANG_GAP = 0.10         # the chassis front this far [m] before the wardrobe's front
+LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
+PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
+ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
+ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
+
+
+@dataclass(frozen=True)
+class Rail:
+    """The wardrobe's lower rail: p0, p1 (3,) its axis's end points [m] (world); radius [m];
+    front (2,) unit: the wardrobe's outward front normal (world)."""
+
+    p0: tuple[float, float, float]
+    p1: tuple[float, float, float]
+    radius: float
+    front: tuple[float, float]
+
+
+def rail_facts(wardrobe) -> Rail:
+    """The lower rail of the placed ``wardrobe`` (a :class:`~stages.demos.packages.Placed`); ItemError
+    when its asset has none (a wardrobe generated before the rail)."""
+    from asset_catalog.generators.furniture import LOW_RAIL_RADIUS
+    from pipeline.types import ItemError
+
+    p = wardrobe.asset.params
+    if "low_rail" not in p or "width" not in p:
+        raise ItemError(f"{wardrobe.asset.usd}: {wardrobe.asset.asset_id} has no lower rail (param low_rail)")
+    z, half = float(p["low_rail"]), 0.5 * float(p["width"]) - RAIL_T
+    a, b = wardrobe.to_world((0.0, -half, z)), wardrobe.to_world((0.0, half, z))
+    f = wardrobe.dir_to_world((1.0, 0.0, 0.0))
+    return Rail(tuple(float(v) for v in a), tuple(float(v) for v in b), LOW_RAIL_RADIUS,
+                (float(f[0]), float(f[1])))
+
+
+def _hook(hanger) -> tuple[float, float, float]:
+    """(grasp x, hook centre x, rod radius) in the hanger frame [m]; the hook's inner radius is the
+    ``hook_radius`` parameter."""
+    p = hanger.asset.params
+    hh, hr, rod, neck = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck"))
+    return -hh - GRIP_AT * neck, -hh - neck - (hr + rod), rod
+
+
+def hanger_start(world, seed: int) -> dict:
+    """The hanger's pose (body -> (x, y, z, yaw)) for episode ``seed``: flat on the blanket at the bed's
+    near edge, 0.3 m in from the blanket's foot end (world ``hanger_x``), its neck and hook over the
+    edge towards -Y (yaw pi/2: local +X along world +Y) (its own random stream)."""
+    rng = np.random.default_rng([int(seed), 16, 1])
+    h = world.placed["hanger"]
+    hh = float(h.asset.params["shoulder_height"])
+    x = world.hanger_x + float(rng.uniform(-0.03, 0.03))
+    y = world.blanket_edge - OVERHANG + hh
+    return {h.body(): (x, y, world.table_z + 0.003, math.pi / 2 + float(rng.uniform(-0.05, 0.05)))}
+
+
+def _hanger_pose(state, hanger) -> tuple[np.ndarray, np.ndarray]:
+    st = state.objects[hanger.body()]
+    return np.asarray(st.position, float), st.matrix()[:3, :3]
+
+
+def hang_on_rail_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The hook's centre within :data:`HOOK_TOL` of where it rests on the rail (the rail's axis
+    ``hook_radius - rail radius`` above it, across and along the rail within its ends), the hanger
+    hanging (its neck within :data:`HANG_TILT` of vertical), the hand open or away from it."""
+    w = inst.world
+    h = w.placed["hanger"]
+    rail: Rail = w.rail
+    pos, rot = _hanger_pose(state, h)
+    _, cx, rod = _hook(h)
+    c = pos + rot @ np.array([cx, 0.0, rod])
+    a, b = np.asarray(rail.p0), np.asarray(rail.p1)
+    u = (b - a) / np.linalg.norm(b - a)
+    s = float(np.dot(c - a, u))
+    if pos[2] < a[2] - 0.5:
+        return False, "hanger_fell"
+    if not (0.0 <= s <= float(np.linalg.norm(b - a))):
+        return False, "not_on_rail"
+    rest = a + s * u - np.array([0.0, 0.0, float(h.asset.params["hook_radius"]) - rail.radius])
+    if float(np.linalg.norm(c - rest)) > HOOK_TOL:
+        return False, "not_on_rail"
+    if float(np.dot(-rot[:, 0], [0.0, 0.0, 1.0])) < math.cos(HANG_TILT):
+        return False, "not_hanging"
+    hand = np.asarray(state.robot.ee_pose.position, float)
+    if state.robot.gripper_opening < 0.03 and float(np.linalg.norm(hand - c)) < 0.1:
+        return False, "object_still_held"
+    return True, ""
+
+
+def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
+    """The hook's centre (3,) [m] in the hand's tool frame, from the simulated poses."""
+    pos, rot = _hanger_pose(state, hanger)
+    c = pos + rot @ np.array([cx, 0.0, rod])
+    ee = state.robot.ee_pose.matrix()
+    return ee[:3, :3].T @ (c - ee[:3, 3])
+
+
+def _rot(x_h, z_h) -> np.ndarray:
+    """Hand rotation with tool X ``x_h`` and tool Z (approach) ``z_h``; the fingers close along Z x X."""
+    x_h, z_h = np.asarray(x_h, float), np.asarray(z_h, float)
+    return np.stack([x_h, np.cross(z_h, x_h), z_h], axis=1)
+
+
+def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
+    """The base pose (x, y, yaw) facing into the wardrobe before its open half (the chassis beside the
+    door ``part`` open at ``q``, clear of its leaf) and the rail point (3,) where the hook goes [m]."""
+    f = np.asarray(rail.front, float)
+    a, b = np.asarray(rail.p0), np.asarray(rail.p1)
+    hinge = np.asarray(part.origin, float)
+    # the rail end on the hinge side; the open half runs from there to the middle
+    near, far = (a, b) if np.linalg.norm(a[:2] - hinge[:2]) < np.linalg.norm(b[:2] - hinge[:2]) else (b, a)
+    u = (far - near) / np.linalg.norm(far - near)
+    half = 0.5 * float(np.linalg.norm(far - near))
+    spot = near + 0.6 * half * u
+    leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
+    lateral = max(0.6 * half, leaf_band + LEAF_CLEAR)
+    wr = world.placed["wardrobe"]
+    front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
+    base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
+    return (float(base[0]), float(base[1]), float(math.atan2(-f[1], -f[0]))), spot
+
+
+def _dbg(d, h, what, ref=None):
+    import logging
+
+    from stages.simulate.state import read_state
+    st = read_state(d.sim)
+    o = st.objects[h.body()]
+    logging.getLogger(__name__).info("DBG %s: hanger %s rot %s; ee %s; grip %.4f; ref %s", what,
+                                     np.round(o.position, 3), np.round(o.matrix()[:3, :3], 2).tolist(),
+                                     np.round(st.robot.ee_pose.position, 3), st.robot.gripper_opening,
+                                     None if ref is None else np.round(ref, 3))
+    logging.getLogger(__name__).info("DBG ee rot %s base %s q %s", np.round(st.robot.ee_pose.matrix()[:3, :3], 2).tolist(),
+                                     st.robot.base, np.round(st.robot.q, 2))
+
+
+def hang_on_rail(inst, d) -> None:
+    """The expert (see the module doc)."""
+    from stages.demos.articulated import _escape
+    from stages.demos.counter import _pose, facing_north_goal
+    from stages.demos.driver import stow
+    from stages.demos.record import base_pose
+    from stages.demos.skill_fridge import _grid_with_leaf, _leaf_points, staging
+    from stages.simulate.state import read_state
+
+    w = inst.world
+    h = w.placed["hanger"]
+    rail: Rail = w.rail
+    part = inst.part
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    gx, cx, rod = _hook(h)
+    hr = float(h.asset.params["hook_radius"])
+    R = hr + rod
+    grid = _grid_with_leaf(w, part, q)
+    _escape(d, grid, reach=1.0)
+    # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    neck = pos + rot @ np.array([gx, 0.0, rod])
+    along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
+    hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
+    pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
+    d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
+    grasp = _rot(ROLL * hook_dir, along)
+    d.grip(0.0, 0.2)
+    d.move(_pose(neck - 0.10 * along + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(neck + PINCH_PAST * along, grasp), 0.8, segments=2, settle=0.2)
+    _dbg(d, h, "before close", neck)
+    d.grip(1.0, 0.8)
+    _dbg(d, h, "closed", neck)
+    d.move(_pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, segments=2, carry=True)
+    _dbg(d, h, "lifted", neck)
+    if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
+        raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
+    # --- upright beside the base: hook up, the hand pointing ahead of the base
+    bx, by, th = base_pose(d.sim)
+    ahead = np.array([math.cos(th), math.sin(th), 0.0])
+    held = _rot([0.0, 0.0, ROLL], ahead)
+    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), 2.0, segments=4, carry=True,
+           tol=APPROACH_TOL)
+    _dbg(d, h, "upright")
+    d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
+    # --- before the wardrobe's open half
+    goal, spot = hang_base(w, rail, part, q)
+    point, behind = staging(grid, goal, _leaf_points(part, q))
+    d.drive_to((*point, goal[2]), grid, approach=0.0)
+    if math.dist(point, behind) > 0.02:
+        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    d.drive_straight(goal)
+    _dbg(d, h, "before wardrobe", np.array(goal))
+    f = np.array([*rail.front, 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    put = _rot(ROLL * up, -f)
+
+    # where the hook's centre is in the hand (it slips down the neck and tilts while carried): measured
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
+
+    def hand_for(centre):  # the hand's tool point for the hook's centre at ``centre``, the hand at ``put``
+        return np.asarray(centre, float) - put @ off
+
+    c_in = spot + 0.25 * R * up
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up), put), 2.0, segments=4, carry=True,
+           tol=APPROACH_TOL)
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
+    _dbg(d, h, f"hook in hand {np.round(off, 3)}")
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
+    d.move(_pose(hand_for(c_in), put), 1.2, segments=3, carry=True)
+    rest = spot - (hr - rail.radius - 0.003) * up
+    d.move(_pose(hand_for(rest), put), 0.8, segments=2, carry=True, settle=0.2)
+    _dbg(d, h, "on rail", rest)
+    d.grip(0.0, 0.6)
+    _dbg(d, h, "released", rest)
+    d.move(_pose(hand_for(rest) + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
+    d.step(0.5)
+    bx, by, th = base_pose(d.sim)
+    d.drive_straight((bx + 0.2 * f[0], by + 0.2 * f[1], th))
+    stow(d)
