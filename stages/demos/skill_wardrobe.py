@@ -38,15 +38,22 @@ from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
 GRIP_AT = 0.1           # the fingers pinch the neck this far along it from the shoulders' apex [fraction]: the pads
                         # take the shoulders' first centimetre too (a neck alone rolls between them)
+YAW_TEST = math.pi / 2
 OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
 RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
 HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
 HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vertical (it hangs from the hook)
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
-PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
+PICK_GAP = 0.12         # ... and its chassis front this far [m] before the blanket's near edge
 HANG_GAP = 0.10         # the chassis front this far [m] before the wardrobe's front
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
+PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
+PULL_TO = 0.04         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
+PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
+PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
+CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
+GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
 
@@ -95,7 +102,7 @@ def hanger_start(world, seed: int) -> dict:
     hh = float(h.asset.params["shoulder_height"])
     x = world.hanger_x + float(rng.uniform(-0.03, 0.03))
     y = world.blanket_edge - OVERHANG + hh
-    return {h.body(): (x, y, world.table_z + 0.003, math.pi / 2 + float(rng.uniform(-0.05, 0.05)))}
+    return {h.body(): (x, y, world.table_z + 0.003, YAW_TEST + float(rng.uniform(-0.05, 0.05)))}
 
 
 def _hanger_pose(state, hanger) -> tuple[np.ndarray, np.ndarray]:
@@ -129,6 +136,39 @@ def hang_on_rail_success(inst, state, peaks=None) -> tuple[bool, str]:
     if state.robot.gripper_opening < 0.03 and float(np.linalg.norm(hand - c)) < 0.1:
         return False, "object_still_held"
     return True, ""
+
+
+def _apex_out(state, world, hanger) -> float:
+    """How far [m] the hanger's apex lies beyond the blanket's near edge (towards -Y)."""
+    pos, rot = _hanger_pose(state, hanger)
+    apex = pos + rot @ np.array([-float(hanger.asset.params["shoulder_height"]), 0.0, 0.0])
+    return float(world.blanket_edge - apex[1])
+
+
+def _pull_out(d, world, hanger, rod: float) -> None:
+    """Where the hanger has crept onto the bed (its apex less than :data:`PULL_IF` beyond the blanket's
+    edge), push it back out by its shoulder bar: the closed hand, pointing down, set just behind the
+    bar's middle (on the bed's side), moved towards -Y until the apex is :data:`PULL_TO` out."""
+    from stages.demos.counter import _pose
+    from stages.simulate.control import top_down
+    from stages.simulate.state import read_state
+
+    st = read_state(d.sim)
+    out = _apex_out(st, world, hanger)
+    if out >= PULL_IF:
+        return
+    pos, rot = _hanger_pose(st, hanger)
+    bar = pos + rot @ np.array([0.0, 0.0, rod])
+    z = world.table_z + max(rod, 0.004) + PUSH_TIP
+    behind = np.array([bar[0], bar[1] + rod + 0.02, z])
+    down = top_down(0.0)
+    d.grip(1.0, 0.3)
+    d.move(_pose(behind + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(behind, down), 0.6, segments=2, settle=0.1)
+    push = PULL_TO - out + rod + 0.02 + PULL_LAG
+    d.move(_pose(behind - [0.0, push, 0.0], down), 1.2, segments=3, settle=0.1)
+    d.move(_pose(behind - [0.0, push, -0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
+    _dbg(d, hanger, f"pulled out {out:.3f} -> {_apex_out(read_state(d.sim), world, hanger):.3f}")
 
 
 def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
@@ -200,14 +240,21 @@ def hang_on_rail(inst, d) -> None:
     # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod])
-    along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
-    hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
     pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
     d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
+    _pull_out(d, w, h, rod)
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    # aimed where it will be when the fingers close (it creeps on the blanket: CREEP)
+    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
+    hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
     grasp = _rot(ROLL * hook_dir, along)
     d.grip(0.0, 0.2)
     d.move(_pose(neck - 0.10 * along + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(neck + PINCH_PAST * along, grasp), 0.8, segments=2, settle=0.2)
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    d.move(_pose(neck - 0.10 * along + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
+    d.move(_pose(neck + PINCH_PAST * along, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     _dbg(d, h, "before close", neck)
     d.grip(1.0, 0.8)
     _dbg(d, h, "closed", neck)
