@@ -313,7 +313,7 @@ def sponge(b: AssetBuilder) -> float:
     return b.param("mass", 0.008, 0.025)
 
 
-HANGER_NECK = 0.055  # the hanger's straight neck under its hook [m]: the Franka fingers (~20 mm wide) pinch it
+HANGER_NECK = 0.075  # the hanger's straight neck under its hook [m]: the Franka fingers (~20 mm wide) pinch it
 
 
 def hanger(b: AssetBuilder) -> float | None:

@@ -249,6 +249,8 @@ def world_part(world: KitchenWorld, which: str):
     (``ARTICULATED`` key): the microwave, oven or room door, the fridge door whose handle is
     nearest 1 m high, the counter's top drawer."""
     role, part_role, _ = ARTICULATED[which]
+    if role not in world.placed:
+        raise ItemError(f"{world.usd}: the task world has no {role} for the {which} tasks")
     p = world.placed[role]
     parts = [q for q in parts_of_package(p.info, asset_id=p.asset.asset_id, prim_root=p.prim,
                                          pose=(*p.position, p.yaw), package_usd=p.asset.usd)

@@ -6,10 +6,15 @@ wardrobe anywhere in the room, facing any way).
 
 Simplifications (the Franka hand cannot do the real thing): the hanger lies flat on the bed's near
 edge with its neck and hook sticking out over the edge (:func:`hanger_start`), so that the fingers,
-closing vertically, pinch its neck from the side (the hand horizontal, pointing along the edge); the
-hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across the rail)
-and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail; the upper
-one at 1.4-1.7 m is out of the arm's reach).
+closing vertically across its plane, pinch its neck from the side (the hand level, pointing along the
+edge); the hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across
+the rail) and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail;
+the upper one at 1.4-1.7 m is out of the arm's reach). Light things creep on the blanket (the hanger
+~7.5 mm/s towards +Y): where it has crept back onto the bed the expert first pushes it out again
+(:func:`_pull_out`).
+
+Not reliable yet (see the README): the neck slides down through the pinch until the hook hangs on the
+fingers, which then fill the hook where the rail should go.
 
 - :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
   generator parameters;
@@ -23,7 +28,7 @@ one at 1.4-1.7 m is out of the arm's reach).
   released.
 
 Frame: world, Z up, metres, radians. Hanger frame (the generator's): the shoulder bar along local Y at
-x = 0, the neck from x = -shoulder_height to 0.035 m further along -X, the hook's centre beyond it;
+x = 0, the neck from x = -shoulder_height ``neck`` [m] further along -X, the hook's centre beyond it;
 the hook's tip towards local +Y.
 """
 
@@ -36,24 +41,28 @@ import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
-GRIP_AT = 0.1           # the fingers pinch the neck this far along it from the shoulders' apex [fraction]: the pads
-                        # take the shoulders' first centimetre too (a neck alone rolls between them)
-YAW_TEST = math.pi / 2
+GRIP_AT = 0.8           # the fingers pinch the neck this far along it from the shoulders' apex [fraction] (the
+                        # wrist, level with the neck, clears the blanket's edge only ~45 mm out); the neck slides
+                        # down through the pinch until the hook sits on the fingers (measured: _hook_in_hand)
 OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
 RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
 HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
 HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vertical (it hangs from the hook)
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
-PICK_GAP = 0.12         # ... and its chassis front this far [m] before the blanket's near edge
-HANG_GAP = 0.10         # the chassis front this far [m] before the wardrobe's front
+PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
+HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
+HANG_AT = 0.75          # the hook goes this far [fraction] from the rail's hinge-side end to its middle
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
 PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
-PULL_TO = 0.04         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
+PULL_TO = 0.035         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
 PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
 PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
 CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
 GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
+PICK_YAW = 0.0          # the pinching hand may point this far off square to the neck, towards the bed [rad]
+                        # (35 deg: the lower fingertip met the blanket's edge)
+TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long [s]
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
 
@@ -102,7 +111,7 @@ def hanger_start(world, seed: int) -> dict:
     hh = float(h.asset.params["shoulder_height"])
     x = world.hanger_x + float(rng.uniform(-0.03, 0.03))
     y = world.blanket_edge - OVERHANG + hh
-    return {h.body(): (x, y, world.table_z + 0.003, YAW_TEST + float(rng.uniform(-0.05, 0.05)))}
+    return {h.body(): (x, y, world.table_z + 0.003, math.pi / 2 + float(rng.uniform(-0.05, 0.05)))}
 
 
 def _hanger_pose(state, hanger) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +177,6 @@ def _pull_out(d, world, hanger, rod: float) -> None:
     push = PULL_TO - out + rod + 0.02 + PULL_LAG
     d.move(_pose(behind - [0.0, push, 0.0], down), 1.2, segments=3, settle=0.1)
     d.move(_pose(behind - [0.0, push, -0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
-    _dbg(d, hanger, f"pulled out {out:.3f} -> {_apex_out(read_state(d.sim), world, hanger):.3f}")
 
 
 def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
@@ -177,6 +185,15 @@ def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
     c = pos + rot @ np.array([cx, 0.0, rod])
     ee = state.robot.ee_pose.matrix()
     return ee[:3, :3].T @ (c - ee[:3, 3])
+
+
+def _upright(into) -> np.ndarray:
+    """The hanger's rotation hanging upright (local -X up) with its plane along the horizontal
+    ``into`` (local +Y, the hook's tip side)."""
+    y = np.array([into[0], into[1], 0.0], float)
+    y /= np.linalg.norm(y)
+    x = np.array([0.0, 0.0, -1.0])
+    return np.stack([x, y, np.cross(x, y)], axis=1)
 
 
 def _rot(x_h, z_h) -> np.ndarray:
@@ -195,27 +212,13 @@ def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, fl
     near, far = (a, b) if np.linalg.norm(a[:2] - hinge[:2]) < np.linalg.norm(b[:2] - hinge[:2]) else (b, a)
     u = (far - near) / np.linalg.norm(far - near)
     half = 0.5 * float(np.linalg.norm(far - near))
-    spot = near + 0.6 * half * u
+    spot = near + HANG_AT * half * u
     leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
-    lateral = max(0.6 * half, leaf_band + LEAF_CLEAR)
+    lateral = max(HANG_AT * half, leaf_band + LEAF_CLEAR)
     wr = world.placed["wardrobe"]
     front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
     base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
     return (float(base[0]), float(base[1]), float(math.atan2(-f[1], -f[0]))), spot
-
-
-def _dbg(d, h, what, ref=None):
-    import logging
-
-    from stages.simulate.state import read_state
-    st = read_state(d.sim)
-    o = st.objects[h.body()]
-    logging.getLogger(__name__).info("DBG %s: hanger %s rot %s; ee %s; grip %.4f; ref %s", what,
-                                     np.round(o.position, 3), np.round(o.matrix()[:3, :3], 2).tolist(),
-                                     np.round(st.robot.ee_pose.position, 3), st.robot.gripper_opening,
-                                     None if ref is None else np.round(ref, 3))
-    logging.getLogger(__name__).info("DBG ee rot %s base %s q %s", np.round(st.robot.ee_pose.matrix()[:3, :3], 2).tolist(),
-                                     st.robot.base, np.round(st.robot.q, 2))
 
 
 def hang_on_rail(inst, d) -> None:
@@ -248,27 +251,39 @@ def hang_on_rail(inst, d) -> None:
     neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
     along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
     hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
-    grasp = _rot(ROLL * hook_dir, along)
+    # turned PICK_YAW in the hanger's plane towards its shoulders (the wrist off the blanket's edge); the
+    # fingers close across the plane, so the hanger can only swing in its own plane in the pinch
+    inward = -hook_dir
+    c, sn = math.cos(PICK_YAW), math.sin(PICK_YAW)
+    grasp = _rot(ROLL * (c * hook_dir + sn * along), c * along + sn * inward)
+    # the hand in the hanger's frame (the hanger then turned as wanted: hand = hanger @ in_hanger)
+    in_hanger = rot.T @ grasp
     d.grip(0.0, 0.2)
-    d.move(_pose(neck - 0.10 * along + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    app = grasp[:, 2]  # the approach
+    d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
-    d.move(_pose(neck - 0.10 * along + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
-    d.move(_pose(neck + PINCH_PAST * along, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
-    _dbg(d, h, "before close", neck)
+    d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
+    d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)
-    _dbg(d, h, "closed", neck)
     d.move(_pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, segments=2, carry=True)
-    _dbg(d, h, "lifted", neck)
+    # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
+    d.move(_pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
         raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
     # --- upright beside the base: hook up, the hand pointing ahead of the base
     bx, by, th = base_pose(d.sim)
     ahead = np.array([math.cos(th), math.sin(th), 0.0])
-    held = _rot([0.0, 0.0, ROLL], ahead)
-    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), 2.0, segments=4, carry=True,
+    # first turned about the approach (the pinch holds that way), the neck upright; then slowly about
+    # the neck (the pinch holds the neck's roll only by friction: a quick turn spun the hanger 90 deg)
+    app = grasp[:, 2]
+    side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
+    tip = _upright(side) @ in_hanger
+    d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
+           segments=4, carry=True, tol=APPROACH_TOL)
+    held = _upright(ahead) @ in_hanger
+    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), TURN_SLOW, segments=16, carry=True,
            tol=APPROACH_TOL)
-    _dbg(d, h, "upright")
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
@@ -277,10 +292,9 @@ def hang_on_rail(inst, d) -> None:
     if math.dist(point, behind) > 0.02:
         d.drive_straight((*behind, goal[2]))  # sideways onto the way in
     d.drive_straight(goal)
-    _dbg(d, h, "before wardrobe", np.array(goal))
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
-    put = _rot(ROLL * up, -f)
+    put = _upright(-f) @ in_hanger
 
     # where the hook's centre is in the hand (it slips down the neck and tilts while carried): measured
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
@@ -293,14 +307,11 @@ def hang_on_rail(inst, d) -> None:
            tol=APPROACH_TOL)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
-    _dbg(d, h, f"hook in hand {np.round(off, 3)}")
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
     d.move(_pose(hand_for(c_in), put), 1.2, segments=3, carry=True)
     rest = spot - (hr - rail.radius - 0.003) * up
     d.move(_pose(hand_for(rest), put), 0.8, segments=2, carry=True, settle=0.2)
-    _dbg(d, h, "on rail", rest)
     d.grip(0.0, 0.6)
-    _dbg(d, h, "released", rest)
     d.move(_pose(hand_for(rest) + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
     d.step(0.5)
     bx, by, th = base_pose(d.sim)

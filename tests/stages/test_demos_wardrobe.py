@@ -115,3 +115,47 @@ def test_hang_on_rail_predicate(tmp_path):
     assert hang_on_rail_success(inst, _state(h, origin_for(rest, hung), hung, grip=0.01,
                                              ee=rest - [0, 0, 0.05]))[1] == "object_still_held"
     assert hang_on_rail_success(inst, _state(h, [0.3, 0.4, 0.02], flat))[1] == "hanger_fell"
+
+
+@pytest.fixture(scope="module")
+def bedroom(tmp_path_factory):
+    """The task world of flat_008's bedroom (job seed 0, as ``bench_house_tasks.py --room bedroom``):
+    one of the 5 of the first 37 flats whose bedroom converts with a wardrobe, its lower rail and a hanger."""
+    pytest.importorskip("newton")
+    from house_testutil import populate_flat
+    from test_demos_house_bedroom import BEDROOM_PACKAGES
+
+    from stages.demos.house_bedroom import house_bedroom
+
+    scene, gen = populate_flat(tmp_path_factory.mktemp("wardrobe") / "out", "wardrobe", BEDROOM_PACKAGES, "bedroom",
+                               count=9, settle=True, scene="flat_008_p0")
+    return house_bedroom(scene, tmp_path_factory.mktemp("task"), gen, scene_id=scene.name)
+
+
+@pytest.mark.slow  # ~3 min on 2 shared cores (the scene job for 9 flats, one episode)
+def test_wardrobe_facts_and_the_door_opens_in_a_generated_bedroom(bedroom, tmp_path):
+    """The world's rail lies inside the wardrobe at its ``low_rail`` height; the episode's hanger lies on
+    the blanket with its apex over the near edge; the real open_wardrobe expert opens the door on the
+    batched engine (its predicate: past 75% of the travel)."""
+    from stages.demos.multistage import sample_task
+    from stages.demos.skill_wardrobe import OVERHANG
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    w = bedroom
+    wr, rail = w.placed["wardrobe"], w.rail
+    x0, y0, x1, y1 = wr.footprint()
+    for p in (rail.p0, rail.p1):
+        assert x0 < p[0] < x1 and y0 < p[1] < y1
+        assert p[2] == pytest.approx(wr.position[2] + wr.asset.params["low_rail"], abs=1e-6)
+    inst = sample_task("organize_wardrobe", w, 1)
+    h = w.placed["hanger"]
+    x, y, z, _ = inst.objects[h.body()]
+    apex_y = y - h.asset.params["shoulder_height"]
+    assert apex_y == pytest.approx(w.blanket_edge - OVERHANG, abs=1e-6) and z > w.table_z
+    rows = []
+    eng = BatchEngine(w, panda_root=None, work_dir=tmp_path / "engine",
+                      config=EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True))
+    eng.run(Listed(w, {0: [("open_wardrobe", 1, None)]}), begin=lambda *_: None,
+            end=lambda _w, t, r: rows.append((t.task, r.success, r.reason)))
+    assert rows == [("open_wardrobe", True, "")]
