@@ -122,17 +122,31 @@ def bedroom(tmp_path_factory):
     """The task world of flat_008's bedroom (job seed 0, as ``bench_house_tasks.py --room bedroom``):
     one of the 5 of the first 37 flats whose bedroom converts with a wardrobe, its lower rail and a hanger."""
     pytest.importorskip("newton")
-    from house_testutil import populate_flat
     from test_demos_house_bedroom import BEDROOM_PACKAGES
 
+    from pipeline import build_job, run_job
     from stages.demos.house_bedroom import house_bedroom
+    from stages.scene.rules import HOUSEHOLD_TASK_RULES
 
-    scene, gen = populate_flat(tmp_path_factory.mktemp("wardrobe") / "out", "wardrobe", BEDROOM_PACKAGES, "bedroom",
-                               count=9, settle=True, scene="flat_008_p0")
-    return house_bedroom(scene, tmp_path_factory.mktemp("task"), gen, scene_id=scene.name)
+    out = tmp_path_factory.mktemp("wardrobe") / "out"
+    cats = sorted({p.rsplit("_", 1)[0] for p in BEDROOM_PACKAGES})
+    job = {"job": {"name": "wardrobe", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": cats}},
+                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(BEDROOM_PACKAGES)}},
+                    {"name": "layouts", "kind": "layout", "config": {"house": [
+                        {"id": "flat", "count": 9, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
+                    {"name": "scenes", "kind": "scene", "config": {
+                        "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
+                        "looks": 1, "validate_usd": False, "settle": True,
+                        "group": [{"id": "flat", "layouts": ["flat_008"], "rooms": ["bedroom"]}]}}]}
+    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
+    scene = out / "scenes" / "flat_008_p0"
+    return house_bedroom(scene, tmp_path_factory.mktemp("task"), out / "catalog" / "default" / "generated.json",
+                         scene_id=scene.name)
 
 
-@pytest.mark.slow  # ~3 min on 2 shared cores (the scene job for 9 flats, one episode)
+@pytest.mark.slow  # ~1 min on 2 shared cores (the catalog, 9 layouts, flat_008's bedroom, one episode)
 def test_wardrobe_facts_and_the_door_opens_in_a_generated_bedroom(bedroom, tmp_path):
     """The world's rail lies inside the wardrobe at its ``low_rail`` height; the episode's hanger lies on
     the blanket with its apex over the near edge; the real open_wardrobe expert opens the door on the
