@@ -373,9 +373,20 @@ def _hanging(b: AssetBuilder, w: float, d: float, h: float, plinth: float, doors
     return mass
 
 
+LOW_RAIL_RADIUS = 0.008  # the wardrobe's lower hanging rail (a 16 mm steel tube) [m]
+
+
 def wardrobe(b: AssetBuilder) -> float:
+    """A two-door wardrobe: a shelf with a hanging rail under it (1.4-1.7 m high) and a lower rail
+    (param ``low_rail``: its axis 0.95-1.1 m above the floor, at mid depth, x = 0, across the width;
+    a double-hang section, where the mobile Franka reaches a hanger's hook over it)."""
     w, d, h = b.param("width", 0.8, 1.25), b.param("depth", 0.55, 0.62), b.param("height", 1.8, 2.1)
-    return _hanging(b, w, d, h, b.param("plinth", 0.06, 0.12), 2, b.param("mass", 55.0, 90.0) * w)
+    mass = _hanging(b, w, d, h, b.param("plinth", 0.06, 0.12), 2, b.param("mass", 55.0, 90.0) * w)
+    z = b.param("low_rail", 0.95, 1.1)   # drawn last: the other parameters stay as they were
+    t = 0.018
+    b.add("base", g.cylinder(LOW_RAIL_RADIUS, w - 2 * t + 0.004, (0, 0, z), axis="y", n=16), "handle",
+          density=STEEL)
+    return mass
 
 
 def closet(b: AssetBuilder) -> float:

@@ -313,21 +313,30 @@ def sponge(b: AssetBuilder) -> float:
     return b.param("mass", 0.008, 0.025)
 
 
+HANGER_NECK = 0.075  # the hanger's straight neck under its hook [m]: the Franka fingers (~20 mm wide) pinch it
+
+
 def hanger(b: AssetBuilder) -> float | None:
+    """A clothes hanger (wire, plastic or wood) lying in its local XY plane: the shoulder bar along Y
+    at x = 0, the apex at x = -shoulder_height, the neck (:data:`HANGER_NECK`) along -X, the hook
+    (inner radius ``hook_radius``, round ``rod`` [m]) curling from the neck's end towards -Y, over and
+    its tip towards +Y."""
     wire = b.choice("kind", ["wire", "plastic", "wood"])
     color = {"wire": (0.75, 0.75, 0.78), "plastic": pick_color(b, PLASTICS), "wood": (0.6, 0.42, 0.25)}[wire]
     m = b.material("hanger", color, roughness=0.3, metallic=1.0 if wire == "wire" else 0.0)
     rod = {"wire": b.param("rod", 0.0018, 0.0025), "plastic": b.param("rod", 0.004, 0.006),
            "wood": b.param("rod", 0.007, 0.009)}[wire]
+    b.params["rod"] = round(rod, 6)   # the kind's (all three are drawn: the other parameters stay as they were)
+    b.params["neck"] = HANGER_NECK
     density = {"wire": 7800.0, "plastic": 1100.0, "wood": 700.0}[wire]
     w, hh = b.param("width", 0.38, 0.46), b.param("shoulder_height", 0.1, 0.15)
     z = rod
     pts = [np.array([[-hh, 0, z], [0, -w / 2, z]]), np.array([[0, -w / 2, z], [0, w / 2, z]]),
            np.array([[0, w / 2, z], [-hh, 0, z]])]
-    hr = b.param("hook_radius", 0.018, 0.025)
-    neck = np.array([[-hh, 0, z], [-hh - 0.035, 0, z]])
+    hr = b.param("hook_radius", 0.018, 0.025) + rod   # the hook's inner radius 18-25 mm (a rail up to ~16 mm fits)
+    neck = np.array([[-hh, 0, z], [-hh - HANGER_NECK, 0, z]])
     a = np.linspace(0, 1.35 * np.pi, 8)
-    cx = -hh - 0.035 - hr
+    cx = -hh - HANGER_NECK - hr
     hook = np.column_stack([cx + hr * np.cos(a), -hr * np.sin(a), np.full(8, z)])
     pieces = []
     for seg in [*pts, neck, hook]:

@@ -47,6 +47,7 @@ from stages.demos.skill_fridge import pick_place_fridge
 from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
 from stages.demos.skill_trash import throw_away
+from stages.demos.skill_wardrobe import hang_on_rail
 from stages.demos.skill_wipe import wipe_plate
 from stages.demos.tasks import TASKS
 
@@ -254,7 +255,7 @@ EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_plac
            "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
            "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
            "slide_clock_switch": slide_clock_switch, "place_pillow": place_pillow,
-           "shelve_book_1": shelve_book_1, "shelve_book_2": shelve_book_2}
+           "shelve_book_1": shelve_book_1, "shelve_book_2": shelve_book_2, "hang_on_rail": hang_on_rail}
 for _name in TASKS:
     if _name.startswith("open_"):
         EXPERTS[_name] = open_articulated

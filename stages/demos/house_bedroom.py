@@ -70,6 +70,9 @@ class HouseBedroom(HouseRoom):
     foot: int
     pillow_spot: tuple[float, float]
     pillow_base_x: float
+    blanket_edge: float = 0.0
+    hanger_x: float = 0.0
+    rail: object = None
 
 
 def _bed_facts(bed: Placed, foot: int) -> tuple[tuple[float, float, float, float], float, float]:
@@ -136,6 +139,34 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
     return rf, furniture, cp, rect, z, band, mattress_z, blanket, goal, spot, base_x
 
 
+def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict | None:
+    """The organize-wardrobe facts (:mod:`stages.demos.skill_wardrobe`), or None where the bedroom
+    has no wardrobe with a lower rail and a hanger in it (make_bed does not need them): adds
+    ``placed`` "wardrobe" and "hanger"; returns the fields ``blanket_edge`` (the blanket's near edge y),
+    ``hanger_x`` (where the hanger lies on it: where the base's pose for its neck is free) and ``rail``."""
+    from stages.demos.counter import facing_north_goal
+    from stages.demos.skill_wardrobe import PICK_GAP, PICK_SIDE, rail_facts
+
+    wr = rs.one("wardrobe", lambda r: r["support"] is None and "low_rail" in rs.asset(r).params)
+    hanger = wr and rs.one("hanger", lambda r: r["support"] == wr["name"] and "neck" in rs.asset(r).params)
+    if wr is None or hanger is None:
+        log.info("bedroom %s: no wardrobe with a lower rail and a hanger: no organize_wardrobe", rs.room)
+        return None
+    edge = float(bp.footprint()[1] + 0.01)
+    top, _ = top_surface(bp)
+    boxes = obstacles(list(furniture.values()))
+    for d in (0.26, 0.32, 0.38, 0.44):
+        x = top[0] + d if foot < 0 else top[2] - d
+        if base_free(facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP), rf.walls, boxes):
+            break
+    else:
+        log.info("bedroom %s: no free base pose before the hanger's spot on the bed", rs.room)
+        return None
+    pl["wardrobe"] = furniture[wr["name"]]
+    pl["hanger"] = rf.placed(hanger, rs.asset(hanger))
+    return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"])}
+
+
 def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
                   room: str | None = None) -> HouseBedroom:
     """The task world of the bedroom ``room`` (default: the house's first populated bedroom) of the
@@ -174,6 +205,9 @@ def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         pl["nightstand"] = furniture[stand["name"]]
     cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items()
                                       if on_bed(r) and n not in (paper["name"], cushion["name"])]
+    wardrobe = _wardrobe(rs, rf, furniture, pl, bp, foot)
+    if wardrobe is not None:
+        cut += [n for n, r in rs.mine.items() if r["category"] == "hanger" and n != pl["hanger"].name.removeprefix("Objects/")]
     hxy = rf.to_house(cp.position[:2])
     moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
     usd = out_dir / "scene.usda"
@@ -183,6 +217,7 @@ def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
         usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
         anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)), head_band=band, mattress_z=mattress_z,
         blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x,
+        **(wardrobe or {}),
         **room_fields(rs, rf, rect, z, paper_spot))
     spawn_in(w)
     log.info("house bedroom %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))

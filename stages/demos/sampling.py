@@ -28,6 +28,7 @@ MICROWAVE_OPEN = math.radians(88.0)  # microwave door opening of the microwave t
 FRIDGE_OPEN = 0.9  # fridge door opening of pick_place_fridge [fraction of its travel], as open_fridge leaves it
 PUSH_DIRECTION = (0.0, 1.0)
 POUR_SKILLS = ("pick_pitcher", "pour_drink", "place_pitcher")  # stages.demos.skill_pour
+WARDROBE_SKILLS = ("open_wardrobe", "hang_on_rail", "close_wardrobe")  # stages.demos.skill_wardrobe
 BOOK_SKILLS = ("shelve_book_1", "shelve_book_2")  # stages.demos.skill_books: the k-th book of the world
 
 
@@ -203,6 +204,20 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         from stages.demos.skill_bed import cushion_start
 
         objects.update(cushion_start(world, seed))
+    if "hanger" in pl and getattr(world, "rail", None) is not None:
+        # a bedroom with a wardrobe (stages.demos.house_bedroom): the hanger lies on the bed's near edge
+        from stages.demos.skill_wardrobe import hanger_start
+
+        objects.update(hanger_start(world, seed))
+        if task_name in WARDROBE_SKILLS and "paper" in pl:  # the paper off the hanger's way: the bed's far side
+            top = world.table_rect
+            objects[pl["paper"].body()] = (world.hanger_x, top[3] - 0.08, world.table_z + 0.01, 0.0)
+    if task_name == "hang_on_rail":
+        part = world_part(world, "wardrobe")
+        joints[part.joint_path] = part.closed + FRIDGE_OPEN * part.travel
+        names.update(object="hanger", container="wardrobe")
+        ids = [pl["hanger"], pl["wardrobe"]]
+        target = tuple(float(v) for v in world.rail.p0[:2])
     if task_name in POUR_SKILLS:
         from stages.demos.skill_pour import pour_setup
 
@@ -234,6 +249,8 @@ def world_part(world: KitchenWorld, which: str):
     (``ARTICULATED`` key): the microwave, oven or room door, the fridge door whose handle is
     nearest 1 m high, the counter's top drawer."""
     role, part_role, _ = ARTICULATED[which]
+    if role not in world.placed:
+        raise ItemError(f"{world.usd}: the task world has no {role} for the {which} tasks")
     p = world.placed[role]
     parts = [q for q in parts_of_package(p.info, asset_id=p.asset.asset_id, prim_root=p.prim,
                                          pose=(*p.position, p.yaw), package_usd=p.asset.usd)

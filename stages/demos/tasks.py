@@ -30,6 +30,7 @@ from stages.demos.skill_fridge import pick_place_fridge_success
 from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success, pour_success
 from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
 from stages.demos.skill_trash import throw_away_success
+from stages.demos.skill_wardrobe import hang_on_rail_success
 from stages.demos.skill_wipe import wipe_plate_success
 
 log = logging.getLogger(__name__)
@@ -154,6 +155,10 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="shelve_book_2", family=Family.PICK_PLACE, max_seconds=60.0, success=shelve_book_2_success,
              templates=("put the {which} {object} on the {container}", "shelve the {which} {object}",
                         "stand the {which} {object} on a board of the {container}")),
+    # organize the wardrobe (stages.demos.skill_wardrobe): a hanger from the bed hooked over the wardrobe's rail
+    TaskSpec(name="hang_on_rail", family=Family.PICK_PLACE, max_seconds=60.0, success=hang_on_rail_success,
+             templates=("hang the {object} in the {container}", "hang the {object} on the rail of the {container}",
+                        "put the {object} on the {container}'s rail")),
     TaskSpec(name="push_object", family=Family.PUSH_PULL, max_seconds=25.0, success=push_object_success,
              templates=("push the {object} away across the table", "slide the {object} away from you")),
     TaskSpec(name="press_button", family=Family.PUSH_PULL, max_seconds=25.0, success=press_button_success,
@@ -172,7 +177,7 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
 #: articulated task target -> (placed role in the world, part role, instruction noun)
 ARTICULATED = {"microwave": ("microwave", "door", "microwave"), "fridge": ("fridge", "door", "fridge"),
                "oven": ("oven", "door", "oven"), "drawer": ("counter", "drawer", "kitchen counter"),
-               "door": ("door", "door", "room")}
+               "door": ("door", "door", "room"), "wardrobe": ("wardrobe", "door", "wardrobe")}
 OPEN_FRACTION = 0.75  # open: the joint past this fraction of its travel
 #: time limit of open/close episodes [s]: a wide door the base cannot turn is carried in up to 4 stages of ~10-15 s
 OPEN_CLOSE_SECONDS = 90.0
@@ -208,7 +213,8 @@ TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
 SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
-               "press_clock_button", "slide_clock_switch", "place_pillow", "shelve_book_1", "shelve_book_2")
+               "press_clock_button", "slide_clock_switch", "place_pillow", "shelve_book_1", "shelve_book_2",
+               "hang_on_rail", "open_wardrobe", "close_wardrobe")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the
 #: demos job's default
 BASIC_TASKS = tuple(t for t in TASKS if t not in SKILL_TASKS)

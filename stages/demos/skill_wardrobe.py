@@ -1,0 +1,319 @@
+"""The hang-on-rail skill (issue 16, organize the wardrobe): a clothes hanger lying on the bed hung by
+its hook over the wardrobe's lower rail (task ``hang_on_rail``; the multistage task
+``organize_wardrobe`` opens the wardrobe's door first and closes it after), in a generated bedroom
+(:mod:`stages.demos.house_bedroom`: the bed along X, its long side facing the robot at -Y; the
+wardrobe anywhere in the room, facing any way).
+
+Simplifications (the Franka hand cannot do the real thing): the hanger lies flat on the bed's near
+edge with its neck and hook sticking out over the edge (:func:`hanger_start`), so that the fingers,
+closing vertically across its plane, pinch its neck from the side (the hand level, pointing along the
+edge); the hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across
+the rail) and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail;
+the upper one at 1.4-1.7 m is out of the arm's reach). Light things creep on the blanket (the hanger
+~7.5 mm/s towards +Y): where it has crept back onto the bed the expert first pushes it out again
+(:func:`_pull_out`).
+
+Not reliable yet (see the README): the neck slides down through the pinch until the hook hangs on the
+fingers, which then fill the hook where the rail should go.
+
+- :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
+  generator parameters;
+- :func:`hanger_start`: the episode's hanger pose on the bed;
+- :func:`hang_on_rail` (the expert): drive before the bed, pinch the neck, lift, turn the hanger
+  upright beside the base, drive before the open half of the wardrobe, bring the hook in over the
+  rail through its opening (the hook's tip inward), lower it onto the rail, release, back out;
+- :func:`hang_on_rail_success` (the predicate): the hook's centre within a few cm of the rail's axis,
+  below it by about the hook's inner radius (the rail inside the hook's top), between the rail's
+  ends, the hanger hanging from it (its neck within 30 deg of vertical, the expert lets it settle),
+  released.
+
+Frame: world, Z up, metres, radians. Hanger frame (the generator's): the shoulder bar along local Y at
+x = 0, the neck from x = -shoulder_height ``neck`` [m] further along -X, the hook's centre beyond it;
+the hook's tip towards local +Y.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from stages.demos.driver import APPROACH_TOL, ExpertFailure
+
+GRIP_AT = 0.8           # the fingers pinch the neck this far along it from the shoulders' apex [fraction] (the
+                        # wrist, level with the neck, clears the blanket's edge only ~45 mm out); the neck slides
+                        # down through the pinch until the hook sits on the fingers (measured: _hook_in_hand)
+OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
+RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
+HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
+HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vertical (it hangs from the hook)
+PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
+PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
+HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
+HANG_AT = 0.75          # the hook goes this far [fraction] from the rail's hinge-side end to its middle
+LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
+PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
+PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
+PULL_TO = 0.035         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
+PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
+PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
+CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
+GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
+PICK_YAW = 0.0          # the pinching hand may point this far off square to the neck, towards the bed [rad]
+                        # (35 deg: the lower fingertip met the blanket's edge)
+TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long [s]
+ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
+ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
+
+
+@dataclass(frozen=True)
+class Rail:
+    """The wardrobe's lower rail: p0, p1 (3,) its axis's end points [m] (world); radius [m];
+    front (2,) unit: the wardrobe's outward front normal (world)."""
+
+    p0: tuple[float, float, float]
+    p1: tuple[float, float, float]
+    radius: float
+    front: tuple[float, float]
+
+
+def rail_facts(wardrobe) -> Rail:
+    """The lower rail of the placed ``wardrobe`` (a :class:`~stages.demos.packages.Placed`); ItemError
+    when its asset has none (a wardrobe generated before the rail)."""
+    from asset_catalog.generators.furniture import LOW_RAIL_RADIUS
+    from pipeline.types import ItemError
+
+    p = wardrobe.asset.params
+    if "low_rail" not in p or "width" not in p:
+        raise ItemError(f"{wardrobe.asset.usd}: {wardrobe.asset.asset_id} has no lower rail (param low_rail)")
+    z, half = float(p["low_rail"]), 0.5 * float(p["width"]) - RAIL_T
+    a, b = wardrobe.to_world((0.0, -half, z)), wardrobe.to_world((0.0, half, z))
+    f = wardrobe.dir_to_world((1.0, 0.0, 0.0))
+    return Rail(tuple(float(v) for v in a), tuple(float(v) for v in b), LOW_RAIL_RADIUS,
+                (float(f[0]), float(f[1])))
+
+
+def _hook(hanger) -> tuple[float, float, float]:
+    """(grasp x, hook centre x, rod radius) in the hanger frame [m]; the hook's inner radius is the
+    ``hook_radius`` parameter."""
+    p = hanger.asset.params
+    hh, hr, rod, neck = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck"))
+    return -hh - GRIP_AT * neck, -hh - neck - (hr + rod), rod
+
+
+def hanger_start(world, seed: int) -> dict:
+    """The hanger's pose (body -> (x, y, z, yaw)) for episode ``seed``: flat on the blanket at the bed's
+    near edge, 0.3 m in from the blanket's foot end (world ``hanger_x``), its neck and hook over the
+    edge towards -Y (yaw pi/2: local +X along world +Y) (its own random stream)."""
+    rng = np.random.default_rng([int(seed), 16, 1])
+    h = world.placed["hanger"]
+    hh = float(h.asset.params["shoulder_height"])
+    x = world.hanger_x + float(rng.uniform(-0.03, 0.03))
+    y = world.blanket_edge - OVERHANG + hh
+    return {h.body(): (x, y, world.table_z + 0.003, math.pi / 2 + float(rng.uniform(-0.05, 0.05)))}
+
+
+def _hanger_pose(state, hanger) -> tuple[np.ndarray, np.ndarray]:
+    st = state.objects[hanger.body()]
+    return np.asarray(st.position, float), st.matrix()[:3, :3]
+
+
+def hang_on_rail_success(inst, state, peaks=None) -> tuple[bool, str]:
+    """The hook's centre within :data:`HOOK_TOL` of where it rests on the rail (the rail's axis
+    ``hook_radius - rail radius`` above it, across and along the rail within its ends), the hanger
+    hanging (its neck within :data:`HANG_TILT` of vertical), the hand open or away from it."""
+    w = inst.world
+    h = w.placed["hanger"]
+    rail: Rail = w.rail
+    pos, rot = _hanger_pose(state, h)
+    _, cx, rod = _hook(h)
+    c = pos + rot @ np.array([cx, 0.0, rod])
+    a, b = np.asarray(rail.p0), np.asarray(rail.p1)
+    u = (b - a) / np.linalg.norm(b - a)
+    s = float(np.dot(c - a, u))
+    if pos[2] < a[2] - 0.5:
+        return False, "hanger_fell"
+    if not (0.0 <= s <= float(np.linalg.norm(b - a))):
+        return False, "not_on_rail"
+    rest = a + s * u - np.array([0.0, 0.0, float(h.asset.params["hook_radius"]) - rail.radius])
+    if float(np.linalg.norm(c - rest)) > HOOK_TOL:
+        return False, "not_on_rail"
+    if float(np.dot(-rot[:, 0], [0.0, 0.0, 1.0])) < math.cos(HANG_TILT):
+        return False, "not_hanging"
+    hand = np.asarray(state.robot.ee_pose.position, float)
+    if state.robot.gripper_opening < 0.03 and float(np.linalg.norm(hand - c)) < 0.1:
+        return False, "object_still_held"
+    return True, ""
+
+
+def _apex_out(state, world, hanger) -> float:
+    """How far [m] the hanger's apex lies beyond the blanket's near edge (towards -Y)."""
+    pos, rot = _hanger_pose(state, hanger)
+    apex = pos + rot @ np.array([-float(hanger.asset.params["shoulder_height"]), 0.0, 0.0])
+    return float(world.blanket_edge - apex[1])
+
+
+def _pull_out(d, world, hanger, rod: float) -> None:
+    """Where the hanger has crept onto the bed (its apex less than :data:`PULL_IF` beyond the blanket's
+    edge), push it back out by its shoulder bar: the closed hand, pointing down, set just behind the
+    bar's middle (on the bed's side), moved towards -Y until the apex is :data:`PULL_TO` out."""
+    from stages.demos.counter import _pose
+    from stages.simulate.control import top_down
+    from stages.simulate.state import read_state
+
+    st = read_state(d.sim)
+    out = _apex_out(st, world, hanger)
+    if out >= PULL_IF:
+        return
+    pos, rot = _hanger_pose(st, hanger)
+    bar = pos + rot @ np.array([0.0, 0.0, rod])
+    z = world.table_z + max(rod, 0.004) + PUSH_TIP
+    behind = np.array([bar[0], bar[1] + rod + 0.02, z])
+    down = top_down(0.0)
+    d.grip(1.0, 0.3)
+    d.move(_pose(behind + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(behind, down), 0.6, segments=2, settle=0.1)
+    push = PULL_TO - out + rod + 0.02 + PULL_LAG
+    d.move(_pose(behind - [0.0, push, 0.0], down), 1.2, segments=3, settle=0.1)
+    d.move(_pose(behind - [0.0, push, -0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
+
+
+def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
+    """The hook's centre (3,) [m] in the hand's tool frame, from the simulated poses."""
+    pos, rot = _hanger_pose(state, hanger)
+    c = pos + rot @ np.array([cx, 0.0, rod])
+    ee = state.robot.ee_pose.matrix()
+    return ee[:3, :3].T @ (c - ee[:3, 3])
+
+
+def _upright(into) -> np.ndarray:
+    """The hanger's rotation hanging upright (local -X up) with its plane along the horizontal
+    ``into`` (local +Y, the hook's tip side)."""
+    y = np.array([into[0], into[1], 0.0], float)
+    y /= np.linalg.norm(y)
+    x = np.array([0.0, 0.0, -1.0])
+    return np.stack([x, y, np.cross(x, y)], axis=1)
+
+
+def _rot(x_h, z_h) -> np.ndarray:
+    """Hand rotation with tool X ``x_h`` and tool Z (approach) ``z_h``; the fingers close along Z x X."""
+    x_h, z_h = np.asarray(x_h, float), np.asarray(z_h, float)
+    return np.stack([x_h, np.cross(z_h, x_h), z_h], axis=1)
+
+
+def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
+    """The base pose (x, y, yaw) facing into the wardrobe before its open half (the chassis beside the
+    door ``part`` open at ``q``, clear of its leaf) and the rail point (3,) where the hook goes [m]."""
+    f = np.asarray(rail.front, float)
+    a, b = np.asarray(rail.p0), np.asarray(rail.p1)
+    hinge = np.asarray(part.origin, float)
+    # the rail end on the hinge side; the open half runs from there to the middle
+    near, far = (a, b) if np.linalg.norm(a[:2] - hinge[:2]) < np.linalg.norm(b[:2] - hinge[:2]) else (b, a)
+    u = (far - near) / np.linalg.norm(far - near)
+    half = 0.5 * float(np.linalg.norm(far - near))
+    spot = near + HANG_AT * half * u
+    leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
+    lateral = max(HANG_AT * half, leaf_band + LEAF_CLEAR)
+    wr = world.placed["wardrobe"]
+    front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
+    base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
+    return (float(base[0]), float(base[1]), float(math.atan2(-f[1], -f[0]))), spot
+
+
+def hang_on_rail(inst, d) -> None:
+    """The expert (see the module doc)."""
+    from stages.demos.articulated import _escape
+    from stages.demos.counter import _pose, facing_north_goal
+    from stages.demos.driver import stow
+    from stages.demos.record import base_pose
+    from stages.demos.skill_fridge import _grid_with_leaf, _leaf_points, staging
+    from stages.simulate.state import read_state
+
+    w = inst.world
+    h = w.placed["hanger"]
+    rail: Rail = w.rail
+    part = inst.part
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    gx, cx, rod = _hook(h)
+    hr = float(h.asset.params["hook_radius"])
+    R = hr + rod
+    grid = _grid_with_leaf(w, part, q)
+    _escape(d, grid, reach=1.0)
+    # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    neck = pos + rot @ np.array([gx, 0.0, rod])
+    pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
+    d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
+    _pull_out(d, w, h, rod)
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    # aimed where it will be when the fingers close (it creeps on the blanket: CREEP)
+    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
+    hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
+    # turned PICK_YAW in the hanger's plane towards its shoulders (the wrist off the blanket's edge); the
+    # fingers close across the plane, so the hanger can only swing in its own plane in the pinch
+    inward = -hook_dir
+    c, sn = math.cos(PICK_YAW), math.sin(PICK_YAW)
+    grasp = _rot(ROLL * (c * hook_dir + sn * along), c * along + sn * inward)
+    # the hand in the hanger's frame (the hanger then turned as wanted: hand = hanger @ in_hanger)
+    in_hanger = rot.T @ grasp
+    d.grip(0.0, 0.2)
+    app = grasp[:, 2]  # the approach
+    d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    pos, rot = _hanger_pose(read_state(d.sim), h)
+    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
+    d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
+    d.grip(1.0, 0.8)
+    d.move(_pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, segments=2, carry=True)
+    # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
+    d.move(_pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
+    if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
+        raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
+    # --- upright beside the base: hook up, the hand pointing ahead of the base
+    bx, by, th = base_pose(d.sim)
+    ahead = np.array([math.cos(th), math.sin(th), 0.0])
+    # first turned about the approach (the pinch holds that way), the neck upright; then slowly about
+    # the neck (the pinch holds the neck's roll only by friction: a quick turn spun the hanger 90 deg)
+    app = grasp[:, 2]
+    side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
+    tip = _upright(side) @ in_hanger
+    d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
+           segments=4, carry=True, tol=APPROACH_TOL)
+    held = _upright(ahead) @ in_hanger
+    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), TURN_SLOW, segments=16, carry=True,
+           tol=APPROACH_TOL)
+    d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
+    # --- before the wardrobe's open half
+    goal, spot = hang_base(w, rail, part, q)
+    point, behind = staging(grid, goal, _leaf_points(part, q))
+    d.drive_to((*point, goal[2]), grid, approach=0.0)
+    if math.dist(point, behind) > 0.02:
+        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    d.drive_straight(goal)
+    f = np.array([*rail.front, 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    put = _upright(-f) @ in_hanger
+
+    # where the hook's centre is in the hand (it slips down the neck and tilts while carried): measured
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
+
+    def hand_for(centre):  # the hand's tool point for the hook's centre at ``centre``, the hand at ``put``
+        return np.asarray(centre, float) - put @ off
+
+    c_in = spot + 0.25 * R * up
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up), put), 2.0, segments=4, carry=True,
+           tol=APPROACH_TOL)
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
+    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
+    d.move(_pose(hand_for(c_in), put), 1.2, segments=3, carry=True)
+    rest = spot - (hr - rail.radius - 0.003) * up
+    d.move(_pose(hand_for(rest), put), 0.8, segments=2, carry=True, settle=0.2)
+    d.grip(0.0, 0.6)
+    d.move(_pose(hand_for(rest) + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
+    d.step(0.5)
+    bx, by, th = base_pose(d.sim)
+    d.drive_straight((bx + 0.2 * f[0], by + 0.2 * f[1], th))
+    stow(d)

@@ -1,0 +1,175 @@
+"""Organize the wardrobe (issue 16, ``stages.demos.skill_wardrobe``, task file
+``stages/demos/multistage/organize_wardrobe.toml``): the catalog's wardrobe has two revolute doors and a
+lower rail the hangers' hooks fit over (fast, from the generators); the task file's stages and the
+skills' registration (fast); the hang-on-rail predicate on simulated-state values built from a real
+generated hanger (fast); one real organize_wardrobe episode in a generated bedroom (slow)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+
+def _generated(category: str, k: int):
+    from asset_catalog.generators import GENERATORS_BY_CATEGORY, generate
+
+    return generate(GENERATORS_BY_CATEGORY[category], np.random.default_rng(k), f"{category}_{k:02d}")
+
+
+def test_wardrobe_doors_and_lower_rail_take_the_hangers_hook():
+    """Every wardrobe variant has two revolute door leaves and a 16 mm rail across its inside at its
+    ``low_rail`` height (0.95-1.1 m); every hanger's hook (inner radius ``hook_radius``) clears that
+    rail by at least 8 mm and its recorded ``rod`` is its kind's."""
+    from asset_catalog.generators.furniture import LOW_RAIL_RADIUS
+    from asset_catalog.generators.objects import HANGER_NECK
+
+    for k in range(5):
+        w = _generated("wardrobe", k)
+        assert sorted(j.role for j in w.joints) == ["door", "door"], k
+        kinds = {j.name: j.type.value for j in w.model.joints}
+        assert sorted(kinds.values()) == ["revolute", "revolute"], kinds
+        z, width = w.params["low_rail"], w.params["width"]
+        assert 0.95 <= z <= 1.1
+        # the rail: base-link collider pieces thin in X and Z around (0, z), spanning the inside's width
+        base = next(lk for lk in w.model.links if lk.name == "base")
+        pts = [c.vertices for c in base.collision_source or ()]
+        rails = [v for v in pts if abs(v[:, 2].mean() - z) < 0.002 and np.ptp(v[:, 2]) <= 2 * LOW_RAIL_RADIUS + 1e-4
+                 and abs(v[:, 0].mean()) < 1e-3]
+        assert rails, f"wardrobe {k}: no rail collider at z = {z:.3f}"
+        assert max(float(np.ptp(v[:, 1])) for v in rails) >= width - 0.04
+    rods = {0.0: (0.0018, 0.0025), 1.0: (0.004, 0.006), 2.0: (0.007, 0.009)}
+    for k in range(5):
+        h = _generated("hanger", k)
+        lo, hi = rods[h.params["kind"]]
+        assert lo <= h.params["rod"] <= hi, (k, h.params)
+        assert h.params["hook_radius"] >= LOW_RAIL_RADIUS + 0.008
+        assert h.params["neck"] == HANGER_NECK
+
+
+def test_organize_wardrobe_task_file_and_skills():
+    from stages.demos.experts import EXPERTS
+    from stages.demos.multistage import TASKS_DIR, load_multistage_dir
+    from stages.demos.tasks import BASIC_TASKS, TASKS
+
+    spec = load_multistage_dir(TASKS_DIR)["organize_wardrobe"]
+    assert spec.room == "bedroom"
+    assert [s.skill for s in spec.stages] == ["open_wardrobe", "hang_on_rail", "close_wardrobe"]
+    assert [s.final for s in spec.stages] == [False, True, True]
+    for s in spec.stages:
+        assert s.skill in TASKS and s.skill in EXPERTS and s.skill not in BASIC_TASKS
+
+
+def _hanger_world(tmp_path):
+    """A world holding a real generated hanger (its parameters; the package's bounds from the
+    generated model, not ingested) and a rail along world Y at 1.0 m, the wardrobe's front to +X."""
+    from types import SimpleNamespace
+
+    from stages.demos.packages import CatalogAsset, Placed
+    from stages.demos.skill_wardrobe import Rail
+
+    g = _generated("hanger", 3)
+    pts = np.vstack([p.vertices for lk in g.model.links for p in lk.visuals])
+    asset = CatalogAsset("hanger_03", "hanger", tmp_path / "hanger_03.usda", {"params": dict(g.params)})
+    asset.__dict__["_facts"] = (tuple(pts.min(0)), tuple(pts.max(0)), "base")
+    h = Placed("Objects/hanger_0", asset, (0.0, 0.0, 0.0), 0.0)
+    rail = Rail((0.3, 0.0, 1.0), (0.3, 0.8, 1.0), 0.008, (1.0, 0.0))
+    return SimpleNamespace(world=SimpleNamespace(placed={"hanger": h}, rail=rail)), h, rail
+
+
+def _state(h, origin, rot, *, grip: float = 0.08, ee=(0.8, 0.4, 1.0)):
+    from asset_catalog.asset_model import Pose
+    from stages.simulate.state import BasePose, RobotState, StepState
+
+    rot = np.asarray(rot, float)
+    w = math.sqrt(max(0.0, 1.0 + np.trace(rot))) / 2
+    q = (w, (rot[2, 1] - rot[1, 2]) / (4 * w), (rot[0, 2] - rot[2, 0]) / (4 * w), (rot[1, 0] - rot[0, 1]) / (4 * w))
+    robot = RobotState(joint_names=(), q=np.zeros(0), qd=np.zeros(0), ee_pose=Pose(tuple(ee), (1.0, 0.0, 0.0, 0.0)),
+                       base=BasePose(x=0.0, y=0.0, theta=0.0), gripper_opening=grip)
+    return StepState(time=0.0, step=0, world=0, robot=robot,
+                     objects={h.body(): Pose(tuple(float(v) for v in origin), q)}, scene_joints={})
+
+
+def test_hang_on_rail_predicate(tmp_path):
+    """Hung: the hook's centre where the rail sits in its top, the neck vertical, the hand open away: a
+    success; the same hanger 5 cm lower, past the rail's end, lying flat there, or still in the closed
+    hand fails with its reason."""
+    from stages.demos.skill_wardrobe import _hook, hang_on_rail_success
+
+    inst, h, rail = _hanger_world(tmp_path)
+    _, cx, rod = _hook(h)
+    hr = h.asset.params["hook_radius"]
+    # hanging: local -X up, local +Y into the wardrobe (-X world), local Z along the rail (+Y world)
+    hung = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])
+
+    def origin_for(centre, rot):
+        return np.asarray(centre) - rot @ np.array([cx, 0.0, rod])
+
+    rest = np.array([0.3, 0.4, 1.0 - (hr - rail.radius)])
+    assert hang_on_rail_success(inst, _state(h, origin_for(rest, hung), hung)) == (True, "")
+    assert hang_on_rail_success(inst, _state(h, origin_for(rest - [0, 0, 0.05], hung), hung))[1] == "not_on_rail"
+    assert hang_on_rail_success(inst, _state(h, origin_for(rest + [0, 0.5, 0], hung), hung))[1] == "not_on_rail"
+    flat = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    assert hang_on_rail_success(inst, _state(h, origin_for(rest, flat), flat))[1] == "not_hanging"
+    assert hang_on_rail_success(inst, _state(h, origin_for(rest, hung), hung, grip=0.01,
+                                             ee=rest - [0, 0, 0.05]))[1] == "object_still_held"
+    assert hang_on_rail_success(inst, _state(h, [0.3, 0.4, 0.02], flat))[1] == "hanger_fell"
+
+
+@pytest.fixture(scope="module")
+def bedroom(tmp_path_factory):
+    """The task world of flat_008's bedroom (job seed 0, as ``bench_house_tasks.py --room bedroom``):
+    one of the 5 of the first 37 flats whose bedroom converts with a wardrobe, its lower rail and a hanger."""
+    pytest.importorskip("newton")
+    from test_demos_house_bedroom import BEDROOM_PACKAGES
+
+    from pipeline import build_job, run_job
+    from stages.demos.house_bedroom import house_bedroom
+    from stages.scene.rules import HOUSEHOLD_TASK_RULES
+
+    out = tmp_path_factory.mktemp("wardrobe") / "out"
+    cats = sorted({p.rsplit("_", 1)[0] for p in BEDROOM_PACKAGES})
+    job = {"job": {"name": "wardrobe", "seed": 0, "out": str(out), "executor": "inline", "workers": 1},
+           "step": [{"name": "catalog", "kind": "default_catalog", "config": {"variants": 5, "categories": cats}},
+                    {"name": "assets", "kind": "ingest", "config": {"catalog_step": "catalog", "only": list(BEDROOM_PACKAGES)}},
+                    {"name": "layouts", "kind": "layout", "config": {"house": [
+                        {"id": "flat", "count": 9, "spec": {"rooms": {"living_room": 1, "kitchen": 1, "bedroom": 1}}}]}},
+                    {"name": "scenes", "kind": "scene", "config": {
+                        "assets_step": "assets", "layouts_step": "layouts", "rules": str(HOUSEHOLD_TASK_RULES),
+                        "looks": 1, "validate_usd": False, "settle": True,
+                        "group": [{"id": "flat", "layouts": ["flat_008"], "rooms": ["bedroom"]}]}}]}
+    summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
+    assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
+    scene = out / "scenes" / "flat_008_p0"
+    return house_bedroom(scene, tmp_path_factory.mktemp("task"), out / "catalog" / "default" / "generated.json",
+                         scene_id=scene.name)
+
+
+@pytest.mark.slow  # ~1 min on 2 shared cores (the catalog, 9 layouts, flat_008's bedroom, one episode)
+def test_wardrobe_facts_and_the_door_opens_in_a_generated_bedroom(bedroom, tmp_path):
+    """The world's rail lies inside the wardrobe at its ``low_rail`` height; the episode's hanger lies on
+    the blanket with its apex over the near edge; the real open_wardrobe expert opens the door on the
+    batched engine (its predicate: past 75% of the travel)."""
+    from stages.demos.multistage import sample_task
+    from stages.demos.skill_wardrobe import OVERHANG
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    w = bedroom
+    wr, rail = w.placed["wardrobe"], w.rail
+    x0, y0, x1, y1 = wr.footprint()
+    for p in (rail.p0, rail.p1):
+        assert x0 < p[0] < x1 and y0 < p[1] < y1
+        assert p[2] == pytest.approx(wr.position[2] + wr.asset.params["low_rail"], abs=1e-6)
+    inst = sample_task("organize_wardrobe", w, 1)
+    h = w.placed["hanger"]
+    x, y, z, _ = inst.objects[h.body()]
+    apex_y = y - h.asset.params["shoulder_height"]
+    assert apex_y == pytest.approx(w.blanket_edge - OVERHANG, abs=1e-6) and z > w.table_z
+    rows = []
+    eng = BatchEngine(w, panda_root=None, work_dir=tmp_path / "engine",
+                      config=EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True))
+    eng.run(Listed(w, {0: [("open_wardrobe", 1, None)]}), begin=lambda *_: None,
+            end=lambda _w, t, r: rows.append((t.task, r.success, r.reason)))
+    assert rows == [("open_wardrobe", True, "")]
