@@ -341,6 +341,20 @@ def _ry(theta: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def grip_rot() -> np.ndarray:
+    """The hand's rotation (3, 3) that grasps the pitcher's handle: pointing along world +Y, the
+    fingers closing along world X (:func:`stages.demos.counter.side_rot`), turned 180 deg about the
+    approach axis (the same grasp: the fingers are symmetric). Why: the pour rolls the hand about its
+    approach axis by up to :data:`POUR_TILT`, which the Panda's last joint mostly takes; unturned that
+    joint started at 90-110 deg and reached 150 deg (its limit is 166) at 50 deg of roll, where the
+    arm's IK swung to another branch and the hand rolled back to 3 deg and on to 150 deg within a
+    second, throwing the drink off the table (kitchen 0 seed 1). Turned, it starts near -90 deg and
+    ends near +35 deg."""
+    from stages.demos.counter import side_rot
+
+    return side_rot(0.0) @ np.diag([-1.0, -1.0, 1.0])
+
+
 def pick_pitcher(inst, d) -> None:
     """The expert of ``pick_pitcher``: drive before the table between the pitcher and the cup, side
     grasp of the handle's bar (hand along +Y, fingers closing along X, :func:`handle_grip`), lift
@@ -349,7 +363,7 @@ def pick_pitcher(inst, d) -> None:
     :class:`stages.simulate.world.SimConfig` ``contact_gap``; the pads now close on the handle. On
     session 14's round 14 mm rod the pitcher turned 18-20 deg about it while pouring; the handle is a
     flat strap now, the pads on its flat sides.)"""
-    from stages.demos.counter import _pose, facing_north_goal, side_rot
+    from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
 
@@ -361,7 +375,7 @@ def pick_pitcher(inst, d) -> None:
     d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0])), w.grid(), tuck=tuck)
     st = read_state(d.sim).objects[plan.pitcher]
     grip = _to_world(handle_grip(pp.asset.params), st.position, _yaw(st.orientation))
-    rot = side_rot(0.0)
+    rot = grip_rot()
     d.grip(0.0, 0.6)
     log.debug("pick_pitcher: open %.4f m", read_state(d.sim).robot.gripper_opening)
     d.move(_pose(grip - [0, 0.14, 0], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
@@ -440,7 +454,7 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     (:func:`pour_lip`) stands :data:`LIP_IN` x the cup's radius behind the cup's axis against the
     direction the drink is thrown (a pitcher that sags or turns in the hand pours off the aim: the
     spheres landed north-east of a 36 mm cup, 9-11 of 24 in it)."""
-    from stages.demos.counter import _pose, side_rot
+    from stages.demos.counter import _pose
     from stages.simulate.state import read_state
 
     w, plan = inst.world, inst.place
@@ -454,7 +468,7 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     cup = np.asarray(st.objects[plan.cup].position, float)
     cup_r, cup_h = float(cp.asset.params["rim_radius"]), float(cp.asset.params["height"])
     target = np.array([cup[0] - LIP_IN * cup_r, cup[1], cup[2] + cup_h + RIM_CLEARANCE])
-    rot0 = side_rot(0.0)
+    rot0 = grip_rot()
     high = target + [0.0, 0.0, h]  # upright with the lip there: the bottom RIM_CLEARANCE over the cup's rim
 
     def at(theta: float) -> np.ndarray:
