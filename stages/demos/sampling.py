@@ -204,7 +204,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
 
         objects.update(cushion_start(world, seed))
     if task_name in POUR_SKILLS:
-        from stages.demos.skill_pour import pour_setup
+        from stages.demos.drink import pour_setup
 
         moved, place = pour_setup(world, rng)
         objects.update(moved)
