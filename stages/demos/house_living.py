@@ -19,7 +19,8 @@ the table's near band east of the paper (:func:`stages.demos.skill_books.book_se
 lying at the table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
 can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room,
 where the planner finds a path to the staging pose before the paper (``anchor``; a pocket behind
-the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path). Where the
+the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path). With
+``drink=True`` (serve drinks: :func:`stages.demos.multistage.needs_drink`), where the
 table holds a pitcher whose handle the hand grasps (:func:`stages.demos.drink.pitcher_ok`) and
 a cup, they become roles "pitcher" and "cup" and the task scene adds the drink (serve drinks:
 :data:`stages.demos.drink.DRINK_COUNT` spheres, ``/World/Drink/D<k>``, in the pitcher; a
@@ -121,7 +122,7 @@ def _write_drink(out_dir: Path, pitcher: dict, asset) -> tuple[Path, tuple[str, 
 
 
 def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
-                 room: str | None = None) -> HouseLiving:
+                 room: str | None = None, drink: bool = False) -> HouseLiving:
     """The task world of the living room ``room`` (default: the house's first populated living room)
     of the scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc).
     ItemError names what the room lacks or why no side of its table works."""
@@ -146,7 +147,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         raise ItemError(f"{scene_dir}: living room {rs.room} lacks {', '.join(lack)}")
     shelf = rs.one("bookshelf", lambda r: r["support"] is None)
     books = _books(rs, table["name"])
-    drink = _drink(rs, table["name"])
+    drink = _drink(rs, table["name"]) if drink else None
     can_asset = rs.asset(can)
 
     # the turn: the table's long side along X first; the first whose south side has room
