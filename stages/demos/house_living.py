@@ -11,18 +11,24 @@ end (the experts work at a table from its south side, facing +Y; the coffee tabl
 not that one), the table's long side first, and moves the trash can onto the floor off the table's
 west end (as the task kitchen parks it: :data:`CAN_GAP` off the table's footprint, 0.15 m north of
 the top's front), where it stands clear of the walls and the floor furniture. The
-task scene deactivates the other rooms' objects, the table's objects other than the task's paper and
-books (a pitcher and cups: serve drinks is not built here) and the bookshelf's own books (its boards
+task scene deactivates the other rooms' objects, the table's objects other than the task's paper,
+books, pitcher and cup and the bookshelf's own books (its boards
 take organize books' books); the room's first two books 20-46 mm thick (the household rules put two
 on the table) become roles "book_1", "book_2", which every living-room episode stands spine up on
 the table's near band east of the paper (:func:`stages.demos.skill_books.book_setup`: a book left
 lying at the table's west end lay where the paper is set and the grasp missed); the room's floor furniture (the moved
 can with it) and the floor's walls are the planner's obstacles; the robot starts inside the room,
 where the planner finds a path to the staging pose before the paper (``anchor``; a pocket behind
-the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path).
+the sofa or the TV stand is no start: flat_000 seeds 4 and 6 started there, no_path). With
+``drink=True`` (serve drinks: :func:`stages.demos.multistage.needs_drink`), where the
+table holds a pitcher whose handle the hand grasps (:func:`stages.demos.drink.pitcher_ok`) and
+a cup, they become roles "pitcher" and "cup" and the task scene adds the drink (serve drinks:
+:data:`stages.demos.drink.DRINK_COUNT` spheres, ``/World/Drink/D<k>``, in the pitcher; a
+sublayer ``drink.usda`` beside the task scene).
 
 Facts (task frame, Z up, metres, radians): ``placed`` roles "table", "paper", "trash_can" and
-where present "bookshelf" and (with it) "book_1", "book_2"; ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
+where present "bookshelf" and (with it) "book_1", "book_2", "pitcher" and "cup" (with ``drink``: the
+spheres' body paths); ``table_rect`` / ``table_z``: the table's top; ``shelves``: the
 bookshelf's boards inside it as (xmin, ymin, xmax, ymax, z, clear height) [m]. The kitchen-only
 facts (counter, microwave cavity, button) are the table's top or zero.
 
@@ -88,8 +94,35 @@ def _books(rs, table: str) -> list[dict]:
     return found[:BOOKS] if len(found) >= BOOKS else []
 
 
+def _drink(rs, table: str) -> tuple[dict, dict] | None:
+    """The table's pitcher whose handle the hand grasps (:func:`stages.demos.drink.pitcher_ok`)
+    and its first cup, as scene records; None when it lacks either."""
+    from stages.demos.drink import pitcher_ok
+
+    pitcher = rs.one("pitcher", lambda r: r["support"] == table and pitcher_ok(rs.asset(r)))
+    cup = rs.one("cup", lambda r: r["support"] == table)
+    return (pitcher, cup) if pitcher is not None and cup is not None else None
+
+
+def _write_drink(out_dir: Path, pitcher: dict, asset) -> tuple[Path, tuple[str, ...]]:
+    """The drink's layer ``out_dir/drink.usda`` (:func:`stages.demos.drink.write_drink`): the
+    spheres in the pitcher of scene record ``pitcher`` (house frame: the task scene moves ``/World``)
+    and their body paths."""
+    from stages.demos.drink import DRINK_COUNT, drink_world, write_drink
+    from stages.simulate.demo_scene import _Writer
+
+    bodies = tuple(f"/World/Drink/D{k:02d}" for k in range(DRINK_COUNT))
+    pts = drink_world((*pitcher["position"], pitcher["yaw"]), asset.params, DRINK_COUNT)
+    w = _Writer()
+    write_drink(w, dict(zip(bodies, pts, strict=True)))
+    path = out_dir / "drink.usda"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    w.write(path, "World")
+    return path, bodies
+
+
 def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
-                 room: str | None = None) -> HouseLiving:
+                 room: str | None = None, drink: bool = False) -> HouseLiving:
     """The task world of the living room ``room`` (default: the house's first populated living room)
     of the scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc).
     ItemError names what the room lacks or why no side of its table works."""
@@ -114,6 +147,7 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         raise ItemError(f"{scene_dir}: living room {rs.room} lacks {', '.join(lack)}")
     shelf = rs.one("bookshelf", lambda r: r["support"] is None)
     books = _books(rs, table["name"])
+    drink = _drink(rs, table["name"]) if drink else None
     can_asset = rs.asset(can)
 
     # the turn: the table's long side along X first; the first whose south side has room
@@ -151,17 +185,24 @@ def house_living(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_
         pl["bookshelf"] = furniture[shelf["name"]]
         pl.update({f"book_{k + 1}": rf.placed(b, rs.asset(b)) for k, b in enumerate(books)})
     keep = {paper["name"]} | ({b["name"] for b in books} if shelf is not None else set())
+    layers, bodies = [], ()
+    if drink is not None:
+        pl.update(pitcher=rf.placed(drink[0], rs.asset(drink[0])), cup=rf.placed(drink[1], rs.asset(drink[1])))
+        keep |= {drink[0]["name"], drink[1]["name"]}
+        layer, bodies = _write_drink(out_dir, drink[0], rs.asset(drink[0]))
+        layers.append(layer)
     cut = rs.other_rooms_objects() + [n for n, r in rs.mine.items() if n not in keep and r["support"] is not None
                                       and r["support"] in (table["name"], shelf["name"] if shelf else None)]
     hxy = rf.to_house(cp.position[:2])
     moved = (can["name"], (float(hxy[0]), float(hxy[1]), float(can["position"][2])))
     usd = out_dir / "scene.usda"
-    write_task_scene(usd, rs.house, rf.frame, cut, moved)
+    write_task_scene(usd, rs.house, rf.frame, cut, moved, layers=layers)
     spot = (rect[0] + PAPER_AT[0], rect[1] + PAPER_AT[1])
     w = HouseLiving(
         usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
         anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)),
-        shelves=_shelves(pl["bookshelf"]) if shelf is not None else (), **room_fields(rs, rf, rect, z, spot))
+        shelves=_shelves(pl["bookshelf"]) if shelf is not None else (), drink=bodies,
+        **room_fields(rs, rf, rect, z, spot))
     spawn_in(w)
     log.info("house living room %s (%s, %s): %s; cut %d", scene_id, scene_dir.name, rs.room, w.asset_ids(), len(cut))
     return w

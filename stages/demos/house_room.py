@@ -255,10 +255,11 @@ def room_frame(house: Path, room: str, theta: float) -> RoomFrame:
 
 
 def write_task_scene(path: Path, house: Path, frame: tuple[float, float, float], cut: list[str],
-                     moved: tuple[str, tuple] | None) -> None:
+                     moved: tuple[str, tuple] | None, layers: list[Path] = ()) -> None:
     """The task scene layer: the house's scene as a sublayer, ``/World`` moved by ``frame`` (translate
     (tx, ty, 0), then rotate theta about +Z), the ``cut`` instances (``/World/Objects/<name>``) inactive;
-    ``moved``: (instance, new position in the house frame [m]) or None."""
+    ``moved``: (instance, new position in the house frame [m]) or None; ``layers``: more sublayers
+    (stronger than the house's) whose prims under ``/World`` the same motion moves (the drink)."""
     from pxr import Gf, Sdf
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
@@ -267,6 +268,8 @@ def write_task_scene(path: Path, house: Path, frame: tuple[float, float, float],
     root.SetInfo("metersPerUnit", 1.0)
     root.SetInfo("kilogramsPerUnit", 1.0)
     layer.defaultPrim = "World"
+    for extra in layers:
+        layer.subLayerPaths.append(_rel(extra, path.parent))
     layer.subLayerPaths.append(_rel(house, path.parent))
     world = Sdf.PrimSpec(root, "World", Sdf.SpecifierOver)
     tx, ty, th = frame

@@ -132,10 +132,10 @@ class KitchenWorld:
 
     def drink_parked(self) -> dict:
         """The drink's spheres where the kitchen parks them (body -> (x, y, z, yaw)): in the parked
-        pitcher (:func:`stages.demos.skill_pour.drink_world`); empty without a drink."""
+        pitcher (:func:`stages.demos.drink.drink_world`); empty without a drink."""
         if not self.drink:
             return {}
-        from stages.demos.skill_pour import drink_world
+        from stages.demos.drink import drink_world
 
         p = self.placed["pitcher"]
         pts = drink_world((*p.position, p.yaw), p.asset.params, len(self.drink))
@@ -325,7 +325,7 @@ def _write_scene(path: Path, size, placed: list[Placed], colors: dict, door_gap:
         w.prim(p.prim, "Xform", apis=la, attrs={**_xform_attrs(p.position, p.yaw), **lv},
                meta={"references": Sdf.ReferenceListOp.Create(prependedItems=[ref])})
     if drink:
-        from stages.demos.skill_pour import write_drink
+        from stages.demos.drink import write_drink
 
         write_drink(w, drink)
     add_look(w, look, size)
@@ -339,7 +339,7 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
     ``household``: also park the household skills' objects (plate, sponge, paper, trash can: only the
     tasks that use them ask, :func:`stages.demos.multistage.needs_household`; the others' worlds stay
     as they were); ``drink``: also park a pitcher holding the drink's spheres and a cup
-    (stages.demos.skill_pour; :func:`stages.demos.multistage.needs_drink`); ``clock``: also park an
+    (stages.demos.drink; :func:`stages.demos.multistage.needs_drink`); ``clock``: also park an
     alarm clock on the counter (the press and slide skills, :func:`stages.demos.multistage.needs_clock`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -443,14 +443,14 @@ def write_kitchen(out_dir: Path, lib: AssetLibrary, *, scene_id: str,
         placed.update(_clock(lib, spare, counter_rect, top_z, busy))
     drink_bodies: tuple[str, ...] = ()
     if drink:
-        from stages.demos.skill_pour import park_drink
+        from stages.demos.drink import park_drink
 
         more, drink_bodies = park_drink(lib, rng.spawn(1)[0], table_rect, table_z)
         placed.update(more)
     usd = out_dir / "scene.usda"
     parked = None
     if drink_bodies:
-        from stages.demos.skill_pour import drink_world
+        from stages.demos.drink import drink_world
 
         p = placed["pitcher"]
         parked = dict(zip(drink_bodies, drink_world((*p.position, p.yaw), p.asset.params, len(drink_bodies)),

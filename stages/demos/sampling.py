@@ -219,7 +219,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         ids = [pl["hanger"], pl["wardrobe"]]
         target = tuple(float(v) for v in world.rail.p0[:2])
     if task_name in POUR_SKILLS:
-        from stages.demos.skill_pour import pour_setup
+        from stages.demos.drink import pour_setup
 
         moved, place = pour_setup(world, rng)
         objects.update(moved)

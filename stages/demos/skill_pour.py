@@ -1,13 +1,9 @@
-"""The pour skills (issue 16, serve drinks): the drink is :data:`DRINK_COUNT` small spheres, free
-bodies of the world's model, that start inside the pitcher; the robot picks the pitcher up by its
-handle, pours the spheres into the cup and puts the pitcher back (tasks ``pick_pitcher``,
-``pour_drink``, ``place_pitcher``: the stages of ``serve_drinks``).
+"""The pour skills (issue 16, serve drinks): the drink is small spheres, free bodies of the world's
+model, that start inside the pitcher (:mod:`stages.demos.drink`: the spheres, the episode's setup
+:func:`~stages.demos.drink.pour_setup` and its :class:`~stages.demos.drink.PourPlan`); the robot
+picks the pitcher up by its handle, pours the spheres into the cup and puts the pitcher back (tasks
+``pick_pitcher``, ``pour_drink``, ``place_pitcher``: the stages of ``serve_drinks``).
 
-- :func:`drink_positions`: the spheres' start centres (N, 3) packed in layers inside a pitcher
-  (pitcher frame), used when the kitchen is written and at every episode's reset;
-- :func:`pour_setup`: the episode's pitcher (handle towards the robot, -Y) and cup on the table's
-  near band, the spheres in the pitcher, the mug, bowl and pushed object moved to the far band;
-  a :class:`PourPlan` (the pitcher's home, the drink's bodies);
 - the experts: :func:`pick_pitcher` (drive before the table, side grasp of the flat strap handle's
   outer part, :func:`handle_grip`, the hand pointing +Y with the fingers closing along X, lift),
   :func:`pour_drink` (carry the pitcher beside the cup, its east rim over the cup, roll the hand
@@ -27,18 +23,14 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from stages.demos.drink import PourPlan
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
 log = logging.getLogger(__name__)
 
-DRINK_COUNT = 24          # spheres of the drink
-DRINK_RADIUS = 0.007      # [m]
-DRINK_DENSITY = 1000.0    # water [kg/m^3]: 1.44 g a sphere
-DRINK_FRICTION = 0.2      # low: the spheres roll and slide out like a liquid
 POUR_SHARE = 0.6          # share of the spheres that must end in the cup
 POUR_TILT = math.radians(125.0)  # the pitcher's roll while pouring [rad]
 RIM_CLEARANCE = 0.012     # the pitcher's pouring rim this far [m] above the cup's rim
@@ -56,58 +48,13 @@ PAD_WIDTH = 0.0175        # and its width [m] (across the approach and the closi
 GRIP_SHORT = 0.004        # the hand re-aims at the handle when it stops farther than this [m] from it
 PLACE_STEP = 0.03         # the pitcher is lowered onto the table in steps of this [m]
 FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's inner upper curve above the fingertips
-
-
-@dataclass(frozen=True)
-class PourPlan:
-    """The episode's fixed facts: pitcher / cup body paths; home: the pitcher's start pose
-    (x, y, z, yaw) [m, rad] where it is put back; drink: the spheres' body paths; cup_xy: where the
-    cup stands (2,) [m]."""
-
-    pitcher: str
-    cup: str
-    home: tuple[float, float, float, float]
-    drink: tuple[str, ...]
-    cup_xy: tuple[float, float]
-
-
-def pitcher_inner_radius(params: dict) -> float:
-    """Inner radius [m] of the pitcher's floor (the generator's profile: bottom radius 0.85 r, less
-    the wall)."""
-    return 0.85 * float(params["radius"]) - float(params["wall"])
-
-
-def drink_positions(params: dict, n: int = DRINK_COUNT, radius: float = DRINK_RADIUS) -> np.ndarray:
-    """Sphere centres (n, 3) [m] in the pitcher frame: layers of a centre and a ring of six
-    (:data:`radius` + 2 mm clear of each other and of the inner wall), from 2 mm above the floor
-    (the generator's floor at 8 mm) upward. ValueError when the pitcher is too narrow for a ring or
-    the layers rise above its rim."""
-    inner = pitcher_inner_radius(params)
-    ring = 2 * radius + 0.003
-    if ring + radius + 0.002 > inner:
-        raise ValueError(f"pitcher inner radius {inner * 1000:.0f} mm holds no ring of {radius * 1000:.0f} mm spheres")
-    floor = 0.008 + float(params["wall"])
-    pts = []
-    layer = 0
-    while len(pts) < n:
-        z = floor + 0.002 + radius + layer * (2 * radius + 0.002)
-        turn = 0.5 * (layer % 2) * math.pi / 6  # alternate layers turned (they nest)
-        ring_pts = [(ring * math.cos(turn + k * math.pi / 3), ring * math.sin(turn + k * math.pi / 3), z)
-                    for k in range(6)]
-        pts += [(0.0, 0.0, z), *ring_pts]
-        layer += 1
-    out = np.asarray(pts[:n], float)
-    if out[:, 2].max() + radius > float(params["height"]) - 0.01:
-        raise ValueError(f"{n} spheres of {radius * 1000:.0f} mm rise above the pitcher's rim")
-    return out
-
-
-def drink_world(pitcher_pose, params: dict, n: int = DRINK_COUNT) -> np.ndarray:
-    """The spheres' centres (n, 3) [m] in the world for a pitcher at ``pitcher_pose`` (x, y, z, yaw)."""
-    x, y, z, yaw = pitcher_pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    p = drink_positions(params, n)
-    return np.column_stack([x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1], z + p[:, 2]])
+TABLE_GAP = 0.16          # the base's front this far [m] before the table (0.08: kitchen 1 seed 1's arm
+                          # folded to its wrist limits, 215 deg, while pouring, swung to another branch
+                          # and dropped the pitcher; 0.16: 24 of 24 in the cup)
+LOW_TABLE = 0.6           # a table lower than this [m] (a coffee table) is worked differently:
+LOW_PITCH = 20.0          # the grasping hand pitched down this far [deg] (:func:`grip_rots`)
+LOW_GAP = 0.32            # the base's front this far [m] before the table (0.08: the arm folded too far)
+Q7_POUR_MAX = math.radians(35.0)  # the Panda's last joint at most this high [rad] before the pour (:func:`_unwind`)
 
 
 def in_cup(points, cup_pos, cup_quat, params: dict, tol: float = 0.003) -> np.ndarray:
@@ -123,34 +70,6 @@ def in_cup(points, cup_pos, cup_quat, params: dict, tol: float = 0.003) -> np.nd
     rb, wall = r * float(params.get("taper", 0.8)), float(params.get("wall", 0.0025))
     inner = rb + (r - rb) * np.clip(local[:, 2] / h, 0.0, 1.0) - wall
     return (local[:, 2] > 0.005) & (local[:, 2] < h) & (np.linalg.norm(local[:, :2], axis=1) <= inner + tol)
-
-
-def pour_setup(world, rng: np.random.Generator) -> tuple[dict, PourPlan]:
-    """The episode's object poses (body -> (x, y, z, yaw)): the pitcher (yaw pi: handle towards the
-    robot) and, 0.30 m east of it, the cup on the table's near band; the spheres in the pitcher;
-    the mug, bowl and pushed object on the far band; and the :class:`PourPlan`. ItemError when the
-    world has no pitcher, cup and drink (:func:`stages.demos.kitchen.write_kitchen` with
-    ``drink=True``)."""
-    from pipeline.types import ItemError
-
-    pl = world.placed
-    drink = tuple(getattr(world, "drink", ()))
-    if "pitcher" not in pl or "cup" not in pl or not drink:
-        raise ItemError(f"{world.usd}: no pitcher, cup and drink in this kitchen (write_kitchen(drink=True))")
-    x0, y0, x1, y1 = world.table_rect
-    tx, z = 0.5 * (x0 + x1), world.table_z + 0.002
-    home = (float(tx - 0.15 + rng.uniform(-0.02, 0.02)), float(y0 + 0.22 + rng.uniform(-0.01, 0.01)), z, math.pi)
-    cup = (float(tx + 0.15 + rng.uniform(-0.02, 0.02)), float(y0 + 0.22 + rng.uniform(-0.01, 0.01)), z, 0.0)
-    objects = {pl["pitcher"].body(): home, pl["cup"].body(): cup}
-    for body, p in zip(drink, drink_world(home, pl["pitcher"].asset.params, len(drink)), strict=True):
-        objects[body] = (*(float(v) for v in p), 0.0)
-    far = {"mug": (-0.25, 0.14), "bowl": (0.02, 0.16), "pusher": (0.28, 0.12)}
-    for role, (dx, back) in far.items():
-        if role in pl:
-            objects[pl[role].body()] = (tx + dx, y1 - back, z, 0.0)
-    plan = PourPlan(pitcher=pl["pitcher"].body(), cup=pl["cup"].body(), home=home, drink=drink,
-                    cup_xy=(cup[0], cup[1]))
-    return objects, plan
 
 
 # -- predicates ------------------------------------------------------------------------------------
@@ -222,63 +141,6 @@ def place_pitcher_success(inst, state, peaks=None) -> tuple[bool, str]:
     return True, ""
 
 
-# -- the kitchen's drink ---------------------------------------------------------------------------
-
-
-def pitcher_ok(a) -> bool:
-    """A pitcher whose floor holds a ring of spheres and whose handle the Franka hand grasps: a flat
-    strap loop (the generator's ``handle_depth``: pads on a round rod let the pitcher turn about it)
-    with clearance for a fingertip."""
-    try:
-        drink_positions(a.params)
-    except (ValueError, KeyError):
-        return False
-    if "handle_depth" not in a.params:
-        return False
-    return any(h.get("kind") == "loop" and float(h.get("clearance", 0.0)) >= 0.018 for h in a.info.get("handles", []))
-
-
-def park_drink(lib, rng: np.random.Generator, table_rect, table_z: float) -> tuple[dict, tuple[str, ...]]:
-    """A pitcher (:func:`pitcher_ok`) and a cup on the table's far band, west and east of the
-    household objects, and the drink's sphere bodies (``/World/Drink/D<k>``); ({}, ()) when the
-    catalog has no such pitcher or no cup."""
-    from stages.demos.packages import Placed
-
-    pitchers = [a for a in lib.of("pitcher") if pitcher_ok(a)]
-    cups = lib.of("cup")
-    if not pitchers or not cups:
-        return {}, ()
-    pitcher, cup = pitchers[int(rng.integers(len(pitchers)))], cups[int(rng.integers(len(cups)))]
-    tx, far = 0.5 * (table_rect[0] + table_rect[2]), table_rect[3]
-    placed = {"pitcher": Placed("Pitcher", pitcher, (tx - 0.42, far - 0.14, table_z + 0.002), 0.0),
-              "cup": Placed("Cup", cup, (tx + 0.45, far - 0.10, table_z + 0.002), 0.0)}
-    return placed, tuple(f"/World/Drink/D{k:02d}" for k in range(DRINK_COUNT))
-
-
-def write_drink(w, centres: dict) -> None:
-    """Author the drink in scene writer ``w`` (stages.simulate.demo_scene._Writer): one rigid body
-    Xform per sphere (``centres``: body path -> centre (3,) [m]) with a sphere collider of
-    :data:`DRINK_RADIUS`, mass of water, bound to a low-friction physics material."""
-    from pxr import Gf, Sdf
-
-    from stages.simulate.demo_scene import _xform_attrs
-
-    T = Sdf.ValueTypeNames
-    w.prim("/World/Drink", "Xform")
-    mat = "/World/Drink/Water"
-    w.prim(mat, "Material", apis=["PhysicsMaterialAPI"], attrs={
-        "physics:staticFriction": (T.Float, DRINK_FRICTION), "physics:dynamicFriction": (T.Float, DRINK_FRICTION),
-        "physics:restitution": (T.Float, 0.0)})
-    mass = DRINK_DENSITY * 4.0 / 3.0 * math.pi * DRINK_RADIUS ** 3
-    for body, c in centres.items():
-        w.prim(body, "Xform", apis=["PhysicsRigidBodyAPI", "PhysicsMassAPI"],
-               attrs={**_xform_attrs(c), "physics:mass": (T.Float, mass)})
-        w.prim(f"{body}/Ball", "Sphere", apis=["PhysicsCollisionAPI", "MaterialBindingAPI"],
-               attrs={"radius": (T.Double, DRINK_RADIUS),
-                      "primvars:displayColor": (T.Color3fArray, [Gf.Vec3f(0.2, 0.45, 0.9)])},
-               rels={"material:binding:physics": [mat]})
-
-
 # -- the experts -----------------------------------------------------------------------------------
 
 
@@ -341,6 +203,41 @@ def _ry(theta: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def grip_rots(table_z: float) -> tuple[np.ndarray, np.ndarray]:
+    """The two hand rotations (3, 3) that grasp the pitcher's handle on a table ``table_z`` [m] high:
+    pointing along world +Y, the fingers closing along world X (:func:`stages.demos.counter.side_rot`),
+    pitched down :data:`LOW_PITCH` on a table lower than :data:`LOW_TABLE` (a coffee table: the
+    horizontal hand hooked its fingers through the loop there), and the same turned 180 deg about the
+    approach axis (the same grasp: the fingers are symmetric; :func:`_unwind` turns the hand to it)."""
+    from stages.demos.counter import side_rot
+
+    r = side_rot(0.0 if table_z >= LOW_TABLE else LOW_PITCH)
+    return r, r @ np.diag([-1.0, -1.0, 1.0])
+
+
+def _unwind(d, at: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Turn the free hand at ``at`` (3,) [m] 180 deg about its approach axis, in 45 deg moves, when the
+    Panda's last joint stands above :data:`Q7_POUR_MAX` (the other grasp of :func:`grip_rots`);
+    returns the hand's rotation (3, 3). Why: the pour rolls the hand about that axis by
+    :data:`POUR_TILT`, which the last joint mostly takes (it rises by 50-120 deg); started at 90-110
+    deg it reached 150 deg (its limit is 166) at 50 deg of roll, the arm's IK swung to another branch
+    and the hand rolled back to 3 deg and on to 150 within a second, throwing the drink off the table
+    (kitchen 0 seed 1)."""
+    from stages.demos.counter import _pose
+    from stages.demos.record import arm_q
+
+    q7 = float(arm_q(d.sim)[-1])
+    log.debug("pick_pitcher: last joint at %.0f deg before the grasp", math.degrees(q7))
+    if q7 <= Q7_POUR_MAX:
+        return rot
+    for k in range(1, 5):
+        a = -k * math.pi / 4
+        turn = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        d.move(_pose(at, rot @ turn), 0.5, segments=1, tol=APPROACH_TOL)
+    log.debug("pick_pitcher: last joint at %.0f deg after the unwind", math.degrees(float(arm_q(d.sim)[-1])))
+    return rot @ np.diag([-1.0, -1.0, 1.0])
+
+
 def pick_pitcher(inst, d) -> None:
     """The expert of ``pick_pitcher``: drive before the table between the pitcher and the cup, side
     grasp of the handle's bar (hand along +Y, fingers closing along X, :func:`handle_grip`), lift
@@ -349,7 +246,7 @@ def pick_pitcher(inst, d) -> None:
     :class:`stages.simulate.world.SimConfig` ``contact_gap``; the pads now close on the handle. On
     session 14's round 14 mm rod the pitcher turned 18-20 deg about it while pouring; the handle is a
     flat strap now, the pads on its flat sides.)"""
-    from stages.demos.counter import _pose, facing_north_goal, side_rot
+    from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.simulate.state import read_state
 
@@ -358,13 +255,17 @@ def pick_pitcher(inst, d) -> None:
     x, y, z, yaw = inst.objects[plan.pitcher]
     grip = _to_world(handle_grip(pp.asset.params), (x, y, z), yaw)
     tuck = stow(d, on_the_way=True)
-    d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0])), w.grid(), tuck=tuck)
+    gap = TABLE_GAP if w.table_z >= LOW_TABLE else LOW_GAP
+    d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0]), gap=gap), w.grid(), tuck=tuck)
     st = read_state(d.sim).objects[plan.pitcher]
     grip = _to_world(handle_grip(pp.asset.params), st.position, _yaw(st.orientation))
-    rot = side_rot(0.0)
+    rot = grip_rots(w.table_z)[1]   # turned: the kitchen's arm reaches it with the last joint near -100 deg
     d.grip(0.0, 0.6)
-    log.debug("pick_pitcher: open %.4f m", read_state(d.sim).robot.gripper_opening)
+    st = read_state(d.sim)
+    log.debug("pick_pitcher: open %.4f m, base %s, handle at %s", st.robot.gripper_opening, st.robot.base,
+              np.round(grip, 3))
     d.move(_pose(grip - [0, 0.14, 0], rot), 1.6, segments=3, settle=0.1, tol=APPROACH_TOL)
+    rot = _unwind(d, grip - [0, 0.14, 0], rot)
     d.move(_pose(grip, rot), 1.0, segments=2, settle=0.5)
     short = grip - np.asarray(read_state(d.sim).robot.ee_pose.position, float)
     if np.linalg.norm(short) > GRIP_SHORT:  # aimed past it once (kitchen 0 seed 1: 9 mm short, the
@@ -440,7 +341,7 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     (:func:`pour_lip`) stands :data:`LIP_IN` x the cup's radius behind the cup's axis against the
     direction the drink is thrown (a pitcher that sags or turns in the hand pours off the aim: the
     spheres landed north-east of a 36 mm cup, 9-11 of 24 in it)."""
-    from stages.demos.counter import _pose, side_rot
+    from stages.demos.counter import _pose
     from stages.simulate.state import read_state
 
     w, plan = inst.world, inst.place
@@ -454,7 +355,8 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
     cup = np.asarray(st.objects[plan.cup].position, float)
     cup_r, cup_h = float(cp.asset.params["rim_radius"]), float(cp.asset.params["height"])
     target = np.array([cup[0] - LIP_IN * cup_r, cup[1], cup[2] + cup_h + RIM_CLEARANCE])
-    rot0 = side_rot(0.0)
+    cur = st.robot.ee_pose.matrix()[:3, :3]
+    rot0 = min(grip_rots(w.table_z), key=lambda r: float(np.abs(r - cur).sum()))  # the grasp's (pick_pitcher)
     high = target + [0.0, 0.0, h]  # upright with the lip there: the bottom RIM_CLEARANCE over the cup's rim
 
     def at(theta: float) -> np.ndarray:

@@ -6,7 +6,8 @@ by the real job steps), each turned into a task world (:func:`stages.demos.house
 (``layout="per_world"``, one world, no cameras) for every task and seed.
 
 Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
-``... --room living_room --tasks clean_table_living`` (or ``organize_books``); ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+``... --room living_room --tasks clean_table_living`` (or ``organize_books``, ``serve_drinks``: the
+living room keeps the table's pitcher and cup and adds the drink); ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
@@ -62,8 +63,11 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str =
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
+    from stages.demos.multistage import needs_drink
+
     rows = []
-    make = {"kitchen": house_kitchen, "living_room": house_living, "bedroom": house_bedroom}[room]
+    make = {"kitchen": house_kitchen, "bedroom": house_bedroom,
+            "living_room": lambda *a, **k: house_living(*a, **k, drink=needs_drink(tasks))}[room]
     for scene in build_houses(work / "out", houses, room)[:houses]:
         try:
             w = make(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",

@@ -12,10 +12,8 @@ import numpy as np
 import pytest
 
 from asset_catalog.asset_model import Pose
-from stages.demos.skill_pour import (
-    DRINK_COUNT, DRINK_RADIUS, POUR_SHARE, PourPlan, drink_positions, drink_world, in_cup,
-    pitcher_inner_radius, pour_success,
-)
+from stages.demos.drink import DRINK_COUNT, DRINK_RADIUS, PourPlan, drink_positions, drink_world, pitcher_inner_radius
+from stages.demos.skill_pour import POUR_SHARE, in_cup, pour_success
 from stages.simulate.state import BasePose, RobotState, StepState
 
 #: the narrowest and the widest pitcher the generator makes (asset_catalog.generators.objects.pitcher)

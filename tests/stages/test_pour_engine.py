@@ -40,7 +40,7 @@ def drink_kitchen(tmp_path_factory):
 
 def _in_pitcher(state, world, pitcher_pose) -> np.ndarray:
     """Which drink spheres lie inside the pitcher at ``pitcher_pose`` (x, y, z) (upright)."""
-    from stages.demos.skill_pour import pitcher_inner_radius
+    from stages.demos.drink import pitcher_inner_radius
 
     params = world.placed["pitcher"].asset.params
     pts = np.array([state.objects[b].position for b in world.drink])
@@ -50,7 +50,7 @@ def _in_pitcher(state, world, pitcher_pose) -> np.ndarray:
 
 
 def test_the_drink_rests_in_the_parked_pitcher(drink_kitchen, tmp_path, caplog):
-    from stages.demos.skill_pour import DRINK_COUNT
+    from stages.demos.drink import DRINK_COUNT
     from stages.engine import BatchEngine, EngineConfig
     from stages.simulate.state import read_state
 
