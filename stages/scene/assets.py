@@ -249,3 +249,17 @@ def stand_zones(geo: AssetGeometry, width: float, depth: float, hinge_width: flo
             if y1 - y0 > 0 and not any(np.allclose(z, o) for o in out):
                 out.append(z)
     return out
+
+
+def side_zones(geo: AssetGeometry, depth: float, beyond: float) -> list[np.ndarray]:
+    """Asset-frame rectangles (4, 2) [m] of floor a robot works from along the asset's right side
+    (its -Y side, looking out along +X: a bed's long side): ``depth`` out from that side, from the
+    asset's back to ``beyond`` past its front, and a ``beyond`` square before its front at that
+    corner (a bin set down off a bed's foot). None when ``depth`` is 0."""
+    if depth <= 0:
+        return []
+    x0, x1, y = float(geo.lo[0]), float(geo.hi[0]), float(geo.lo[1])
+    out = [np.array([[x0, y - depth], [x1 + beyond, y - depth], [x1 + beyond, y], [x0, y]])]
+    if beyond > 0:
+        out.append(np.array([[x1, y], [x1 + beyond, y], [x1 + beyond, y + beyond], [x1, y + beyond]]))
+    return out
