@@ -50,6 +50,9 @@ TIP_AHEAD = 0.0093
 TIP_HALF_CLOSED = 0.0152
 TIP_HALF_WIDTH = 0.00875
 GAP = 0.003            # the fingertips start this far [m] from the face they push
+BACK_CLEAR = 0.005     # slide: the fingertips' end stops this far [m] short of the clock's back face (2 mm
+                       # let them touch it at a generated nightstand: the clock tipped; the knobs stand
+                       # out 13.5 mm: asset_catalog.generators.appliances.CLOCK_KNOB)
 
 
 @dataclass(frozen=True)
@@ -242,11 +245,11 @@ def slide_clock_switch(inst, d) -> None:
     _approach(inst, d, float(at.knob_face[0]), rot, float(at.knob_face[2] - w.counter_z) + 0.06,
               at.knob_face + 0.06 * at.out + [0.0, 0.0, 0.06])
     _, _, at = _clock_now(inst, d)
-    # the fingertips' pushing side GAP off the knob's off side; their end 2 mm short of the back
-    # face (inside the knob's protrusion); the TCP at the knob's height
+    # the fingertips' pushing side GAP off the knob's off side; their end BACK_CLEAR short of the
+    # back face (inside the knob's protrusion); the TCP at the knob's height
     p = math.radians(SLIDE_PITCH)
     reach = TIP_AHEAD * math.cos(p) + TIP_HALF_WIDTH * math.sin(p)  # the tips' foremost point before the TCP
-    depth = at.knob_out - 0.002 - reach  # how far in from the knob's face the TCP goes
+    depth = at.knob_out - BACK_CLEAR - reach  # how far in from the knob's face the TCP goes
     side = at.knob_half[1] + TIP_HALF_CLOSED + GAP
     tcp = at.knob_face + (q0 - side) * at.slide - depth * at.out  # (the knob's face is at q = 0)
     d.grip(1.0, 0.4)
