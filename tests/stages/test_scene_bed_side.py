@@ -32,10 +32,11 @@ def lib(tmp_path_factory):
     return Library({**rest.records, **beds.records}, rest.root), root
 
 
-def test_side_zone_runs_along_the_right_side_and_off_the_front(lib):
-    """``side_zones(geo, depth, beyond)``: a strip ``depth`` deep along the asset's -Y side from its back
-    to ``beyond`` past its front, and a ``beyond`` square before its front at that corner; none for
-    depth 0. The household rules give the bed 1.15 m (the make_bed base's staging pose and disc)."""
+def test_side_zone_runs_along_a_long_side_and_off_the_front(lib):
+    """``side_zones(geo, depth, beyond)``: a strip ``depth`` deep along the asset's -Y side (negative
+    depth: its +Y side) from its back to ``beyond`` past its front, and a ``beyond`` square before its
+    front at that corner; none for depth 0. The household rules give the bed 1.15 m (the make_bed
+    base's staging pose and disc)."""
     from stages.scene.assets import load_asset_geometry, side_zones
 
     library, _ = lib
@@ -49,6 +50,10 @@ def test_side_zone_runs_along_the_right_side_and_off_the_front(lib):
         assert corner[:, 0].min() == pytest.approx(geo.hi[0]) and np.ptp(corner[:, 0]) == pytest.approx(0.4)
         assert corner[:, 1].min() == pytest.approx(geo.lo[1]) and np.ptp(corner[:, 1]) == pytest.approx(0.4)
         assert len(side_zones(geo, 1.15, 0.0)) == 1 and side_zones(geo, 0.0, 0.4) == []
+        strip, corner = side_zones(geo, -1.15, 0.4)  # the left side: the mirror image
+        assert strip[:, 1].min() == pytest.approx(geo.hi[1]) and strip[:, 1].max() == pytest.approx(geo.hi[1] + 1.15)
+        assert corner[:, 1].max() == pytest.approx(geo.hi[1]) and np.ptp(corner[:, 1]) == pytest.approx(0.4)
+        assert corner[:, 0].min() == pytest.approx(geo.hi[0]) and np.ptp(corner[:, 0]) == pytest.approx(0.4)
 
 
 def test_a_bad_side_names_the_file(tmp_path):
@@ -61,9 +66,9 @@ def test_a_bad_side_names_the_file(tmp_path):
 
 @pytest.mark.parametrize("seed", LAYOUT_SEEDS)
 def test_populated_bedroom_keeps_the_beds_side_free(lib, seed):
-    """In a flat's bedroom populated with the household rules, the strip along the bed's right side
-    (the rule's depth) lies inside the room and no other floor furniture that the base cannot cross
-    stands in it."""
+    """In a flat's bedroom populated with the household rules, the strip along one of the bed's long
+    sides (the rule's depth) lies inside the room and no other floor furniture that the base cannot
+    cross stands in it."""
     from stages.layout.build import generate_layout
     from stages.layout.floorplan import load_floor_plan
     from stages.layout.spec import LayoutSpec
@@ -90,9 +95,11 @@ def test_populated_bedroom_keeps_the_beds_side_free(lib, seed):
     bed = next(i for i in mine if i.p.record.category == "bed")
     side = next(e for e in RULES.for_room("bedroom").furniture if e.category == "bed").side
     c, s = np.cos(bed.p.yaw), np.sin(bed.p.yaw)
-    strip = side_zones(bed.geo, *side)[0] @ np.array([[c, s], [-s, c]]) + np.asarray(bed.p.position[:2])
     poly = np.asarray(room.polygon)
-    assert (strip.min(axis=0) >= poly.min(axis=0) - 1e-6).all() and (strip.max(axis=0) <= poly.max(axis=0) + 1e-6).all()
     tall = [i for i in mine if i is not bed and i.geo.hi[2] - i.geo.lo[2] >= 0.03]
-    hits = [i.p.record.category for i in tall if convex_overlap(i.footprint, strip)]
-    assert not hits, f"layout {seed}: {hits} in the bed's free side"
+    why = {}
+    for sign in (1, -1):
+        strip = side_zones(bed.geo, sign * side[0], 0.0)[0] @ np.array([[c, s], [-s, c]]) + np.asarray(bed.p.position[:2])
+        inside = (strip.min(axis=0) >= poly.min(axis=0) - 1e-6).all() and (strip.max(axis=0) <= poly.max(axis=0) + 1e-6).all()
+        why[sign] = [i.p.record.category for i in tall if convex_overlap(i.footprint, strip)] + ([] if inside else ["wall"])
+    assert not why[1] or not why[-1], f"layout {seed}: both long sides of the bed are taken: {why}"
