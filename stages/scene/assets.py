@@ -256,7 +256,8 @@ def side_zones(geo: AssetGeometry, depth: float, beyond: float) -> list[np.ndarr
     sides (a bed's): ``depth`` out from its right side (-Y, looking out along +X; a negative
     ``depth``: its left side, +Y), from the asset's back to ``beyond`` past its front, and a
     ``beyond`` square before its front, inward of that side's corner (a bin set down off a bed's foot). None when
-    ``depth`` is 0. (The placement solver tries a rule's ``side`` on the right and the left in turn.)"""
+    ``depth`` is 0. (The placement solver tries a rule's ``side`` on the right and the left in turn, for the first
+    half of its candidate poses.)"""
     if depth == 0:
         return []
     x0, x1 = float(geo.lo[0]), float(geo.hi[0])

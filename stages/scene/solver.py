@@ -295,7 +295,7 @@ class Populator:
                 continue
             xy, yaw = pose
             inst = self._instance(rec, geo, ctx, xy, ctx.elevation + REST_GAP - geo.lo[2], yaw, None, rule.clearance,
-                                  rule.stand, (rule.side[0] * (-1) ** k, rule.side[1]))  # right, left
+                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]))
             why = self._floor_conflict(inst, rule, ctx, geo)
             no_room = why == "outside the room"
             if why is None:
