@@ -7,7 +7,8 @@ by the real job steps), each turned into a task world (:func:`stages.demos.house
 
 Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
 ``... --room living_room --tasks clean_table_living`` (or ``organize_books``); ``... --room bedroom --tasks make_bed`` (``--tasks set_alarm_clock``: the nightstand's world,
-:func:`stages.demos.house_bedside.house_bedside`) (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+:func:`stages.demos.house_bedside.house_bedside`) (``--worlds N``: the first N flats whose room converts;
+the others' conversion errors are listed apart) (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
