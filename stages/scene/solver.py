@@ -245,7 +245,7 @@ class Populator:
         return f"{category}_{self.counter[category]:02d}"
 
     def _instance(self, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext, xy: np.ndarray, z: float,
-                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), side=(0.0, 0.0)) -> _Inst:
+                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0)) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
         R2 = R3[:2, :2]
@@ -258,7 +258,7 @@ class Populator:
             side = np.array([-front[1], front[0]])
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
-        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *side)]
+        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
         return _Inst(p, geo, (R3, t), fp, block, zones, support is None)
 
