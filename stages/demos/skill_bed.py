@@ -26,7 +26,7 @@ import numpy as np
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
 MAX_CUSHION_WIDTH = 0.072  # a cushion the Franka hand's 80 mm stroke grasps across [m]
-PILLOW_SPOT_IN = 0.47      # the cushion's near side this far [m] in from the headboard: across the bed
+PILLOW_SPOT_IN = 0.50      # the cushion's near side this far [m] in from the headboard: across the bed
                            # just foot-ward of the bed's own pillows (0.05-0.45 m in: the bed generator's)
 PILLOW_REACH = 0.45        # the place base pose at most this far [m] along the bed from the spot
 PINCH = 0.008              # the fingers are commanded this far [m] inside the cushion's width

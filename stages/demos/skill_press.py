@@ -50,6 +50,9 @@ TIP_AHEAD = 0.0093
 TIP_HALF_CLOSED = 0.0152
 TIP_HALF_WIDTH = 0.00875
 GAP = 0.003            # the fingertips start this far [m] from the face they push
+BACK_CLEAR = 0.005     # slide: the fingertips' end stops this far [m] short of the clock's back face (2 mm
+                       # let them touch it at a generated nightstand: the clock tipped; the knobs stand
+                       # out 13.5 mm: asset_catalog.generators.appliances.CLOCK_KNOB)
 
 
 @dataclass(frozen=True)
@@ -146,6 +149,44 @@ def _clock_now(inst, d) -> tuple[object, ClockParts, PartsAt]:
     return pl, parts, parts_at(parts, st.position, st.orientation)
 
 
+def _approach(inst, d, x: float, rot: np.ndarray, lift: float, over: np.ndarray) -> None:
+    """Bring the base before the surface at ``x`` [m] and the hand (orientation ``rot``) to ``over``
+    (3,) [m]. A counter (the task kitchen's): :func:`~stages.demos.counter.approach_counter` (the hand
+    raised ``lift`` over the top before the base drives in: the tucked arm would hit the counter's
+    front). A low surface whose world names the base's x (``base_x``: a bedroom's nightstand,
+    :mod:`stages.demos.house_bedside`, where the bed beside it leaves no room for the base right
+    before the clock; ``base_gap``: its chassis's front [m] off the surface): the base drives there with the arm tucked over the top (it clears a 0.5-0.65 m
+    nightstand; the counter's ready pose, 0.35 m before the base, is out of the arm's reach that low)."""
+    from stages.demos.counter import _pose, approach_counter, facing_north_goal
+    from stages.demos.driver import stow
+
+    w = inst.world
+    bx = getattr(w, "base_x", None)
+    if bx is None:
+        approach_counter(inst, d, x, rot=rot, lift=lift)
+        return
+    goal = facing_north_goal(w.placed["counter"].footprint()[1], float(bx), float(w.base_gap))
+    d.drive_to(goal, w.grid(), tuck=stow(d, on_the_way=True))
+    d.move(_pose(over, rot), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+
+
+def _leave(inst, d, away: np.ndarray, rot: np.ndarray) -> None:
+    """Back off the clock: the hand to ``away`` (3,) [m], then away from the surface
+    (:func:`~stages.demos.counter.leave_counter`; before a nightstand: the arm tucked, the base
+    backed COUNTER_STAGE straight out, where the next stage's planner finds it on free floor)."""
+    from stages.demos.counter import COUNTER_STAGE, _pose, leave_counter
+    from stages.demos.driver import stow
+    from stages.demos.record import base_pose
+
+    d.move(_pose(away, rot), 0.8, segments=2, tol=APPROACH_TOL)
+    if getattr(inst.world, "base_x", None) is None:
+        leave_counter(inst, d)
+        return
+    stow(d)
+    bx, by, th = base_pose(d.sim)
+    d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
+
+
 def _upright(state, pl) -> bool:
     from stages.demos.predicates import _upright as upright
 
@@ -171,14 +212,14 @@ def _push(d, start: np.ndarray, direction: np.ndarray, rot: np.ndarray, joint: s
 
 def press_clock_button(inst, d) -> None:
     """The expert of ``press_clock_button`` (see the module doc)."""
-    from stages.demos.counter import _pose, approach_counter, leave_counter
+    from stages.demos.counter import _pose
     from stages.simulate.control import top_down
 
     w = inst.world
     pl, parts, at = _clock_now(inst, d)
     rot = top_down(at.yaw - math.pi / 2)  # fingers close along the clock's depth, between the bells
     top, press = at.button_top, at.press
-    approach_counter(inst, d, float(top[0]), rot=rot, lift=float(top[2] - w.counter_z) + 0.05)
+    _approach(inst, d, float(top[0]), rot, float(top[2] - w.counter_z) + 0.05, top - 0.10 * press)
     _, _, at = _clock_now(inst, d)  # (the base may have brushed the counter)
     top = at.button_top
     d.grip(1.0, 0.4)
@@ -188,13 +229,12 @@ def press_clock_button(inst, d) -> None:
     joint = pl.joint(parts.button_joint)
     _push(d, tcp, press, rot, joint, PRESS_GOAL * parts.button_travel, GAP + parts.button_travel + PRESS_OVER)
     d.step(0.2)
-    d.move(_pose(tcp - 0.04 * press, rot), 0.8, segments=2, tol=APPROACH_TOL)
-    leave_counter(inst, d)
+    _leave(inst, d, tcp - 0.04 * press, rot)
 
 
 def slide_clock_switch(inst, d) -> None:
     """The expert of ``slide_clock_switch`` (see the module doc)."""
-    from stages.demos.counter import _pose, approach_counter, leave_counter, side_rot
+    from stages.demos.counter import _pose, side_rot
 
     w = inst.world
     pl, parts, at = _clock_now(inst, d)
@@ -202,13 +242,14 @@ def slide_clock_switch(inst, d) -> None:
         raise ExpertFailure("switch_out_of_reach", "the clock's back does not face the counter's front")
     rot = side_rot(SLIDE_PITCH)
     q0 = float(d.sim.joint_q_of_path(pl.joint(parts.switch_joint)))
-    approach_counter(inst, d, float(at.knob_face[0]), lift=float(at.knob_face[2] - w.counter_z) + 0.06)
+    _approach(inst, d, float(at.knob_face[0]), rot, float(at.knob_face[2] - w.counter_z) + 0.06,
+              at.knob_face + 0.06 * at.out + [0.0, 0.0, 0.06])
     _, _, at = _clock_now(inst, d)
-    # the fingertips' pushing side GAP off the knob's off side; their end 2 mm short of the back
-    # face (inside the knob's protrusion); the TCP at the knob's height
+    # the fingertips' pushing side GAP off the knob's off side; their end BACK_CLEAR short of the
+    # back face (inside the knob's protrusion); the TCP at the knob's height
     p = math.radians(SLIDE_PITCH)
     reach = TIP_AHEAD * math.cos(p) + TIP_HALF_WIDTH * math.sin(p)  # the tips' foremost point before the TCP
-    depth = at.knob_out - 0.002 - reach  # how far in from the knob's face the TCP goes
+    depth = at.knob_out - BACK_CLEAR - reach  # how far in from the knob's face the TCP goes
     side = at.knob_half[1] + TIP_HALF_CLOSED + GAP
     tcp = at.knob_face + (q0 - side) * at.slide - depth * at.out  # (the knob's face is at q = 0)
     d.grip(1.0, 0.4)
@@ -219,8 +260,7 @@ def slide_clock_switch(inst, d) -> None:
                  GAP + parts.switch_travel - q0 + SLIDE_OVER)
     d.step(0.2)
     d.move(_pose(tcp + (gone - 0.004) * at.slide, rot), 0.3, segments=1)
-    d.move(_pose(tcp + (gone - 0.004) * at.slide + 0.08 * at.out, rot), 0.8, segments=2, tol=APPROACH_TOL)
-    leave_counter(inst, d)
+    _leave(inst, d, tcp + (gone - 0.004) * at.slide + 0.08 * at.out, rot)
 
 
 # --------------------------------------------------------------------------------------------

@@ -249,3 +249,22 @@ def stand_zones(geo: AssetGeometry, width: float, depth: float, hinge_width: flo
             if y1 - y0 > 0 and not any(np.allclose(z, o) for o in out):
                 out.append(z)
     return out
+
+
+def side_zones(geo: AssetGeometry, depth: float, beyond: float) -> list[np.ndarray]:
+    """Asset-frame rectangles (4, 2) [m] of floor a robot works from along one of the asset's long
+    sides (a bed's): ``depth`` out from its right side (-Y, looking out along +X; a negative
+    ``depth``: its left side, +Y), from the asset's back to ``beyond`` past its front, and a
+    ``beyond`` square before its front, inward of that side's corner (a bin set down off a bed's foot). None when
+    ``depth`` is 0. (The placement solver tries a rule's ``side`` on the right and the left in turn, for the first
+    half of its candidate poses.)"""
+    if depth == 0:
+        return []
+    x0, x1 = float(geo.lo[0]), float(geo.hi[0])
+    y = float(geo.lo[1]) if depth > 0 else float(geo.hi[1])   # the side's face; the strip reaches y - depth
+    lo, hi = sorted((y, y - depth))
+    out = [np.array([[x0, lo], [x1 + beyond, lo], [x1 + beyond, hi], [x0, hi]])]
+    if beyond > 0:
+        lo, hi = sorted((y, y + np.sign(depth) * beyond))  # inward: before the front
+        out.append(np.array([[x1, lo], [x1 + beyond, lo], [x1 + beyond, hi], [x1, hi]]))
+    return out

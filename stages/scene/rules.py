@@ -65,6 +65,7 @@ class FurnitureRule(_Entry):
     min_top: float | None = Field(default=None, gt=0.0)
     stand: tuple[float, float] = (0.0, 0.0)
     clear_of_swings: bool = False
+    side: tuple[float, float] = (0.0, 0.0)
 
     def fits(self, record, geo) -> bool:
         """Whether the longest top surface of the package (within 2 cm of its highest surface), along
@@ -82,6 +83,8 @@ class FurnitureRule(_Entry):
             errs.append(f"mode {self.mode!r} needs a target category")
         if not all(0.0 <= w <= 3.0 for w in self.stand):
             errs.append(f"stand {list(self.stand)} must be [free edge, hinge] widths in [0, 3] m")
+        if not all(0.0 <= w <= 3.0 for w in self.side):
+            errs.append(f"side {list(self.side)} must be [depth, beyond] in [0, 3] m")
         if self.distance[0] < 0 or self.distance[1] < self.distance[0]:
             errs.append(f"distance {list(self.distance)} must be [min, max] with 0 <= min <= max")
         return errs

@@ -35,7 +35,7 @@ import numpy as np
 
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
-from stages.scene.assets import AssetGeometry, stand_zones
+from stages.scene.assets import AssetGeometry, side_zones, stand_zones
 from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
     convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
@@ -233,7 +233,7 @@ class Populator:
         return f"{category}_{self.counter[category]:02d}"
 
     def _instance(self, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext, xy: np.ndarray, z: float,
-                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0)) -> _Inst:
+                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0)) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
         R2 = R3[:2, :2]
@@ -247,7 +247,7 @@ class Populator:
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
             clear = _rect(c, side, max((geo.hi[1] - geo.lo[1]) / 2 - SWING_MARGIN, 0.05), front, clearance)
-        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1])]
+        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
         return _Inst(p, geo, (R3, t), fp, block, zones, support is None, swings=len(geo.swings), clear=clear)
 
@@ -284,7 +284,7 @@ class Populator:
                 continue
             xy, yaw = pose
             inst = self._instance(rec, geo, ctx, xy, ctx.elevation + REST_GAP - geo.lo[2], yaw, None, rule.clearance,
-                                  rule.stand)
+                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]))
             why = self._floor_conflict(inst, rule, ctx, geo)
             no_room = why == "outside the room"
             if why is None:

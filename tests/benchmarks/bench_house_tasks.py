@@ -7,7 +7,9 @@ by the real job steps), each turned into a task world (:func:`stages.demos.house
 
 Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks heat_food --seeds 1``;
 ``... --room living_room --tasks clean_table_living`` (or ``organize_books``, ``serve_drinks``: the
-living room keeps the table's pitcher and cup and adds the drink); ``... --room bedroom --tasks make_bed`` (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
+living room keeps the table's pitcher and cup and adds the drink); ``... --room bedroom --tasks make_bed`` (``--tasks set_alarm_clock``: the nightstand's world,
+:func:`stages.demos.house_bedside.house_bedside`) (``--worlds N``: the first N flats whose room converts;
+the others' conversion errors are listed apart) (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
 success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
@@ -56,27 +58,42 @@ def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
     return sorted(p for p in (out / "scenes").iterdir() if (p / "scene.json").is_file())
 
 
-def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str = "kitchen") -> dict:
+def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str = "kitchen",
+        worlds: int | None = None) -> dict:
+    """The episodes of ``tasks`` x ``seeds`` in the first ``houses`` flats' ``room`` task worlds; with
+    ``worlds``, in the first ``worlds`` flats whose room converts (the others' conversion errors are
+    listed apart, not counted as episodes)."""
     from stages.demos.house import house_kitchen
     from stages.demos.house_bedroom import house_bedroom
+    from stages.demos.house_bedside import house_bedside
     from stages.demos.house_living import house_living
+    from stages.demos.multistage import needs_clock, needs_drink
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
-    from stages.demos.multistage import needs_drink
-
-    rows = []
+    rows, unconverted, converted = [], [], 0
     make = {"kitchen": house_kitchen, "bedroom": house_bedroom,
             "living_room": lambda *a, **k: house_living(*a, **k, drink=needs_drink(tasks))}[room]
+    if room == "bedroom" and needs_clock(tasks):  # the alarm clock's world: the nightstand as the surface
+        if not all(needs_clock([t]) for t in tasks):
+            raise SystemExit(f"bench_house_tasks: run the clock tasks apart from the bed's ({tasks})")
+        make = house_bedside
     for scene in build_houses(work / "out", houses, room)[:houses]:
+        if worlds is not None and converted >= worlds:
+            break
         try:
             w = make(scene, work / "task" / scene.name, work / "out" / "catalog" / "default" / "generated.json",
                               scene_id=scene.name)
         except Exception as e:  # noqa: BLE001 - counted with its reason
+            if worlds is not None:
+                unconverted.append(f"{scene.name}: {e}")
+                print("conversion:", unconverted[-1], flush=True)
+                continue
             rows += [{"house": scene.name, "task": t, "seed": s, "success": False, "reason": f"conversion: {e}",
                       "frames": 0} for t in tasks for s in seeds]
             print(rows[-1], flush=True)
             continue
+        converted += 1
         from stages.demos.multistage import sample_task
 
         plan = []
@@ -106,7 +123,9 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str =
     reasons = {t: dict(Counter(r["reason"] for r in rows if r["task"] == t and not r["success"])) for t in tasks}
     print("success per task:", per)
     print("failure reasons (s<stage>_<skill>.<reason>):", reasons)
-    return {"episodes": rows, "success": per, "failures": reasons}
+    if worlds is not None:
+        print(f"task worlds: {converted}; not converted: {len(unconverted)}")
+    return {"episodes": rows, "success": per, "failures": reasons, "unconverted": unconverted}
 
 
 @pytest.mark.benchmark
@@ -123,10 +142,12 @@ if __name__ == "__main__":
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--work", type=Path, default=None)
     ap.add_argument("--room", choices=tuple(ROOM_CATEGORIES), default="kitchen")
+    ap.add_argument("--worlds", type=int, default=None,
+                    help="run in the first N flats whose room converts (conversion failures listed apart)")
     a = ap.parse_args()
     t0 = time.time()
     work = a.work or Path(tempfile.mkdtemp(prefix="house_tasks_"))
-    res = run(work, a.houses, a.tasks, a.seeds, a.room)
+    res = run(work, a.houses, a.tasks, a.seeds, a.room, a.worlds)
     res["wall_seconds"] = round(time.time() - t0, 1)
     Path("bench_results").mkdir(exist_ok=True)
     Path("bench_results/house_tasks.json").write_text(json.dumps(res, indent=1))
