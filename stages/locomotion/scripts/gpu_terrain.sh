@@ -15,18 +15,8 @@
 # Every step says what it did; a failed or skipped step prints why (no silent failures).
 R=$PWD
 T0=$(date +%s)
-if [ ! -d $HOME/site ]; then
-  ls $HOME/stash/part0* >/dev/null 2>&1 || { echo "NO STASH"; exit 5; }
-  (cd $HOME/stash && cat part0* | tar -x && python3 -m pip install -q --no-index --no-deps --no-compile \
-     --no-cache-dir --target $HOME/site wheels/*.whl) || { echo SETUP FAILED; exit 3; }
-fi
-[ -d $HOME/site/rsl_rl ] || python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir \
-   --target $HOME/site $R/.whl/*.whl || { echo WHEELS FAILED; exit 3; }
-ERD=$R/.loco/erd; [ -d $ERD ] || ERD=
-export PYTHONPATH=$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$R:$ERD
-export WARP_CACHE_PATH=$HOME/stash/warp-cache PYTHONUNBUFFERED=1
+. stages/locomotion/scripts/gpu_setup.sh || exit $?
 CK=$HOME/ck_terrain
-newest() { ls $1/model_*.pt 2>/dev/null | sed 's/.*model_\([0-9]*\)\.pt$/\1 &/' | sort -n | tail -1 | cut -d' ' -f2; }
 if [ "${5:-resume}" = flat ]; then
   rm -rf $CK; mkdir -p $CK; echo "start: the flat-floor checkpoint (FROM=flat)"
 else

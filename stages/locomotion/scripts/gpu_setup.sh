@@ -1,0 +1,18 @@
+# Sourced by the device-side locomotion drivers (gpu_terrain.sh, gpu_h1.sh) from the repository root on
+# the GPU machine: installs, once per machine, the simulation stack staged in $HOME/stash
+# (../shared/tools/device-wheels) and the carried .whl/ (rsl-rl-lib and the project's other wheels), sets
+# PYTHONPATH (.loco/erd when carried: the G1's URDF), WARP_CACHE_PATH and unbuffered output, and defines
+# `newest DIR` (the model_<iter>.pt of DIR with the highest iteration). Returns non-zero, saying why, when
+# a step fails.
+R=$PWD
+if [ ! -d $HOME/site ]; then
+  ls $HOME/stash/part0* >/dev/null 2>&1 || { echo "NO STASH"; return 5; }
+  (cd $HOME/stash && cat part0* | tar -x && python3 -m pip install -q --no-index --no-deps --no-compile \
+     --no-cache-dir --target $HOME/site wheels/*.whl) || { echo SETUP FAILED; return 3; }
+fi
+[ -d $HOME/site/rsl_rl ] || python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir \
+   --target $HOME/site $R/.whl/*.whl || { echo WHEELS FAILED; return 3; }
+ERD=$R/.loco/erd; [ -d $ERD ] || ERD=
+export PYTHONPATH=$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$R:$ERD
+export WARP_CACHE_PATH=$HOME/stash/warp-cache PYTHONUNBUFFERED=1
+newest() { ls $1/model_*.pt 2>/dev/null | sed 's/.*model_\([0-9]*\)\.pt$/\1 &/' | sort -n | tail -1 | cut -d' ' -f2; }
