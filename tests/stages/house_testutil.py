@@ -31,3 +31,31 @@ def populate_flat(out: Path, name: str, packages: tuple[str, ...], room: str, *,
     assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
     folder = out / "scenes" / scene if scene else next((out / "scenes").iterdir())
     return folder, out / "catalog" / "default" / "generated.json"
+
+
+def populate_layout_room(library, root: Path, seed: int, room_type: str, rules, attempts: int = 4):
+    """Layout ``seed`` (a flat with a living room, a kitchen and a bedroom, written under ``root``) with its
+    ``room_type`` room populated by a :class:`~stages.scene.solver.Populator` with ``rules`` (random stream
+    ``[seed, attempt]``, up to ``attempts`` tries; the test fails naming every try's reason). Returns
+    (populator, room, floor plan)."""
+    import numpy as np
+    import pytest
+
+    from stages.layout.build import generate_layout
+    from stages.layout.floorplan import load_floor_plan
+    from stages.layout.spec import LayoutSpec
+    from stages.scene.solver import PlacementFailure, Populator
+
+    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
+                          root / f"layout_{seed}")
+    plan = load_floor_plan(lay.plan_json)
+    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == room_type)
+    why = []
+    for attempt in range(attempts):
+        pop = Populator(plan, lay.usd, library, rules, np.random.default_rng([seed, attempt]))
+        try:
+            pop.populate_room(room)
+            return pop, room, plan
+        except PlacementFailure as e:
+            why.append(str(e))
+    pytest.fail(f"layout {seed}: the {room_type} was not populated in {attempts} attempts: {why}")

@@ -70,28 +70,13 @@ def test_populated_bedroom_keeps_the_beds_side_free(lib, seed):
     sides (the rule's depth) lies inside the room and no other floor furniture that the base cannot
     cross stands in it (layouts whose bedroom has room for it: the rule is a preference; layout 2's
     bed stands without it)."""
-    from stages.layout.build import generate_layout
-    from stages.layout.floorplan import load_floor_plan
-    from stages.layout.spec import LayoutSpec
     from stages.scene.assets import side_zones
     from stages.scene.geom import convex_overlap
-    from stages.scene.solver import PlacementFailure, Populator
+
+    from house_testutil import populate_layout_room
 
     library, root = lib
-    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
-                          root / f"layout_{seed}")
-    plan = load_floor_plan(lay.plan_json)
-    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == "bedroom")
-    why = []
-    for attempt in range(4):
-        pop = Populator(plan, lay.usd, library, RULES, np.random.default_rng([seed, attempt]))
-        try:
-            pop.populate_room(room)
-            break
-        except PlacementFailure as e:
-            why.append(str(e))
-    else:
-        pytest.fail(f"layout {seed}: the bedroom was not populated in 4 attempts: {why}")
+    pop, room, _ = populate_layout_room(library, root, seed, "bedroom", RULES)
     mine = [i for i in pop.insts if i.p.room == room.id and i.on_floor]
     bed = next(i for i in mine if i.p.record.category == "bed")
     side = next(e for e in RULES.for_room("bedroom").furniture if e.category == "bed").side

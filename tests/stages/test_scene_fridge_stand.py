@@ -104,28 +104,12 @@ _POPULATED: dict = {}
 def _populated(catalog, seed: int):
     """(Populator, kitchen room, floor plan) of layout ``seed``'s kitchen populated with the household
     rules (once per seed)."""
-    from stages.layout.build import generate_layout
-    from stages.layout.floorplan import load_floor_plan
-    from stages.layout.spec import LayoutSpec
-    from stages.scene.solver import PlacementFailure, Populator
+    from house_testutil import populate_layout_room
 
     if seed in _POPULATED:
         return _POPULATED[seed]
     lib, _, root = catalog
-    lay = generate_layout(LayoutSpec(rooms={"living_room": 1, "bedroom": 1, "kitchen": 1}), seed,
-                          root / f"layout_{seed}")
-    plan = load_floor_plan(lay.plan_json)
-    room = next(r for f in plan.floors for r in f.rooms if str(r.type) == "kitchen")
-    why = []
-    for attempt in range(4):
-        pop = Populator(plan, lay.usd, lib, RULES, np.random.default_rng([seed, attempt]))
-        try:
-            pop.populate_room(room)
-            break
-        except PlacementFailure as e:
-            why.append(str(e))
-    else:
-        pytest.fail(f"layout {seed}: the kitchen was not populated in 4 attempts: {why}")
+    pop, room, plan = populate_layout_room(lib, root, seed, "kitchen", RULES)
     _POPULATED[seed] = pop, room, plan
     return _POPULATED[seed]
 
