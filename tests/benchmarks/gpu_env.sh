@@ -8,6 +8,11 @@
 # Sets PYTHONPATH (.loco/erd when carried: the G1's URDF and the Panda description, which the demos job
 # and bench_engine need there: carry .loco), WARP_CACHE_PATH and unbuffered output. Says what it could
 # not do; returns non-zero then. On a host of 4 GPUs: jobs/demos_success_gpu4.toml (one kitchen per GPU).
+# Device calls: a call that does not name a carried path removes it on the machine, also under a job still
+# running in the background: every poll call of such a job carries the same paths (.loco, .benchdata, ...).
+# .benchdata/cat (bench_engine's catalog, built here) holds absolute paths of this checkout (/work/main), which
+# is also the repository root there. A lease ends at 30 minutes of the session's held time: copy checkpoints
+# to $OUT in every call.
 _aw_fail() { echo "gpu_env: $*" >&2; return 3; }
 if [ ! -d "$HOME/site" ]; then
   ls "$HOME"/stash/part0* >/dev/null 2>&1 || { _aw_fail "no staged wheels in \$HOME/stash (the .carry/partNN calls)"; return 3; }
