@@ -67,6 +67,18 @@ class HouseRoom(KitchenWorld):
     def start_boxes(self) -> np.ndarray:
         return self.nav_boxes()
 
+    def third_person_view(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """The engine's third-person camera (eye, target) [m, task frame]: from inside the room,
+        behind the base's side of the work surface (-Y) and to its left, 1.2 m above the surface
+        (at most 2.1 m), looking at the surface's middle (the kitchen's corner view would look at a
+        house room's wall)."""
+        x0, y0, x1, y1 = self.area
+        cx0, cy0, cx1, cy1 = self.counter_rect
+        cx, cy = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
+        eye = (min(max(cx - 1.0, x0 + 0.2), x1 - 0.2), min(max(cy0 - 1.8, y0 + 0.2), y1 - 0.2),
+               min(self.counter_z + 1.2, 2.1))
+        return eye, (cx, cy, self.counter_z)
+
 
 def obstacles(placed) -> list[tuple[float, float, float, float]]:
     """Footprints [m] of the floor furniture among ``placed`` that the base cannot cross (rugs can)."""
