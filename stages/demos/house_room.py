@@ -67,6 +67,23 @@ class HouseRoom(KitchenWorld):
     def start_boxes(self) -> np.ndarray:
         return self.nav_boxes()
 
+    def third_person_view(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """The engine's third-person camera (eye, target) [m, task frame]: from inside the room,
+        behind the base's side of the work surface (-Y), the first of a few spots (left, right, then
+        straight behind, farther first) 0.25 m clear of the walls and the floor furniture, 2.1 m
+        high, looking at the surface's middle (the kitchen's corner view would look at a house
+        room's wall)."""
+        x0, y0, x1, y1 = self.area
+        cx0, cy0, cx1, cy1 = self.counter_rect
+        cx, cy = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
+        boxes = list(self.walls) + obstacles(self.furniture.values())
+        spots = [(cx + dx, cy0 + dy) for dy in (-1.8, -1.4, -1.0) for dx in (-1.0, 1.0, -0.5, 0.5, 0.0)]
+        inside = [p for p in spots if x0 + 0.2 <= p[0] <= x1 - 0.2 and y0 + 0.2 <= p[1] <= y1 - 0.2]
+        free = [p for p in inside if not any(b[0] - 0.25 < p[0] < b[2] + 0.25 and b[1] - 0.25 < p[1] < b[3] + 0.25
+                                              for b in boxes)]
+        ex, ey = (free or inside or [(min(max(cx, x0 + 0.2), x1 - 0.2), min(max(cy0 - 1.0, y0 + 0.2), y1 - 0.2))])[0]
+        return (float(ex), float(ey), 2.1), (float(cx), float(cy), float(self.counter_z))
+
 
 def obstacles(placed) -> list[tuple[float, float, float, float]]:
     """Footprints [m] of the floor furniture among ``placed`` that the base cannot cross (rugs can)."""

@@ -290,7 +290,8 @@ class BatchEngine:
                            link=desc.cameras[n].link) for n in ("wrist", "head") if n in c.cameras]
         if "third_person" in c.cameras:
             sx, sy = self.world.size
-            eye, target = (0.3, 0.3, 2.3), (0.6 * sx, 0.6 * sy, 0.6)
+            view = getattr(self.world, "third_person_view", None)  # a world's own view (a house's room)
+            eye, target = view() if view is not None else ((0.3, 0.3, 2.3), (0.6 * sx, 0.6 * sy, 0.6))
             cams.append(CameraSpec(name="third_person", width=c.width, height=c.height, vertical_fov=1.0,
                                    pose=look_at(eye, target)))
         return CameraRig(sim, cams, segmentation=False, background=c.background_render)

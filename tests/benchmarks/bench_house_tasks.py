@@ -10,7 +10,9 @@ Run: ``.venv/bin/python tests/benchmarks/bench_house_tasks.py --houses 8 --tasks
 living room keeps the table's pitcher and cup and adds the drink); ``... --room bedroom --tasks make_bed`` (``--tasks set_alarm_clock``: the nightstand's world,
 :func:`stages.demos.house_bedside.house_bedside`) (``--worlds N``: the first N flats whose room converts;
 the others' conversion errors are listed apart) (``--work DIR`` keeps and reuses the job's work dir). Prints one line per episode (house, task, seed,
-success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. A house
+success, reason, frames) and success per task; writes ``bench_results/house_tasks.json``. ``--record OUT``
+records the episodes with the engine's cameras: ``OUT/datasets/<task>`` and ``OUT/sheets/<task>.png``
+(:mod:`stages.demos.house_record`). A house
 whose kitchen cannot be made a task world counts as a failed episode with the conversion's reason.
 """
 
@@ -59,17 +61,17 @@ def build_houses(out: Path, n: int, room: str = "kitchen") -> list[Path]:
 
 
 def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str = "kitchen",
-        worlds: int | None = None) -> dict:
+        worlds: int | None = None, record: Path | None = None) -> dict:
     """The episodes of ``tasks`` x ``seeds`` in the first ``houses`` flats' ``room`` task worlds; with
     ``worlds``, in the first ``worlds`` flats whose room converts (the others' conversion errors are
-    listed apart, not counted as episodes)."""
+    listed apart, not counted as episodes); with ``record``, the episodes recorded by the engine's
+    cameras into ``record`` (:mod:`stages.demos.house_record`: a dataset and a contact sheet per task)."""
     from stages.demos.house import house_kitchen
     from stages.demos.house_bedroom import house_bedroom
     from stages.demos.house_bedside import house_bedside
     from stages.demos.house_living import house_living
     from stages.demos.multistage import needs_clock, needs_drink
-    from stages.engine import BatchEngine, EngineConfig
-    from stages.engine.programs import Listed
+    from stages.demos.house_record import HouseRecordConfig, merge_and_sheet, run_world
 
     rows, unconverted, converted = [], [], 0
     make = {"kitchen": house_kitchen, "bedroom": house_bedroom,
@@ -108,15 +110,13 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str =
                     print(rows[-1], flush=True)
         if not plan:
             continue
-        cfg = EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True)
-        eng = BatchEngine(w, panda_root=None, work_dir=work / "engine" / scene.name, config=cfg)
-
-        def end(_w, t, r, name=scene.name):
+        def end(t, r, name=scene.name):
             rows.append({"house": name, "task": t.task, "seed": t.seed, "success": r.success, "reason": r.reason,
                          "frames": r.frames})
             print(rows[-1], flush=True)
 
-        eng.run(Listed(w, {0: plan}), begin=lambda *_: None, end=end)
+        run_world(w, scene.name, plan, work / "engine" / scene.name, end, out=record,
+                  record=HouseRecordConfig() if record is not None else None)
     per = {t: f"{sum(r['success'] for r in rows if r['task'] == t)}/{sum(r['task'] == t for r in rows)}" for t in tasks}
     from collections import Counter
 
@@ -125,7 +125,11 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str =
     print("failure reasons (s<stage>_<skill>.<reason>):", reasons)
     if worlds is not None:
         print(f"task worlds: {converted}; not converted: {len(unconverted)}")
-    return {"episodes": rows, "success": per, "failures": reasons, "unconverted": unconverted}
+    res = {"episodes": rows, "success": per, "failures": reasons, "unconverted": unconverted}
+    if record is not None:
+        res["recorded"] = merge_and_sheet(record, tasks)
+        print("recorded:", res["recorded"])
+    return res
 
 
 @pytest.mark.benchmark
@@ -144,10 +148,12 @@ if __name__ == "__main__":
     ap.add_argument("--room", choices=tuple(ROOM_CATEGORIES), default="kitchen")
     ap.add_argument("--worlds", type=int, default=None,
                     help="run in the first N flats whose room converts (conversion failures listed apart)")
+    ap.add_argument("--record", type=Path, default=None,
+                    help="record the episodes (3 cameras, 128x96) into OUT/datasets/<task> and OUT/sheets/<task>.png")
     a = ap.parse_args()
     t0 = time.time()
     work = a.work or Path(tempfile.mkdtemp(prefix="house_tasks_"))
-    res = run(work, a.houses, a.tasks, a.seeds, a.room, a.worlds)
+    res = run(work, a.houses, a.tasks, a.seeds, a.room, a.worlds, a.record)
     res["wall_seconds"] = round(time.time() - t0, 1)
     Path("bench_results").mkdir(exist_ok=True)
     Path("bench_results/house_tasks.json").write_text(json.dumps(res, indent=1))
