@@ -257,7 +257,7 @@ def shelve_book(inst, d, k: int) -> None:
     from stages.demos.counter import _pose
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.skill_fridge import facing_rot, staging
+    from stages.demos.skill_fridge import drive_in, facing_rot
     from stages.simulate.state import read_state
 
     w = inst.world
@@ -308,10 +308,7 @@ def shelve_book(inst, d, k: int) -> None:
     goal_xy = place + REACH_SHELF * n
     goal = (float(goal_xy[0]), float(goal_xy[1]), heading)
     grid = w.grid()
-    point, behind = staging(grid, goal, np.zeros((0, 2)), approach=STAGE, more=1.0, side=0.5)
-    d.drive_to((*point, heading), grid, approach=0.0)
-    if math.dist(point, behind) > 0.02:
-        d.drive_straight((*behind, heading))  # sideways onto the way in
+    point, behind = drive_in(d, grid, goal, np.zeros((0, 2)), approach=STAGE, more=1.0, side=0.5)
     z = spot.board[4] + tall - GRIP_DOWN + LIFT + 0.003
     inward = facing_rot(-n, PITCH)
     bx, by, th = base_pose(d.sim)

@@ -208,6 +208,18 @@ def staging(grid, goal, leaf: np.ndarray, *, approach: float = 0.35, more: float
     raise ExpertFailure("no_path", f"no free point behind the base pose {goal} before the fridge")
 
 
+
+def drive_in(d, grid, goal, leaf: np.ndarray, **kw) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Drive the base to the ``staging`` point of ``goal`` (x, y, yaw) (``leaf``, ``kw``: as there) and,
+    where that point lies aside, sideways onto the way in; the caller drives the last straight stretch.
+    Returns staging's ``(point, behind)`` (the way back out)."""
+    point, behind = staging(grid, goal, leaf, **kw)
+    d.drive_to((*point, goal[2]), grid, approach=0.0)
+    if math.dist(point, behind) > 0.02:
+        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    return point, behind
+
+
 def pick_place_fridge(inst, d) -> None:
     """The expert (see the module doc)."""
     from stages.demos.counter import (
@@ -246,10 +258,7 @@ def pick_place_fridge(inst, d) -> None:
     d.move(_pose(up, held), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
     d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
     goal, _ = fridge_base(w, part, shelf, q)
-    point, behind = staging(grid, goal, _leaf_points(part, q))
-    d.drive_to((*point, goal[2]), grid, approach=0.0)
-    if math.dist(point, behind) > 0.02:
-        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    drive_in(d, grid, goal, _leaf_points(part, q))
     d.drive_straight(goal)
     # in over the shelf: the hand points into the fridge (-front)
     n = np.asarray(shelf.front[:2])

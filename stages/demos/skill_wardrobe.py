@@ -227,7 +227,7 @@ def hang_on_rail(inst, d) -> None:
     from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.skill_fridge import _grid_with_leaf, _leaf_points, staging
+    from stages.demos.skill_fridge import _grid_with_leaf, _leaf_points, drive_in
     from stages.simulate.state import read_state
 
     w = inst.world
@@ -287,10 +287,7 @@ def hang_on_rail(inst, d) -> None:
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
-    point, behind = staging(grid, goal, _leaf_points(part, q))
-    d.drive_to((*point, goal[2]), grid, approach=0.0)
-    if math.dist(point, behind) > 0.02:
-        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
+    drive_in(d, grid, goal, _leaf_points(part, q))
     d.drive_straight(goal)
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
