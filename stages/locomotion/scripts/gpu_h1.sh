@@ -26,16 +26,7 @@ fi
 [ -f "$AGENTWORLD_SHARED_ASSETS/$MJCF" ] || { echo "NO H1 MJCF: carry .loco/assets/$MJCF (see the header)"; exit 7; }
 echo "H1 model: $AGENTWORLD_SHARED_ASSETS/$MJCF"
 CK=$HOME/ck_h1
-if [ "${5:-resume}" = scratch ]; then
-  rm -rf $CK; mkdir -p $CK; echo "start: a fresh policy (FROM=scratch)"
-else
-  mkdir -p $CK
-  if [ -d $R/.loco/ckpt_h1 ]; then
-    cp $R/.loco/ckpt_h1/* $CK/ || { echo "COPY OF .loco/ckpt_h1 FAILED"; exit 4; }
-  fi
-  chmod -R u+w $CK
-  m=$(newest $CK); echo "start: ${m:-a fresh policy (no H1 checkpoint carried or left here)}"
-fi
+start_in $CK $R/.loco/ckpt_h1 $([ "${5:-resume}" = scratch ] && echo 1 || echo 0) "a fresh policy" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --robot h1 --num-worlds ${2:-4096} --iterations 100000 \
   --max-wall-s ${1:-420} --save-every 50 --print-every 10 --checkpoint-dir $CK > $CK/stdout.log 2>&1

@@ -16,3 +16,15 @@ ERD=$R/.loco/erd; [ -d $ERD ] || ERD=
 export PYTHONPATH=$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$R:$ERD
 export WARP_CACHE_PATH=$HOME/stash/warp-cache PYTHONUNBUFFERED=1
 newest() { ls $1/model_*.pt 2>/dev/null | sed 's/.*model_\([0-9]*\)\.pt$/\1 &/' | sort -n | tail -1 | cut -d' ' -f2; }
+# `start_in CK CARRIED FRESH WHAT`: the checkpoint folder CK for this run. FRESH=1 empties it (a run
+# from WHAT); otherwise the carried folder CARRIED (an earlier machine's checkpoints, when present) is
+# copied in and the newest model_<iter>.pt there is where training resumes (WHAT when there is none).
+start_in() {
+  if [ "$3" = 1 ]; then
+    rm -rf $1; mkdir -p $1; echo "start: $4 (fresh)"; return 0
+  fi
+  mkdir -p $1
+  if [ -d $2 ]; then cp $2/* $1/ || { echo "COPY OF $2 FAILED"; return 4; }; fi
+  chmod -R u+w $1
+  local m; m=$(newest $1); echo "start: ${m:-$4 (no checkpoint carried or left here)}"
+}

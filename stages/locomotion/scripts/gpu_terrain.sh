@@ -17,16 +17,7 @@ R=$PWD
 T0=$(date +%s)
 . stages/locomotion/scripts/gpu_setup.sh || exit $?
 CK=$HOME/ck_terrain
-if [ "${5:-resume}" = flat ]; then
-  rm -rf $CK; mkdir -p $CK; echo "start: the flat-floor checkpoint (FROM=flat)"
-else
-  mkdir -p $CK
-  if [ -d $R/.loco/ckpt_terrain ]; then
-    cp $R/.loco/ckpt_terrain/* $CK/ || { echo "COPY OF .loco/ckpt_terrain FAILED"; exit 4; }
-  fi
-  chmod -R u+w $CK
-  m=$(newest $CK); echo "start: ${m:-the flat-floor checkpoint (no terrain checkpoint carried or left here)}"
-fi
+start_in $CK $R/.loco/ckpt_terrain $([ "${5:-resume}" = flat ] && echo 1 || echo 0) "the flat-floor checkpoint" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --terrain --arm-reach --num-worlds ${2:-4096} --iterations 100000 \
   --max-wall-s ${1:-380} --save-every 50 --print-every 10 --checkpoint-dir $CK \
