@@ -14,7 +14,8 @@
 #   scratch  a fresh policy, ignoring any carried or earlier H1 checkpoint;
 #   resume   (default) resume from the newest model_<iter>.pt of .loco/ckpt_h1/ (carried from an
 #            earlier machine: copy $OUT's model_<iter>.pt and curve.csv there between calls) or of
-#            $HOME/ck_h1 (an earlier run on this one); a fresh policy when there is none.
+#            $HOME/ck_h1 (an earlier run on this one); else the committed checkpoint
+#            (stages/locomotion/policies/h1_velocity); a fresh policy when there is none.
 # Every step says what it did; a failed or skipped step prints why (no silent failures).
 R=$PWD
 T0=$(date +%s)
@@ -26,10 +27,12 @@ fi
 [ -f "$AGENTWORLD_SHARED_ASSETS/$MJCF" ] || { echo "NO H1 MJCF: carry .loco/assets/$MJCF (see the header)"; exit 7; }
 echo "H1 model: $AGENTWORLD_SHARED_ASSETS/$MJCF"
 CK=$HOME/ck_h1
-start_in $CK $R/.loco/ckpt_h1 $([ "${5:-resume}" = scratch ] && echo 1 || echo 0) "a fresh policy" || exit $?
+INIT=; [ "${5:-resume}" != scratch ] && [ -f $R/stages/locomotion/policies/h1_velocity/checkpoint.pt ] && \
+  INIT=$R/stages/locomotion/policies/h1_velocity/checkpoint.pt
+start_in $CK $R/.loco/ckpt_h1 $([ "${5:-resume}" = scratch ] && echo 1 || echo 0) "${INIT:-a fresh policy}" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --robot h1 --num-worlds ${2:-4096} --iterations 100000 \
-  --max-wall-s ${1:-420} --save-every 50 --print-every 10 --checkpoint-dir $CK > $CK/stdout.log 2>&1
+  --max-wall-s ${1:-420} --save-every 50 --print-every 10 --checkpoint-dir $CK ${INIT:+--init-from $INIT} > $CK/stdout.log 2>&1
 [ $? = 0 ] || echo "TRAINING FAILED (see the log tail below)"
 tail -n 40 $CK/stdout.log
 m=$(newest $CK); [ -n "$m" ] && cp $m $OUT/ && echo "checkpoint: $(basename $m)"

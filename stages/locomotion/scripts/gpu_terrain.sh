@@ -10,18 +10,21 @@
 #   flat     start over from the committed flat-floor checkpoint (stages/locomotion/policies/g1_velocity),
 #            ignoring any carried or earlier terrain checkpoint;
 #   resume   (default) resume from the newest model_<iter>.pt of .loco/ckpt_terrain/ (carried from an
-#            earlier machine) or of $HOME/ck_terrain (an earlier run on this one); the flat checkpoint
-#            when there is none.
+#            earlier machine) or of $HOME/ck_terrain (an earlier run on this one); else from the
+#            committed terrain checkpoint (stages/locomotion/policies/g1_terrain), else the flat one.
 # Every step says what it did; a failed or skipped step prints why (no silent failures).
 R=$PWD
 T0=$(date +%s)
 . stages/locomotion/scripts/gpu_setup.sh || exit $?
 CK=$HOME/ck_terrain
-start_in $CK $R/.loco/ckpt_terrain $([ "${5:-resume}" = flat ] && echo 1 || echo 0) "the flat-floor checkpoint" || exit $?
+INIT=$R/stages/locomotion/policies/g1_velocity/checkpoint.pt
+[ "${5:-resume}" != flat ] && [ -f $R/stages/locomotion/policies/g1_terrain/checkpoint.pt ] && \
+  INIT=$R/stages/locomotion/policies/g1_terrain/checkpoint.pt
+start_in $CK $R/.loco/ckpt_terrain $([ "${5:-resume}" = flat ] && echo 1 || echo 0) "$INIT" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --terrain --arm-reach --num-worlds ${2:-4096} --iterations 100000 \
   --max-wall-s ${1:-380} --save-every 50 --print-every 10 --checkpoint-dir $CK \
-  --init-from $R/stages/locomotion/policies/g1_velocity/checkpoint.pt > $CK/stdout.log 2>&1
+  --init-from $INIT > $CK/stdout.log 2>&1
 [ $? = 0 ] || echo "TRAINING FAILED (see the log tail below)"
 tail -n 40 $CK/stdout.log
 m=$(newest $CK); [ -n "$m" ] && cp $m $OUT/ && echo "checkpoint: $(basename $m)"
