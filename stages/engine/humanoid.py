@@ -1,8 +1,9 @@
 """Humanoid demonstrations on the batched engine: an embodiment whose base is a legged robot walking
-by its locomotion policy (``[base] kind = "legged_policy"``, the G1) in N copies of a task kitchen.
+by its locomotion policy (``[base] kind = "legged_policy"``: the G1, the H1) in N copies of a task kitchen.
 
 The world: the kitchen's scene USD loaded as the engine loads it (``stages.simulate.world.load_scene``,
-the engine's contact stiffness), the humanoid as trained (``stages.locomotion.robot.g1_builder``:
+the engine's contact stiffness), the humanoid as trained (``stages.locomotion.robot.humanoid_builder`` of
+the robot the spec's policy was trained on, ``policy.json``'s ``humanoid``:
 inertials, sole spheres, mjlab's drives) plus one collision sphere per hand at the spec's
 end-effector frame (``ee_xyz`` on the arm's tip link: the palm centre), so that the hands push and
 touch the scene; replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one world on a
@@ -165,7 +166,9 @@ class HumanoidEngine:
         import newton
         import warp as wp
 
-        from stages.locomotion.robot import g1_builder
+        from stages.locomotion.humanoids import humanoid
+        from stages.locomotion.policy import policy_humanoid
+        from stages.locomotion.robot import humanoid_builder
         from stages.locomotion.runtime import HumanoidWorlds, HumanoidWorldsConfig
         from stages.simulate.contacts import size_contact_buffers
         from stages.simulate.world import load_scene
@@ -175,7 +178,8 @@ class HumanoidEngine:
         tpl.default_shape_cfg.ke, tpl.default_shape_cfg.kd = cfg.contact_ke, cfg.contact_kd
         newton.solvers.SolverMuJoCo.register_custom_attributes(tpl)
         scene = load_scene(tpl, self.world.usd)
-        robot, layout = g1_builder(foot_mu=cfg.foot_mu, base_pose=self.world.spawn)
+        desc = humanoid(policy_humanoid(self.runtime_cfg.policy))  # the robot the spec's policy walks
+        robot, layout = humanoid_builder(desc, foot_mu=cfg.foot_mu, base_pose=self.world.spawn)
         hands = add_hand_spheres(robot, self.spec, cfg.hand_radius)
         tpl.add_builder(robot)
         main = newton.ModelBuilder()

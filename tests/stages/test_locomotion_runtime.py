@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -163,9 +164,13 @@ def test_spec_names_the_policy_and_frames_follow_the_dataset_layout(worlds):
     spec = load_spec("g1_29dof")
     cfg = runtime_config_for(spec, device="cpu")
     assert cfg.policy == str(DEFAULT_POLICY) and cfg.spec == "g1_29dof" and cfg.root_body == "pelvis"
-    for other, why in (("h1", "no locomotion policy is shipped"), ("mobile_panda", "has no locomotion policy")):
+    h1 = load_spec("h1")
+    h1_cfg = runtime_config_for(h1, device="cpu")
+    assert Path(h1_cfg.policy).name == "h1_velocity" and h1_cfg.spec == "h1"
+    unshipped = h1.model_copy(update={"base": h1.base.model_copy(update={"policy": ""})})
+    for other, why in ((unshipped, "no locomotion policy is shipped"), (load_spec("mobile_panda"), "has no locomotion policy")):
         with pytest.raises(EmbodimentError, match=why):
-            runtime_config_for(load_spec(other))
+            runtime_config_for(other)
 
     rt = worlds.runtime
     worlds.reset()
