@@ -43,7 +43,7 @@ KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", 
                       "alarm_clock", "pitcher", "cup")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
 FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock",
-              "cushion", "book_1", "book_2", "hanger")
+              "cushion", "book_1", "book_2", "hanger", "dish_rack")
 CLOCK_END_GAP = 0.35    # a parked clock stands this far [m] from the counter top's ends (the base's room)
 CLOCK_BUSY_GAP = 0.30   # ... and from the microwave and the mug's counter spot [m]
 CLOCK_FRONT = 0.075     # its centre this far [m] behind the counter's front edge

@@ -133,6 +133,12 @@ def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
     pl = world.placed
     if "plate" not in pl or "sponge" not in pl:
         raise ItemError(f"{world.usd}: no plate and sponge in this kitchen (a catalog with plate and sponge)")
+    if "dish_rack" in pl:  # a house kitchen's dishes (stages.demos.house_dishes): where its layout put them
+        objects = {}
+        for role, yaw in (("plate", 0.0), ("sponge", float(rng.uniform(-0.2, 0.2)))):
+            p = pl[role].position
+            objects[pl[role].body()] = (p[0] + float(rng.uniform(-0.02, 0.02)), p[1], p[2], yaw)
+        return objects, new_trace(world)
     x0, y0, x1, y1 = world.table_rect
     tx, z = 0.5 * (x0 + x1), world.table_z + 0.002
     objects = {pl["plate"].body(): (tx - 0.10 + float(rng.uniform(-0.02, 0.02)), y0 + 0.21, z, 0.0),
