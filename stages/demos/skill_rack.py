@@ -37,6 +37,8 @@ TIP_PAST = 0.009    # the Franka fingertips this far [m] past the TCP (stages.de
 GRASP_IN = 0.012    # the grasp's TCP this far [m] before the counter's front edge (fingertips 3 mm short)
 DROP = 0.02         # the plate's underside this far [m] above the tines when it is let go
 REST_ABOVE = 0.04   # success: the plate's underside at most this far [m] above the tines' tops
+BASE_GAP = 0.04     # the base's chassis this far [m] before the counter (the far rim is at the arm's reach)
+DRAG_PITCH = 25.0   # the dragging hand's fingertips tilted this far [deg] away from the robot (reach)
 RACK_FRONT = 0.02   # the rack's front this far [m] behind the counter's front edge
 PLATE_IN = 0.01     # the plate's near rim this far [m] inside the rack's front
 TRAY_FLOOR = 0.004  # the catalog rack's tray floor (stages.asset_catalog.generators.objects.dish_rack) [m]
@@ -130,7 +132,7 @@ def place_in_rack(inst, d) -> None:
     rq = st.objects[rack.body()]
     rxy = np.asarray(rq.position[:2], float)
     hx, hy, tines = rack_box(rack.asset.params)
-    goal = facing_north_goal(front, float(0.5 * (pxy[0] + rxy[0])))
+    goal = facing_north_goal(front, float(0.5 * (pxy[0] + rxy[0])), gap=BASE_GAP)
     bx, by, th = base_pose(d.sim)
     if abs(by - goal[1]) < 0.15 and abs(math.remainder(th - goal[2], 2 * math.pi)) < 0.2:
         stow(d)  # still before the counter (the wipe): sideways along it, no planning (its floor is blocked)
@@ -139,10 +141,12 @@ def place_in_rack(inst, d) -> None:
         d.drive_to(goal, w.grid(), tuck=stow(d, on_the_way=True))
 
     # 1. slide the plate towards the robot until its near rim overhangs the counter's front edge
-    drag = top_down(0.5 * math.pi)  # fingers side by side along world X, open: two points behind the rim
+    a = math.radians(DRAG_PITCH)
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(a), -math.sin(a)], [0.0, math.sin(a), math.cos(a)]])
+    drag = tilt @ top_down(0.5 * math.pi)  # fingers side by side along world X, open: two points behind the rim
     d.grip(0.0, 0.2)
-    tcp_z = top + DRAG_TIP + TIP_PAST
-    behind = pxy[1] + r + 0.03
+    tcp_z = top + DRAG_TIP + TIP_PAST * math.cos(a)
+    behind = pxy[1] + r + 0.025
     d.move(_pose([pxy[0], behind, top + 0.05], drag), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose([pxy[0], behind, tcp_z], drag), 0.8, segments=2, settle=0.1)
     goal_y = front - OVERHANG + r  # the plate's centre
