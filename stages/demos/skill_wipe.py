@@ -51,7 +51,9 @@ class WipeTrace:
     plate_params / sponge_size (length, width, height) [m]: catalog geometry; cells (K, 2): the
     well's cell centres in the plate frame [m]; wiped (K,) bool; samples: contact samples taken;
     tilted: samples refused for the sponge's tilt; gaps: the sponge bottom's height above the
-    plate's surface at each untilted sample [m] (diagnostics)."""
+    plate's surface at each untilted sample [m] (diagnostics); flat_top: the plate collides as one
+    convex hull (the ingest's collider of a near-convex plate: every catalog plate), whose top is
+    flat at the rim's height over the whole plate, not the lathe's well."""
 
     plate: str
     sponge: str
@@ -62,6 +64,7 @@ class WipeTrace:
     samples: int = 0
     tilted: int = 0
     gaps: list = field(default_factory=list, repr=False)
+    flat_top: bool = False
 
     @property
     def coverage(self) -> float:
@@ -69,9 +72,12 @@ class WipeTrace:
 
     def surface(self, r) -> np.ndarray:
         """Height [m] of the plate's upper surface above its base at radius ``r`` (the generator's
-        lathe profile: well at the plate's thickness, then the rim up to its height)."""
+        lathe profile: well at the plate's thickness, then the rim up to its height; with
+        ``flat_top``, the collider's top: the rim's height everywhere)."""
         p = self.plate_params
         rad, h, t = float(p["radius"]), float(p["height"]), float(p["thickness"])
+        if self.flat_top:
+            return np.full(np.shape(r), h)
         rf = rad * float(p["well_ratio"])
         return np.interp(np.asarray(r, float), [0.0, rf, rf + 0.01, rad - 0.004, rad],
                          [t, t, t + 0.002, h, h])
@@ -120,7 +126,15 @@ def new_trace(world) -> WipeTrace:
     size = (float(sp["length"]), float(sp["width"]),
             float(sp["foam_thickness"]) + float(sp["scrub_thickness"]) + 0.002)
     return WipeTrace(plate=plate.body(), sponge=sponge.body(), plate_params=dict(p), sponge_size=size,
-                     cells=cells, wiped=np.zeros(len(cells), bool))
+                     cells=cells, wiped=np.zeros(len(cells), bool), flat_top=_one_hull(plate.asset.usd))
+
+
+def _one_hull(usd) -> bool:
+    """Whether the package ``usd`` collides as one mesh (a convex hull: ``<link>/colliders/*``)."""
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(usd))
+    return sum(1 for q in stage.Traverse() if q.GetParent().GetName() == "colliders") == 1
 
 
 def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
