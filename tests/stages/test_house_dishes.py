@@ -1,7 +1,7 @@
 """Clean dishes in a generated house's kitchen (issue 16): the place-in-rack skill's predicate and hand
-rotation (``stages.demos.skill_rack``) on inline packages, and (slow: a flat populated by the scene job,
-then one engine episode) the dishes layout of ``house_kitchen(dishes=True)``
-(``stages.demos.house_dishes``) and clean_dishes (wipe, then the plate onto the rack) in it."""
+rotation (``stages.demos.skill_rack``) on inline packages; the dishes layout of
+``house_kitchen(dishes=True)`` (``stages.demos.house_dishes``) in a flat populated by the scene job
+(~20 s); clean_dishes (wipe, then the plate onto the rack) in it (slow: one engine episode, ~25 s idle)."""
 
 from __future__ import annotations
 
@@ -102,7 +102,6 @@ def dish_world(tmp_path_factory):
     return house_kitchen(scene, tmp_path_factory.mktemp("task"), gen, scene_id=scene.name, dishes=True)
 
 
-@pytest.mark.slow
 def test_dishes_lie_in_a_row_on_the_counter_and_the_rest_is_cut(dish_world):
     from stages.demos.skill_rack import RACK_FRONT, rack_box
 
