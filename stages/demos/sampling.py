@@ -173,8 +173,8 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
     if task_name == "place_in_rack":
         if "dish_rack" not in pl:
-            raise ItemError(f"{world.usd}: no dish rack in this task world (a house kitchen with dishes: "
-                            f"stages.demos.house_dishes)")
+            raise ItemError(f"{world.usd}: no dish rack in this task world (a house kitchen with dishes, "
+                            f"stages.demos.house_dishes, or a task kitchen from a catalog with a dish rack)")
         names.update(object="plate", container="dish rack")
         ids = [pl["plate"], pl["dish_rack"]]
         target = tuple(float(v) for v in objects[pl["dish_rack"].body()][:2])

@@ -8,6 +8,7 @@ pinch its rim from above. The expert takes it as a person does off a table:
 - :func:`place_in_rack` (the expert): drive before the plate and the rack; the open hand pointing
   down behind the plate's far rim, its fingertips :data:`DRAG_TIP` above the counter, slides the
   plate towards the robot until its near rim overhangs the counter's front edge by :data:`OVERHANG`;
+  at a top lower than :data:`LOW_TOP` (the task kitchen's table) the base backs :data:`GRASP_BACK`;
   the hand, pointing along +Y with the fingers closing vertically (:func:`rim_rot`), takes the
   overhanging rim between them (one finger under it, one on top), lifts the plate flat, carries it
   over the rack and lets it go :data:`DROP` above the tines: the plate lies flat across the rack's
@@ -18,7 +19,10 @@ pinch its rim from above. The expert takes it as a person does off a table:
   the rack upright, the hand open and away.
 
 The rack stands with its tine rows along world Y (yaw 0: the catalog rack's depth along X), its
-front :data:`RACK_FRONT` behind the counter's front edge (:mod:`stages.demos.house_dishes`).
+front :data:`RACK_FRONT` behind the work surface's front edge, beside the plate (a house kitchen's
+counter: :mod:`stages.demos.house_dishes`; the task kitchen's table: the wipe's set-up,
+:func:`stages.demos.skill_wipe.wipe_setup`, takes the rack that ``write_kitchen(household=True)``
+parks under the table).
 
 Frame: world, Z up, metres, radians.
 """
@@ -38,6 +42,10 @@ GRASP_IN = 0.012    # the grasp's TCP this far [m] before the counter's front ed
 DROP = 0.02         # the plate's underside this far [m] above the tines when it is let go
 REST_ABOVE = 0.04   # success: the plate's underside at most this far [m] above the tines' tops
 BASE_GAP = 0.04     # the base's chassis this far [m] before the counter (the far rim is at the arm's reach)
+GRASP_BACK = 0.25   # at a top lower than LOW_TOP the base backs this far [m] after the drag: the rim
+LOW_TOP = 0.85      # grasp's level hand at a 0.75 m table was too near the arm's base for the IK (task
+                    # kitchens 0-1: ik_unreachable with 0 and 0.15 m, or pitched 15 deg down); a
+                    # 0.88-0.92 m counter needs no backing
 DRAG_PITCH = 25.0   # the dragging hand's fingertips tilted this far [deg] away from the robot (reach)
 RACK_FRONT = 0.02   # the rack's front this far [m] behind the counter's front edge
 PLATE_IN = 0.01     # the plate's near rim this far [m] inside the rack's front
@@ -153,6 +161,10 @@ def place_in_rack(inst, d) -> None:
     end = goal_y + r - 0.005  # (the fingers' faces ~1 cm before the TCP; they yield ~1 cm)
     d.move(_pose([pxy[0], end, tcp_z], drag), max(0.8, (behind - end) / 0.08), segments=4, settle=0.2)
     d.move(_pose([pxy[0], end + 0.01, top + 0.10], drag), 0.6, segments=2, tol=APPROACH_TOL)
+    low = top < LOW_TOP
+    if low:
+        bx, by, th = base_pose(d.sim)
+        d.drive_straight((bx, by - GRASP_BACK, th))
     st = read_state(d.sim)
     pq = st.objects[plate.body()]
     pxy = np.asarray(pq.position[:2], float)
@@ -168,7 +180,7 @@ def place_in_rack(inst, d) -> None:
     gz = float(pq.position[2]) + 0.5 * (h + under)
     at = np.array([pxy[0], tip_y - TIP_PAST, gz])
     d.move(_pose([at[0], front - 0.12, top + 0.14], rot), 1.5, segments=3, tol=APPROACH_TOL)  # turned clear of the plate
-    d.move(_pose(at - [0, 0.10, 0], rot), 1.0, segments=2, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(at - [0, 0.07 if low else 0.10, 0], rot), 1.0, segments=2, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(at, rot), 0.8, segments=2, settle=0.2)
     d.grip(1.0, 0.8)
     d.move(_pose(at + [0, 0, 0.04], rot), 0.8, segments=2, carry=True)

@@ -147,7 +147,8 @@ def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
     pl = world.placed
     if "plate" not in pl or "sponge" not in pl:
         raise ItemError(f"{world.usd}: no plate and sponge in this kitchen (a catalog with plate and sponge)")
-    if "dish_rack" in pl:  # a house kitchen's dishes (stages.demos.house_dishes): where its layout put them
+    if "dish_rack" in pl and hasattr(world, "house"):  # a house kitchen's dishes (stages.demos.house_dishes):
+        # where its layout put them
         objects = {}
         for role, yaw in (("plate", 0.0), ("sponge", float(rng.uniform(-0.2, 0.2)))):
             p = pl[role].position
@@ -155,9 +156,19 @@ def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
         return objects, new_trace(world)
     x0, y0, x1, y1 = world.table_rect
     tx, z = 0.5 * (x0 + x1), world.table_z + 0.002
-    objects = {pl["plate"].body(): (tx - 0.10 + float(rng.uniform(-0.02, 0.02)), y0 + 0.21, z, 0.0),
-               pl["sponge"].body(): (tx + 0.25 + float(rng.uniform(-0.02, 0.02)), y0 + 0.12, z,
-                                     float(rng.uniform(-0.2, 0.2)))}
+    if "dish_rack" in pl:  # a task kitchen with clean dishes' rack: the row of house_dishes on the near band
+        from stages.demos.house_dishes import RACK_GAP, SPONGE_GAP
+        from stages.demos.skill_rack import RACK_FRONT, rack_box
+
+        r, hx, hy = float(pl["plate"].asset.params["radius"]), *rack_box(pl["dish_rack"].asset.params)[:2]
+        px = tx + 0.05 + float(rng.uniform(-0.02, 0.02))
+        objects = {pl["plate"].body(): (px, y0 + 0.03 + r, z, 0.0),
+                   pl["sponge"].body(): (px + r + SPONGE_GAP, y0 + 0.12, z, float(rng.uniform(-0.2, 0.2))),
+                   pl["dish_rack"].body(): (px - r - RACK_GAP - hx, y0 + RACK_FRONT + hy, z, 0.0)}
+    else:
+        objects = {pl["plate"].body(): (tx - 0.10 + float(rng.uniform(-0.02, 0.02)), y0 + 0.21, z, 0.0),
+                   pl["sponge"].body(): (tx + 0.25 + float(rng.uniform(-0.02, 0.02)), y0 + 0.12, z,
+                                         float(rng.uniform(-0.2, 0.2)))}
     far = {"mug": (-0.25, 0.14), "bowl": (0.02, 0.16), "pusher": (0.28, 0.12)}
     for role, (dx, back) in far.items():
         if role in pl:
