@@ -2,12 +2,12 @@
 rack the household rules put on the counter (``stages/scene/rules/household_tasks.toml``) stand in
 the kitchen task world (:func:`stages.demos.house.house_kitchen` with ``dishes=True``).
 
-:func:`dish_layout` lays them out in a row along the front of the longest counter top: the rack
-(tine rows along world Y, its front :data:`~stages.demos.skill_rack.RACK_FRONT` behind the counter's
-front edge), :data:`RACK_GAP` beside it the plate (its near rim :data:`PLATE_BACK` behind the edge:
-the place stage reaches behind its far rim), :data:`SPONGE_GAP` beyond the plate's rim the sponge; the row faces either
-way, at the first place along the top (from its middle out) where the base's poses before the
-plate and sponge (the wipe) and before the plate and rack (the place) are free
+:func:`dish_layout` lays them out in a row along the front of the longest counter top (the gaps are
+:mod:`stages.demos.skill_rack`'s): the rack (tine rows along world Y, its front ``RACK_FRONT`` behind
+the counter's front edge), ``RACK_GAP`` beside it the plate (its near rim ``PLATE_BACK`` behind the
+edge: the place stage reaches behind its far rim), ``SPONGE_GAP`` beyond the plate's rim the sponge;
+the row faces either way, at the first place along the top (from its middle out) where the base's
+poses before the plate and sponge (the wipe) and before the plate and rack (the place) are free
 (:func:`~stages.demos.house_room.base_free`). The task scene cuts every other object on the counter,
 the microwave included (clean dishes does not use it); the mug is parked at the back of the top
 behind the sponge.
@@ -23,10 +23,8 @@ import numpy as np
 
 from pipeline.types import ItemError
 from stages.demos.packages import Placed
+from stages.demos.skill_rack import PLATE_BACK, RACK_GAP, SPONGE_GAP
 
-RACK_GAP = 0.04     # between the rack's side and the plate's rim [m]
-SPONGE_GAP = 0.12   # between the plate's rim and the sponge's centre [m]
-PLATE_BACK = 0.03   # the plate's near rim behind the counter's front edge [m]
 SPONGE_BACK = 0.12  # the sponge's centre behind the counter's front edge [m]
 MUG_BACK = 0.07     # the parked mug's centre before the counter top's back edge [m]
 END_MARGIN = 0.03   # the row stays this far [m] inside the top's ends

@@ -47,6 +47,10 @@ LOW_TOP = 0.85      # grasp's level hand at a 0.75 m table was too near the arm'
                     # kitchens 0-1: ik_unreachable with 0 and 0.15 m, or pitched 15 deg down); a
                     # 0.88-0.92 m counter needs no backing
 DRAG_PITCH = 25.0   # the dragging hand's fingertips tilted this far [deg] away from the robot (reach)
+RACK_GAP = 0.04     # the row of the dishes (stages.demos.house_dishes, skill_wipe.wipe_setup): between the
+                    # rack's side and the plate's rim [m]
+SPONGE_GAP = 0.12   # ... between the plate's rim and the sponge's centre [m]
+PLATE_BACK = 0.03   # ... the plate's near rim behind the front edge [m]
 RACK_FRONT = 0.02   # the rack's front this far [m] behind the counter's front edge
 PLATE_IN = 0.01     # the plate's near rim this far [m] inside the rack's front
 TRAY_FLOOR = 0.004  # the catalog rack's tray floor (stages.asset_catalog.generators.objects.dish_rack) [m]
@@ -179,7 +183,8 @@ def place_in_rack(inst, d) -> None:
     under = h * float(np.clip((rho - rf) / max(r - rf, 1e-3), 0.0, 1.0))  # its underside there
     gz = float(pq.position[2]) + 0.5 * (h + under)
     at = np.array([pxy[0], tip_y - TIP_PAST, gz])
-    d.move(_pose([at[0], front - 0.12, top + 0.14], rot), 1.5, segments=3, tol=APPROACH_TOL)  # turned clear of the plate
+    # turned to the rim grasp clear of the plate (a straight move down from over it swept it off the top)
+    d.move(_pose([at[0], front - 0.12, top + 0.14], rot), 1.5, segments=3, tol=APPROACH_TOL)
     d.move(_pose(at - [0, 0.07 if low else 0.10, 0], rot), 1.0, segments=2, settle=0.1, tol=APPROACH_TOL)
     d.move(_pose(at, rot), 0.8, segments=2, settle=0.2)
     d.grip(1.0, 0.8)

@@ -3,7 +3,9 @@ with contact (task ``wipe_plate``).
 
 - :func:`wipe_setup`: the episode's plate and sponge on the table's near band (the mug, bowl and
   pushed object moved to its far band, where the kitchen parks plate and sponge for the other
-  tasks) and the :class:`WipeTrace` that records the wipe;
+  tasks; with a dish rack, rack, plate and sponge in a row as :mod:`stages.demos.house_dishes`
+  lays them; a house kitchen's dishes where that layout put them) and the :class:`WipeTrace` that
+  records the wipe;
 - :func:`wipe_plate` (the expert): top-down grasp of the sponge across its width, over the plate,
   down until the sponge presses :data:`PRESS` into the plate's surface, rows across the plate's
   well (boustrophedon, :data:`ROW_STEP` apart); then, while the trace's coverage is short of
@@ -157,12 +159,11 @@ def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
     x0, y0, x1, y1 = world.table_rect
     tx, z = 0.5 * (x0 + x1), world.table_z + 0.002
     if "dish_rack" in pl:  # a task kitchen with clean dishes' rack: the row of house_dishes on the near band
-        from stages.demos.house_dishes import RACK_GAP, SPONGE_GAP
-        from stages.demos.skill_rack import RACK_FRONT, rack_box
+        from stages.demos.skill_rack import PLATE_BACK, RACK_FRONT, RACK_GAP, SPONGE_GAP, rack_box
 
         r, hx, hy = float(pl["plate"].asset.params["radius"]), *rack_box(pl["dish_rack"].asset.params)[:2]
         px = tx + 0.05 + float(rng.uniform(-0.02, 0.02))
-        objects = {pl["plate"].body(): (px, y0 + 0.03 + r, z, 0.0),
+        objects = {pl["plate"].body(): (px, y0 + PLATE_BACK + r, z, 0.0),
                    pl["sponge"].body(): (px + r + SPONGE_GAP, y0 + 0.12, z, float(rng.uniform(-0.2, 0.2))),
                    pl["dish_rack"].body(): (px - r - RACK_GAP - hx, y0 + RACK_FRONT + hy, z, 0.0)}
     else:
