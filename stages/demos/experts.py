@@ -48,6 +48,7 @@ from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
 from stages.demos.skill_trash import throw_away
 from stages.demos.skill_wardrobe import hang_on_rail
+from stages.demos.skill_rack import place_in_rack
 from stages.demos.skill_wipe import wipe_plate
 from stages.demos.tasks import TASKS
 
@@ -252,7 +253,7 @@ def close_articulated(inst: TaskInstance, d: Driver) -> None:
 EXPERTS = {"pick_place_bowl": pick_place_bowl, "pick_place_microwave": pick_place_microwave,
            "pick_from_microwave": pick_from_microwave, "push_object": push_object,
            "press_button": press_button, "pick_place_fridge": pick_place_fridge,
-           "wipe_plate": wipe_plate, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
+           "wipe_plate": wipe_plate, "place_in_rack": place_in_rack, "throw_away": throw_away, "pick_pitcher": pick_pitcher,
            "pour_drink": pour_drink, "place_pitcher": place_pitcher, "press_clock_button": press_clock_button,
            "slide_clock_switch": slide_clock_switch, "place_pillow": place_pillow,
            "shelve_book_1": shelve_book_1, "shelve_book_2": shelve_book_2, "hang_on_rail": hang_on_rail}

@@ -91,11 +91,13 @@ def _reachable_y(cnt: Placed, seg: dict, ma: CatalogAsset, side: float, span: tu
 
 
 def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
-                  room: str | None = None) -> HouseKitchen:
+                  room: str | None = None, dishes: bool = False) -> HouseKitchen:
     """The task world of the kitchen ``room`` (default: the house's first populated kitchen) of the
     scene in ``scene_dir`` (``scene.usda`` + ``scene.json``), written to ``out_dir/scene.usda``
     (see the module doc). ``generated_json``: the default catalog's records (surfaces, handles,
-    parameters). ItemError names what the kitchen lacks."""
+    parameters). ``dishes``: the clean-dishes world (:mod:`stages.demos.house_dishes`: plate,
+    sponge and dish rack in a row on the counter, its other objects cut). ItemError names what the
+    kitchen lacks."""
     scene_dir, out_dir = Path(scene_dir), Path(out_dir)
     rs = read_room(scene_dir, generated_json, "kitchen", room)
     house, room, recs, mine, info, one = rs.house, rs.room, rs.recs, rs.mine, rs.info, rs.one
@@ -194,6 +196,15 @@ def house_kitchen(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     m = pl["mug"]
     pl["mug"] = Placed(m.name, m.asset, (*m.position[:2], table_z + 0.002), m.yaw)
 
+    if dishes:  # the plate, sponge and rack in a row on the counter (its other objects cut away)
+        from stages.demos.house_dishes import dish_layout
+
+        lay = dish_layout(rs, rf, cnt, counter, mug, walls, obstacles(furniture.values()), scene_dir)
+        pl.update(lay.placed)
+        keep = {p.name.rsplit("/", 1)[-1] for p in lay.placed.values()}
+        cut = [n for n in dict.fromkeys(cut + lay.cut) if n not in keep]
+        table_z, table_rect = lay.z, lay.top
+        moved = None if moved and moved[0] in cut else moved  # (the microwave cut)
     cav = _cavity(ma)
     blo, bhi = link_bounds(ma.usd, "button")
     button = mwp.to_world(np.array([bhi[0], (blo[1] + bhi[1]) / 2, (blo[2] + bhi[2]) / 2]))

@@ -40,10 +40,10 @@ log = logging.getLogger(__name__)
 #: categories the kitchen is furnished from
 KITCHEN_CATEGORIES = ("kitchen_counter", "microwave", "fridge", "oven", "door", "dining_table",
                       "coffee_table", "mug", "bowl", "can", "sponge", "plate", "crumpled_paper", "trash_can",
-                      "alarm_clock", "pitcher", "cup")
+                      "alarm_clock", "pitcher", "cup", "dish_rack")
 #: the placed roles that are free bodies (the tasks set their poses per episode)
 FREE_ROLES = ("mug", "bowl", "pusher", "plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock",
-              "cushion", "book_1", "book_2", "hanger")
+              "cushion", "book_1", "book_2", "hanger", "dish_rack")
 CLOCK_END_GAP = 0.35    # a parked clock stands this far [m] from the counter top's ends (the base's room)
 CLOCK_BUSY_GAP = 0.30   # ... and from the microwave and the mug's counter spot [m]
 CLOCK_FRONT = 0.075     # its centre this far [m] behind the counter's front edge
@@ -224,7 +224,8 @@ def _dishes(lib: AssetLibrary, rng: np.random.Generator, table_rect, table_z: fl
     """The household skills' objects where the catalog has them and the table is at least 0.7 m deep
     (else none): a plate and a sponge narrow enough to grasp across (stages.demos.skill_wipe) and a
     piece of crumpled paper (stages.demos.skill_trash) on the table's far band; a trash can on the
-    floor off the table's west end."""
+    floor off the table's west end; a dish rack (stages.demos.skill_rack) on the floor under the
+    table (clean dishes' wipe sets it on the table)."""
     out: dict[str, Placed] = {}
     if table_rect[3] - table_rect[1] < 0.7:
         return out
@@ -242,6 +243,9 @@ def _dishes(lib: AssetLibrary, rng: np.random.Generator, table_rect, table_z: fl
         out["paper"] = Placed("Paper", paper, (tx + 0.02, far - 0.08, table_z + 0.002), 0.0)
         x = table_rect[0] - BIN_GAP - can.hi[0]  # its east side BIN_GAP off the table's west end
         out["trash_can"] = Placed("TrashCan", can, (x, table_rect[1] + 0.15, 0.0), 0.0)
+    if "plate" in out and lib.of("dish_rack"):  # clean dishes' rack: parked on the floor under the table
+        rack = _pick(lib, rng, ("dish_rack",))  # (the last draw: the objects above stay what they were)
+        out["dish_rack"] = Placed("DishRack", rack, (tx, 0.5 * (table_rect[1] + far), 0.0), 0.0)
     return out
 
 

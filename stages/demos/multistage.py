@@ -260,7 +260,7 @@ def whole_task_success(spec: MultistageSpec, inst: TaskInstance, state, peaks=No
 
 
 #: skills whose objects a task kitchen parks only when asked (``write_kitchen(household=True)``)
-HOUSEHOLD_SKILLS = ("wipe_plate", "throw_away")
+HOUSEHOLD_SKILLS = ("wipe_plate", "place_in_rack", "throw_away")
 
 
 def needs_household(tasks) -> bool:

@@ -121,7 +121,7 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
     if pusher:
         objects[pusher] = (*_on_table(world, rng, "pusher", 0.02, 0.02), float(rng.uniform(-0.3, 0.3)))
     # parked (stages.demos.kitchen): every episode starts them there
-    for role in ("plate", "sponge", "paper", "trash_can", "pitcher", "cup", "clock"):
+    for role in ("plate", "sponge", "dish_rack", "paper", "trash_can", "pitcher", "cup", "clock"):
         if role in pl:
             objects[pl[role].body()] = (*pl[role].position, pl[role].yaw)
     objects.update(world.drink_parked() if hasattr(world, "drink_parked") else {})
@@ -171,6 +171,13 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         names.update(object="plate", tool="sponge")
         ids = [pl["plate"], pl["sponge"]]
         target = tuple(float(v) for v in objects[pl["plate"].body()][:2])
+    if task_name == "place_in_rack":
+        if "dish_rack" not in pl:
+            raise ItemError(f"{world.usd}: no dish rack in this task world (a house kitchen with dishes, "
+                            f"stages.demos.house_dishes, or a task kitchen from a catalog with a dish rack)")
+        names.update(object="plate", container="dish rack")
+        ids = [pl["plate"], pl["dish_rack"]]
+        target = tuple(float(v) for v in objects[pl["dish_rack"].body()][:2])
     if task_name in ("press_clock_button", "slide_clock_switch"):
         from stages.demos.skill_press import clock_setup
 

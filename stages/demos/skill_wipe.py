@@ -3,7 +3,9 @@ with contact (task ``wipe_plate``).
 
 - :func:`wipe_setup`: the episode's plate and sponge on the table's near band (the mug, bowl and
   pushed object moved to its far band, where the kitchen parks plate and sponge for the other
-  tasks) and the :class:`WipeTrace` that records the wipe;
+  tasks; with a dish rack, rack, plate and sponge in a row as :mod:`stages.demos.house_dishes`
+  lays them; a house kitchen's dishes where that layout put them) and the :class:`WipeTrace` that
+  records the wipe;
 - :func:`wipe_plate` (the expert): top-down grasp of the sponge across its width, over the plate,
   down until the sponge presses :data:`PRESS` into the plate's surface, rows across the plate's
   well (boustrophedon, :data:`ROW_STEP` apart); then, while the trace's coverage is short of
@@ -51,7 +53,9 @@ class WipeTrace:
     plate_params / sponge_size (length, width, height) [m]: catalog geometry; cells (K, 2): the
     well's cell centres in the plate frame [m]; wiped (K,) bool; samples: contact samples taken;
     tilted: samples refused for the sponge's tilt; gaps: the sponge bottom's height above the
-    plate's surface at each untilted sample [m] (diagnostics)."""
+    plate's surface at each untilted sample [m] (diagnostics); flat_top: the plate collides as one
+    convex hull (the ingest's collider of a near-convex plate: every catalog plate), whose top is
+    flat at the rim's height over the whole plate, not the lathe's well."""
 
     plate: str
     sponge: str
@@ -62,6 +66,7 @@ class WipeTrace:
     samples: int = 0
     tilted: int = 0
     gaps: list = field(default_factory=list, repr=False)
+    flat_top: bool = False
 
     @property
     def coverage(self) -> float:
@@ -69,9 +74,12 @@ class WipeTrace:
 
     def surface(self, r) -> np.ndarray:
         """Height [m] of the plate's upper surface above its base at radius ``r`` (the generator's
-        lathe profile: well at the plate's thickness, then the rim up to its height)."""
+        lathe profile: well at the plate's thickness, then the rim up to its height; with
+        ``flat_top``, the collider's top: the rim's height everywhere)."""
         p = self.plate_params
         rad, h, t = float(p["radius"]), float(p["height"]), float(p["thickness"])
+        if self.flat_top:
+            return np.full(np.shape(r), h)
         rf = rad * float(p["well_ratio"])
         return np.interp(np.asarray(r, float), [0.0, rf, rf + 0.01, rad - 0.004, rad],
                          [t, t, t + 0.002, h, h])
@@ -120,7 +128,15 @@ def new_trace(world) -> WipeTrace:
     size = (float(sp["length"]), float(sp["width"]),
             float(sp["foam_thickness"]) + float(sp["scrub_thickness"]) + 0.002)
     return WipeTrace(plate=plate.body(), sponge=sponge.body(), plate_params=dict(p), sponge_size=size,
-                     cells=cells, wiped=np.zeros(len(cells), bool))
+                     cells=cells, wiped=np.zeros(len(cells), bool), flat_top=_one_hull(plate.asset.usd))
+
+
+def _one_hull(usd) -> bool:
+    """Whether the package ``usd`` collides as one mesh (a convex hull: ``<link>/colliders/*``)."""
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(usd))
+    return sum(1 for q in stage.Traverse() if q.GetParent().GetName() == "colliders") == 1
 
 
 def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
@@ -133,11 +149,27 @@ def wipe_setup(world, rng: np.random.Generator) -> tuple[dict, WipeTrace]:
     pl = world.placed
     if "plate" not in pl or "sponge" not in pl:
         raise ItemError(f"{world.usd}: no plate and sponge in this kitchen (a catalog with plate and sponge)")
+    if "dish_rack" in pl and hasattr(world, "house"):  # a house kitchen's dishes (stages.demos.house_dishes):
+        # where its layout put them
+        objects = {}
+        for role, yaw in (("plate", 0.0), ("sponge", float(rng.uniform(-0.2, 0.2)))):
+            p = pl[role].position
+            objects[pl[role].body()] = (p[0] + float(rng.uniform(-0.02, 0.02)), p[1], p[2], yaw)
+        return objects, new_trace(world)
     x0, y0, x1, y1 = world.table_rect
     tx, z = 0.5 * (x0 + x1), world.table_z + 0.002
-    objects = {pl["plate"].body(): (tx - 0.10 + float(rng.uniform(-0.02, 0.02)), y0 + 0.21, z, 0.0),
-               pl["sponge"].body(): (tx + 0.25 + float(rng.uniform(-0.02, 0.02)), y0 + 0.12, z,
-                                     float(rng.uniform(-0.2, 0.2)))}
+    if "dish_rack" in pl:  # a task kitchen with clean dishes' rack: the row of house_dishes on the near band
+        from stages.demos.skill_rack import PLATE_BACK, RACK_FRONT, RACK_GAP, SPONGE_GAP, rack_box
+
+        r, hx, hy = float(pl["plate"].asset.params["radius"]), *rack_box(pl["dish_rack"].asset.params)[:2]
+        px = tx + 0.05 + float(rng.uniform(-0.02, 0.02))
+        objects = {pl["plate"].body(): (px, y0 + PLATE_BACK + r, z, 0.0),
+                   pl["sponge"].body(): (px + r + SPONGE_GAP, y0 + 0.12, z, float(rng.uniform(-0.2, 0.2))),
+                   pl["dish_rack"].body(): (px - r - RACK_GAP - hx, y0 + RACK_FRONT + hy, z, 0.0)}
+    else:
+        objects = {pl["plate"].body(): (tx - 0.10 + float(rng.uniform(-0.02, 0.02)), y0 + 0.21, z, 0.0),
+                   pl["sponge"].body(): (tx + 0.25 + float(rng.uniform(-0.02, 0.02)), y0 + 0.12, z,
+                                         float(rng.uniform(-0.2, 0.2)))}
     far = {"mug": (-0.25, 0.14), "bowl": (0.02, 0.16), "pusher": (0.28, 0.12)}
     for role, (dx, back) in far.items():
         if role in pl:

@@ -31,6 +31,7 @@ from stages.demos.skill_pour import pick_pitcher_success, place_pitcher_success,
 from stages.demos.skill_press import press_clock_button_success, slide_clock_switch_success
 from stages.demos.skill_trash import throw_away_success
 from stages.demos.skill_wardrobe import hang_on_rail_success
+from stages.demos.skill_rack import place_in_rack_success
 from stages.demos.skill_wipe import wipe_plate_success
 
 log = logging.getLogger(__name__)
@@ -134,6 +135,9 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in (
     TaskSpec(name="wipe_plate", family=Family.PUSH_PULL, max_seconds=60.0, success=wipe_plate_success,
              templates=("wipe the {object} with the {tool}", "clean the {object} with the {tool}",
                         "scrub the {object} clean with the {tool}")),
+    TaskSpec(name="place_in_rack", family=Family.PICK_PLACE, max_seconds=60.0, success=place_in_rack_success,
+             templates=("put the {object} in the {container}", "set the {object} on the {container} to dry",
+                        "place the {object} on the {container}")),
     TaskSpec(name="throw_away", family=Family.PICK_PLACE, max_seconds=40.0, success=throw_away_success,
              templates=("throw the {object} in the {container}", "put the {object} into the {container}",
                         "clear the {object} off the table into the {container}")),
@@ -212,7 +216,7 @@ def _articulated_specs() -> list[TaskSpec]:
 TASKS.update({t.name: t for t in _articulated_specs()})
 #: skills of the multistage household tasks (stages.demos.multistage): tasks with experts and
 #: predicates, but not basic tasks (a plain task kitchen lacks their objects or their pacing)
-SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
+SKILL_TASKS = ("pick_place_fridge", "wipe_plate", "place_in_rack", "throw_away", "pick_pitcher", "pour_drink", "place_pitcher",
                "press_clock_button", "slide_clock_switch", "place_pillow", "shelve_book_1", "shelve_book_2",
                "hang_on_rail", "open_wardrobe", "close_wardrobe")
 #: the tasks a basic dataset covers (every family; articulated open/close of every part kind): the

@@ -121,7 +121,7 @@ def test_a_store_food_episode_starts_closed_with_the_mug_on_the_counter(kitchen_
 
 def test_clean_dishes_is_the_wipe_checked_when_it_ends():
     spec = MULTISTAGE["clean_dishes"]
-    assert [(s.skill, s.final) for s in spec.stages] == [("wipe_plate", False)]
+    assert [(s.skill, s.final) for s in spec.stages] == [("wipe_plate", False), ("place_in_rack", True)]
     assert "wipe_plate" in TASKS
 
 
