@@ -44,6 +44,7 @@ import numpy as np
 import torch
 
 from stages.embodiment.clik import ClikConfig
+from stages.locomotion.hands import HandCommands, hand_arms
 
 DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "g1_velocity"
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -204,10 +205,15 @@ class LeggedPolicyRuntime:
         self.pin_model = build_model(self.spec, resolve_description(self.spec.description).path)
         self.clik = UpperBodyClik(self.spec, self.pin_model, cfg.clik)
         kin = self.clik.kin
-        missing = [j for j in self.joint_names if j not in kin.idx_q]
-        if missing or self.pin_model.nq != len(self.joint_names):
+        hand_names = [j for a in hand_arms(self.spec) for j in self.spec.end_effectors[self.spec.arm(a).end_effector].joints]
+        missing = [j for j in (*self.joint_names, *hand_names) if j not in kin.idx_q]
+        if missing or self.pin_model.nq != len(self.joint_names) + len(hand_names):
             raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's joints {missing}")
         self._pin_cols = np.array([kin.idx_q[j] for j in self.joint_names])   # sim order -> Pinocchio q
+        self.hands = HandCommands(self.spec, index_worlds(model, hand_names, cfg.root_body, cfg.device)
+                                  if hand_names else None,
+                                  np.array([kin.idx_q[j] for j in hand_names], int), n, dev)
+        """the hands' commands (0 open .. 1 closed per world and hand): PD targets of the hand joints"""
         self.arm_names: tuple[str, ...] = tuple(self.clik.arms)
         self._arm_cols = {a: np.array([self.joint_names.index(j) for j in self.spec.arm(a).joints])
                           for a in self.arm_names}
@@ -267,6 +273,7 @@ class LeggedPolicyRuntime:
         """Forget the last actions and arm targets of worlds (K,) (default: all), e.g. after a reset."""
         sel = slice(None) if worlds is None else torch.as_tensor(worlds, dtype=torch.long, device=self.device)
         self.actions[sel] = 0.0
+        self.hands.command[sel if worlds is None else np.asarray(worlds, int)] = 0.0
         for a in self.arm_names:
             self.release_arm(a, None if worlds is None else np.asarray(worlds, int))
 
@@ -332,6 +339,8 @@ class LeggedPolicyRuntime:
             jq[:, moving] += lookahead * jqd[:, moving]
         q = np.empty((self.num_worlds, self.pin_model.nq))
         q[:, self._pin_cols] = jq
+        if self.hands.names:
+            q[:, self.hands.pin_cols] = self.hands.positions(self._views(state)[0])
         return root, q
 
     # ------------------------------------------------------------------ one control step
@@ -352,6 +361,7 @@ class LeggedPolicyRuntime:
         targets[self.index.joint_q[:, self._all_arm_cols_t]] = arm_t
         legs = self.default_q[self.act_cols] + self.action_scale * actions
         targets[self.index.joint_q[:, self.act_cols]] = legs.to(targets.dtype)
+        self.hands.write(targets)
         if self.cfg.arm_gravity_feedforward:
             forces = wp.to_torch(control.joint_f)
             tau = self.arm_gravity(root, q)
@@ -453,9 +463,12 @@ class HumanoidWorlds:
 
         self.cfg = cfg = cfg or HumanoidWorldsConfig()
         rt_cfg = cfg.runtime if cfg.runtime.device == cfg.device else _with_device(cfg.runtime, cfg.device)
-        if model is None:  # the robot the policy was trained on (policy.json's humanoid)
-            model, _ = build_humanoid_model(humanoid(policy_humanoid(rt_cfg.policy)), cfg.num_worlds,
-                                            wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
+        if model is None:  # the robot the policy was trained on (policy.json's humanoid), the spec's hands
+            from stages.embodiment import load_spec
+            from stages.locomotion.hands import humanoid_for_spec
+
+            desc = humanoid_for_spec(load_spec(rt_cfg.spec), humanoid(policy_humanoid(rt_cfg.policy)))
+            model, _ = build_humanoid_model(desc, cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
         self.model = model
         self.runtime = LeggedPolicyRuntime(self.model, rt_cfg)
         meta = self.runtime.policy.meta
@@ -516,6 +529,8 @@ class HumanoidWorlds:
             qd[ix.joint_qd[t_ids]] = 0.0
         wp.to_torch(self.control.joint_target_q)[ix.joint_q[t_ids]] = rt.default_q
         wp.to_torch(self.control.joint_f)[ix.joint_qd[t_ids]] = 0.0
+        rt.hands.reset(ids, [tuple(map(wp.to_torch, (st.joint_q, st.joint_qd))) for st in (self.state, self._next)],
+                       wp.to_torch(self.control.joint_target_q))
         rt.reset(ids)
         rt.set_command(np.zeros((k, 3)), ids)
         rt.set_mode(np.full(k, int(Mode.LOCOMOTION)), ids)
