@@ -270,8 +270,9 @@ class HandPickConfig:
     end-effector frame; grasp_height: the end-effector frame above the object's base [m];
     above: the pre-grasp height over the grasp [m]; lift [m]; release_height: the object's base
     above the container's base when the hand opens [m]; approach: the straight walk-in from a
-    standoff to the stance [m]; side_speed: the walking speed while carrying [m/s]; close_s /
-    open_s: the hand's closing / opening time [s]."""
+    standoff to the stance [m]; side_speed: the walking speed while carrying [m/s]; close_s: the
+    hand's command ramps from open to closed over this time [s]; hold_s: then held closed before
+    the lift [s]; open_s: the time to open [s]."""
 
     arm: str = "right"
     reach: float = 0.32
@@ -283,7 +284,8 @@ class HandPickConfig:
     release_height: float = 0.035
     approach: float = 0.35
     side_speed: float = 0.2
-    close_s: float = 0.8
+    close_s: float = 1.2
+    hold_s: float = 0.4
     open_s: float = 0.6
     carry_hand: tuple[float, float, float] = (0.24, -0.16, 0.16)
     """the grasping hand's end-effector frame in the base frame while walking in (forward, left,
@@ -317,6 +319,8 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
     manipulation mode: the open hand above the object, down around it, closed, lifted; walk
     sideways with the hand held in the base frame until the object is at the same place over the
     container; lower it into the container, open, the hand up and back."""
+    if cfg.arm not in h.rt.hands.arms:
+        raise ExpertFailure("no_hand", f"the {cfg.arm} arm of {h.rt.spec.name} has no hand to grasp with")
     w = inst.world
     obj, box = w.placed["mug"].body(), w.placed["bowl"].body()
     m = np.asarray(h.object_pose(obj).position, float)
@@ -352,8 +356,11 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
     if err > 0.03:
         raise ExpertFailure("hand_not_placed", f"hand {err * 1000:.0f} mm from the grasp")
     yield from _wait(10)
-    h.set_hand(cfg.arm, 1.0)
-    yield from _wait(int(cfg.close_s / h.dt))
+    n = max(1, int(cfg.close_s / h.dt))
+    for i in range(n):                                  # a ramp: a sudden close knocks the object over
+        h.set_hand(cfg.arm, (i + 1) / n)
+        yield 1
+    yield from _wait(int(cfg.hold_s / h.dt))
     lifted = grasp.copy()
     lifted[:3, 3] += up * cfg.lift
     yield from hand_to(h, cfg.arm, lifted, tol=0.015, timeout_s=3.0)

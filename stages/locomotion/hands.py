@@ -76,8 +76,8 @@ class HandCommands:
         self.index, self.pin_cols, self.device = index, pin_cols, device
         self.open = np.concatenate([np.asarray(e.open, float) for e in ees]) if ees else np.zeros(0)
         self.closed = np.concatenate([np.asarray(e.closed, float) for e in ees]) if ees else np.zeros(0)
-        sizes = [len(e.joints) for e in ees]
-        self._cols = dict(zip(self.arms, np.split(np.arange(len(self.names)), np.cumsum(sizes)[:-1]), strict=True))
+        ends = np.cumsum([len(e.joints) for e in ees], dtype=int)
+        self._cols = {a: np.arange(e - len(ee.joints), e) for a, e, ee in zip(self.arms, ends, ees, strict=True)}
         self.command = np.zeros((num_worlds, len(self.arms)))
         """(N, H) hand commands, 0 open .. 1 closed"""
 
