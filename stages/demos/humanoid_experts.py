@@ -269,7 +269,8 @@ class HandPickConfig:
     it 0.07 m behind the end-effector frame, the straight fingers run ahead along x, so a mug of
     3.7 cm radius with its axis 6.6 cm off the palm's centre plane and 3 cm ahead of the frame
     clears the thumb by 1.7 cm and the fingers by 1.5 cm as the hand comes down around it (with
-    1 cm a 1 cm hand error put a finger on the rim: 2 of 10 episodes); grasp_height: the end-effector frame above the object's base [m];
+    1 cm a 1 cm hand error put a finger on the rim: 2 of 10 episodes); grasp_height: the
+    end-effector frame above the object's base [m];
     above: the pre-grasp height over the grasp [m]; lift [m]; release_height: the object's base
     above the container's base when the hand opens [m]; approach: the straight walk-in from a
     standoff to the stance [m]; side_speed: the walking speed while carrying [m/s]; close_s: the
@@ -344,7 +345,8 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
     h.set_mode(MANIPULATION)
     yield from _wait(int(1.5 / h.dt))
     x, y, _ = h.base_pose()
-    yield from walk_to(h, (float(base1[0]), float(base1[1]), yaw), cfg.walk, path=np.array([[x, y], base1[:2]]))
+    yield from walk_to(h, (float(base1[0]), float(base1[1]), yaw), cfg.walk,
+                       path=np.array([[x, y], base1[:2]]))
 
     h.set_mode(MANIPULATION)
     yield from _wait(10)
@@ -399,7 +401,8 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
 
 
 #: humanoid experts by task name
-HUMANOID_EXPERTS = {"close_drawer": close_drawer, "close_microwave": close_leaf, "pick_place_bowl": pick_place_hand}
+HUMANOID_EXPERTS = {"close_drawer": close_drawer, "close_microwave": close_leaf,
+                    "pick_place_bowl": pick_place_hand}
 
 
 def humanoid_program(h: Any, inst: Any) -> Generator[int, None, None]:

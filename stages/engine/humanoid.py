@@ -5,7 +5,9 @@ The world: the kitchen's scene USD loaded as the engine loads it (``stages.simul
 the engine's contact stiffness), the humanoid as trained (``stages.locomotion.robot.g1_builder``:
 inertials, sole spheres, mjlab's drives) plus one collision sphere per hand at the spec's
 end-effector frame (``ee_xyz`` on the arm's tip link: the palm centre), so that the hands push and
-touch the scene; replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one world on a
+touch the scene (a spec with hands, ``g1_29dof_dex3``: the G1 with its Dex3 joints and one
+collision box per hand link instead, ``stages.engine.humanoid_hands``; the hands open and close by
+``WorldHandle.set_hand``); replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one world on a
 CPU, else MuJoCo-Warp; ``stages.locomotion.runtime.HumanoidWorlds``). The legs and waist follow the
 policy, the arms CLIK (``LeggedPolicyRuntime``: base commands vx, vy, v_theta and the mode through
 the wheeled base's interface).
@@ -14,7 +16,8 @@ Episodes: every world runs its own sequence. ``next_instance(w)`` gives a task i
 (``stages.demos.sampling.TaskInstance``) or None; at the next synchronisation point (every
 ``frame_every`` control steps, so that all worlds' frames fall on the same steps and one render
 serves them all) the engine resets that world alone (every coordinate of the world back to the
-kitchen's, the instance's scene joints, the robot standing at the instance's start pose), and runs
+kitchen's, the instance's scene joints and free objects' poses, the robot standing at the
+instance's start pose), and runs
 ``program(handle, inst)``: a generator that sets commands through its :class:`WorldHandle` and
 yields the number of control steps to wait. Every ``frame_every`` control steps of an episode the
 engine reads a frame before stepping: ``observation.state`` and ``action`` in the embodiment's

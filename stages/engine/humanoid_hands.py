@@ -38,7 +38,8 @@ def _origin(el: ET.Element | None) -> np.ndarray:
     return m
 
 
-def hand_link_boxes(urdf: Path, root: Path, links: list[str]) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
+def hand_link_boxes(urdf: Path, root: Path, links: list[str]
+                    ) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
     """Per link of ``links``: its collision boxes as (centre (3,), half extents (3,)) [m] in the
     link frame, from the URDF ``urdf`` (mesh paths ``package://<pkg>/...`` resolve under ``root``,
     the description's data root). ValueError naming the file for a link without collision
@@ -151,4 +152,5 @@ class HumanoidPredicateState:
 def pose_of(body_q: np.ndarray) -> Pose:
     """A Newton body transform (7,) (position, quaternion x, y, z, w) as a Pose (w, x, y, z)."""
     p, q = body_q[:3], body_q[3:7]
-    return Pose(position=tuple(float(v) for v in p), orientation=(float(q[3]), float(q[0]), float(q[1]), float(q[2])))
+    return Pose(position=tuple(float(v) for v in p),
+                orientation=(float(q[3]), float(q[0]), float(q[1]), float(q[2])))

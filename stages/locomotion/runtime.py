@@ -19,6 +19,11 @@ Per control step (``policy.json``'s ``control_dt``, 0.02 s: every ``decimation``
    Pinocchio gravity torques of the arms for the measured pelvis orientation, so that the PD
    targets are reached without sag.
 
+4. the hands (a spec whose end effectors are hands, e.g. ``g1_29dof_dex3``: the model holds the
+   G1 with its 14 Dex3 joints, ``hands.humanoid_for_spec``): PD targets from each hand's command,
+   0 open .. 1 closed, between the spec's open and closed poses (``hands.HandCommands``); the
+   policy's observations stay the 29 body joints'.
+
 The base interface is the wheeled base's: a command (vx, vy, v_theta) per world in the base frame
 [m/s, m/s, rad/s], clipped to the policy's training ranges; and a mode per world:
 ``Mode.LOCOMOTION`` tracks the command, ``Mode.MANIPULATION`` commands zero velocity so the policy
@@ -205,7 +210,8 @@ class LeggedPolicyRuntime:
         self.pin_model = build_model(self.spec, resolve_description(self.spec.description).path)
         self.clik = UpperBodyClik(self.spec, self.pin_model, cfg.clik)
         kin = self.clik.kin
-        hand_names = [j for a in hand_arms(self.spec) for j in self.spec.end_effectors[self.spec.arm(a).end_effector].joints]
+        hand_names = [j for a in hand_arms(self.spec)
+                      for j in self.spec.end_effectors[self.spec.arm(a).end_effector].joints]
         missing = [j for j in (*self.joint_names, *hand_names) if j not in kin.idx_q]
         if missing or self.pin_model.nq != len(self.joint_names) + len(hand_names):
             raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's joints {missing}")
@@ -529,8 +535,8 @@ class HumanoidWorlds:
             qd[ix.joint_qd[t_ids]] = 0.0
         wp.to_torch(self.control.joint_target_q)[ix.joint_q[t_ids]] = rt.default_q
         wp.to_torch(self.control.joint_f)[ix.joint_qd[t_ids]] = 0.0
-        rt.hands.reset(ids, [tuple(map(wp.to_torch, (st.joint_q, st.joint_qd))) for st in (self.state, self._next)],
-                       wp.to_torch(self.control.joint_target_q))
+        views = [(wp.to_torch(st.joint_q), wp.to_torch(st.joint_qd)) for st in (self.state, self._next)]
+        rt.hands.reset(ids, views, wp.to_torch(self.control.joint_target_q))
         rt.reset(ids)
         rt.set_command(np.zeros((k, 3)), ids)
         rt.set_mode(np.full(k, int(Mode.LOCOMOTION)), ids)
