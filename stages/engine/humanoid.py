@@ -7,8 +7,8 @@ inertials, sole spheres, mjlab's drives) plus one collision sphere per hand at t
 end-effector frame (``ee_xyz`` on the arm's tip link: the palm centre), so that the hands push and
 touch the scene (a spec with hands, ``g1_29dof_dex3``: the G1 with its Dex3 joints and one
 collision box per hand link instead, ``stages.engine.humanoid_hands``; the hands open and close by
-``WorldHandle.set_hand``); replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one world on a
-CPU, else MuJoCo-Warp; ``stages.locomotion.runtime.HumanoidWorlds``). The legs and waist follow the
+``WorldHandle.set_hand``); replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one
+world on a CPU, else MuJoCo-Warp; ``stages.locomotion.runtime.HumanoidWorlds``). The legs and waist follow the
 policy, the arms CLIK (``LeggedPolicyRuntime``: base commands vx, vy, v_theta and the mode through
 the wheeled base's interface).
 
