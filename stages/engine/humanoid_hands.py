@@ -114,7 +114,8 @@ def add_hand_colliders(robot: Any, spec: Any, *, mu: float = 1.0) -> list[int]:
             for centre, half in boxes:
                 c = off[:3, :3] @ centre + off[:3, 3]
                 q = _quat_xyzw(off[:3, :3])
-                shapes.append(robot.add_shape_box(bodies.index(body), xform=wp.transform(tuple(c), wp.quat(*q)),
+                xf = wp.transform(tuple(c), wp.quat(*q))
+                shapes.append(robot.add_shape_box(bodies.index(body), xform=xf,
                                                   hx=float(half[0]), hy=float(half[1]), hz=float(half[2]),
                                                   cfg=cfg))
         for i, a in enumerate(shapes):

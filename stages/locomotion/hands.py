@@ -57,7 +57,8 @@ def humanoid_for_spec(spec: EmbodimentSpec, desc: HumanoidDescription = G1) -> H
             raise EmbodimentError(f"{spec.name}: no drive matches hand joint {name!r}")
         ee = next(e for e in spec.end_effectors.values() if name in e.joints)
         effort = drive.effort_limit or ee.max_force or 1.0
-        drives.append((re.escape(name), JointGains(drive.armature or HAND_ARMATURE, drive.kp, drive.kd, effort)))
+        gains = JointGains(drive.armature or HAND_ARMATURE, drive.kp, drive.kd, effort)
+        drives.append((re.escape(name), gains))
     return dataclasses.replace(desc, name=f"{desc.name}_{spec.name}", source_file=spec.description.file,
                                num_joints=desc.num_joints + len(hand), arm_joints=desc.arm_joints + hand,
                                drives=desc.drives + tuple(drives))
@@ -77,7 +78,8 @@ class HandCommands:
         self.open = np.concatenate([np.asarray(e.open, float) for e in ees]) if ees else np.zeros(0)
         self.closed = np.concatenate([np.asarray(e.closed, float) for e in ees]) if ees else np.zeros(0)
         ends = np.cumsum([len(e.joints) for e in ees], dtype=int)
-        self._cols = {a: np.arange(e - len(ee.joints), e) for a, e, ee in zip(self.arms, ends, ees, strict=True)}
+        self._cols = {a: np.arange(e - len(ee.joints), e)
+                      for a, e, ee in zip(self.arms, ends, ees, strict=True)}
         self.command = np.zeros((num_worlds, len(self.arms)))
         """(N, H) hand commands, 0 open .. 1 closed"""
 

@@ -214,7 +214,8 @@ class LeggedPolicyRuntime:
                       for j in self.spec.end_effectors[self.spec.arm(a).end_effector].joints]
         missing = [j for j in (*self.joint_names, *hand_names) if j not in kin.idx_q]
         if missing or self.pin_model.nq != len(self.joint_names) + len(hand_names):
-            raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's joints {missing}")
+            raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's and hands' "
+                             f"joints {missing}")
         self._pin_cols = np.array([kin.idx_q[j] for j in self.joint_names])   # sim order -> Pinocchio q
         self.hands = HandCommands(self.spec, index_worlds(model, hand_names, cfg.root_body, cfg.device)
                                   if hand_names else None,

@@ -94,7 +94,8 @@ def test_g1_with_dex3_hands_stands_walks_and_closes_a_hand():
     state, action = frame_vectors(rt, sim.state)
     assert state.shape == (1, len(state_names(spec))) == (1, 31)
     names = action_names(spec)
-    assert action.shape == (1, len(names)) == (1, 34) and names[-3:] == ["left_gripper", "right_gripper", "mode"]
+    assert action.shape == (1, len(names)) == (1, 34)
+    assert names[-3:] == ["left_gripper", "right_gripper", "mode"]
     np.testing.assert_array_equal(action[0, -3:], [0.0, 1.0, 0.0])
 
 
