@@ -104,8 +104,8 @@ def test_pick_place_bowl_with_a_dex3_hand_is_recorded_and_loads(kitchen_catalog,
     """One pick_place_bowl episode (kitchen world seed 5, episode seed 1) by the humanoid recorder
     with the Dex3 G1 and head and wrist cameras: the mug ends in the bowl, released, upright; the
     merged dataset loads with LeRobotDataset (robot type unitree_g1, action 34 with the hand
-    commands, which close and open during the episode). Measured: 20.3 s simulated; about 2 min
-    on 2 shared cores."""
+    commands, which close and open during the episode). Measured: 21.4 s simulated; 3.5 min
+    on 2 shared cores (load average 10), 28 s of it the kitchen."""
     from stages.dataset import load_dataset
     from stages.demos.humanoid_run import HumanoidRunConfig, record
 
