@@ -273,8 +273,160 @@ def close_leaf(h: Any, inst: Any, cfg: LeafPushConfig | None = None) -> Generato
     yield from hand_to(h, arm, target, tol=0.02, timeout_s=2.0)
 
 
+@dataclass(frozen=True, kw_only=True)
+class HandPickConfig:
+    """Picking an upright object (a mug) with a hand (the Dex3: the object between the palm, the
+    thumb behind it and the two fingers curling around its front) and placing it in a container.
+
+    arm; reach / lateral: the object's place in the base frame at the grasp (forward, left [m]);
+    grasp_offset: the object's axis in the end-effector frame of the right hand (the left hand
+    mirrors y) [m]: the Dex3 palm faces the hand's +y (right hand), the open thumb stands out of
+    it 0.07 m behind the end-effector frame, the straight fingers run ahead along x, so a mug of
+    3.7 cm radius with its axis 6.6 cm off the palm's centre plane and 3.5 cm ahead of the frame
+    clears the thumb by 2.2 cm and the fingers by 1.5 cm as the hand comes down around it (with
+    1 cm, a 1 cm hand error put the thumb on the rim: 2 of 10 episodes; with 1.7 cm 1 of 20);
+    grasp_height: the
+    end-effector frame above the object's base [m];
+    above: the pre-grasp height over the grasp [m]; lift [m]; release_height: the object's base
+    above the container's base when the hand opens [m]; approach: the straight walk-in from a
+    standoff to the stance [m]; side_speed: the walking speed while carrying [m/s]; close_s: the
+    hand's command ramps from open to closed over this time [s]; hold_s: then held closed before
+    the lift [s]; open_s: the hand's command ramps back to open over this time [s]."""
+
+    arm: str = "right"
+    reach: float = 0.32
+    lateral: float = -0.08
+    grasp_offset: tuple[float, float, float] = (0.035, 0.066, 0.0)
+    grasp_height: float = 0.055
+    above: float = 0.10
+    lift: float = 0.13
+    release_height: float = 0.035
+    approach: float = 0.35
+    side_speed: float = 0.2
+    close_s: float = 1.2
+    hold_s: float = 0.4
+    open_s: float = 0.6
+    carry_hand: tuple[float, float, float] = (0.24, -0.16, 0.16)
+    """the grasping hand's end-effector frame in the base frame while walking in (forward, left,
+    up [m] from the pelvis; the right hand's, the left mirrors): above the table top, clear of its edge"""
+    idle_hand: tuple[float, float, float] = (0.12, 0.24, 0.10)
+    """the other hand's (the left's; the right mirrors), out of the way above the table's height"""
+    walk: WalkConfig = WalkConfig()
+
+
+def _inward_normal(rect: tuple[float, float, float, float], xy: np.ndarray) -> np.ndarray:
+    """The inward unit normal (3,) of the edge of ``rect`` = (x0, y0, x1, y1) nearest to ``xy``."""
+    x0, y0, x1, y1 = rect
+    d = {(1.0, 0.0): xy[0] - x0, (-1.0, 0.0): x1 - xy[0], (0.0, 1.0): xy[1] - y0, (0.0, -1.0): y1 - xy[1]}
+    n = min(d, key=d.get)
+    return np.array([n[0], n[1], 0.0])
+
+
+def _grasp_pose(centre: np.ndarray, forward: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The end-effector pose (4, 4) that puts the object's axis point ``centre`` (3,) at ``offset``
+    (3,) in the hand frame, the hand's x along ``forward`` (horizontal), z up."""
+    up = np.array([0.0, 0.0, 1.0])
+    rot = np.stack([forward, np.cross(up, forward), up], axis=1)
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, centre - rot @ offset
+    return t
+
+
+def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -> Generator[int, None, None]:
+    """pick_place_bowl with a hand: walk to a standoff before the table edge nearest the object,
+    then straight in to the stance (the object at ``reach``, ``lateral`` in the base frame);
+    manipulation mode: the open hand above the object, down around it, closed, lifted; walk
+    sideways with the hand held in the base frame until the object is at the same place over the
+    container; lower it into the container (where it stops on the container's floor the hand
+    eases 5 mm up: opening a hand that presses the mug into a curved bowl tipped it), open, the
+    hand up."""
+    if cfg.arm not in h.rt.hands.arms:
+        raise ExpertFailure("no_hand", f"the {cfg.arm} arm of {h.rt.spec.name} has no hand to grasp with")
+    w = inst.world
+    obj, box = w.placed["mug"].body(), w.placed["bowl"].body()
+    m = np.asarray(h.object_pose(obj).position, float)
+    c = np.asarray(h.object_pose(box).position, float)
+    fwd = _inward_normal(w.table_rect, m[:2])
+    yaw = math.atan2(fwd[1], fwd[0])
+    left = np.array([-fwd[1], fwd[0], 0.0])
+    off = np.asarray(cfg.grasp_offset) * (1.0, 1.0 if cfg.arm == "right" else -1.0, 1.0)
+    base1 = m - fwd * cfg.reach - left * cfg.lateral
+    stand = base1 - fwd * cfg.approach
+    yield from walk_to(h, (float(stand[0]), float(stand[1]), yaw), cfg.walk, grid=w.grid())
+    # both hands up, held in the base frame (a hand at its default pose is under the table top)
+    sign = 1.0 if cfg.arm == "right" else -1.0
+    other = "left" if cfg.arm == "right" else "right"
+    for arm, (fx, fy, fz) in ((cfg.arm, cfg.carry_hand), (other, cfg.idle_hand)):
+        t = np.eye(4)
+        t[:3, 3] = (fx, fy * sign, fz)
+        h.set_ee_target(arm, t, frame="base")
+    h.set_mode(MANIPULATION)
+    yield from _wait(int(1.5 / h.dt))
+    x, y, _ = h.base_pose()
+    yield from walk_to(h, (float(base1[0]), float(base1[1]), yaw), cfg.walk,
+                       path=np.array([[x, y], base1[:2]]))
+
+    h.set_mode(MANIPULATION)
+    yield from _wait(10)
+    up = np.array([0.0, 0.0, 1.0])
+    m = np.asarray(h.object_pose(obj).position, float)
+    grasp = _grasp_pose(m + up * cfg.grasp_height, fwd, off)
+    pre = grasp.copy()
+    pre[:3, 3] += up * cfg.above
+    yield from hand_to(h, cfg.arm, pre, tol=0.015, timeout_s=4.0)
+    err = yield from hand_to(h, cfg.arm, grasp, tol=0.008, timeout_s=3.0)
+    if err > 0.03:
+        raise ExpertFailure("hand_not_placed", f"hand {err * 1000:.0f} mm from the grasp")
+    yield from _wait(10)
+    n = max(1, int(cfg.close_s / h.dt))
+    for i in range(n):                                  # a ramp: a sudden close knocks the object over
+        h.set_hand(cfg.arm, (i + 1) / n)
+        yield 1
+    yield from _wait(int(cfg.hold_s / h.dt))
+    lifted = grasp.copy()
+    lifted[:3, 3] += up * cfg.lift
+    yield from hand_to(h, cfg.arm, lifted, tol=0.015, timeout_s=3.0)
+    z = h.object_pose(obj).position[2]
+    if z < m[2] + 0.5 * cfg.lift:
+        raise ExpertFailure("object_not_lifted", f"object base {1000 * (z - m[2]):.0f} mm above its start")
+
+    # carry: walk sideways with the hand held in the base frame
+    hand_b = np.linalg.inv(_base_matrix(h)) @ h.ee_pose(cfg.arm)
+    h.set_ee_target(cfg.arm, hand_b, frame="base")
+    x, y, _ = h.base_pose()
+    shift = c - m
+    shift[2] = 0.0
+    base2 = np.array([x, y, 0.0]) + shift
+    carry = WalkConfig(**{**cfg.walk.__dict__, "v_max": cfg.side_speed, "timeout_s": 10.0})
+    yield from walk_to(h, (float(base2[0]), float(base2[1]), yaw), carry, path=np.array([[x, y], base2[:2]]))
+    h.set_mode(MANIPULATION)
+    yield from _wait(10)
+    p = np.asarray(h.object_pose(obj).position, float)
+    if p[2] < m[2] + 0.5 * cfg.lift:
+        raise ExpertFailure("object_dropped", f"object base {1000 * (p[2] - m[2]):.0f} mm above the table")
+
+    # place: over the container, down, open, up
+    over = _grasp_pose(np.array([c[0], c[1], m[2] + cfg.grasp_height + cfg.lift]), fwd, off)
+    yield from hand_to(h, cfg.arm, over, tol=0.012, timeout_s=3.0)
+    down = _grasp_pose(np.array([c[0], c[1], c[2] + cfg.release_height + cfg.grasp_height]), fwd, off)
+    yield from hand_to(h, cfg.arm, down, tol=0.012, timeout_s=3.0)
+    rest = down.copy()                                  # the object sits: stop pressing it down
+    rest[:3, 3] = h.ee_pose(cfg.arm)[:3, 3] + up * 0.005
+    yield from hand_to(h, cfg.arm, rest, tol=0.004, timeout_s=0.5)
+    n = max(1, int(cfg.open_s / h.dt))
+    for i in range(n):
+        h.set_hand(cfg.arm, 1.0 - (i + 1) / n)
+        yield 1
+    yield from _wait(10)
+    away = down.copy()
+    away[:3, 3] += up * 0.12
+    yield from hand_to(h, cfg.arm, away, tol=0.02, timeout_s=2.0)
+    yield from _wait(int(0.5 / h.dt))
+
+
 #: humanoid experts by task name
-HUMANOID_EXPERTS = {"close_drawer": close_drawer, "close_microwave": close_leaf}
+HUMANOID_EXPERTS = {"close_drawer": close_drawer, "close_microwave": close_leaf,
+                    "pick_place_bowl": pick_place_hand}
 
 
 def humanoid_program(h: Any, inst: Any) -> Generator[int, None, None]:

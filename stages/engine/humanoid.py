@@ -6,8 +6,10 @@ the engine's contact stiffness), the humanoid as trained (``stages.locomotion.ro
 the robot the spec's policy was trained on, ``policy.json``'s ``humanoid``:
 inertials, sole spheres, mjlab's drives) plus one collision sphere per hand at the spec's
 end-effector frame (``ee_xyz`` on the arm's tip link: the palm centre), so that the hands push and
-touch the scene; replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one world on a
-CPU, else MuJoCo-Warp; ``stages.locomotion.runtime.HumanoidWorlds``). The legs and waist follow the
+touch the scene (a spec with hands, ``g1_29dof_dex3``: the G1 with its Dex3 joints and one
+collision box per hand link instead, ``stages.engine.humanoid_hands``; the hands open and close by
+``WorldHandle.set_hand``); replicated to ``worlds`` worlds of one Newton model (MuJoCo C for one
+world on a CPU, else MuJoCo-Warp; ``stages.locomotion.runtime.HumanoidWorlds``). The legs and waist follow the
 policy, the arms CLIK (``LeggedPolicyRuntime``: base commands vx, vy, v_theta and the mode through
 the wheeled base's interface).
 
@@ -15,7 +17,8 @@ Episodes: every world runs its own sequence. ``next_instance(w)`` gives a task i
 (``stages.demos.sampling.TaskInstance``) or None; at the next synchronisation point (every
 ``frame_every`` control steps, so that all worlds' frames fall on the same steps and one render
 serves them all) the engine resets that world alone (every coordinate of the world back to the
-kitchen's, the instance's scene joints, the robot standing at the instance's start pose), and runs
+kitchen's, the instance's scene joints and free objects' poses, the robot standing at the
+instance's start pose), and runs
 ``program(handle, inst)``: a generator that sets commands through its :class:`WorldHandle` and
 yields the number of control steps to wait. Every ``frame_every`` control steps of an episode the
 engine reads a frame before stepping: ``observation.state`` and ``action`` in the embodiment's
@@ -51,7 +54,8 @@ class HumanoidEngineConfig:
     """spec: embodiment spec with a legged-with-policy base; worlds; device ("cpu" | "cuda[:n]");
     frame_every: control steps per recorded frame; max_seconds: an episode's time limit [s];
     cameras: recorded cameras of the spec (empty: state and action only), at width x height [px];
-    hand_radius: the hands' collision spheres [m]; foot_mu: the feet's friction; contact_ke /
+    hand_radius: the collision spheres [m] of hands of kind "none" (hand end effectors get a box
+    per link, friction hand_mu: ``humanoid_hands``); foot_mu: the feet's friction; contact_ke /
     contact_kd: the scene shapes' contact stiffness and damping (the engine's)."""
 
     spec: str = "g1_29dof"
@@ -63,6 +67,7 @@ class HumanoidEngineConfig:
     width: int = 128
     height: int = 96
     hand_radius: float = 0.045
+    hand_mu: float = 1.0
     foot_mu: float = 0.6
     contact_ke: float = 4.0e4
     contact_kd: float = 400.0
@@ -89,9 +94,20 @@ class _SceneJoints:
         return self._engine.joint_value(self._world, path)
 
 
-@dataclass(frozen=True)
-class _PredicateState:
-    scene_joints: _SceneJoints
+class _Objects:
+    """``state.objects`` of the task predicates for one world: body prim path -> Pose."""
+
+    def __init__(self, engine: HumanoidEngine, world: int) -> None:
+        self._engine, self._world = engine, world
+
+    def __getitem__(self, path: str) -> Any:
+        return self._engine.object_pose(self._world, path)
+
+
+def _quat_xyzw(r: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(r).as_quat()
 
 
 class WorldHandle:
@@ -129,6 +145,17 @@ class WorldHandle:
     def set_ee_target(self, arm: str, pose: np.ndarray, frame: str = "world") -> None:
         self.rt.set_ee_target(arm, np.asarray(pose, float)[None], [self.world], frame=frame)
 
+    def set_hand(self, arm: str, value: float) -> None:
+        """``arm``'s hand command: 0 open .. 1 closed (the spec's hand poses); the arm whose hand
+        closes last is the one the task predicates check for a release."""
+        self.rt.hands.set(arm, value, [self.world])
+        if value > 0.5:
+            self.engine.grasp_arm[self.world] = arm
+
+    def object_pose(self, path: str) -> Any:
+        """The pose (``asset_model.Pose``: position [m], quaternion w, x, y, z) of scene body ``path``."""
+        return self.engine.object_pose(self.world, path)
+
     def release_arm(self, arm: str) -> None:
         self.rt.release_arm(arm, [self.world])
 
@@ -156,6 +183,14 @@ class HumanoidEngine:
         self._q_start = model.joint_q_start.numpy()
         self._qd_start = model.joint_qd_start.numpy()
         self._path_joint = {p: j for j, p in self.scene.joint_path.items()}
+        jtype, child = model.joint_type.numpy(), model.joint_child.numpy()
+        self._free_joint = {self.scene.body_path[int(child[j])]: j for j in range(self._joints_per_world)
+                            if jtype[j] == 4 and int(child[j]) in self.scene.body_path}
+        """scene free body prim path -> its free joint in world 0 (newton.JointType.FREE = 4)"""
+        self._path_body = {p: b for b, p in self.scene.body_path.items()}
+        self.bodies_per_world: int = model.body_count // self.cfg.worlds
+        self.grasp_arm: dict[int, str] = {}
+        """world -> the arm whose hand last closed (the task predicates' robot)"""
         self._home_q = self.sim.state.joint_q.numpy().copy()
         self._home_qd = np.zeros_like(self.sim.state.joint_qd.numpy())
         self.rig = self._rig() if self.cfg.cameras else None
@@ -166,6 +201,8 @@ class HumanoidEngine:
         import newton
         import warp as wp
 
+        from stages.engine.humanoid_hands import add_hand_colliders
+        from stages.locomotion.hands import hand_arms, humanoid_for_spec
         from stages.locomotion.humanoids import humanoid
         from stages.locomotion.policy import policy_humanoid
         from stages.locomotion.robot import humanoid_builder
@@ -179,8 +216,10 @@ class HumanoidEngine:
         newton.solvers.SolverMuJoCo.register_custom_attributes(tpl)
         scene = load_scene(tpl, self.world.usd)
         desc = humanoid(policy_humanoid(self.runtime_cfg.policy))  # the robot the spec's policy walks
-        robot, layout = humanoid_builder(desc, foot_mu=cfg.foot_mu, base_pose=self.world.spawn)
-        hands = add_hand_spheres(robot, self.spec, cfg.hand_radius)
+        robot, layout = humanoid_builder(humanoid_for_spec(self.spec, desc), foot_mu=cfg.foot_mu,
+                                         base_pose=self.world.spawn)
+        hands = (add_hand_colliders(robot, self.spec, mu=cfg.hand_mu) if hand_arms(self.spec)
+                 else add_hand_spheres(robot, self.spec, cfg.hand_radius))
         tpl.add_builder(robot)
         main = newton.ModelBuilder()
         newton.solvers.SolverMuJoCo.register_custom_attributes(main)
@@ -233,6 +272,8 @@ class HumanoidEngine:
         import newton
         import warp as wp
 
+        from stages.demos.sampling import object_coords
+
         sq, sqd = self._world_coords(world)
         jn = self._joints_per_world
         for st in (self.sim.state, self.sim._next):
@@ -245,10 +286,43 @@ class HumanoidEngine:
                     raise KeyError(f"joint {path} of {inst.task} is not in the simulated scene "
                                    f"{self.world.usd}")
                 q[int(self._q_start[world * jn + j])] = float(value)
+            for path, pose in inst.objects.items():
+                j = self._free_joint.get(path)
+                if j is None:
+                    raise KeyError(f"object {path} of {inst.task} is not a free body of the simulated scene "
+                                   f"{self.world.usd}")
+                q0 = int(self._q_start[world * jn + j])
+                q[q0:q0 + 7] = q.new_tensor(object_coords(pose))
         x, y, yaw = inst.start_base
+        self.grasp_arm.pop(world, None)
         self.sim.reset([world], xy=[[x, y]], yaw=[yaw])
         st = self.sim.state
         newton.eval_fk(self.sim.model, st.joint_q, st.joint_qd, st)
+
+    def object_pose(self, world: int, path: str) -> Any:
+        """The pose (``asset_model.Pose``, world frame) of the scene body ``path`` in ``world``."""
+        from stages.engine.humanoid_hands import pose_of
+
+        b = self._path_body.get(path)
+        if b is None:
+            raise KeyError(f"body {path} is not in the simulated scene {self.world.usd}")
+        return pose_of(self.sim.state.body_q.numpy()[b + world * self.bodies_per_world])
+
+    def predicate_state(self, world: int) -> Any:
+        """The task predicates' view of ``world`` now (``humanoid_hands.HumanoidPredicateState``):
+        scene joints, free objects, and the hand that last closed (none: the right arm's)."""
+        from stages.engine.humanoid_hands import HandRobot, HumanoidPredicateState, pose_of
+
+        rt = self.sim.runtime
+        robot = None
+        if rt.hands.arms:
+            arm = self.grasp_arm.get(world, rt.hands.arms[-1])
+            ee = rt.ee_pose_world(self.sim.state, arm)[world]
+            closed = float(rt.hands.command[world, rt.hands.arms.index(arm)])
+            robot = HandRobot(ee_pose=pose_of(np.concatenate([ee[:3, 3], _quat_xyzw(ee[:3, :3])])),
+                              gripper_opening=0.08 * (1.0 - closed))
+        return HumanoidPredicateState(objects=_Objects(self, world), robot=robot,
+                                      scene_joints=_SceneJoints(self, world))
 
     # ------------------------------------------------------------------ the loop
     def run(self, next_instance: Callable[[int], Any], program: Program, *,
@@ -313,7 +387,7 @@ class HumanoidEngine:
     def _finish(self, w: int, ep: _Episode, reason: tuple[str, str], end: Callable | None) -> None:
         from stages.demos.tasks import task
 
-        ok, why = task(ep.inst.task).success(ep.inst, _PredicateState(_SceneJoints(self, w)))
+        ok, why = task(ep.inst.task).success(ep.inst, self.predicate_state(w))
         if reason[0]:
             ok, why = False, reason[0]
         res = EpisodeResult(success=bool(ok), reason="" if ok else why, detail=reason[1], frames=ep.frames,

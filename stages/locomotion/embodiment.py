@@ -55,13 +55,18 @@ def frame_vectors(runtime: Any, state: Any) -> tuple[np.ndarray, np.ndarray]:
     ``stages.embodiment.layout.state_names`` / ``action_names`` of the runtime's spec: measured arm
     joints [rad], end-effector poses (base frame) and base pose (x, y [m], yaw [rad], world);
     commanded arm joint targets, the end-effector poses they give (base frame), the base velocity
-    command (vx, vy [m/s], v_theta [rad/s]; zero in manipulation mode) and the mode. End effectors
-    of kind "none" (the G1's rubber hands) have no command."""
+    command (vx, vy [m/s], v_theta [rad/s]; zero in manipulation mode), each hand's command (0
+    open .. 1 closed; ``runtime.hands``) and the mode. End effectors of kind "none" (the G1's rubber
+    hands) have no command."""
     from stages.embodiment.spec import EndEffectorKind
 
     spec = runtime.spec
-    if any(a.end_effector and spec.end_effectors[a.end_effector].kind != EndEffectorKind.NONE for a in spec.arms):
-        raise EmbodimentError(f"{spec.name}: end-effector commands are not produced by the humanoid runtime yet")
+    hands = runtime.hands
+    commanded = [a.name for a in spec.arms if a.end_effector
+                 and spec.end_effectors[a.end_effector].kind != EndEffectorKind.NONE]
+    if any(a not in hands.arms for a in commanded):
+        raise EmbodimentError(f"{spec.name}: the humanoid runtime commands hands only (end effectors of "
+                              f"arms {[a for a in commanded if a not in hands.arms]} are not hands)")
     root, q = runtime._host_state(state)
     cmd_q = q.copy()
     arms = [a.name for a in spec.arms]
@@ -75,5 +80,6 @@ def frame_vectors(runtime: Any, state: Any) -> tuple[np.ndarray, np.ndarray]:
     act = [runtime.arm_q[:, runtime._arm_cols[a]] for a in arms]
     act += [_pose7(runtime.clik.ee_pose(cmd_q, a)) for a in arms]
     act.append(runtime.effective_commands().detach().cpu().double().numpy())
+    act += [hands.command[:, hands.arms.index(a), None] for a in commanded]
     act.append(runtime.mode.detach().cpu().double().numpy()[:, None])
     return np.concatenate(st, axis=1), np.concatenate(act, axis=1)

@@ -19,6 +19,11 @@ Per control step (``policy.json``'s ``control_dt``, 0.02 s: every ``decimation``
    Pinocchio gravity torques of the arms for the measured pelvis orientation, so that the PD
    targets are reached without sag.
 
+4. the hands (a spec whose end effectors are hands, e.g. ``g1_29dof_dex3``: the model holds the
+   G1 with its 14 Dex3 joints, ``hands.humanoid_for_spec``): PD targets from each hand's command,
+   0 open .. 1 closed, between the spec's open and closed poses (``hands.HandCommands``); the
+   policy's observations stay the 29 body joints'.
+
 The base interface is the wheeled base's: a command (vx, vy, v_theta) per world in the base frame
 [m/s, m/s, rad/s], clipped to the policy's training ranges; and a mode per world:
 ``Mode.LOCOMOTION`` tracks the command, ``Mode.MANIPULATION`` commands zero velocity so the policy
@@ -44,6 +49,7 @@ import numpy as np
 import torch
 
 from stages.embodiment.clik import ClikConfig
+from stages.locomotion.hands import HandCommands, hand_arms
 
 DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "g1_velocity"
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -204,10 +210,17 @@ class LeggedPolicyRuntime:
         self.pin_model = build_model(self.spec, resolve_description(self.spec.description).path)
         self.clik = UpperBodyClik(self.spec, self.pin_model, cfg.clik)
         kin = self.clik.kin
-        missing = [j for j in self.joint_names if j not in kin.idx_q]
-        if missing or self.pin_model.nq != len(self.joint_names):
-            raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's joints {missing}")
+        hand_names = [j for a in hand_arms(self.spec)
+                      for j in self.spec.end_effectors[self.spec.arm(a).end_effector].joints]
+        missing = [j for j in (*self.joint_names, *hand_names) if j not in kin.idx_q]
+        if missing or self.pin_model.nq != len(self.joint_names) + len(hand_names):
+            raise ValueError(f"humanoid runtime: spec {cfg.spec!r} does not have the policy's and hands' "
+                             f"joints {missing}")
         self._pin_cols = np.array([kin.idx_q[j] for j in self.joint_names])   # sim order -> Pinocchio q
+        self.hands = HandCommands(self.spec, index_worlds(model, hand_names, cfg.root_body, cfg.device)
+                                  if hand_names else None,
+                                  np.array([kin.idx_q[j] for j in hand_names], int), n, dev)
+        """the hands' commands (0 open .. 1 closed per world and hand): PD targets of the hand joints"""
         self.arm_names: tuple[str, ...] = tuple(self.clik.arms)
         self._arm_cols = {a: np.array([self.joint_names.index(j) for j in self.spec.arm(a).joints])
                           for a in self.arm_names}
@@ -267,6 +280,7 @@ class LeggedPolicyRuntime:
         """Forget the last actions and arm targets of worlds (K,) (default: all), e.g. after a reset."""
         sel = slice(None) if worlds is None else torch.as_tensor(worlds, dtype=torch.long, device=self.device)
         self.actions[sel] = 0.0
+        self.hands.command[sel if worlds is None else np.asarray(worlds, int)] = 0.0
         for a in self.arm_names:
             self.release_arm(a, None if worlds is None else np.asarray(worlds, int))
 
@@ -332,6 +346,8 @@ class LeggedPolicyRuntime:
             jq[:, moving] += lookahead * jqd[:, moving]
         q = np.empty((self.num_worlds, self.pin_model.nq))
         q[:, self._pin_cols] = jq
+        if self.hands.names:
+            q[:, self.hands.pin_cols] = self.hands.positions(self._views(state)[0])
         return root, q
 
     # ------------------------------------------------------------------ one control step
@@ -352,6 +368,7 @@ class LeggedPolicyRuntime:
         targets[self.index.joint_q[:, self._all_arm_cols_t]] = arm_t
         legs = self.default_q[self.act_cols] + self.action_scale * actions
         targets[self.index.joint_q[:, self.act_cols]] = legs.to(targets.dtype)
+        self.hands.write(targets)
         if self.cfg.arm_gravity_feedforward:
             forces = wp.to_torch(control.joint_f)
             tau = self.arm_gravity(root, q)
@@ -453,9 +470,12 @@ class HumanoidWorlds:
 
         self.cfg = cfg = cfg or HumanoidWorldsConfig()
         rt_cfg = cfg.runtime if cfg.runtime.device == cfg.device else _with_device(cfg.runtime, cfg.device)
-        if model is None:  # the robot the policy was trained on (policy.json's humanoid)
-            model, _ = build_humanoid_model(humanoid(policy_humanoid(rt_cfg.policy)), cfg.num_worlds,
-                                            wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
+        if model is None:  # the robot the policy was trained on (policy.json's humanoid), the spec's hands
+            from stages.embodiment import load_spec
+            from stages.locomotion.hands import humanoid_for_spec
+
+            desc = humanoid_for_spec(load_spec(rt_cfg.spec), humanoid(policy_humanoid(rt_cfg.policy)))
+            model, _ = build_humanoid_model(desc, cfg.num_worlds, wp.get_device(cfg.device), foot_mu=cfg.foot_mu)
         self.model = model
         self.runtime = LeggedPolicyRuntime(self.model, rt_cfg)
         meta = self.runtime.policy.meta
@@ -516,6 +536,8 @@ class HumanoidWorlds:
             qd[ix.joint_qd[t_ids]] = 0.0
         wp.to_torch(self.control.joint_target_q)[ix.joint_q[t_ids]] = rt.default_q
         wp.to_torch(self.control.joint_f)[ix.joint_qd[t_ids]] = 0.0
+        views = [(wp.to_torch(st.joint_q), wp.to_torch(st.joint_qd)) for st in (self.state, self._next)]
+        rt.hands.reset(ids, views, wp.to_torch(self.control.joint_target_q))
         rt.reset(ids)
         rt.set_command(np.zeros((k, 3)), ids)
         rt.set_mode(np.full(k, int(Mode.LOCOMOTION)), ids)

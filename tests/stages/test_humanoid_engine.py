@@ -115,5 +115,5 @@ def test_the_humanoid_job_file_validates():
     job = load_job(Path(__file__).resolve().parents[2] / "jobs" / "demos_humanoid.toml")
     step = [s for s in job.steps if s.kind == "humanoid_demos"][0]
     assert step.config.spec == "g1_29dof" and "close_drawer" in step.config.tasks
-    with pytest.raises(ValueError, match="pick_place_bowl"):
-        HumanoidDemosConfig(tasks=("pick_place_bowl",))
+    with pytest.raises(ValueError, match="pour_drink"):
+        HumanoidDemosConfig(tasks=("pour_drink",))
