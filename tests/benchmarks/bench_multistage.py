@@ -221,9 +221,24 @@ def main(argv=None) -> dict:
 
 @pytest.mark.benchmark
 def test_bench_multistage(tmp_path):
+    """The CPU layout (one MuJoCo C model per world): a whole set_alarm_clock episode (~550 frames)."""
     doc = main(["--tasks", "set_alarm_clock", "--worlds", "1", "--sim-seconds", "25", "--houses", "3",
                 "--no-images", "--work", str(tmp_path), "--out", str(tmp_path / "m.json")])
-    assert doc["overall"]["episodes_completed"] >= 1
+    r = doc["per_task"]["set_alarm_clock"]
+    assert r["episodes_completed"] >= 1 and r["recorded_timesteps_per_second"] > 0
+    assert doc["overall"]["successes"] == r["successes"] == len(r["episode_frames"])
+
+
+@pytest.mark.slow
+@pytest.mark.benchmark
+def test_bench_multistage_batched_layout_on_cpu(tmp_path):
+    """The GPU's layout (one MuJoCo-Warp model of all worlds, expert worker processes) on the CPU: a
+    house task world's copies step and record with the 3 cameras (a short window: no episode ends)."""
+    doc = main(["--tasks", "set_alarm_clock", "--worlds", "2", "--sim-seconds", "0.5", "--houses", "3",
+                "--layout", "batched", "--program-procs", "1", "--program-wait", "0.05", "--width", "32",
+                "--height", "24", "--work", str(tmp_path), "--out", str(tmp_path / "m.json")])
+    r = doc["per_task"]["set_alarm_clock"]
+    assert r["recorded_timesteps_per_second"] > 0 and r["split_seconds"]["rendering"] > 0
 
 
 if __name__ == "__main__":
