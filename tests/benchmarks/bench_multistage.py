@@ -31,7 +31,7 @@ CPU (``layout`` auto = one MuJoCo C model per world)::
 
 GPU (``layout`` auto = one MuJoCo-Warp model of all worlds, CUDA graphs)::
 
-    python tests/benchmarks/bench_multistage.py --device cuda --parallel --worlds 32 --sim-seconds 90
+    python tests/benchmarks/bench_multistage.py --device cuda --parallel --worlds 16 --sim-seconds 90
 
 ``--work DIR`` keeps the flats and task worlds (a second run reuses them); ``--program-procs`` /
 ``--program-wait`` as in ``bench_engine.py`` (worker processes for the experts; batched layout).
