@@ -1,7 +1,8 @@
 """Contact sheet of a dataset: evenly spaced frames of a few episodes, RGB and depth of every camera.
 
 Command: ``agentworld render-dataset DATASET [--out sheet.png] [--episodes 0,3] [--frames 6]``.
-Frames are read back through ``LeRobotDataset`` (what a trainer sees). Depth is shown with a
+Frames are read back through ``LeRobotDataset`` (what a trainer sees); a multistage dataset's
+frames name their stage (``subtask_index`` + 1) in the episode's header. Depth is shown with a
 colour map over the 2nd-98th percentile of the valid (non-zero) depths of each image; 0 is black.
 """
 
@@ -58,6 +59,7 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
 
     from .depth import decode_depth, depth_keys_of
     from .merge import load_dataset
+    from .schema import SUBTASK_KEY
 
     ds = load_dataset(Path(root))
     n_eps = ds.meta.total_episodes
@@ -76,7 +78,9 @@ def render_contact_sheet(root: Path, out: Path, *, episodes: list[int] | None = 
         start, stop = int(meta["dataset_from_index"]), int(meta["dataset_to_index"])
         picks = np.linspace(start, stop - 1, min(frames, stop - start)).round().astype(int)
         items = [ds[int(i)] for i in picks]
-        shown = ", ".join(str(int(it["frame_index"])) for it in items)
+        # a multistage episode's frames show their stage (1-based): "139 (s2)"
+        shown = ", ".join(str(int(it["frame_index"])) + (f" (s{int(it[SUBTASK_KEY]) + 1})" if SUBTASK_KEY in it else "")
+                          for it in items)
         text = f"episode {ep}: {items[0]['task']}  ({stop - start} frames; frames {shown})"
         headers.append((len(rows), text))
         for key in cams:

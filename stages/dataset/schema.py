@@ -151,7 +151,8 @@ class DatasetSpec:
     hand's joint names (control order; empty for a parallel gripper): the state carries their
     positions and the action their targets in place of the gripper command (module docstring);
     subtasks: frames carry the stage of a multistage task (``subtask_index``, int64; the stages'
-    language is the episode column ``agentworld/subtasks``); arms: the arm names of a multi-arm
+    language is the episode column ``agentworld/subtasks``, the stages its frames enter, in order,
+    ``agentworld/subtasks_reached``); arms: the arm names of a multi-arm
     robot (empty: one arm; see the module docstring), each with ``arm_dof / len(arms)`` joints and a
     parallel gripper.
     """
@@ -520,8 +521,9 @@ def validate_frame(spec: DatasetSpec, frame: Frame, where: str = "frame") -> Non
         raise FrameError(f"{where}: {len(problems)} problem(s): " + "; ".join(problems))
 
 
-def episode_columns(info: EpisodeInfo, success: bool) -> dict[str, Any]:
-    """The extra ``meta/episodes`` columns of one written episode."""
+def episode_columns(info: EpisodeInfo, success: bool, reached: tuple[int, ...] | None = None) -> dict[str, Any]:
+    """The extra ``meta/episodes`` columns of one written episode; ``reached``: the stages
+    (``subtask_index``) its frames enter, in order (a spec with subtasks: ``subtasks_reached``)."""
     p = EPISODE_COLUMN_PREFIX
     return {
         f"{p}task_kind": info.task_kind,
@@ -530,4 +532,5 @@ def episode_columns(info: EpisodeInfo, success: bool) -> dict[str, Any]:
         f"{p}asset_ids": list(info.asset_ids),
         f"{p}success": bool(success),
         **({f"{p}subtasks": list(info.subtasks)} if info.subtasks else {}),
+        **({f"{p}subtasks_reached": [int(k) for k in reached]} if reached is not None else {}),
     }

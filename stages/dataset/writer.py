@@ -239,6 +239,7 @@ class EpisodeWriter:
         self._impl: Any = None
         self._episode: EpisodeInfo | None = None
         self._episode_frames = 0
+        self._reached: list[int] = []  # the episode's stages (subtask_index) in the order its frames enter them
         self._columns: list[dict[str, Any]] = []  # extra meta/episodes columns, by episode index
 
     # -- lifecycle -------------------------------------------------------------------------------
@@ -302,7 +303,7 @@ class EpisodeWriter:
         problems = info.problems()
         if problems:
             raise FrameError(f"{self.root}: episode info: " + "; ".join(problems))
-        self._episode, self._episode_frames = info, 0
+        self._episode, self._episode_frames, self._reached = info, 0, []
         self._state = _State.IN_EPISODE
 
     def add_frame(self, frame: Frame, *, validated: bool = False) -> None:
@@ -316,6 +317,8 @@ class EpisodeWriter:
         self._impl.add(frame, self._episode.task)
         self.stats.add_frame_s += time.perf_counter() - t0
         self._episode_frames += 1
+        if self.spec.subtasks and (not self._reached or self._reached[-1] != int(frame.subtask_index)):
+            self._reached.append(int(frame.subtask_index))
 
     def end_episode(self, success: bool, reason: str = "") -> EpisodeOutcome:
         """Write the episode if ``success`` (and it has frames), else discard it and count ``reason``."""
@@ -332,7 +335,8 @@ class EpisodeWriter:
         self._impl.save(info.task)
         self.stats.save_episode_s += time.perf_counter() - t0
         index = self.stats.episodes_written
-        self._columns.append(episode_columns(info, success=True))
+        self._columns.append(episode_columns(info, success=True,
+                                             reached=tuple(self._reached) if self.spec.subtasks else None))
         self.stats.episodes_written += 1
         self.stats.frames_written += n
         return EpisodeOutcome(True, index, n)

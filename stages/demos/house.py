@@ -56,6 +56,8 @@ class HouseKitchen(HouseRoom):
     moved is the microwave the task scene slid along the counter top to make room for the mug's
     spot, else None."""
 
+    VIEW_ROLES = ("fridge",)  # store_food's fridge in the third-person view
+
 
 def _reachable_y(cnt: Placed, seg: dict, ma: CatalogAsset, side: float, span: tuple[float, float], y0: float,
                  walls, boxes) -> float | None:

@@ -45,6 +45,7 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 from pipeline.types import ItemError
 from stages.demos.house_room import (HouseRoom, base_free, obstacles, overlaps, read_room, room_fields, room_frame,
@@ -68,6 +69,7 @@ class HouseLiving(HouseRoom):
     bookshelf's boards (xmin, ymin, xmax, ymax, z, clear height) [m], empty without a bookshelf."""
 
     shelves: tuple[tuple[float, float, float, float, float, float], ...] = field(default=())
+    VIEW_ROLES: ClassVar[tuple[str, ...]] = ("bookshelf", "trash_can")  # organize_books', clean_table's
 
 
 def _shelves(shelf: Placed) -> tuple:

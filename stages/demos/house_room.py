@@ -20,6 +20,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -67,22 +68,82 @@ class HouseRoom(KitchenWorld):
     def start_boxes(self) -> np.ndarray:
         return self.nav_boxes()
 
+    #: placed roles the room's tasks go to besides the work surface (the kitchen's fridge, the living
+    #: room's bookshelf): the third-person camera keeps them in view too
+    VIEW_ROLES: ClassVar[tuple[str, ...]] = ()
+
     def third_person_view(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """The engine's third-person camera (eye, target) [m, task frame]: from inside the room,
+        """The engine's third-person camera (eye, target) [m, task frame], 2.1 m high inside the room
+        (the kitchen's corner view would look at a house room's wall). Without :attr:`VIEW_ROLES`:
         behind the base's side of the work surface (-Y), the first of a few spots (left, right, then
-        straight behind, farther first) 0.25 m clear of the walls and the floor furniture, 2.1 m
-        high, looking at the surface's middle (the kitchen's corner view would look at a house
-        room's wall)."""
+        straight behind, farther first) 0.25 m clear of the walls and the floor furniture, looking at
+        the surface's middle. With them: :func:`view_over` of the work surface with the floor before
+        it (where the base stands) and those roles' footprints with the floor around them."""
         x0, y0, x1, y1 = self.area
         cx0, cy0, cx1, cy1 = self.counter_rect
         cx, cy = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
         boxes = list(self.walls) + obstacles(self.furniture.values())
+        roles = [self.placed[r].footprint() for r in self.VIEW_ROLES if r in self.placed]
+        if roles:
+            rects = [(cx0, cy0 - VIEW_BASE_STRIP, cx1, cy1)] + [
+                (a - VIEW_AROUND, b - VIEW_AROUND, c + VIEW_AROUND, d + VIEW_AROUND) for a, b, c, d in roles]
+            got = view_over(rects, self.area, boxes, float(self.counter_z))
+            if got is not None:
+                return got
         spots = [(cx + dx, cy0 + dy) for dy in (-1.8, -1.4, -1.0) for dx in (-1.0, 1.0, -0.5, 0.5, 0.0)]
         inside = [p for p in spots if x0 + 0.2 <= p[0] <= x1 - 0.2 and y0 + 0.2 <= p[1] <= y1 - 0.2]
         free = [p for p in inside if not any(b[0] - 0.25 < p[0] < b[2] + 0.25 and b[1] - 0.25 < p[1] < b[3] + 0.25
                                               for b in boxes)]
         ex, ey = (free or inside or [(min(max(cx, x0 + 0.2), x1 - 0.2), min(max(cy0 - 1.0, y0 + 0.2), y1 - 0.2))])[0]
         return (float(ex), float(ey), 2.1), (float(cx), float(cy), float(self.counter_z))
+
+
+VIEW_HEIGHT = 2.1       # the third-person camera's height [m]
+VIEW_HALF_ANGLE = 0.5   # [rad] half the third-person camera's vertical field of view (the engine's 1.0 rad)
+VIEW_ASPECT = 4 / 3     # the third-person image's width / height the view is chosen for (128 x 96, 320 x 240)
+VIEW_BASE_STRIP = 0.5   # floor before the work surface where the base stands, kept in view [m]
+VIEW_AROUND = 0.3       # floor around a VIEW_ROLES footprint kept in view (the base before it) [m]
+VIEW_MIN_DISTANCE = 2.0  # [m] an eye nearer the target sees the robot's back more than the task
+
+
+def view_over(rects, area, boxes, z: float, step: float = 0.25) -> tuple | None:
+    """A third-person view (eye, target) [m] that sees every rectangle of ``rects`` (xmin, ymin, xmax,
+    ymax), clipped to the room ``area``, at height ``z`` [m]: the eye on a ``step`` grid of the room's
+    floor 0.2 m inside its walls, 0.25 m clear of ``boxes`` (walls, furniture), :data:`VIEW_HEIGHT`
+    high, looking at the rectangles' middle at height ``z``; the 4 corners of their bounding box at
+    height ``z`` within the view (half angles :data:`VIEW_HALF_ANGLE` and its :data:`VIEW_ASPECT`
+    wider horizontal one, less 5%). Of the eyes that see all, the nearest one at least
+    :data:`VIEW_MIN_DISTANCE` from the target on the rectangles' -Y side (the base's side of the work
+    surface), else the nearest such one anywhere, else the farthest; None when no eye sees all."""
+    x0, y0, x1, y1 = area
+    bx0 = max(min(r[0] for r in rects), x0)
+    by0 = max(min(r[1] for r in rects), y0)
+    bx1 = min(max(r[2] for r in rects), x1)
+    by1 = min(max(r[3] for r in rects), y1)
+    target = np.array([0.5 * (bx0 + bx1), 0.5 * (by0 + by1), z])
+    corners = np.array([(x, y, z) for x in (bx0, bx1) for y in (by0, by1)])
+    tan = math.tan(VIEW_HALF_ANGLE) * 0.95
+    tan_h = tan * VIEW_ASPECT
+    best = None
+    for ex in np.arange(x0 + 0.2, x1 - 0.2 + 1e-9, step):
+        for ey in np.arange(y0 + 0.2, y1 - 0.2 + 1e-9, step):
+            if any(b[0] - 0.25 < ex < b[2] + 0.25 and b[1] - 0.25 < ey < b[3] + 0.25 for b in boxes):
+                continue
+            eye = np.array([ex, ey, VIEW_HEIGHT])
+            f = target - eye
+            dist = float(np.linalg.norm(f))
+            f /= dist
+            right = np.cross(f, (0.0, 0.0, 1.0))
+            right /= np.linalg.norm(right)
+            up = np.cross(right, f)
+            d = corners - eye
+            depth = d @ f
+            if (depth <= 0.1).any() or (np.abs(d @ right) > tan_h * depth).any() or (np.abs(d @ up) > tan * depth).any():
+                continue
+            key = (dist < VIEW_MIN_DISTANCE, ey > target[1], dist if dist >= VIEW_MIN_DISTANCE else -dist)
+            if best is None or key < best[0]:
+                best = (key, (float(ex), float(ey), VIEW_HEIGHT))
+    return None if best is None else (best[1], tuple(float(v) for v in target))
 
 
 def obstacles(placed) -> list[tuple[float, float, float, float]]:

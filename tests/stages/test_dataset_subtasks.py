@@ -50,3 +50,30 @@ def test_a_negative_subtask_index_is_a_frame_problem():
         from stages.dataset.schema import validate_frame
 
         validate_frame(spec, bad)
+
+
+@pytest.mark.parametrize("backend", ["direct", "lerobot"])
+def test_each_episode_lists_the_stages_its_frames_reach(tmp_path, backend):
+    from stages.dataset import load_dataset, read_episode_columns
+
+    spec = DatasetSpec(cameras=(), subtasks=True)
+    root = tmp_path / "ds"
+    stages_of = [(0, 0, 1, 1, 2), (0, 0, 1), (1, 1, 2)]  # all three; stopped in stage 2; entered at stage 2
+    with EpisodeWriter(root, spec, backend=backend) as w:
+        for e, stages in enumerate(stages_of):
+            w.begin_episode(EpisodeInfo(task="heat the food", task_kind="heat_food", scene_id="flat_000",
+                                        seed=e, subtasks=STAGES))
+            for i, k in enumerate(stages):
+                w.add_frame(replace(synthetic_frame(spec, 0, e, i), subtask_index=k))
+            w.end_episode(success=True)
+    rows = read_episode_columns(root)
+    assert [list(r["subtasks_reached"]) for r in rows] == [[0, 1, 2], [0, 1], [1, 2]]
+    eps = load_dataset(root).meta.episodes
+    assert [list(x) for x in eps["agentworld/subtasks_reached"]] == [[0, 1, 2], [0, 1], [1, 2]]
+    # a spec without subtasks has no such column
+    plain = tmp_path / "plain"
+    with EpisodeWriter(plain, DatasetSpec(cameras=()), backend=backend) as w:
+        w.begin_episode(EpisodeInfo(task="t", task_kind="k", scene_id="s", seed=0))
+        w.add_frame(synthetic_frame(DatasetSpec(cameras=()), 0, 0, 0))
+        w.end_episode(success=True)
+    assert "subtasks_reached" not in read_episode_columns(plain)[0]
