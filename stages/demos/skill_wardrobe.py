@@ -34,6 +34,7 @@ the hook's tip towards local +Y.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -41,9 +42,13 @@ import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
-GRIP_AT = 0.8           # the fingers pinch the neck this far along it from the shoulders' apex [fraction] (the
-                        # wrist, level with the neck, clears the blanket's edge only ~45 mm out); the neck slides
-                        # down through the pinch until the hook sits on the fingers (measured: _hook_in_hand)
+log = logging.getLogger(__name__)
+
+PAD_HALF = 0.010        # the Panda finger pad's half width along the pinched neck [m]
+STOP_GAP = 0.003        # the pads pinch the neck this far [m] under its boss (``neck_stop``): held upright, the
+                        # neck slides down this far, then the boss rests on the fingers (without the boss the neck
+                        # slid through the pinch until the hook hung on the fingertips); the wrist, level with
+                        # the neck, clears the blanket's edge only ~45 mm out
 OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
 RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
 HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
@@ -55,7 +60,8 @@ HANG_AT = 0.75          # the hook goes this far [fraction] from the rail's hing
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
 PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
-PULL_TO = 0.035         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
+PULL_TO = 0.025         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket with the
+                        # neck's boss; at 0.035 m the hanger tipped over the edge)
 PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
 PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
 CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
@@ -95,11 +101,12 @@ def rail_facts(wardrobe) -> Rail:
 
 
 def _hook(hanger) -> tuple[float, float, float]:
-    """(grasp x, hook centre x, rod radius) in the hanger frame [m]; the hook's inner radius is the
-    ``hook_radius`` parameter."""
+    """(grasp x, hook centre x, rod radius) in the hanger frame [m]: the grasp just under the neck's
+    boss (``neck_stop`` long, at the neck's top end); the hook's inner radius is the ``hook_radius``
+    parameter."""
     p = hanger.asset.params
-    hh, hr, rod, neck = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck"))
-    return -hh - GRIP_AT * neck, -hh - neck - (hr + rod), rod
+    hh, hr, rod, neck, stop = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck", "neck_stop"))
+    return -hh - (neck - stop - PAD_HALF - STOP_GAP), -hh - neck - (hr + rod), rod
 
 
 def hanger_start(world, seed: int) -> dict:
@@ -187,6 +194,12 @@ def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
     return ee[:3, :3].T @ (c - ee[:3, 3])
 
 
+def _in_hanger(state, hanger) -> np.ndarray:
+    """The hand's rotation (3, 3) in the hanger's frame, from the simulated poses."""
+    _, rot = _hanger_pose(state, hanger)
+    return rot.T @ state.robot.ee_pose.matrix()[:3, :3]
+
+
 def _upright(into) -> np.ndarray:
     """The hanger's rotation hanging upright (local -X up) with its plane along the horizontal
     ``into`` (local +Y, the hook's tip side)."""
@@ -200,6 +213,36 @@ def _rot(x_h, z_h) -> np.ndarray:
     """Hand rotation with tool X ``x_h`` and tool Z (approach) ``z_h``; the fingers close along Z x X."""
     x_h, z_h = np.asarray(x_h, float), np.asarray(z_h, float)
     return np.stack([x_h, np.cross(z_h, x_h), z_h], axis=1)
+
+
+#: the carry pose's candidates: (hand ahead of the base centre, height) [m], the first with a posture wins
+CARRY = ((0.55, 0.95), (0.45, 0.95), (0.65, 0.95), (0.55, 1.05), (0.65, 1.05))
+#: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
+WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
+
+
+def _posture(d, target: np.ndarray):
+    """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
+    :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep 0.25 rad from their
+    limits, the nearest the current targets; None if none."""
+    from stages.simulate.control import Clik
+
+    goal = Clik.world_to_root(d.sim.spawn, target)
+    now = d.ctl.arm_targets()
+    base_q = d.ik.from_sim(d.sim)
+    idx = d.ik.v_idx[: len(now)]
+    lo, hi = d.ik.lower[idx], d.ik.upper[idx]
+    best, dist = None, math.inf
+    for seed in (now, *WRIST_SEEDS):
+        r = d.ik.solve(goal, d.ik.with_arm(base_q, np.asarray(seed, float)), max_iters=600)
+        q = d.ik.arm_q(r.q)
+        if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
+            continue
+        if float(np.min(np.minimum(q - lo, hi - q))) < 0.25:
+            continue
+        if float(np.abs(q - now).max()) < dist:
+            best, dist = q, float(np.abs(q - now).max())
+    return best
 
 
 def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
@@ -281,9 +324,22 @@ def hang_on_rail(inst, d) -> None:
     tip = _upright(side) @ in_hanger
     d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
            segments=4, carry=True, tol=APPROACH_TOL)
-    held = _upright(ahead) @ in_hanger
-    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), TURN_SLOW, segments=16, carry=True,
-           tol=APPROACH_TOL)
+    # the carry pose: the hand ahead of the base, the hook's tip ahead; reached in joint space with the wrist
+    # rolled (WRIST_SEEDS: CLIK's own path to it ended on another branch, its last joints by their limits,
+    # from which the reach into the wardrobe was unreachable)
+    for reach, hz in CARRY:
+        held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], _upright(ahead) @ in_hanger)
+        if (qa := _posture(d, held)) is not None:
+            break
+    if qa is None:
+        d.move(held, TURN_SLOW, segments=16, carry=True, tol=APPROACH_TOL)
+    else:
+        q0 = d.ctl.arm_targets()
+        n = max(len(d._arm_ramp(qa)), int(TURN_SLOW / d.frame_dt))
+        for k in range(1, n + 1):
+            d.ctl.set_arm_targets(q0 + (qa - q0) * k / n)
+            d.step(d.frame_dt)
+    log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
@@ -291,15 +347,17 @@ def hang_on_rail(inst, d) -> None:
     d.drive_straight(goal)
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
-    put = _upright(-f) @ in_hanger
-
-    # where the hook's centre is in the hand (it slips down the neck and tilts while carried): measured
+    # the hanger as it is held now (it slid onto its boss and may have swung in the pinch): measured
+    put = _upright(-f) @ _in_hanger(read_state(d.sim), h)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
 
     def hand_for(centre):  # the hand's tool point for the hook's centre at ``centre``, the hand at ``put``
         return np.asarray(centre, float) - put @ off
 
     c_in = spot + 0.25 * R * up
+    log.debug("hang: base %s goal %s spot %s hook in hand %s hand for entry %s", np.round(base_pose(d.sim), 3),
+              np.round(goal, 3), np.round(spot, 3), np.round(off, 3),
+              np.round(hand_for(c_in + (R + rail.radius + ENTRY) * f), 3))
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up), put), 2.0, segments=4, carry=True,
            tol=APPROACH_TOL)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
