@@ -56,7 +56,9 @@ HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vert
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
 PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
 HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
-HANG_AT = 0.75          # the hook goes this far [fraction] from the rail's hinge-side end to its middle
+HANG_AT = 0.5           # the hook goes this far [fraction] from the rail's hinge-side end to its middle (the
+                        # hand, 0.2 m wide across the rail, centred in the open half; the base stands further
+                        # from the hinge, clear of the open leaf, and the arm reaches sideways)
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
 PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
@@ -257,7 +259,7 @@ def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, fl
     half = 0.5 * float(np.linalg.norm(far - near))
     spot = near + HANG_AT * half * u
     leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
-    lateral = max(HANG_AT * half, leaf_band + LEAF_CLEAR)
+    lateral = max(0.75 * half, leaf_band + LEAF_CLEAR)
     wr = world.placed["wardrobe"]
     front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
     base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
@@ -344,7 +346,6 @@ def hang_on_rail(inst, d) -> None:
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
     drive_in(d, grid, goal, _leaf_points(part, q))
-    d.drive_straight(goal)
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
     # the hanger as it is held now (it slid onto its boss and may have swung in the pinch): measured
@@ -355,11 +356,15 @@ def hang_on_rail(inst, d) -> None:
         return np.asarray(centre, float) - put @ off
 
     c_in = spot + 0.25 * R * up
+    # the hand set here where the base's last straight stretch carries it to the hook's entry (centred in
+    # the open half, the hook 3 cm high), so that it goes in straight
+    entry = hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up)
+    bx, by, _ = base_pose(d.sim)
     log.debug("hang: base %s goal %s spot %s hook in hand %s hand for entry %s", np.round(base_pose(d.sim), 3),
-              np.round(goal, 3), np.round(spot, 3), np.round(off, 3),
-              np.round(hand_for(c_in + (R + rail.radius + ENTRY) * f), 3))
-    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up), put), 2.0, segments=4, carry=True,
-           tol=APPROACH_TOL)
+              np.round(goal, 3), np.round(spot, 3), np.round(off, 3), np.round(entry, 3))
+    d.move(_pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put), 2.0, segments=4, carry=True, tol=APPROACH_TOL)
+    d.drive_straight(goal)
+    d.move(_pose(entry, put), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
