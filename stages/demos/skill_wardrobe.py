@@ -56,15 +56,23 @@ HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vert
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
 PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
 HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
+LEAF_NEAR = 0.12        # a hand this near [m] the open leaf's free edge is first moved on ...
+LEAF_PAST = 0.15        # ... out past it this far [m]
+REOPEN_BELOW = 0.6      # the door is opened again where it stands less than this [fraction] of its travel open
 HANG_AT = 0.5           # the hook goes this far [fraction] from the rail's hinge-side end to its middle (the
                         # hand, 0.2 m wide across the rail, centred in the open half; the base stands further
                         # from the hinge, clear of the open leaf, and the arm reaches sideways)
+SIDE_REACH = 0.08       # ... but at most this far [m] beside the base's centre line (the arm reaches ~0.67 m ahead)
+HAND_CLEAR = 0.13       # ... and at least this far [m] from the rail's middle (the closed door's edge)
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
-PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
-PULL_TO = 0.025         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket with the
-                        # neck's boss; at 0.035 m the hanger tipped over the edge)
+PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pulled out ...
+PULL_TO = 0.015         # ... until it lies this far [m] out (its centre of mass ~2 cm on the blanket with the
+                        # neck's boss; at 0.035 m the hanger tipped over the edge, at 0.025 m after a 0.3 m pull)
 PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
+HOOK_TIP = -0.002       # the pulling hand's tool point aimed this far [m] above the hook rod's middle (it stops
+                        # 8-11 mm above a low target, the fingertips ~9 mm below it: they reach under a 2 mm wire's top)
+HOOK_FINGER = 0.010     # the closed fingertips' half thickness along the pull [m] (they drag the hook's inside)
 PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
 CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
 GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
@@ -163,10 +171,12 @@ def _apex_out(state, world, hanger) -> float:
     return float(world.blanket_edge - apex[1])
 
 
-def _pull_out(d, world, hanger, rod: float) -> None:
+def _pull_out(d, world, hanger, rod: float, cx: float) -> None:
     """Where the hanger has crept onto the bed (its apex less than :data:`PULL_IF` beyond the blanket's
-    edge), push it back out by its shoulder bar: the closed hand, pointing down, set just behind the
-    bar's middle (on the bed's side), moved towards -Y until the apex is :data:`PULL_TO` out."""
+    edge), pull it back out by its hook: the closed hand, pointing down, lowered into the hook (which
+    lies flat, open upwards) and moved towards -Y, its fingertips dragging the hook's far side, until
+    the apex is :data:`PULL_TO` out. (Pushed by its shoulder bar from the bed's side, a hanger that had
+    crept 25 cm in lay out of reach.)"""
     from stages.demos.counter import _pose
     from stages.simulate.control import top_down
     from stages.simulate.state import read_state
@@ -175,17 +185,26 @@ def _pull_out(d, world, hanger, rod: float) -> None:
     out = _apex_out(st, world, hanger)
     if out >= PULL_IF:
         return
-    pos, rot = _hanger_pose(st, hanger)
-    bar = pos + rot @ np.array([0.0, 0.0, rod])
-    z = world.table_z + max(rod, 0.004) + PUSH_TIP
-    behind = np.array([bar[0], bar[1] + rod + 0.02, z])
+    z = world.table_z + rod + HOOK_TIP
+
+    def hook_at(lead: float) -> np.ndarray:  # the hook's centre where it will be in ``lead`` [s] (it creeps)
+        pos, rot = _hanger_pose(read_state(d.sim), hanger)
+        c = pos + rot @ np.array([cx, 0.0, rod]) + CREEP * lead
+        return np.array([c[0], c[1], z])
+
     down = top_down(0.0)
-    d.grip(1.0, 0.3)
-    d.move(_pose(behind + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(behind, down), 0.6, segments=2, settle=0.1)
-    push = PULL_TO - out + rod + 0.02 + PULL_LAG
-    d.move(_pose(behind - [0.0, push, 0.0], down), 1.2, segments=3, settle=0.1)
-    d.move(_pose(behind - [0.0, push, -0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
+    d.grip(1.0, 0.8)
+    d.move(_pose(hook_at(2.0) + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(hook_at(0.8) + [0, 0, 0.08], down), 0.3, segments=1, tol=APPROACH_TOL)
+    at = hook_at(0.6)
+    d.move(_pose(at, down), 0.6, segments=2, settle=0.1)
+    out = _apex_out(read_state(d.sim), world, hanger)
+    push = PULL_TO - out + max(0.0, float(hanger.asset.params["hook_radius"]) - HOOK_FINGER) + PULL_LAG
+    d.move(_pose(at - [0.0, push, 0.0], down), max(1.2, 6.0 * push), segments=3, settle=0.1)
+    # back off the hook's far side before lifting (a wire caught between the fingertips came up with them)
+    back = np.asarray(read_state(d.sim).robot.ee_pose.position, float) + [0.0, HOOK_FINGER, 0.0]
+    d.move(_pose(back, down), 0.4, segments=1)
+    d.move(_pose(back + [0.0, 0.0, 0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
 
 
 def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
@@ -218,7 +237,7 @@ def _rot(x_h, z_h) -> np.ndarray:
 
 
 #: the carry pose's candidates: (hand ahead of the base centre, height) [m], the first with a posture wins
-CARRY = ((0.55, 0.95), (0.45, 0.95), (0.65, 0.95), (0.55, 1.05), (0.65, 1.05))
+CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
 #: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
 WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
 
@@ -247,6 +266,41 @@ def _posture(d, target: np.ndarray):
     return best
 
 
+def _clear_leaf(d, part, q: float) -> None:
+    """Where open_wardrobe left the hand by the open leaf's free edge (within :data:`LEAF_NEAR` of it),
+    move it on along the leaf, out past that edge by :data:`LEAF_PAST` (hand open, orientation kept):
+    tucked from by the edge, the arm swept the door half shut (flat_023: 78 -> 13 deg)."""
+    from stages.demos.counter import _pose
+    from stages.demos.part_grasps import lateral
+    from stages.simulate.state import read_state
+
+    o, a = np.asarray(part.origin, float), np.asarray(part.axis, float)
+    v = np.asarray(part.handle, float) - o
+    reach = float(np.linalg.norm(v - np.dot(v, a) * a)) + 0.08
+    along = part.rotation_at(q) @ np.asarray(lateral(part), float)
+    along = np.array([along[0], along[1], 0.0]) / max(1e-9, float(np.linalg.norm(along[:2])))
+    ee = read_state(d.sim).robot.ee_pose.matrix()
+    hand = ee[:3, 3]
+    s = float(np.dot(hand[:2] - o[:2], along[:2]))
+    off = float(np.linalg.norm(hand[:2] - o[:2] - s * along[:2]))
+    if off > LEAF_NEAR or not (reach - LEAF_NEAR < s < reach + LEAF_PAST):
+        return
+    d.grip(0.0, 0.3)
+    try:
+        d.move(_pose(hand + (reach + LEAF_PAST - s) * along, ee[:3, :3]), 1.0, segments=2, tol=APPROACH_TOL)
+    except ExpertFailure:
+        log.info("%s: the hand could not move on past the leaf's edge", part.joint_path)
+
+
+def _ramp(d, q: np.ndarray, seconds: float) -> None:
+    """Arm joint targets linearly to ``q`` (7,) [rad] in ``seconds`` [s] or slower (the pace's joint speed)."""
+    q0 = d.ctl.arm_targets()
+    n = max(len(d._arm_ramp(q)), int(seconds / d.frame_dt))
+    for k in range(1, n + 1):
+        d.ctl.set_arm_targets(q0 + (q - q0) * k / n)
+        d.step(d.frame_dt)
+
+
 def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
     """The base pose (x, y, yaw) facing into the wardrobe before its open half (the chassis beside the
     door ``part`` open at ``q``, clear of its leaf) and the rail point (3,) where the hook goes [m]."""
@@ -257,9 +311,11 @@ def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, fl
     near, far = (a, b) if np.linalg.norm(a[:2] - hinge[:2]) < np.linalg.norm(b[:2] - hinge[:2]) else (b, a)
     u = (far - near) / np.linalg.norm(far - near)
     half = 0.5 * float(np.linalg.norm(far - near))
-    spot = near + HANG_AT * half * u
     leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
     lateral = max(0.75 * half, leaf_band + LEAF_CLEAR)
+    spot = near + min(max(HANG_AT * half, lateral - SIDE_REACH), half - HAND_CLEAR) * u
+    log.debug("hang_base: near %s far %s hinge %s q %.2f half %.3f leaf_band %.3f lateral %.3f spot %s", np.round(near, 3),
+              np.round(far, 3), np.round(hinge, 3), q, half, leaf_band, lateral, np.round(spot, 3))
     wr = world.placed["wardrobe"]
     front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
     base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
@@ -280,6 +336,20 @@ def hang_on_rail(inst, d) -> None:
     rail: Rail = w.rail
     part = inst.part
     q = float(d.sim.joint_q_of_path(part.joint_path))
+    _clear_leaf(d, part, q)
+    # the arm as open_wardrobe left it may stand on a branch by its joints' limits (flat_023: joint 3 at
+    # -166 deg, the pick's first move unreachable; tucked by CLIK from there it swept the door half shut):
+    # home in joint space first
+    d.home(3.0)
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    if q - part.closed < REOPEN_BELOW * part.travel:
+        # the door swung half shut (the arm's sweep): open it again from where it stands (the same expert),
+        # or the leaf stands in the hanger's way
+        from stages.demos.articulated import _swing
+
+        log.info("%s: door at %.2f rad after open_wardrobe: opened again", part.joint_path, q)
+        _swing(part, d, w.grid(), q, part.closed + 0.9 * part.travel)
+        q = float(d.sim.joint_q_of_path(part.joint_path))
     gx, cx, rod = _hook(h)
     hr = float(h.asset.params["hook_radius"])
     R = hr + rod
@@ -290,7 +360,7 @@ def hang_on_rail(inst, d) -> None:
     neck = pos + rot @ np.array([gx, 0.0, rod])
     pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
     d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
-    _pull_out(d, w, h, rod)
+    _pull_out(d, w, h, rod, cx)
     pos, rot = _hanger_pose(read_state(d.sim), h)
     # aimed where it will be when the fingers close (it creeps on the blanket: CREEP)
     neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
@@ -326,21 +396,14 @@ def hang_on_rail(inst, d) -> None:
     tip = _upright(side) @ in_hanger
     d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
            segments=4, carry=True, tol=APPROACH_TOL)
-    # the carry pose: the hand ahead of the base, the hook's tip ahead; reached in joint space with the wrist
-    # rolled (WRIST_SEEDS: CLIK's own path to it ended on another branch, its last joints by their limits,
-    # from which the reach into the wardrobe was unreachable)
+    # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
+    # width: carried with its plane along the way, it swept the open door half shut on the way to it);
+    # reached in joint space with the wrist rolled (WRIST_SEEDS)
     for reach, hz in CARRY:
-        held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], _upright(ahead) @ in_hanger)
+        held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], tip)
         if (qa := _posture(d, held)) is not None:
+            _ramp(d, qa, 1.5)
             break
-    if qa is None:
-        d.move(held, TURN_SLOW, segments=16, carry=True, tol=APPROACH_TOL)
-    else:
-        q0 = d.ctl.arm_targets()
-        n = max(len(d._arm_ramp(qa)), int(TURN_SLOW / d.frame_dt))
-        for k in range(1, n + 1):
-            d.ctl.set_arm_targets(q0 + (qa - q0) * k / n)
-            d.step(d.frame_dt)
     log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
@@ -360,10 +423,18 @@ def hang_on_rail(inst, d) -> None:
     # the open half, the hook 3 cm high), so that it goes in straight
     entry = hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up)
     bx, by, _ = base_pose(d.sim)
+    log.debug("hang: door at %.2f (was %.2f)", float(d.sim.joint_q_of_path(part.joint_path)), q)
     log.debug("hang: base %s goal %s spot %s hook in hand %s hand for entry %s", np.round(base_pose(d.sim), 3),
               np.round(goal, 3), np.round(spot, 3), np.round(off, 3), np.round(entry, 3))
-    d.move(_pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put), 2.0, segments=4, carry=True, tol=APPROACH_TOL)
+    staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
+    # turned slowly about the neck, its plane now along the way in (the pinch holds the neck's roll only by
+    # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
+    # path ended on another, by joint 7's limit, from which the rail was out of reach)
+    if (qa := _posture(d, staged)) is not None:
+        _ramp(d, qa, TURN_SLOW)
+    d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     d.drive_straight(goal)
+    log.debug("hang: door at %.2f after the drive in", float(d.sim.joint_q_of_path(part.joint_path)))
     d.move(_pose(entry, put), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
