@@ -7,14 +7,18 @@ wardrobe anywhere in the room, facing any way).
 Simplifications (the Franka hand cannot do the real thing): the hanger lies flat on the bed's near
 edge with its neck and hook sticking out over the edge (:func:`hanger_start`), so that the fingers,
 closing vertically across its plane, pinch its neck from the side (the hand level, pointing along the
-edge); the hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across
-the rail) and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail;
-the upper one at 1.4-1.7 m is out of the arm's reach). Light things creep on the blanket (the hanger
-~7.5 mm/s towards +Y): where it has crept back onto the bed the expert first pushes it out again
-(:func:`_pull_out`).
-
-Not reliable yet (see the README): the neck slides down through the pinch until the hook hangs on the
-fingers, which then fill the hook where the rail should go.
+edge), just under the boss at the neck's top end (the catalog's hangers have one: ``neck_stop``;
+held upright, the neck slides down the few mm until the boss rests on the fingers; without it the neck
+slid through the pinch until the hook hung on the fingertips); the hand keeps that grasp to the rail:
+it turns the hanger upright (hook up, its plane across the way), carries it so, turns it slowly about
+the neck before the wardrobe (in joint space, on the branch with the wrist rolled ~90 deg: CLIK's own
+path ended by joint 7's limit, from where the rail was out of reach), drives straight in and hooks it
+over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail; the upper one at
+1.4-1.7 m is out of the arm's reach), the hook mid open half. Light things creep on the blanket (the
+hanger 7.5-10 mm/s towards +Y; cause not found): where it has crept back onto the bed the expert
+first pulls it out again by its hook (:func:`_pull_out`); after a long first stage (50-80 s) it lies
+out of reach (``ik_unreachable``). The arm is first homed in joint space and a door that swung under
+60% open is opened again (open_wardrobe's tuck swept it half shut in flat_023).
 
 - :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
   generator parameters;
