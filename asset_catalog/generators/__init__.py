@@ -156,7 +156,7 @@ GENERATORS: tuple[GeneratorSpec, ...] = (
     _s("alarm_clock", A.alarm_clock, [BR], SURF, M.PLASTIC, (0.035, 0.09, 0.1), (0.075, 0.14, 0.16),
        interactable=True,
        co_occurrence=("nightstand",)),
-    _s("hanger", O.hanger, [BR, HW], SURF, M.PLASTIC, (0.13, 0.38, 0.003), (0.32, 0.47, 0.02),
+    _s("hanger", O.hanger, [BR, HW], SURF, M.PLASTIC, (0.13, 0.38, 0.003), (0.32, 0.47, 0.032),
        interactable=True,
        co_occurrence=("closet", "wardrobe")),
     # open containers for the household tasks (clean the table, clean dishes)

@@ -314,13 +314,18 @@ def sponge(b: AssetBuilder) -> float:
 
 
 HANGER_NECK = 0.075  # the hanger's straight neck under its hook [m]: the Franka fingers (~20 mm wide) pinch it
+NECK_STOP = (0.012, 0.006)  # the boss at the neck's top end (under the hook), as plastic and wooden hangers have
+                            # where the hook goes in: (length along the neck, radius beyond the rod) [m]; flush with
+                            # the rods' underside, it stands up on the hanger's +Z side: a neck pinched just under
+                            # it cannot slide down through the fingers (the boss rests on the +Z finger)
 
 
 def hanger(b: AssetBuilder) -> float | None:
     """A clothes hanger (wire, plastic or wood) lying in its local XY plane: the shoulder bar along Y
-    at x = 0, the apex at x = -shoulder_height, the neck (:data:`HANGER_NECK`) along -X, the hook
-    (inner radius ``hook_radius``, round ``rod`` [m]) curling from the neck's end towards -Y, over and
-    its tip towards +Y."""
+    at x = 0, the apex at x = -shoulder_height, the neck (:data:`HANGER_NECK`) along -X with a round
+    boss at its top end (:data:`NECK_STOP`, param ``neck_stop``: its length), the hook (inner radius
+    ``hook_radius``, round ``rod`` [m]) curling from the neck's end towards -Y, over and its tip
+    towards +Y."""
     wire = b.choice("kind", ["wire", "plastic", "wood"])
     color = {"wire": (0.75, 0.75, 0.78), "plastic": pick_color(b, PLASTICS), "wood": (0.6, 0.42, 0.25)}[wire]
     m = b.material("hanger", color, roughness=0.3, metallic=1.0 if wire == "wire" else 0.0)
@@ -328,6 +333,7 @@ def hanger(b: AssetBuilder) -> float | None:
            "wood": b.param("rod", 0.007, 0.009)}[wire]
     b.params["rod"] = round(rod, 6)   # the kind's (all three are drawn: the other parameters stay as they were)
     b.params["neck"] = HANGER_NECK
+    b.params["neck_stop"] = NECK_STOP[0]
     density = {"wire": 7800.0, "plastic": 1100.0, "wood": 700.0}[wire]
     w, hh = b.param("width", 0.38, 0.46), b.param("shoulder_height", 0.1, 0.15)
     z = rod
@@ -341,6 +347,9 @@ def hanger(b: AssetBuilder) -> float | None:
     pieces = []
     for seg in [*pts, neck, hook]:
         pieces += g.tube_path(seg, rod, n=8)
+    sl, sr = NECK_STOP
+    # flush with the rods' underside (the hanger lies flat on its rods), standing up on its +Z side
+    pieces.append(g.cylinder(rod + sr, sl, (-hh - HANGER_NECK + sl / 2, 0.0, rod + sr), axis="x", n=12))
     b.add("base", g.union(pieces), m, density=density, collision=pieces)
     b.handle("base", (cx - hr, 0.0, z), 2 * rod, hr, (0.0, 1.0, 0.0), kind="loop")
     return None

@@ -148,7 +148,7 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     from stages.demos.skill_wardrobe import PICK_GAP, PICK_SIDE, rail_facts
 
     wr = rs.one("wardrobe", lambda r: r["support"] is None and "low_rail" in rs.asset(r).params)
-    hanger = wr and rs.one("hanger", lambda r: r["support"] == wr["name"] and "neck" in rs.asset(r).params)
+    hanger = wr and rs.one("hanger", lambda r: r["support"] == wr["name"] and "neck_stop" in rs.asset(r).params)
     if wr is None or hanger is None:
         log.info("bedroom %s: no wardrobe with a lower rail and a hanger: no organize_wardrobe", rs.room)
         return None

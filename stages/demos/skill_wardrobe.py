@@ -7,14 +7,18 @@ wardrobe anywhere in the room, facing any way).
 Simplifications (the Franka hand cannot do the real thing): the hanger lies flat on the bed's near
 edge with its neck and hook sticking out over the edge (:func:`hanger_start`), so that the fingers,
 closing vertically across its plane, pinch its neck from the side (the hand level, pointing along the
-edge); the hand keeps that grasp to the rail: it turns the hanger upright (hook up, its plane across
-the rail) and hooks it over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail;
-the upper one at 1.4-1.7 m is out of the arm's reach). Light things creep on the blanket (the hanger
-~7.5 mm/s towards +Y): where it has crept back onto the bed the expert first pushes it out again
-(:func:`_pull_out`).
-
-Not reliable yet (see the README): the neck slides down through the pinch until the hook hangs on the
-fingers, which then fill the hook where the rail should go.
+edge), just under the boss at the neck's top end (the catalog's hangers have one: ``neck_stop``;
+held upright, the neck slides down the few mm until the boss rests on the fingers; without it the neck
+slid through the pinch until the hook hung on the fingertips); the hand keeps that grasp to the rail:
+it turns the hanger upright (hook up, its plane across the way), carries it so, turns it slowly about
+the neck before the wardrobe (in joint space, on the branch with the wrist rolled ~90 deg: CLIK's own
+path ended by joint 7's limit, from where the rail was out of reach), drives straight in and hooks it
+over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail; the upper one at
+1.4-1.7 m is out of the arm's reach), the hook mid open half. Light things creep on the blanket (the
+hanger 7.5-10 mm/s towards +Y; cause not found): where it has crept back onto the bed the expert
+first pulls it out again by its hook (:func:`_pull_out`); after a long first stage (50-80 s) it lies
+out of reach (``ik_unreachable``). The arm is first homed in joint space and a door that swung under
+60% open is opened again (open_wardrobe's tuck swept it half shut in flat_023).
 
 - :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
   generator parameters;
@@ -34,6 +38,7 @@ the hook's tip towards local +Y.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -41,9 +46,13 @@ import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 
-GRIP_AT = 0.8           # the fingers pinch the neck this far along it from the shoulders' apex [fraction] (the
-                        # wrist, level with the neck, clears the blanket's edge only ~45 mm out); the neck slides
-                        # down through the pinch until the hook sits on the fingers (measured: _hook_in_hand)
+log = logging.getLogger(__name__)
+
+PAD_HALF = 0.010        # the Panda finger pad's half width along the pinched neck [m]
+STOP_GAP = 0.003        # the pads pinch the neck this far [m] under its boss (``neck_stop``): held upright, the
+                        # neck slides down this far, then the boss rests on the fingers (without the boss the neck
+                        # slid through the pinch until the hook hung on the fingertips); the wrist, level with
+                        # the neck, clears the blanket's edge only ~45 mm out
 OVERHANG = 0.025        # the apex lies this far [m] beyond the blanket's near edge
 RAIL_T = 0.018          # the wardrobe's carcass board [m] (asset_catalog.generators.furniture)
 HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting place on the rail
@@ -51,12 +60,23 @@ HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vert
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
 PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
 HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
-HANG_AT = 0.75          # the hook goes this far [fraction] from the rail's hinge-side end to its middle
+LEAF_NEAR = 0.12        # a hand this near [m] the open leaf's free edge is first moved on ...
+LEAF_PAST = 0.15        # ... out past it this far [m]
+REOPEN_BELOW = 0.6      # the door is opened again where it stands less than this [fraction] of its travel open
+HANG_AT = 0.5           # the hook goes this far [fraction] from the rail's hinge-side end to its middle (the
+                        # hand, 0.2 m wide across the rail, centred in the open half; the base stands further
+                        # from the hinge, clear of the open leaf, and the arm reaches sideways)
+SIDE_REACH = 0.08       # ... but at most this far [m] beside the base's centre line (the arm reaches ~0.67 m ahead)
+HAND_CLEAR = 0.13       # ... and at least this far [m] from the rail's middle (the closed door's edge)
 LEAF_CLEAR = 0.31       # the chassis centre this far [m] beside the open leaf's band
 PINCH_PAST = 0.012      # the hand is aimed this far [m] past the neck (it stops ~12 mm short of a low target)
-PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pushed out ...
-PULL_TO = 0.035         # ... until it lies this far [m] out (its centre of mass ~1 cm on the blanket)
+PULL_IF = 0.012         # a hanger whose apex lies less than this [m] beyond the blanket's edge is pulled out ...
+PULL_TO = 0.015         # ... until it lies this far [m] out (its centre of mass ~2 cm on the blanket with the
+                        # neck's boss; at 0.035 m the hanger tipped over the edge, at 0.025 m after a 0.3 m pull)
 PULL_LAG = 0.015        # the pushing hand stops this far [m] short of its target
+HOOK_TIP = -0.002       # the pulling hand's tool point aimed this far [m] above the hook rod's middle (it stops
+                        # 8-11 mm above a low target, the fingertips ~9 mm below it: they reach under a 2 mm wire's top)
+HOOK_FINGER = 0.010     # the closed fingertips' half thickness along the pull [m] (they drag the hook's inside)
 PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
 CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
 GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
@@ -95,11 +115,12 @@ def rail_facts(wardrobe) -> Rail:
 
 
 def _hook(hanger) -> tuple[float, float, float]:
-    """(grasp x, hook centre x, rod radius) in the hanger frame [m]; the hook's inner radius is the
-    ``hook_radius`` parameter."""
+    """(grasp x, hook centre x, rod radius) in the hanger frame [m]: the grasp just under the neck's
+    boss (``neck_stop`` long, at the neck's top end); the hook's inner radius is the ``hook_radius``
+    parameter."""
     p = hanger.asset.params
-    hh, hr, rod, neck = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck"))
-    return -hh - GRIP_AT * neck, -hh - neck - (hr + rod), rod
+    hh, hr, rod, neck, stop = (float(p[k]) for k in ("shoulder_height", "hook_radius", "rod", "neck", "neck_stop"))
+    return -hh - (neck - stop - PAD_HALF - STOP_GAP), -hh - neck - (hr + rod), rod
 
 
 def hanger_start(world, seed: int) -> dict:
@@ -154,10 +175,12 @@ def _apex_out(state, world, hanger) -> float:
     return float(world.blanket_edge - apex[1])
 
 
-def _pull_out(d, world, hanger, rod: float) -> None:
+def _pull_out(d, world, hanger, rod: float, cx: float) -> None:
     """Where the hanger has crept onto the bed (its apex less than :data:`PULL_IF` beyond the blanket's
-    edge), push it back out by its shoulder bar: the closed hand, pointing down, set just behind the
-    bar's middle (on the bed's side), moved towards -Y until the apex is :data:`PULL_TO` out."""
+    edge), pull it back out by its hook: the closed hand, pointing down, lowered into the hook (which
+    lies flat, open upwards) and moved towards -Y, its fingertips dragging the hook's far side, until
+    the apex is :data:`PULL_TO` out. (Pushed by its shoulder bar from the bed's side, a hanger that had
+    crept 25 cm in lay out of reach.)"""
     from stages.demos.counter import _pose
     from stages.simulate.control import top_down
     from stages.simulate.state import read_state
@@ -166,17 +189,26 @@ def _pull_out(d, world, hanger, rod: float) -> None:
     out = _apex_out(st, world, hanger)
     if out >= PULL_IF:
         return
-    pos, rot = _hanger_pose(st, hanger)
-    bar = pos + rot @ np.array([0.0, 0.0, rod])
-    z = world.table_z + max(rod, 0.004) + PUSH_TIP
-    behind = np.array([bar[0], bar[1] + rod + 0.02, z])
+    z = world.table_z + rod + HOOK_TIP
+
+    def hook_at(lead: float) -> np.ndarray:  # the hook's centre where it will be in ``lead`` [s] (it creeps)
+        pos, rot = _hanger_pose(read_state(d.sim), hanger)
+        c = pos + rot @ np.array([cx, 0.0, rod]) + CREEP * lead
+        return np.array([c[0], c[1], z])
+
     down = top_down(0.0)
-    d.grip(1.0, 0.3)
-    d.move(_pose(behind + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(behind, down), 0.6, segments=2, settle=0.1)
-    push = PULL_TO - out + rod + 0.02 + PULL_LAG
-    d.move(_pose(behind - [0.0, push, 0.0], down), 1.2, segments=3, settle=0.1)
-    d.move(_pose(behind - [0.0, push, -0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
+    d.grip(1.0, 0.8)
+    d.move(_pose(hook_at(2.0) + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(hook_at(0.8) + [0, 0, 0.08], down), 0.3, segments=1, tol=APPROACH_TOL)
+    at = hook_at(0.6)
+    d.move(_pose(at, down), 0.6, segments=2, settle=0.1)
+    out = _apex_out(read_state(d.sim), world, hanger)
+    push = PULL_TO - out + max(0.0, float(hanger.asset.params["hook_radius"]) - HOOK_FINGER) + PULL_LAG
+    d.move(_pose(at - [0.0, push, 0.0], down), max(1.2, 6.0 * push), segments=3, settle=0.1)
+    # back off the hook's far side before lifting (a wire caught between the fingertips came up with them)
+    back = np.asarray(read_state(d.sim).robot.ee_pose.position, float) + [0.0, HOOK_FINGER, 0.0]
+    d.move(_pose(back, down), 0.4, segments=1)
+    d.move(_pose(back + [0.0, 0.0, 0.08], down), 0.6, segments=2, tol=APPROACH_TOL)
 
 
 def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
@@ -185,6 +217,12 @@ def _hook_in_hand(state, hanger, cx: float, rod: float) -> np.ndarray:
     c = pos + rot @ np.array([cx, 0.0, rod])
     ee = state.robot.ee_pose.matrix()
     return ee[:3, :3].T @ (c - ee[:3, 3])
+
+
+def _in_hanger(state, hanger) -> np.ndarray:
+    """The hand's rotation (3, 3) in the hanger's frame, from the simulated poses."""
+    _, rot = _hanger_pose(state, hanger)
+    return rot.T @ state.robot.ee_pose.matrix()[:3, :3]
 
 
 def _upright(into) -> np.ndarray:
@@ -202,6 +240,71 @@ def _rot(x_h, z_h) -> np.ndarray:
     return np.stack([x_h, np.cross(z_h, x_h), z_h], axis=1)
 
 
+#: the carry pose's candidates: (hand ahead of the base centre, height) [m], the first with a posture wins
+CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
+#: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
+WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
+
+
+def _posture(d, target: np.ndarray):
+    """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
+    :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep 0.25 rad from their
+    limits, the nearest the current targets; None if none."""
+    from stages.simulate.control import Clik
+
+    goal = Clik.world_to_root(d.sim.spawn, target)
+    now = d.ctl.arm_targets()
+    base_q = d.ik.from_sim(d.sim)
+    idx = d.ik.v_idx[: len(now)]
+    lo, hi = d.ik.lower[idx], d.ik.upper[idx]
+    best, dist = None, math.inf
+    for seed in (now, *WRIST_SEEDS):
+        r = d.ik.solve(goal, d.ik.with_arm(base_q, np.asarray(seed, float)), max_iters=600)
+        q = d.ik.arm_q(r.q)
+        if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
+            continue
+        if float(np.min(np.minimum(q - lo, hi - q))) < 0.25:
+            continue
+        if float(np.abs(q - now).max()) < dist:
+            best, dist = q, float(np.abs(q - now).max())
+    return best
+
+
+def _clear_leaf(d, part, q: float) -> None:
+    """Where open_wardrobe left the hand by the open leaf's free edge (within :data:`LEAF_NEAR` of it),
+    move it on along the leaf, out past that edge by :data:`LEAF_PAST` (hand open, orientation kept):
+    tucked from by the edge, the arm swept the door half shut (flat_023: 78 -> 13 deg)."""
+    from stages.demos.counter import _pose
+    from stages.demos.part_grasps import lateral
+    from stages.simulate.state import read_state
+
+    o, a = np.asarray(part.origin, float), np.asarray(part.axis, float)
+    v = np.asarray(part.handle, float) - o
+    reach = float(np.linalg.norm(v - np.dot(v, a) * a)) + 0.08
+    along = part.rotation_at(q) @ np.asarray(lateral(part), float)
+    along = np.array([along[0], along[1], 0.0]) / max(1e-9, float(np.linalg.norm(along[:2])))
+    ee = read_state(d.sim).robot.ee_pose.matrix()
+    hand = ee[:3, 3]
+    s = float(np.dot(hand[:2] - o[:2], along[:2]))
+    off = float(np.linalg.norm(hand[:2] - o[:2] - s * along[:2]))
+    if off > LEAF_NEAR or not (reach - LEAF_NEAR < s < reach + LEAF_PAST):
+        return
+    d.grip(0.0, 0.3)
+    try:
+        d.move(_pose(hand + (reach + LEAF_PAST - s) * along, ee[:3, :3]), 1.0, segments=2, tol=APPROACH_TOL)
+    except ExpertFailure:
+        log.info("%s: the hand could not move on past the leaf's edge", part.joint_path)
+
+
+def _ramp(d, q: np.ndarray, seconds: float) -> None:
+    """Arm joint targets linearly to ``q`` (7,) [rad] in ``seconds`` [s] or slower (the pace's joint speed)."""
+    q0 = d.ctl.arm_targets()
+    n = max(len(d._arm_ramp(q)), int(seconds / d.frame_dt))
+    for k in range(1, n + 1):
+        d.ctl.set_arm_targets(q0 + (q - q0) * k / n)
+        d.step(d.frame_dt)
+
+
 def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
     """The base pose (x, y, yaw) facing into the wardrobe before its open half (the chassis beside the
     door ``part`` open at ``q``, clear of its leaf) and the rail point (3,) where the hook goes [m]."""
@@ -212,9 +315,11 @@ def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, fl
     near, far = (a, b) if np.linalg.norm(a[:2] - hinge[:2]) < np.linalg.norm(b[:2] - hinge[:2]) else (b, a)
     u = (far - near) / np.linalg.norm(far - near)
     half = 0.5 * float(np.linalg.norm(far - near))
-    spot = near + HANG_AT * half * u
     leaf_band = float(np.dot(hinge[:2] - near[:2], u[:2])) + half * max(0.0, math.cos(q)) + 0.02
-    lateral = max(HANG_AT * half, leaf_band + LEAF_CLEAR)
+    lateral = max(0.75 * half, leaf_band + LEAF_CLEAR)
+    spot = near + min(max(HANG_AT * half, lateral - SIDE_REACH), half - HAND_CLEAR) * u
+    log.debug("hang_base: near %s far %s hinge %s q %.2f half %.3f leaf_band %.3f lateral %.3f spot %s", np.round(near, 3),
+              np.round(far, 3), np.round(hinge, 3), q, half, leaf_band, lateral, np.round(spot, 3))
     wr = world.placed["wardrobe"]
     front = float(np.dot(np.asarray(wr.to_world((wr.asset.hi[0], 0.0, 0.0)))[:2] - near[:2], f[:2]))
     base = near[:2] + lateral * u[:2] + (front + HANG_GAP + 0.30) * f[:2]
@@ -235,6 +340,20 @@ def hang_on_rail(inst, d) -> None:
     rail: Rail = w.rail
     part = inst.part
     q = float(d.sim.joint_q_of_path(part.joint_path))
+    _clear_leaf(d, part, q)
+    # the arm as open_wardrobe left it may stand on a branch by its joints' limits (flat_023: joint 3 at
+    # -166 deg, the pick's first move unreachable; tucked by CLIK from there it swept the door half shut):
+    # home in joint space first
+    d.home(3.0)
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    if q - part.closed < REOPEN_BELOW * part.travel:
+        # the door swung half shut (the arm's sweep): open it again from where it stands (the same expert),
+        # or the leaf stands in the hanger's way
+        from stages.demos.articulated import _swing
+
+        log.info("%s: door at %.2f rad after open_wardrobe: opened again", part.joint_path, q)
+        _swing(part, d, w.grid(), q, part.closed + 0.9 * part.travel)
+        q = float(d.sim.joint_q_of_path(part.joint_path))
     gx, cx, rod = _hook(h)
     hr = float(h.asset.params["hook_radius"])
     R = hr + rod
@@ -245,7 +364,7 @@ def hang_on_rail(inst, d) -> None:
     neck = pos + rot @ np.array([gx, 0.0, rod])
     pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
     d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
-    _pull_out(d, w, h, rod)
+    _pull_out(d, w, h, rod, cx)
     pos, rot = _hanger_pose(read_state(d.sim), h)
     # aimed where it will be when the fingers close (it creeps on the blanket: CREEP)
     neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
@@ -281,27 +400,46 @@ def hang_on_rail(inst, d) -> None:
     tip = _upright(side) @ in_hanger
     d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
            segments=4, carry=True, tol=APPROACH_TOL)
-    held = _upright(ahead) @ in_hanger
-    d.move(_pose([bx + 0.45 * ahead[0], by + 0.45 * ahead[1], 1.05], held), TURN_SLOW, segments=16, carry=True,
-           tol=APPROACH_TOL)
+    # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
+    # width: carried with its plane along the way, it swept the open door half shut on the way to it);
+    # reached in joint space with the wrist rolled (WRIST_SEEDS)
+    for reach, hz in CARRY:
+        held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], tip)
+        if (qa := _posture(d, held)) is not None:
+            _ramp(d, qa, 1.5)
+            break
+    log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
     drive_in(d, grid, goal, _leaf_points(part, q))
-    d.drive_straight(goal)
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
-    put = _upright(-f) @ in_hanger
-
-    # where the hook's centre is in the hand (it slips down the neck and tilts while carried): measured
+    # the hanger as it is held now (it slid onto its boss and may have swung in the pinch): measured
+    put = _upright(-f) @ _in_hanger(read_state(d.sim), h)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
 
     def hand_for(centre):  # the hand's tool point for the hook's centre at ``centre``, the hand at ``put``
         return np.asarray(centre, float) - put @ off
 
     c_in = spot + 0.25 * R * up
-    d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up), put), 2.0, segments=4, carry=True,
-           tol=APPROACH_TOL)
+    # the hand set here where the base's last straight stretch carries it to the hook's entry (centred in
+    # the open half, the hook 3 cm high), so that it goes in straight
+    entry = hand_for(c_in + (R + rail.radius + ENTRY) * f + 0.03 * up)
+    bx, by, _ = base_pose(d.sim)
+    log.debug("hang: door at %.2f (was %.2f)", float(d.sim.joint_q_of_path(part.joint_path)), q)
+    log.debug("hang: base %s goal %s spot %s hook in hand %s hand for entry %s", np.round(base_pose(d.sim), 3),
+              np.round(goal, 3), np.round(spot, 3), np.round(off, 3), np.round(entry, 3))
+    staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
+    # turned slowly about the neck, its plane now along the way in (the pinch holds the neck's roll only by
+    # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
+    # path ended on another, by joint 7's limit, from which the rail was out of reach)
+    if (qa := _posture(d, staged)) is not None:
+        _ramp(d, qa, TURN_SLOW)
+    d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
+    d.drive_straight(goal)
+    log.debug("hang: door at %.2f after the drive in", float(d.sim.joint_q_of_path(part.joint_path)))
+    d.move(_pose(entry, put), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.6, segments=2, carry=True, settle=0.3)
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
