@@ -171,18 +171,22 @@ class Driver:
         return min(duration, max(p.min_move, dist / speed, angle / p.turn_rate))
 
     def move(self, target_world: np.ndarray, duration: float, *, segments: int = 2, settle: float = 0.0,
-             tol: float = 0.005, carry: bool = False) -> None:
+             tol: float = 0.005, carry: bool = False, restarts: bool = True) -> None:
         """End-effector to ``target_world`` (4x4) along a straight line in at most ``duration``
         [s] (:meth:`move_time`), then :meth:`settle` up to ``settle`` [s]; every waypoint must be
         reached by CLIK within ``tol`` [m] (free-space approach moves use a looser tolerance than
-        contact moves); ``carry``: a held object carried through free space (:class:`Pace`)."""
+        contact moves); ``carry``: a held object carried through free space (:class:`Pace`).
+        ``restarts=False``: no CLIK restarts from random arm configurations where the solve from the
+        current one stalls (a restart's solution on another branch of the arm is reached by a joint
+        sweep, which swings a held object; the move fails ``ik_unreachable`` instead)."""
         from stages.simulate.control import move_ee
 
         self.cmd.mode = 1
         self.base((0.0, 0.0, 0.0))
         try:
             seconds = self.move_time(target_world, duration, tol, carry)
-            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments, rng=self.rng,
+            move_ee(self.sim, self.ctl, self.ik, target_world, seconds, segments=segments,
+                    rng=self.rng if restarts else None,
                     tol=tol, max_joint_speed=self.pace.max_joint_speed)
         except RuntimeError as e:
             if "unreachable" in str(e):

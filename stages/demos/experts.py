@@ -44,7 +44,8 @@ from stages.demos.sampling import TaskInstance
 from stages.demos.skill_bed import place_pillow
 from stages.demos.skill_books import shelve_book_1, shelve_book_2
 from stages.demos.skill_fridge import pick_place_fridge
-from stages.demos.skill_pour import pick_pitcher, place_pitcher, pour_drink
+from stages.demos.pour_place import place_pitcher
+from stages.demos.skill_pour import pick_pitcher, pour_drink
 from stages.demos.skill_press import press_clock_button, slide_clock_switch
 from stages.demos.skill_trash import throw_away
 from stages.demos.skill_wardrobe import hang_on_rail

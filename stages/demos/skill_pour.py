@@ -10,7 +10,8 @@ picks the pitcher up by its handle, pours the spheres into the cup and puts the 
   about its approach axis to :data:`POUR_TILT` about a pivot at that rim, slowly where the drink
   runs out, :func:`pour_schedule`, the hand shifted to keep the actual rim on the aim,
   :func:`pour_lip`, hold, roll back upright),
-  :func:`place_pitcher` (levelled in the hand, down on its home spot in steps, release, back off);
+  :func:`stages.demos.pour_place.place_pitcher` (levelled in the hand, down on its home spot until it
+  touches, release, back out);
 - the predicates: :func:`in_cup` (which sphere centres lie in the cup's cavity) and
   :func:`pour_success` (at least :data:`POUR_SHARE` of the spheres in the cavity, the cup upright
   and where it stood; see its doc for why this predicate).
@@ -46,14 +47,14 @@ TIP_PAST = 0.009          # the Franka fingertips this far [m] past the TCP
 PAD_LENGTH = 0.0235       # a Franka finger pad's length [m] back from the tip (along the approach)
 PAD_WIDTH = 0.0175        # and its width [m] (across the approach and the closing direction)
 GRIP_SHORT = 0.004        # the hand re-aims at the handle when it stops farther than this [m] from it
-PLACE_STEP = 0.03         # the pitcher is lowered onto the table in steps of this [m]
 FINGER_BELOW = 0.012      # the TCP this far [m] under the loop's inner upper curve above the fingertips
 TABLE_GAP = 0.16          # the base's front this far [m] before the table (0.08: kitchen 1 seed 1's arm
                           # folded to its wrist limits, 215 deg, while pouring, swung to another branch
                           # and dropped the pitcher; 0.16: 24 of 24 in the cup)
 LOW_TABLE = 0.6           # a table lower than this [m] (a coffee table) is worked differently:
 LOW_PITCH = 20.0          # the grasping hand pitched down this far [deg] (:func:`grip_rots`)
-LOW_GAP = 0.32            # the base's front this far [m] before the table (0.08: the arm folded too far)
+LOW_GAPS = (0.32, 0.24)   # the base's front this far [m] before the table (0.08: the arm folded too far),
+                          # the nearer where the planner finds no path to the first (a TV stand behind it)
 Q7_POUR_MAX = math.radians(35.0)  # the Panda's last joint at most this high [rad] before the pour (:func:`_unwind`)
 
 
@@ -255,8 +256,16 @@ def pick_pitcher(inst, d) -> None:
     x, y, z, yaw = inst.objects[plan.pitcher]
     grip = _to_world(handle_grip(pp.asset.params), (x, y, z), yaw)
     tuck = stow(d, on_the_way=True)
-    gap = TABLE_GAP if w.table_z >= LOW_TABLE else LOW_GAP
-    d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0]), gap=gap), w.grid(), tuck=tuck)
+    gaps = (TABLE_GAP,) if w.table_z >= LOW_TABLE else LOW_GAPS
+    for k, gap in enumerate(gaps):   # the planner fails before the base moves: a nearer pose is tried next
+        try:
+            d.drive_to(facing_north_goal(w.table_rect[1], 0.5 * (grip[0] + plan.cup_xy[0]), gap=gap), w.grid(),
+                       tuck=tuck)
+            break
+        except ExpertFailure as e:
+            if e.reason != "no_path" or k == len(gaps) - 1:
+                raise
+            log.debug("pick_pitcher: no path to the base pose %.2f m before the table: %s", gap, e)
     st = read_state(d.sim).objects[plan.pitcher]
     grip = _to_world(handle_grip(pp.asset.params), st.position, _yaw(st.orientation))
     rot = grip_rots(w.table_z)[1]   # turned: the kitchen's arm reaches it with the last joint near -100 deg
@@ -400,92 +409,3 @@ def pour_drink(inst, d, tilt: float = POUR_TILT, steps: int = 10) -> None:
         inside = in_cup(pts, c.position, c.orientation, cp.asset.params)
         log.debug("pour_drink: %d of %d in the cup (at %s); the others at %s", inside.sum(), len(pts),
                   np.round(c.position, 3), np.round(pts[~inside], 3).tolist())
-
-
-def level_turn(pitcher_quat, hand_rot: np.ndarray) -> np.ndarray:
-    """The hand rotation (3, 3) that stands a held pitcher upright: the turn that takes the pitcher's
-    +Z (from ``pitcher_quat``, w, x, y, z) to world +Z, applied to ``hand_rot`` (3, 3) in the world
-    (the hand turned about its TCP; the pitcher turns with it where the grasp holds)."""
-    from scipy.spatial.transform import Rotation
-
-    w, x, y, z = (float(v) for v in pitcher_quat)
-    up = Rotation.from_quat([x, y, z, w]).apply([0.0, 0.0, 1.0])
-    axis = np.cross(up, [0.0, 0.0, 1.0])
-    s, c = float(np.linalg.norm(axis)), float(up[2])
-    if s < 1e-9:
-        return np.asarray(hand_rot, float)
-    turn = Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
-    return turn @ np.asarray(hand_rot, float)
-
-
-def _level(d, plan: PourPlan, tries: int = 2, tol: float = math.radians(3.0)) -> None:
-    """Turn the hand until the held pitcher stands within ``tol`` [rad] of upright: the pour's roll
-    let the pitcher turn 10-20 deg about a round handle bar between the pads (the strap handle turns
-    5-10 deg: it sags in the hand), and one tilted that far
-    tips over when it is set down (its base's tipping angle is about 23 deg). A turn the arm cannot
-    reach is tried at half the angle, then left out (the pitcher is set down as it hangs)."""
-    from scipy.spatial.transform import Rotation
-
-    from stages.demos.counter import _pose
-    from stages.simulate.state import read_state
-
-    for _ in range(tries):
-        st = read_state(d.sim)
-        q = st.objects[plan.pitcher].orientation
-        if math.radians(_tilt_deg(q)) < tol:
-            return
-        ee = st.robot.ee_pose
-        cur = ee.matrix()[:3, :3]
-        full = Rotation.from_matrix(level_turn(q, cur) @ cur.T).as_rotvec()
-        for share in (1.0, 0.5):
-            try:
-                d.move(_pose(np.asarray(ee.position, float), Rotation.from_rotvec(share * full).as_matrix() @ cur),
-                       0.8, segments=2, carry=True, settle=0.2)
-                break
-            except ExpertFailure as e:
-                if e.reason != "ik_unreachable":
-                    raise
-        else:
-            log.debug("place_pitcher: no reachable turn levels the pitcher")
-            return
-        _log_pitcher(d, plan, "place_pitcher: levelled")
-
-
-def place_pitcher(inst, d) -> None:
-    """The expert of ``place_pitcher`` (the pitcher held): over its home spot, stood upright in the
-    hand (:func:`_level`: it turned 10-20 deg in the hand while pouring), down in
-    :data:`PLACE_STEP` steps, levelled again after each (it swings back at the first move after a
-    levelling), until its bottom is 5 mm above the table; release, back the hand off along -Y,
-    tuck."""
-    from stages.demos.counter import _pose
-    from stages.demos.driver import stow
-    from stages.simulate.state import read_state
-
-    w, plan = inst.world, inst.place
-    home = np.array([plan.home[0], plan.home[1], w.table_z + 0.005])
-
-    def over_home():
-        st = read_state(d.sim)
-        ee = np.asarray(st.robot.ee_pose.position, float)
-        arm = ee - np.asarray(st.objects[plan.pitcher].position, float)
-        return arm, st.robot.ee_pose.matrix()[:3, :3], ee
-
-    arm, rot, ee = over_home()
-    over = home + arm + [0.0, 0.0, 0.06]
-    d.move(_pose(np.array([over[0], over[1], max(over[2], ee[2])]), rot), 2.0, segments=3, carry=True,
-           tol=APPROACH_TOL)
-    _log_pitcher(d, plan, "place_pitcher: over home")
-    _level(d, plan)       # over home: the arm nearer the middle of its reach than beside the cup
-    for _ in range(8):    # down in 3 cm steps, levelled again after each (a fast descent swung it 40 deg)
-        arm, rot, ee = over_home()
-        z = max(home[2], ee[2] - arm[2] - PLACE_STEP)
-        d.move(_pose(np.array([home[0], home[1], z]) + arm, rot), 0.6, segments=1, settle=0.3)
-        if z <= home[2]:
-            break
-        _level(d, plan, tries=1)
-    _log_pitcher(d, plan, "place_pitcher: down")
-    d.grip(0.0, 0.6)
-    _log_pitcher(d, plan, "place_pitcher: released")
-    d.move(_pose(home + arm - [0.0, 0.12, 0.0], rot), 0.8, segments=2, tol=APPROACH_TOL)
-    _log_pitcher(d, plan, "place_pitcher: backed off")
-    stow(d)

@@ -155,22 +155,6 @@ def test_the_pads_close_on_flat_sides_of_the_generated_pitchers_handle(seed):
         assert rows and np.median(rows) >= 0.015, f"seed {seed}: the pad touches {np.median(rows or [0]):.4f} m deep"
 
 
-def test_level_turn_stands_a_pitcher_held_tilted_upright():
-    from scipy.spatial.transform import Rotation
-
-    from stages.demos.counter import side_rot
-    from stages.demos.skill_pour import level_turn
-
-    hand = side_rot(0.0)
-    for tilt in (Rotation.from_euler("y", 20, degrees=True), Rotation.from_euler("xy", [6, -15], degrees=True)):
-        x, y, z, w = tilt.as_quat()
-        new = level_turn((w, x, y, z), tilt.as_matrix() @ hand)      # the grasp turned with the pitcher
-        pitcher = new @ hand.T                                        # the pitcher turns with the hand
-        assert np.allclose(pitcher @ [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], atol=1e-9)
-        assert np.allclose(new.T @ new, np.eye(3), atol=1e-9)
-    assert np.allclose(level_turn((1.0, 0.0, 0.0, 0.0), hand), hand)  # upright: the hand stays
-
-
 def test_the_pour_turns_slowly_where_the_drink_runs_out():
     """Past :data:`POUR_SLOW_FROM` (before the wall slopes down to the rim at ~88 deg) every step is
     at most :data:`POUR_SLOW_STEP`: rolled 12.5 deg a step the spheres left at ~1 m/s and flew over
@@ -223,3 +207,40 @@ def test_the_tilting_pitcher_keeps_its_bottom_above_the_table():
         assert lowest >= table + BOTTOM_CLEAR - 1e-9, f"{deg} deg: bottom {lowest - table:.3f} m over the table"
         assert rim >= target - 1e-9
     assert lip_height(math.radians(90), target, h, r, table) == pytest.approx(target)
+
+
+@pytest.mark.parametrize("params", PITCHERS)
+def test_bottom_low_is_the_lowest_point_of_the_tilted_base_ring(params):
+    from scipy.spatial.transform import Rotation
+
+    from stages.demos.pour_place import bottom_low
+
+    assert bottom_low((0.3, 0.2, 0.45), (1.0, 0.0, 0.0, 0.0), params) == pytest.approx(0.45)
+    for deg in (5.0, 17.5, 30.0):   # sagged forward about X (the pads' normal): the base's +Y edge drops
+        x, y, z, w = Rotation.from_euler("x", deg, degrees=True).as_quat()
+        want = 0.45 - 0.85 * params["radius"] * math.sin(math.radians(deg))
+        assert bottom_low((0.3, 0.2, 0.45), (w, x, y, z), params) == pytest.approx(want, abs=2e-4)
+
+
+def test_rolling_about_the_touching_edge_stands_the_pitcher_up_and_keeps_the_edge():
+    """A pitcher hanging 28 deg forward in the hand, its front edge on the table: the hand's point
+    rolled about that edge lands where the grasp of the upright pitcher is (down and back)."""
+    from scipy.spatial.transform import Rotation
+
+    from stages.demos.pour_place import base_contact, roll_about
+
+    params = PITCHERS[1]
+    home = np.array([1.0, 2.0, 0.43])
+    grip_local = np.array([0.0, -0.11, 0.16])    # the hand's point in the pitcher frame (handle on -Y here)
+    tilt = Rotation.from_euler("x", -28.0, degrees=True)  # top towards +Y: the front (+Y) edge lowest
+    x, y, z, w = tilt.as_quat()
+    edge_local = np.array([0.0, 0.85 * params["radius"], 0.0])
+    pos = home + edge_local - tilt.apply(edge_local)      # tilted about the front edge, which stays
+    low, local = base_contact(pos, (w, x, y, z), params)
+    assert np.allclose(local, edge_local, atol=1e-3) and np.allclose(low, home + edge_local, atol=1e-3)
+    hand = pos + tilt.apply(grip_local)
+    up = tilt.apply([0.0, 0.0, 1.0])
+    assert np.allclose(roll_about(low, up, hand), home + grip_local, atol=1e-3)
+    half = roll_about(low, up, hand, 0.5)                 # half the turn: on the arc about the edge
+    assert np.linalg.norm(half - low) == pytest.approx(np.linalg.norm(hand - low))
+    assert half[2] < hand[2] and half[1] < hand[1]
