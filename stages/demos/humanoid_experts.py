@@ -70,13 +70,16 @@ def _wait(n: int = 1) -> Generator[int, None, None]:
 
 
 def walk_to(h: Any, goal: tuple[float, float, float], cfg: WalkConfig, *, path: np.ndarray | None = None,
-            grid: Any = None, until: Any = None) -> Generator[int, None, None]:
-    """Walk (locomotion mode) along ``path`` (or an A* path on ``grid``) to ``goal`` = (x, y, yaw),
-    or until ``until()`` holds; ExpertFailure("no_path" | "not_reached" | "fell")."""
+            grid: Any = None, straight: bool = False, until: Any = None) -> Generator[int, None, None]:
+    """Walk (locomotion mode) along ``path`` (``straight``: the line from where the base stands; else
+    an A* path on ``grid``) to ``goal`` = (x, y, yaw), or until ``until()`` holds;
+    ExpertFailure("no_path" | "not_reached" | "fell")."""
     from stages.demos.planner import NoPathError, PathFollower, plan_path
 
     x, y, yaw = h.base_pose()
-    if path is None:
+    if straight:
+        path = np.array([[x, y], goal[:2]])
+    elif path is None:
         try:
             path = plan_path(grid, (x, y), goal[:2], cfg.radius)
         except NoPathError as e:
@@ -162,14 +165,12 @@ def close_drawer(h: Any, inst: Any, cfg: DrawerPushConfig = DrawerPushConfig()) 
     hand_b = np.linalg.inv(_base_matrix(h)) @ h.ee_pose(cfg.arm)
     h.set_ee_target(cfg.arm, hand_b, frame="base")
     end_hand = handle_closed + out * (cfg.overshoot - contact)
-    x, y, _ = h.base_pose()
     offset = _yaw_rot(yaw) @ np.array([hand_b[0, 3], hand_b[1, 3], 0.0])
     base_end = end_hand - offset
-    path = np.array([[x, y], base_end[:2]])
     push_walk = WalkConfig(**{**cfg.walk.__dict__, "v_max": cfg.push_speed, "timeout_s": 8.0})
     closed = lambda: h.joint_value(part.joint_path) - part.closed < 0.005  # noqa: E731
     try:
-        yield from walk_to(h, (float(base_end[0]), float(base_end[1]), yaw), push_walk, path=path,
+        yield from walk_to(h, (float(base_end[0]), float(base_end[1]), yaw), push_walk, straight=True,
                            until=closed)
     except ExpertFailure as e:
         if e.reason != "not_reached":
@@ -245,8 +246,7 @@ def close_leaf(h: Any, inst: Any, cfg: LeafPushConfig | None = None) -> Generato
     if cfg.back > 0.0:
         pre = base - out * cfg.back
         yield from walk_to(h, (float(pre[0]), float(pre[1]), yaw), cfg.walk, grid=inst.world.grid())
-        x, y, _ = h.base_pose()
-        yield from walk_to(h, (float(base[0]), float(base[1]), yaw), cfg.walk, path=np.array([[x, y], base[:2]]))
+        yield from walk_to(h, (float(base[0]), float(base[1]), yaw), cfg.walk, straight=True)
     else:
         yield from walk_to(h, (float(base[0]), float(base[1]), yaw), cfg.walk, grid=inst.world.grid())
     h.set_mode(MANIPULATION)
@@ -362,9 +362,7 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
         h.set_ee_target(arm, t, frame="base")
     h.set_mode(MANIPULATION)
     yield from _wait(int(1.5 / h.dt))
-    x, y, _ = h.base_pose()
-    yield from walk_to(h, (float(base1[0]), float(base1[1]), yaw), cfg.walk,
-                       path=np.array([[x, y], base1[:2]]))
+    yield from walk_to(h, (float(base1[0]), float(base1[1]), yaw), cfg.walk, straight=True)
 
     h.set_mode(MANIPULATION)
     yield from _wait(10)
@@ -398,7 +396,7 @@ def pick_place_hand(h: Any, inst: Any, cfg: HandPickConfig = HandPickConfig()) -
     shift[2] = 0.0
     base2 = np.array([x, y, 0.0]) + shift
     carry = WalkConfig(**{**cfg.walk.__dict__, "v_max": cfg.side_speed, "timeout_s": 10.0})
-    yield from walk_to(h, (float(base2[0]), float(base2[1]), yaw), carry, path=np.array([[x, y], base2[:2]]))
+    yield from walk_to(h, (float(base2[0]), float(base2[1]), yaw), carry, straight=True)
     h.set_mode(MANIPULATION)
     yield from _wait(10)
     p = np.asarray(h.object_pose(obj).position, float)
