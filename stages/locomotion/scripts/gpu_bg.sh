@@ -11,15 +11,14 @@
 # ignores carried and committed checkpoints. `poll` copies 6 files (the result limit counts files);
 # `end` writes one res.tgz (exported policies, curves, eval.json per run). Session 17 used it for
 # 2 x 1,400 s on an H100: G1 terrain 3,308 -> 4,613 and H1 1,573 -> 3,448 PPO iterations.
-R=$PWD; P=$R/stages/locomotion/policies
+R=$PWD
 case "$1" in
 start)
   . stages/locomotion/scripts/gpu_setup.sh || exit $?
   export AGENTWORLD_SHARED_ASSETS=$R/.loco/assets
   nvidia-smi -L
   F=0; [ "$3" = fresh ] && F=1
-  IG=$P/g1_velocity/checkpoint.pt; [ $F = 0 ] && [ -f $P/g1_terrain/checkpoint.pt ] && IG=$P/g1_terrain/checkpoint.pt
-  IH=; [ $F = 0 ] && [ -f $P/h1_velocity/checkpoint.pt ] && IH=$P/h1_velocity/checkpoint.pt
+  IG=$(committed_init terrain $F); IH=$(committed_init h1 $F)
   start_in $HOME/ck_terrain $R/.loco/ckpt_terrain $F "$IG" || exit $?
   start_in $HOME/ck_h1 $R/.loco/ckpt_h1 $F "${IH:-a fresh policy}" || exit $?
   setsid nohup python3 -m stages.locomotion.cli train --terrain --arm-reach --num-worlds 4096 --iterations 100000 \

@@ -27,9 +27,9 @@ fi
 [ -f "$AGENTWORLD_SHARED_ASSETS/$MJCF" ] || { echo "NO H1 MJCF: carry .loco/assets/$MJCF (see the header)"; exit 7; }
 echo "H1 model: $AGENTWORLD_SHARED_ASSETS/$MJCF"
 CK=$HOME/ck_h1
-INIT=; [ "${5:-resume}" != scratch ] && [ -f $R/stages/locomotion/policies/h1_velocity/checkpoint.pt ] && \
-  INIT=$R/stages/locomotion/policies/h1_velocity/checkpoint.pt
-start_in $CK $R/.loco/ckpt_h1 $([ "${5:-resume}" = scratch ] && echo 1 || echo 0) "${INIT:-a fresh policy}" || exit $?
+F=$([ "${5:-resume}" = scratch ] && echo 1 || echo 0)
+INIT=$(committed_init h1 $F)
+start_in $CK $R/.loco/ckpt_h1 $F "${INIT:-a fresh policy}" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --robot h1 --num-worlds ${2:-4096} --iterations 100000 \
   --max-wall-s ${1:-420} --save-every 50 --print-every 10 --checkpoint-dir $CK ${INIT:+--init-from $INIT} > $CK/stdout.log 2>&1

@@ -28,3 +28,15 @@ start_in() {
   chmod -R u+w $1
   local m; m=$(newest $1); echo "start: ${m:-$4 (no checkpoint carried or left here)}"
 }
+# `committed_init RUN FRESH`: the committed checkpoint a RUN (terrain | h1) starts from when no carried or
+# earlier checkpoint is there: terrain: policies/g1_terrain, else (or FRESH=1) the flat policies/g1_velocity;
+# h1: policies/h1_velocity, or nothing (a fresh policy) with FRESH=1 or when none is committed.
+committed_init() {
+  local P=$R/stages/locomotion/policies
+  case $1 in
+    terrain) if [ "$2" != 1 ] && [ -f $P/g1_terrain/checkpoint.pt ]; then echo $P/g1_terrain/checkpoint.pt
+             else echo $P/g1_velocity/checkpoint.pt; fi;;
+    h1) [ "$2" != 1 ] && [ -f $P/h1_velocity/checkpoint.pt ] && echo $P/h1_velocity/checkpoint.pt;;
+  esac
+  return 0
+}

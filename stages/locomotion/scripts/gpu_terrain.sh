@@ -17,10 +17,9 @@ R=$PWD
 T0=$(date +%s)
 . stages/locomotion/scripts/gpu_setup.sh || exit $?
 CK=$HOME/ck_terrain
-INIT=$R/stages/locomotion/policies/g1_velocity/checkpoint.pt
-[ "${5:-resume}" != flat ] && [ -f $R/stages/locomotion/policies/g1_terrain/checkpoint.pt ] && \
-  INIT=$R/stages/locomotion/policies/g1_terrain/checkpoint.pt
-start_in $CK $R/.loco/ckpt_terrain $([ "${5:-resume}" = flat ] && echo 1 || echo 0) "$INIT" || exit $?
+F=$([ "${5:-resume}" = flat ] && echo 1 || echo 0)
+INIT=$(committed_init terrain $F)
+start_in $CK $R/.loco/ckpt_terrain $F "$INIT" || exit $?
 nvidia-smi -L
 python3 -m stages.locomotion.cli train --terrain --arm-reach --num-worlds ${2:-4096} --iterations 100000 \
   --max-wall-s ${1:-380} --save-every 50 --print-every 10 --checkpoint-dir $CK \
