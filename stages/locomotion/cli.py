@@ -70,12 +70,24 @@ def train_main(argv: list[str]) -> int:
                         "leaves them out there)")
     p.add_argument("--arm-reach", action="store_true", help="arm targets over the wide reach ranges "
                                                             "(counter-height reaching) instead of +-0.6 rad")
+    p.add_argument("--track-lin-vel", type=float, default=1.0, help="linear velocity tracking reward weight")
+    p.add_argument("--track-ang-vel", type=float, default=1.0, help="yaw rate tracking reward weight")
+    p.add_argument("--tracking-std", type=float, default=0.5,
+                   help="std of the tracking reward kernels [m/s, rad/s]: smaller rewards small errors' removal more")
+    p.add_argument("--terrain-kinds", default="0.4,0.2,0.4",
+                   help="shares of flat / threshold / stairs worlds with --terrain")
     a = p.parse_args(argv)
+    try:
+        kinds = tuple(float(x) for x in a.terrain_kinds.split(","))
+    except ValueError:
+        p.error(f"--terrain-kinds must be 3 comma-separated numbers, got {a.terrain_kinds!r}")
     a.checkpoint_dir = a.checkpoint_dir or f"out/locomotion/{a.robot}_velocity"
     env = EnvConfig(robot=a.robot, num_worlds=a.num_worlds, device=a.device, seed=a.seed,
                     cuda_graph=not a.no_graph,
-                    terrain=TerrainConfig(enabled=a.terrain),
-                    rewards=RewardWeights(foot_clearance=a.foot_clearance if a.terrain else 0.0,
+                    terrain=TerrainConfig(enabled=a.terrain, kinds=kinds),
+                    rewards=RewardWeights(track_lin_vel=a.track_lin_vel, track_ang_vel=a.track_ang_vel,
+                                          tracking_std=a.tracking_std,
+                                          foot_clearance=a.foot_clearance if a.terrain else 0.0,
                                           ang_vel_xy=a.ang_vel_xy if a.terrain else 0.0),
                     randomization=Randomization(arm_reach=a.arm_reach))
     cfg = TrainConfig(env=env, ppo=PPOConfig(), iterations=a.iterations, max_wall_s=a.max_wall_s,

@@ -11,6 +11,7 @@
 # ignores carried and committed checkpoints. `poll` copies 6 files (the result limit counts files);
 # `end` writes one res.tgz (exported policies, curves, eval.json per run). Session 17 used it for
 # 2 x 1,400 s on an H100: G1 terrain 3,308 -> 4,613 and H1 1,573 -> 3,448 PPO iterations.
+# TERRAIN_ARGS / H1_ARGS (environment of `start`) are appended to each run's loco-train line (e.g. "--track-ang-vel 2 --terrain-kinds 0.5,0.2,0.3", "--tracking-std 0.35").
 R=$PWD
 case "$1" in
 start)
@@ -23,11 +24,11 @@ start)
   start_in $HOME/ck_h1 $R/.loco/ckpt_h1 $F "${IH:-a fresh policy}" || exit $?
   setsid nohup python3 -m stages.locomotion.cli train --terrain --arm-reach --num-worlds 4096 --iterations 100000 \
     --max-wall-s ${2:-1400} --save-every 50 --print-every 10 --checkpoint-dir $HOME/ck_terrain \
-    --init-from $IG > $HOME/ck_terrain/stdout.log 2>&1 < /dev/null &
+    --init-from $IG $TERRAIN_ARGS > $HOME/ck_terrain/stdout.log 2>&1 < /dev/null &
   echo $! > $HOME/terrain.pid
   setsid nohup python3 -m stages.locomotion.cli train --robot h1 --num-worlds 4096 --iterations 100000 \
     --max-wall-s ${2:-1400} --save-every 50 --print-every 10 --checkpoint-dir $HOME/ck_h1 \
-    ${IH:+--init-from $IH} > $HOME/ck_h1/stdout.log 2>&1 < /dev/null &
+    ${IH:+--init-from $IH} $H1_ARGS > $HOME/ck_h1/stdout.log 2>&1 < /dev/null &
   echo $! > $HOME/h1.pid
   echo "started terrain $(cat $HOME/terrain.pid), h1 $(cat $HOME/h1.pid)";;
 poll)
