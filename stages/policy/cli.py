@@ -12,6 +12,7 @@ import json
 import logging
 import os
 import sys
+import time
 from pathlib import Path
 
 
@@ -115,8 +116,17 @@ def eval_main(argv: list[str]) -> int:
         print(f"agentworld eval: {e}", file=sys.stderr)
         return 2
     console = _eval_logging(a.out, a.verbose)
+    total, done, t0 = len(cfg.tasks) * len(cfg.seeds) * len(cfg.scenes), [0, 0], time.perf_counter()
+
+    def progress(rec) -> None:  # one console line per finished episode (eval.log has the same)
+        done[0] += 1
+        done[1] += rec.success
+        print(f"eval: [{done[0]}/{total}] {rec.task} seed {rec.seed} {rec.scene}: "
+              f"{'success' if rec.success else 'failed ' + (rec.reason or '')} ({rec.sim_seconds:.1f} s simulated; "
+              f"{done[1]} successes so far; {time.perf_counter() - t0:.0f} s)", file=console, flush=True)
+
     try:
-        res = evaluate(cfg, a.out, work_dir=a.work)
+        res = evaluate(cfg, a.out, work_dir=a.work, episode_listeners=[progress])
     except (ValueError, FileNotFoundError) as e:
         print(f"agentworld eval: {e}", file=console)
         return 2
