@@ -52,3 +52,67 @@ def test_table_lists_trained_runs_with_their_held_out_success(driver, tmp_path):
 def test_table_of_no_trained_run_is_written_empty(driver, tmp_path):
     assert driver.main(["table", "--runs", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 0
     assert json.loads((tmp_path / "out" / "table.json").read_text()) == []
+
+
+def _part(scene: str, results: list[tuple[bool, str]]) -> dict:
+    """An eval.json of one kitchen as ``agentworld eval`` writes it (the keys the merge reads)."""
+    eps = [{"task": "push_object", "scene": scene, "seed": k, "world": k, "success": ok, "reason": why,
+            "frames": 30, "sim_seconds": 1.0, "video": ""} for k, (ok, why) in enumerate(results)]
+    n, s = len(eps), sum(ok for ok, _ in results)
+    fails: dict = {}
+    for ok, why in results:
+        if not ok:
+            fails[why] = fails.get(why, 0) + 1
+    row = {"episodes": n, "successes": s, "success_rate": round(s / n, 4), "failures": fails}
+    return {"checkpoint": "/c", "policy": {"type": "act"}, "device": "cuda", "worlds": n, "scenes": [scene],
+            "seeds": list(range(n)), "held_out": {"checked": True, "seen_scenes": [], "training_scenes": ["k0"]},
+            "tasks": {"push_object": row}, "families": {"push_pull": row}, "overall": row, "episodes": eps,
+            "runner": {"model_calls": 10, "chunks": 20}, "engine": [{"steps": 1}], "wall_seconds": 100.0 + n}
+
+
+def test_per_kitchen_reports_merge_into_the_runs_report():
+    from stages.policy.evalmerge import merge_reports
+
+    a = _part("kitchen_ws101", [(True, ""), (False, "object not moved"), (False, "object not moved")])
+    b = _part("kitchen_ws102", [(False, "object not moved"), (False, "fell over"), (True, "")])
+    b["checkpoint"] = "/c"
+    r = merge_reports([a, b])
+    assert r["overall"] == {"episodes": 6, "successes": 2, "success_rate": 0.3333,
+                            "failures": {"fell over": 1, "object not moved": 3}}
+    assert r["tasks"]["push_object"] == r["families"]["push_pull"] == r["overall"]
+    assert r["scenes"] == ["kitchen_ws101", "kitchen_ws102"] and len(r["episodes"]) == 6
+    assert r["runner"] == {"model_calls": 20, "chunks": 40} and r["wall_seconds"] == 103.0
+    assert [p["successes"] for p in r["parts"]] == [1, 1] and r["held_out"]["checked"]
+    b["checkpoint"] = "/other"
+    with pytest.raises(ValueError, match="different checkpoints"):
+        merge_reports([a, b])
+    with pytest.raises(ValueError, match="no eval.json parts"):
+        merge_reports([])
+
+
+def test_default_eval_limit_is_a_multiple_of_the_experts_median_episode(driver, tmp_path):
+    """A dataset of three push_object episodes of 30, 60 and 150 frames at 30 fps (median 2 s): the
+    default limit is 1.5 x 2 s, at most the task's 20 s; without a dataset, the task's limit."""
+    from stages.dataset import DatasetSpec, EpisodeInfo, merge_shards, open_shard
+    from stages.dataset.synthetic import synthetic_frame
+    from stages.demos.tasks import task
+
+    spec = DatasetSpec(cameras=())
+    with open_shard(tmp_path / "shards", "s0", spec) as shard:
+        for e, n in enumerate((30, 60, 150)):
+            shard.begin_episode(EpisodeInfo(task="push the mug", task_kind="push_object", scene_id="k", seed=e))
+            for i in range(n):
+                shard.add_frame(synthetic_frame(spec, 0, e, i))
+            shard.end_episode(success=True)
+    ds = merge_shards(tmp_path / "shards", tmp_path / "ds").root
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "train.json").write_text(json.dumps({"config": {"dataset": str(ds)}}))
+    limit, why = driver._default_max_seconds(run, "push_object", 1.5)
+    assert limit == pytest.approx(3.0) and "median episode 2.0 s (3 training episodes)" in why
+    task_limit = task("push_object").max_seconds
+    assert driver._default_max_seconds(run, "push_object", 100.0)[0] == pytest.approx(task_limit)
+    assert driver._default_max_seconds(run, "open_drawer", 1.5)[0] is None  # no such episode: the task's
+    (run / "train.json").write_text("{}")
+    assert driver._default_max_seconds(run, "push_object", 1.5) == (
+        None, f"the task's limit {task_limit:.0f} s (no training dataset in train.json)")
