@@ -116,3 +116,77 @@ def test_default_eval_limit_is_a_multiple_of_the_experts_median_episode(driver, 
     (run / "train.json").write_text("{}")
     assert driver._default_max_seconds(run, "push_object", 1.5) == (
         None, f"the task's limit {task_limit:.0f} s (no training dataset in train.json)")
+
+
+TINY_ACT = ("--policy.dim_model=32", "--policy.dim_feedforward=64", "--policy.n_heads=2",
+            "--policy.n_encoder_layers=1", "--policy.latent_dim=8")
+
+
+@pytest.mark.slow  # about 2.5 min on 2 shared cores (data job, 2 trainings, 1 eval process)
+def test_all_records_rgb_only_trains_evaluates_and_packs_one_archive(tmp_path):
+    """``all`` at CPU scale on a data job of one kitchen, two push_object episodes, RGB only
+    (record_depth = false): every phase runs, the dataset has no depth column, ACT trains 3 steps,
+    the held-out eval runs its checkpoint, and one tgz holds the table, eval.json and logs."""
+    import subprocess
+    import sys
+    import tarfile
+
+    pytest.importorskip("newton")
+    pytest.importorskip("lerobot")
+    from kitchen_testutil import KITCHEN, PACKAGES
+
+    job = tmp_path / "tiny.toml"
+    job.write_text(f"""[job]
+name = "tiny_all"
+seed = 0
+out = "{tmp_path / 'unused'}"
+executor = "inline"
+workers = 1
+[[step]]
+name = "catalog"
+kind = "default_catalog"
+[step.config]
+variants = 5
+categories = {json.dumps(list(KITCHEN))}
+[[step]]
+name = "assets"
+kind = "ingest"
+[step.config]
+catalog_step = "catalog"
+only = {json.dumps(list(PACKAGES))}
+[[step]]
+name = "push_pull"
+kind = "demos"
+[step.config]
+tasks = ["push_object"]
+episodes_per_shard = 2
+batch_worlds = 2
+width = 64
+height = 48
+record_depth = false
+""")
+    work, out = tmp_path / "work", tmp_path / "out"
+    cmd = [sys.executable, str(SCRIPT), "all", "--seconds", "1200", "--work", str(work), "--out", str(out),
+           "--job", str(job), "--device", "cpu", "--policy", "act", "--probe-steps", "2", "--max-steps", "3",
+           "--num-workers", "0", *(f"--act-arg={x}" for x in TINY_ACT), "--scenes", "6", "--seeds", "9",
+           "--max-seconds", "0.5", "--jobs", "1", "--eval-seconds", "400", "--min-train-seconds", "100"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=1500, env={**__import__("os").environ,
+                                                                                  "OMP_NUM_THREADS": "1"})
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    info = json.loads((work / "data" / "datasets" / "push_pull" / "meta" / "info.json").read_text())
+    assert not [k for k in info["features"] if k.startswith("depth.")]
+    assert "observation.images.head" in info["features"]
+    phases = json.loads((work / "all.json").read_text())["phases"]
+    assert [phases[p]["exit"] for p in ("data", "train", "eval", "done")] == [0, 0, 0, 0]
+    log = (work / "all.log").read_text()
+    assert "eval [1/1] push_pull_act kitchen_ws6: 0/1 successes" in log or "1/1 successes" in log
+    with tarfile.open(out / "policies_all.tgz") as tar:
+        names = set(tar.getnames())
+        rows = json.loads(tar.extractfile("results/table.json").read())
+        merged = json.loads(tar.extractfile("runs/push_pull_act/eval/eval.json").read())
+    assert {"all.log", "all.json", "runs/push_pull_act/train.json", "runs/push_pull_act/eval/ws6/eval.json",
+            "results/table.md", "logs/data.log"} <= names
+    assert [(r["policy"], r["steps"], r["episodes"]) for r in rows] == [("act", 3, 1)]
+    (ep,) = merged["episodes"]
+    assert (ep["scene"], ep["seed"], ep["frames"]) == ("kitchen_ws6", 9, 15)
+    assert merged["overall"]["successes"] + sum(merged["overall"]["failures"].values()) == 1
