@@ -190,3 +190,9 @@ record_depth = false
     (ep,) = merged["episodes"]
     assert (ep["scene"], ep["seed"], ep["frames"]) == ("kitchen_ws6", 9, 15)
     assert merged["overall"]["successes"] + sum(merged["overall"]["failures"].values()) == 1
+
+
+def test_data_loader_workers_share_the_cores_left_by_the_runs(driver, monkeypatch):
+    monkeypatch.setattr(driver.os, "cpu_count", lambda: 16)
+    assert [driver._num_workers(n, None) for n in (1, 3, 6, 12, 20)] == [4, 4, 2, 1, 1]
+    assert driver._num_workers(6, 0) == 0  # asked: as asked

@@ -3,9 +3,10 @@
 Run from the repository root on the GPU machine after ``. tests/benchmarks/gpu_env.sh``. Everything
 in one call, under one wall budget (launch it with ``setsid nohup`` and poll ``WORK/all.log``)::
 
-    setsid nohup python3 stages/policy/scripts/gpu_policies.py all --seconds 1500 --work $HOME/pa --out $OUT \
-        > $HOME/pa.out 2>&1 &
-    tail -n 20 $HOME/pa/all.log; cat $HOME/pa/all.json          # poll; then $OUT/policies_all.tgz
+    W=$HOME/pa; mkdir -p $W
+    setsid nohup python3 stages/policy/scripts/gpu_policies.py all --seconds 1500 --work $W > $W.out 2>&1 < /dev/null &
+    tail -n 20 $W/all.log; cat $W/all.json             # poll (later calls)
+    cp $W/policies_all.tgz $OUT/                       # once all.json has the phase "done"
 
 or phase by phase (a call may run 10 minutes)::
 
@@ -33,12 +34,14 @@ work dir with its runner state copied and the catalog linked.
 plus each run's curve and train.json, copied to ``--out``.
 
 ``all``: the data job (``--job``, default jobs/policies_gpu1.toml, into ``WORK/data``; stopped when
-less than ``--eval-seconds`` + ``--min-train-seconds`` + 60 s would be left), then ``train`` with
-what is left minus the eval reserve (a policy whose lerobot module does not import is skipped with
-one line), ``eval`` (processes still running 60 s before the end are stopped; their kitchens are
-listed as missing), ``table`` into ``WORK/results``, and one ``OUT/policies_all.tgz`` (table, each
-run's train.json / curve / eval.json / logs, the data job's reports, ``all.log``, ``all.json``
-with each phase's seconds; rollout videos while it stays under 12 MiB).
+less than the eval reserve ``--eval-seconds`` (default 0.3 x ``--seconds``, 240-900 s) +
+``--min-train-seconds`` + 60 s would be left), then ``train`` with what is left minus the eval
+reserve (a policy whose lerobot module does not import is skipped with one line), ``eval``
+(processes still running 60 s before the end are stopped; their kitchens are listed as missing),
+``table`` into ``WORK/results``, and one ``policies_all.tgz`` in ``--out`` (default WORK: a later
+device call copies it to its $OUT) with the table, each run's train.json / curve / eval.json (merged
+and per kitchen) / logs, the data job's reports, ``all.log`` and ``all.json`` (each phase's
+seconds); rollout videos while it stays under 12 MiB.
 """
 
 from __future__ import annotations
@@ -90,10 +93,12 @@ def _runs(data: Path | None, runs: Path, policies: tuple[str, ...] = POLICIES) -
 
 def _num_workers(n_runs: int, asked: int | None) -> int:
     """Data loader workers per training run: ``asked``, or the cores left after one per run's main
-    process, shared by the runs (at most 4, at least 1)."""
+    process, shared by the runs, rounded up (1-4: 16 cores, 6 runs -> 2; 3 runs -> 4). A worker
+    decodes a batch of 16 samples (3 cameras, 128x96, pyav) in about 0.3 s on a loaded CPU core;
+    ``data_s`` in a run's curve.csv says whether the GPU waited for data."""
     if asked is not None:
         return asked
-    return max(1, min(4, ((os.cpu_count() or 1) - n_runs) // max(1, n_runs)))
+    return max(1, min(4, -(-((os.cpu_count() or 1) - n_runs) // max(1, n_runs))))
 
 
 def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus: list[str],
@@ -452,7 +457,7 @@ def run_all(a) -> int:
         print(f"all [{time.perf_counter() - t_start:.0f} s, {left():.0f} s left] {phase}: "
               f"{' '.join(f'{k}={v}' for k, v in kw.items())}", flush=True)
 
-    eval_s = a.eval_seconds if a.eval_seconds is not None else min(900.0, max(240.0, 0.25 * a.seconds))
+    eval_s = a.eval_seconds if a.eval_seconds is not None else min(900.0, max(240.0, 0.3 * a.seconds))
     tail_s = 60.0  # table and the archive
     status("start", job=str(a.job), work=str(work), eval_reserve_s=eval_s)
     t = time.perf_counter()
@@ -527,11 +532,11 @@ def main(argv: list[str] | None = None) -> int:
     al = sub.add_parser("all", help="data job, training, eval and table under one wall budget; one tgz in --out")
     al.add_argument("--seconds", type=float, required=True, help="wall budget of everything [s]")
     al.add_argument("--work", type=Path, required=True, help="work folder (data/, runs/, results/, all.log)")
-    al.add_argument("--out", type=Path, required=True, help="where policies_all.tgz goes (the device's $OUT)")
+    al.add_argument("--out", type=Path, default=None, help="where policies_all.tgz goes (default WORK)")
     al.add_argument("--job", type=Path, default=REPO / "jobs" / "policies_gpu1.toml", help="the data job")
     al.add_argument("--policy", action="append", choices=POLICIES, default=None, help="default both")
     al.add_argument("--eval-seconds", type=float, default=None,
-                    help="reserve of the eval phase [s] (default a quarter of --seconds, 240-900 s)")
+                    help="reserve of the eval phase [s] (default 0.3 x --seconds, 240-900 s)")
     al.add_argument("--min-train-seconds", type=float, default=300.0,
                     help="the data job stops when less than this would be left to training [s]")
     for name, kw in (("--probe-steps", {"type": int, "default": 100}), ("--max-steps", {"type": int, "default": None}),
@@ -547,6 +552,7 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if a.cmd == "all":
         a.policy = tuple(a.policy or POLICIES)
+        a.out = a.out or a.work
     return {"train": train, "eval": evaluate, "table": table, "all": run_all}[a.cmd](a)
 
 
