@@ -196,3 +196,29 @@ def test_data_loader_workers_share_the_cores_left_by_the_runs(driver, monkeypatc
     monkeypatch.setattr(driver.os, "cpu_count", lambda: 16)
     assert [driver._num_workers(n, None) for n in (1, 3, 6, 12, 20)] == [4, 4, 2, 1, 1]
     assert driver._num_workers(6, 0) == 0  # asked: as asked
+
+
+def test_eval_processes_run_capped_and_are_stopped_at_the_deadline(driver, monkeypatch, tmp_path, capsys):
+    """The scheduler of ``eval``: at most ``cap`` processes at once, a line per finished one, those
+    still running at the deadline stopped and those not started listed (real processes that sleep)."""
+    import subprocess
+    import sys
+    import time
+
+    started = []
+
+    def launch(argv, device, log, threads=None):
+        started.append((argv[0], time.perf_counter()))
+        return subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({argv[0]})"])
+
+    monkeypatch.setattr(driver, "_launch", launch)
+    jobs = [{"argv": [str(s)], "device": "cpu", "log": tmp_path / f"{k}.log", "name": f"job{k}",
+             "out": tmp_path / f"o{k}"} for k, s in enumerate((0.1, 60, 0.1, 60))]
+    t0 = time.perf_counter()
+    done = driver._run_all(jobs, 2, deadline=t0 + 6.0)
+    assert time.perf_counter() - t0 < 40
+    rc = {j["name"]: j["rc"] for j in done}
+    assert rc == {"job0": 0, "job1": "stopped at the deadline", "job2": 0, "job3": "stopped at the deadline"}
+    assert [a for a, _ in started] == ["0.1", "60", "0.1", "60"]  # job2 waited for a free slot
+    out = capsys.readouterr().out
+    assert "eval [1/4] job0: no eval.json, exit 0" in out and "job3: no eval.json, exit stopped at the deadline" in out

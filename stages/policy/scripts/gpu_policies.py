@@ -263,7 +263,8 @@ def _run_all(jobs: list[dict], cap: int, deadline: float | None) -> list[dict]:
             j["rc"], j["wall"] = rc, time.perf_counter() - j["t0"]
             done.append(j)
             print(f"eval [{len(done)}/{len(jobs)}] {j['name']}: {_result_of(j['out'])}, exit {rc}, "
-                  f"{j['wall']:.0f} s ({len(running)} running, {len(pending)} waiting)", flush=True)
+                  f"{j['wall']:.0f} s ({len(running)} running, {len(pending)} waiting)"
+                  f"{'' if rc == 0 else '; log ' + str(j['log'])}", flush=True)
         if late:
             for j in pending:
                 j["rc"], j["wall"] = "not started before the deadline", 0.0
