@@ -167,7 +167,7 @@ record_depth = false
 """)
     work, out = tmp_path / "work", tmp_path / "out"
     cmd = [sys.executable, str(SCRIPT), "all", "--seconds", "1200", "--work", str(work), "--out", str(out),
-           "--job", str(job), "--device", "cpu", "--policy", "act", "--probe-steps", "2", "--max-steps", "3",
+           "--job", str(job), "--device", "cpu", "--policy", "act", "--probe-steps", "0", "--max-steps", "3",
            "--num-workers", "0", *(f"--act-arg={x}" for x in TINY_ACT), "--scenes", "6", "--seeds", "9",
            "--max-seconds", "0.5", "--jobs", "1", "--eval-seconds", "400", "--min-train-seconds", "100"]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=1500, env={**__import__("os").environ,

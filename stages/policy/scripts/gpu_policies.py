@@ -20,7 +20,10 @@ or phase by phase (a call may run 10 minutes)::
 GPUs, each with ``--num-workers`` data loader workers (default: the cores left after one per run,
 shared by the runs, 1-4). A probe of ``--probe-steps`` steps per run (same placement, so the same
 contention) measures seconds per step; the real runs then get as many steps as fit in
-``--seconds`` (start-up measured by the probe subtracted).
+``--seconds`` (start-up measured by the probe subtracted). ``--probe-steps 0`` (``all``'s default):
+no probe; every run trains until ``--seconds`` - 30 s and saves the step it reached
+(``train-policy --max-seconds``; at most ``--max-steps``, default 100,000, whose learning-rate
+schedule Diffusion Policy's cosine follows), which saves the probe's start-up (~90 s on the GPU).
 
 ``eval``: every (run, held-out kitchen) is its own ``agentworld eval`` process with as many engine
 worlds as the kitchen's episodes (``--seeds``), at most ``--jobs`` at once (all on the GPUs, round
@@ -35,8 +38,8 @@ plus each run's curve and train.json, copied to ``--out``.
 
 ``all``: the data job (``--job``, default jobs/policies_gpu1.toml, into ``WORK/data``; stopped when
 less than the eval reserve ``--eval-seconds`` (default 0.3 x ``--seconds``, 240-900 s) +
-``--min-train-seconds`` + 60 s would be left), then ``train`` with what is left minus the eval
-reserve (a policy whose lerobot module does not import is skipped with one line), ``eval``
+``--min-train-seconds`` + 60 s would be left), then ``train`` (no probe) with what is left minus
+the eval reserve (a policy whose lerobot module does not import is skipped with one line), ``eval``
 (processes still running 60 s before the end are stopped; their kitchens are listed as missing),
 ``table`` into ``WORK/results``, and one ``policies_all.tgz`` in ``--out`` (default WORK: a later
 device call copies it to its $OUT) with the table, each run's train.json / curve / eval.json (merged
@@ -102,9 +105,11 @@ def _num_workers(n_runs: int, asked: int | None) -> int:
 
 
 def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus: list[str],
-               extra: dict[str, list[str]], workers: int | None = None) -> dict[str, float]:
+               extra: dict[str, list[str]], workers: int | None = None,
+               max_seconds: float | None = None) -> dict[str, float]:
     """Start one train-policy per (family, policy of ``steps``) with ``steps[policy]`` steps
-    (``probe``: into ``RUNS/.probe_<family>_<policy>``); wait; wall [s] per run folder."""
+    (``probe``: into ``RUNS/.probe_<family>_<policy>``; ``max_seconds``: each stops then [s],
+    saving the step reached); wait; wall [s] per run folder."""
     procs = {}
     todo = _runs(data, runs, tuple(steps))
     workers = _num_workers(len(todo), workers)
@@ -113,7 +118,9 @@ def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus:
         shutil.rmtree(out, ignore_errors=True)
         argv = ["train-policy", str(data / "datasets" / fam), "--policy", pol, "--out", str(out),
                 "--steps", str(steps[pol]), "--device", gpus[0].split(":")[0], "--num-workers", str(workers),
-                "--log-freq", str(max(1, min(100, steps[pol] // 10))), *extra[pol]]
+                "--log-freq", str(max(1, min(100 if max_seconds is None else 50, steps[pol] // 10))), *extra[pol]]
+        if max_seconds is not None:
+            argv += ["--max-seconds", f"{max_seconds:.0f}"]
         procs[out] = (time.perf_counter(), _launch(argv, gpus[k % len(gpus)], runs / "logs" / f"{out.name}.log"))
     walls = {}
     for out, (t0, p) in procs.items():
@@ -141,6 +148,16 @@ def train(a) -> int:
     extra = {"act": [f"--lerobot-arg={x}" for x in a.act_arg],
              "diffusion": [f"--lerobot-arg={x}" for x in a.diffusion_arg]}
     t0 = time.perf_counter()
+    if a.probe_steps == 0:  # no probe: every run trains until the budget's end, then saves
+        cap, wall = a.max_steps or 100_000, max(10.0, a.seconds - 30.0)  # 30 s: the checkpoint, exit
+        print(f"train: no probe; every run stops after {wall:.0f} s (at most {cap} steps)", flush=True)
+        (runs / "plan.json").write_text(json.dumps({"mode": "deadline", "max_seconds": wall, "steps_cap": cap,
+                                                    "gpus": gpus, "num_workers": _num_workers(
+                                                        len(_runs(a.data, runs, policies)), workers)}, indent=2))
+        _train_all(a.data, runs, {p: cap for p in policies}, False, gpus, extra, workers, max_seconds=wall)
+        ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs, policies))
+        print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
+        return 0 if ok else 1
     walls = _train_all(a.data, runs, {p: a.probe_steps for p in policies}, True, gpus, extra, workers)
     plan: dict[str, list] = {}
     for fam, pol, _ in _runs(a.data, runs, policies):
@@ -505,7 +522,8 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--data", type=Path, required=True, help="the policies_gpu4 job's work dir")
     t.add_argument("--runs", type=Path, required=True)
     t.add_argument("--seconds", type=float, default=900.0, help="wall budget of the phase, probe included [s]")
-    t.add_argument("--probe-steps", type=int, default=100)
+    t.add_argument("--probe-steps", type=int, default=100,
+                   help="steps of the probe that times a step (0: no probe; every run stops at --seconds)")
     t.add_argument("--max-steps", type=int, default=None, help="at most this many steps per run")
     t.add_argument("--act-arg", action="append", default=[], help="a lerobot-train argument for ACT runs")
     t.add_argument("--diffusion-arg", action="append", default=[], help="... for Diffusion Policy runs")
@@ -540,7 +558,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="reserve of the eval phase [s] (default 0.3 x --seconds, 240-900 s)")
     al.add_argument("--min-train-seconds", type=float, default=300.0,
                     help="the data job stops when less than this would be left to training [s]")
-    for name, kw in (("--probe-steps", {"type": int, "default": 100}), ("--max-steps", {"type": int, "default": None}),
+    for name, kw in (("--probe-steps", {"type": int, "default": 0}), ("--max-steps", {"type": int, "default": None}),
                      ("--num-workers", {"type": int, "default": None}),
                      ("--act-arg", {"action": "append", "default": []}),
                      ("--diffusion-arg", {"action": "append", "default": []}),
