@@ -122,7 +122,7 @@ TINY_ACT = ("--policy.dim_model=32", "--policy.dim_feedforward=64", "--policy.n_
             "--policy.n_encoder_layers=1", "--policy.latent_dim=8")
 
 
-@pytest.mark.slow  # about 2.5 min on 2 shared cores (data job, 2 trainings, 1 eval process)
+@pytest.mark.slow  # 86-149 s on 2 shared cores (data job, a training, 1 eval process)
 def test_all_records_rgb_only_trains_evaluates_and_packs_one_archive(tmp_path):
     """``all`` at CPU scale on a data job of one kitchen, two push_object episodes, RGB only
     (record_depth = false): every phase runs, the dataset has no depth column, ACT trains 3 steps,
