@@ -405,9 +405,11 @@ class _Tee:
 
 
 def _policy_importable(pol: str) -> str | None:
-    """None if lerobot's ``pol`` policy imports, else the last line of the error."""
-    mod = {"act": "lerobot.policies.act.modeling_act", "diffusion": "lerobot.policies.diffusion.modeling_diffusion"}
-    r = subprocess.run([sys.executable, "-c", f"import {mod[pol]}"], capture_output=True, text=True, cwd=REPO)
+    """None if lerobot's ``pol`` policy and what it needs import, else the last line of the error
+    (lerobot's diffusion module imports without diffusers; its training then fails)."""
+    mods = {"act": "lerobot.policies.act.modeling_act",
+            "diffusion": "lerobot.policies.diffusion.modeling_diffusion, diffusers"}
+    r = subprocess.run([sys.executable, "-c", f"import {mods[pol]}"], capture_output=True, text=True, cwd=REPO)
     return None if r.returncode == 0 else ((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
 
 
