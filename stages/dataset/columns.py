@@ -79,14 +79,19 @@ def frame_images(images: Images, row: int, copy: bool = False) -> tuple[dict, di
 
 
 def _images_ok(spec: DatasetSpec, images: Images) -> bool:
-    """Every spec camera's RGB and depth, and nothing else, in the shapes and dtypes a frame needs."""
-    if set(images) != {c.name for c in spec.cameras} or not all(c.rgb and c.depth for c in spec.cameras):
+    """Every spec camera's RGB (and depth where the camera records it; None where it does not),
+    and nothing else, in the shapes and dtypes a frame needs."""
+    if set(images) != {c.name for c in spec.cameras} or not all(c.rgb for c in spec.cameras):
         return False
     for c in spec.cameras:
         rgb, depth = images[c.name]
         if not (isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.shape[1:] == (c.height, c.width, 3)):
             return False
-        if not (isinstance(depth, np.ndarray) and depth.dtype == np.uint16 and depth.shape[1:] == (c.height, c.width)):
+        if not c.depth:
+            if depth is not None:
+                return False
+        elif not (isinstance(depth, np.ndarray) and depth.dtype == np.uint16
+                  and depth.shape[1:] == (c.height, c.width)):
             return False
     return True
 

@@ -61,6 +61,7 @@ class MixedParams(_Strict):
     fps: int
     device: str
     record_images: bool
+    record_depth: bool = True
     batch_worlds: int
     program_procs: int = 0
     program_wait: float | None = None
@@ -198,7 +199,7 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
                           subtasks=any(t in MULTISTAGE for t in params.tasks),
                           device=params.device, record_images=params.record_images,
-                          max_seconds=params.max_seconds,
+                          record_depth=params.record_depth, max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),

@@ -159,6 +159,8 @@ class FrameCapture:
         e = self.e
         t0 = time.perf_counter()
         images = {bid: r.wait() for bid, r in self._renders.items()}  # RGB uint8, depth [mm] uint16
+        if not getattr(e.config, "record_depth", True):  # RGB-only recording: the frames carry no depth
+            images = {bid: {c: (im[0], None) for c, im in ims.items()} for bid, ims in images.items()}
         self._renders.clear()
         t1 = time.perf_counter()
         pending, self._pending = self._pending, None

@@ -9,5 +9,8 @@ Public surface (heavy packages load inside the functions, never on import):
 - ``evaluate.EvalConfig`` / ``evaluate.evaluate``: the policy drives the batched engine's worlds in
   held-out kitchens; success per task and family with failure reasons, rollout videos, ``eval.json``
   (``agentworld eval``);
+- ``evalmerge.merge_reports`` / ``evalmerge.typical_seconds``: one report from per-kitchen
+  ``eval.json`` parts (the device driver's parallel evaluation); the expert's median episode length
+  of a task in a dataset (the driver's default episode limit);
 - ``cli``: the two commands.
 """

@@ -12,6 +12,7 @@ import json
 import logging
 import os
 import sys
+import time
 from pathlib import Path
 
 
@@ -45,6 +46,8 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--num-workers", type=int, default=4)
     p.add_argument("--log-freq", type=int, default=100)
     p.add_argument("--save-freq", type=int, default=20_000)
+    p.add_argument("--max-seconds", type=float, default=None,
+                   help="stop after this wall time [s], saving the step reached (default: all --steps)")
     p.add_argument("--lerobot-arg", action="append", default=[], metavar="--KEY=VALUE",
                    help="a further lerobot-train argument (repeatable), e.g. --lerobot-arg=--policy.dim_model=256")
     a = p.parse_args(argv)
@@ -52,14 +55,15 @@ def train_main(argv: list[str]) -> int:
         cfg = TrainConfig(policy=a.policy, dataset=a.dataset, out=a.out, steps=a.steps, batch_size=a.batch_size,
                           chunk_size=a.chunk_size, temporal_ensemble=None if a.no_ensemble else 0.01,
                           device=a.device, seed=a.seed, num_workers=a.num_workers, log_freq=a.log_freq,
-                          save_freq=a.save_freq, extra_args=tuple(a.lerobot_arg))
+                          save_freq=a.save_freq, extra_args=tuple(a.lerobot_arg), max_seconds=a.max_seconds)
         print(f"train-policy: {a.policy} on {a.dataset} ({a.steps} steps, {a.device}); log {a.out / 'train.log'}",
               flush=True)
         res = train_policy(cfg)
     except (ValueError, FileExistsError, FileNotFoundError, RuntimeError) as e:
         print(f"agentworld train-policy: {e}", file=sys.stderr)
         return 2
-    print(f"train-policy: {res.steps} steps in {res.wall_seconds:.0f} s wall, last loss {res.last_loss}; "
+    print(f"train-policy: {res.steps} steps{' (stopped at --max-seconds)' if res.stopped else ''} in "
+          f"{res.wall_seconds:.0f} s wall, last loss {res.last_loss}; "
           f"checkpoint {res.checkpoint}; curve {res.curve_png}")
     return 0
 
@@ -115,8 +119,17 @@ def eval_main(argv: list[str]) -> int:
         print(f"agentworld eval: {e}", file=sys.stderr)
         return 2
     console = _eval_logging(a.out, a.verbose)
+    total, done, t0 = len(cfg.tasks) * len(cfg.seeds) * len(cfg.scenes), [0, 0], time.perf_counter()
+
+    def progress(rec) -> None:  # one console line per finished episode (eval.log has the same)
+        done[0] += 1
+        done[1] += rec.success
+        print(f"eval: [{done[0]}/{total}] {rec.task} seed {rec.seed} {rec.scene}: "
+              f"{'success' if rec.success else 'failed ' + (rec.reason or '')} ({rec.sim_seconds:.1f} s simulated; "
+              f"{done[1]} successes so far; {time.perf_counter() - t0:.0f} s)", file=console, flush=True)
+
     try:
-        res = evaluate(cfg, a.out, work_dir=a.work)
+        res = evaluate(cfg, a.out, work_dir=a.work, episode_listeners=[progress])
     except (ValueError, FileNotFoundError) as e:
         print(f"agentworld eval: {e}", file=console)
         return 2

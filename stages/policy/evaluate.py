@@ -155,7 +155,8 @@ class Evaluator:
 
     ``observers``: functions ``f(world, frame, observation)`` called with what the policy was given
     (tests compare it with the recorded frames); ``frame_listeners``: ``f(world, frame)`` with each
-    recorded :class:`~stages.dataset.Frame`."""
+    recorded :class:`~stages.dataset.Frame`; ``episode_listeners``: ``f(record)`` with each
+    finished episode's :class:`EpisodeRecord` (progress)."""
 
     def __init__(self, engine, runner, cfg: EvalConfig, world, out: Path, video_quota: Counter) -> None:
         self.engine, self.runner, self.cfg, self.world, self.out = engine, runner, cfg, world, Path(out)
@@ -163,6 +164,7 @@ class Evaluator:
         self.records: list[EpisodeRecord] = []
         self.observers: list = []
         self.frame_listeners: list = []
+        self.episode_listeners: list = []
         self._active: set[int] = set()
         self._episodes: dict[int, _Episode] = {}
         self._cache: dict[int, np.ndarray] = {}
@@ -188,8 +190,8 @@ class Evaluator:
             try:
                 inst = sample_instance(name, self.world, seed)
             except ItemError as e:
-                self.records.append(EpisodeRecord(task=name, scene=self.world.scene_id, seed=seed, world=w,
-                                                  success=False, reason=f"no instance: {e}", frames=0, sim_seconds=0.0))
+                self._record(EpisodeRecord(task=name, scene=self.world.scene_id, seed=seed, world=w,
+                                           success=False, reason=f"no instance: {e}", frames=0, sim_seconds=0.0))
                 continue
             limit = self.cfg.max_seconds if self.cfg.max_seconds is not None else task(name).max_seconds
             self._episodes[w] = _Episode(inst=inst, limit=float(limit))
@@ -217,11 +219,16 @@ class Evaluator:
         ep = self._episodes.pop(w)
         path = ep.video.close() if ep.video is not None else None
         video = "" if path is None else str(path)
-        self.records.append(EpisodeRecord(task=ticket.task, scene=self.world.scene_id, seed=ticket.seed, world=w,
-                                          success=bool(res.success), reason=res.reason, frames=res.frames,
-                                          sim_seconds=round(res.sim_seconds, 3), video=video))
-        log.info("eval: %s seed %d (%s, world %d): %s %s", ticket.task, ticket.seed, self.world.scene_id, w,
-                 "success" if res.success else "failed", res.reason)
+        self._record(EpisodeRecord(task=ticket.task, scene=self.world.scene_id, seed=ticket.seed, world=w,
+                                   success=bool(res.success), reason=res.reason, frames=res.frames,
+                                   sim_seconds=round(res.sim_seconds, 3), video=video))
+
+    def _record(self, rec: EpisodeRecord) -> None:
+        self.records.append(rec)
+        log.info("eval: %s seed %d (%s, world %d): %s %s", rec.task, rec.seed, rec.scene, rec.world,
+                 "success" if rec.success else "failed", rec.reason)
+        for f in self.episode_listeners:
+            f(rec)
 
     # -- a world's program: the policy drives the episode -----------------------------------------
     def _act(self, inst, drv) -> None:
@@ -316,8 +323,9 @@ class EvalResult:
 
 
 def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observers=(),
-             frame_listeners=()) -> EvalResult:
-    """Evaluate ``cfg.checkpoint`` (see the module docstring); writes ``out/eval.json`` and the videos."""
+             frame_listeners=(), episode_listeners=()) -> EvalResult:
+    """Evaluate ``cfg.checkpoint`` (see the module docstring); writes ``out/eval.json`` and the videos.
+    ``episode_listeners``: ``f(record)`` with each finished episode (:class:`Evaluator`)."""
     from stages.engine import BatchEngine, EngineConfig
 
     from .runner import BatchedRunner, load_policy
@@ -345,6 +353,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
         ev = Evaluator(engine, runner, cfg, world, out, quota)
         ev.observers.extend(observers)
         ev.frame_listeners.extend(frame_listeners)
+        ev.episode_listeners.extend(episode_listeners)
         records += ev.run(episodes)
         engine_stats.append(engine.stats.to_json())
     report = summarize(cfg, records, held, loaded, runner, time.perf_counter() - t0, engine_stats)

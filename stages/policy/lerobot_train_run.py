@@ -1,4 +1,4 @@
-"""``python -m stages.policy.lerobot_train_run CURVE.csv -- <lerobot-train arguments>``.
+"""``python -m stages.policy.lerobot_train_run CURVE.csv [--deadline T] -- <lerobot-train arguments>``.
 
 Runs lerobot's own training entry point (``lerobot.scripts.lerobot_train:main``, what the
 ``lerobot-train`` command runs) with the given arguments, in this process, offline. One addition: a
@@ -7,11 +7,17 @@ row to ``CURVE.csv``: step, samples, epochs, loss and the policy's sub-losses, g
 learning rate, update and data-loading time per step [s], and the wall time since start [s].
 (lerobot's console line rounds the step to thousands, "step:2K"; the tracker has the exact values.)
 It is a filter of the root logger, which lerobot's ``init_logging`` keeps (it replaces handlers).
+
+``--deadline T`` (Unix time [s]): the first step that ends at or after T is a checkpoint step
+(lerobot saves it and points ``checkpoints/last`` at it), and training stops before the next update;
+``CURVE.csv``'s folder then gets ``stopped.json`` (the step reached). Two of lerobot-train's module
+functions are wrapped for this (``should_save_checkpoint``, ``update_policy``); nothing else changes.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import logging
 import os
 import sys
@@ -60,10 +66,39 @@ class CurveFilter(logging.Filter):
             w.writerow(row)
 
 
+class _Deadline(Exception):
+    """Raised before the update after the deadline's checkpoint step (ends the training loop)."""
+
+
+def install_deadline(lerobot_train, deadline: float, stopped: Path) -> None:
+    """Make the first step ending at or after ``deadline`` (Unix time [s]) a checkpoint step and stop
+    before the next update, writing ``stopped`` ({"step", "deadline"}); see the module docstring."""
+    state: dict = {"step": None}
+    save, update = lerobot_train.should_save_checkpoint, lerobot_train.update_policy
+
+    def should_save_checkpoint(step, save_freq, total_steps):
+        if state["step"] is None and step < total_steps and time.time() >= deadline:
+            state["step"] = step
+            return True
+        return save(step, save_freq, total_steps)
+
+    def update_policy(*args, **kwargs):
+        if state["step"] is not None:
+            stopped.write_text(json.dumps({"step": state["step"], "deadline": deadline}) + "\n")
+            raise _Deadline
+        return update(*args, **kwargs)
+
+    lerobot_train.should_save_checkpoint = should_save_checkpoint
+    lerobot_train.update_policy = update_policy
+
+
 def main(argv: list[str]) -> int:
+    deadline = None
+    if len(argv) >= 4 and argv[1] == "--deadline":
+        deadline, argv = float(argv[2]), [argv[0], *argv[3:]]
     if len(argv) < 2 or argv[1] != "--":
-        print("usage: python -m stages.policy.lerobot_train_run CURVE.csv -- <lerobot-train arguments>",
-              file=sys.stderr)
+        print("usage: python -m stages.policy.lerobot_train_run CURVE.csv [--deadline UNIX_TIME] -- "
+              "<lerobot-train arguments>", file=sys.stderr)
         return 2
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
     os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
@@ -71,9 +106,15 @@ def main(argv: list[str]) -> int:
 
     curve = Path(argv[0])
     curve.unlink(missing_ok=True)
+    (curve.parent / "stopped.json").unlink(missing_ok=True)
     logging.getLogger().addFilter(CurveFilter(curve))
+    if deadline is not None:
+        install_deadline(lerobot_train, deadline, curve.parent / "stopped.json")
     sys.argv = ["lerobot-train", *argv[2:]]
-    lerobot_train.main()
+    try:
+        lerobot_train.main()
+    except _Deadline:
+        logging.info("stopped at the deadline after step %s", json.loads((curve.parent / "stopped.json").read_text()))
     return 0
 
 

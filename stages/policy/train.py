@@ -46,7 +46,9 @@ class TrainConfig:
     ACT's temporal ensembling coefficient (None: no ensembling, ``n_action_steps`` = chunk);
     device: "cuda", "cuda:N" or "cpu"; seed: lerobot's seed; num_workers: data loader workers;
     log_freq: steps per curve point; save_freq: steps per checkpoint; extra_args: more
-    lerobot-train arguments (``--policy.dim_model=64``)."""
+    lerobot-train arguments (``--policy.dim_model=64``); max_seconds: stop after this wall time [s]
+    (from the start of :func:`train_policy`), saving the checkpoint of the step reached (None: run
+    all ``steps``; the learning-rate schedule is still that of ``steps``)."""
 
     policy: str
     dataset: Path
@@ -61,6 +63,7 @@ class TrainConfig:
     log_freq: int = 100
     save_freq: int = 20_000
     extra_args: tuple[str, ...] = field(default_factory=tuple)
+    max_seconds: float | None = None
 
     def __post_init__(self) -> None:
         problems = []
@@ -69,6 +72,8 @@ class TrainConfig:
         for name in ("steps", "batch_size", "chunk_size", "log_freq", "save_freq"):
             if getattr(self, name) < 1:
                 problems.append(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.max_seconds is not None and not self.max_seconds > 0:
+            problems.append(f"max_seconds must be > 0 [s] or None, got {self.max_seconds}")
         if self.num_workers < 0:
             problems.append(f"num_workers must be >= 0, got {self.num_workers}")
         bad = [a for a in self.extra_args if not a.startswith("--")]
@@ -82,7 +87,8 @@ class TrainConfig:
 class TrainResult:
     """checkpoint: the last checkpoint's ``pretrained_model`` folder; curve_csv / curve_png;
     wall_seconds: the training subprocess's wall time [s]; steps; last_loss (the last curve
-    point's loss, None without one); command: the lerobot-train arguments."""
+    point's loss, None without one); command: the lerobot-train arguments; stopped: training was
+    stopped at ``max_seconds`` (``steps`` is then the step reached)."""
 
     checkpoint: Path
     curve_csv: Path
@@ -91,6 +97,7 @@ class TrainResult:
     steps: int
     last_loss: float | None
     command: tuple[str, ...]
+    stopped: bool = False
 
 
 def lerobot_args(cfg: TrainConfig) -> list[str]:
@@ -128,7 +135,8 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
         raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
     out.mkdir(parents=True)
     args = lerobot_args(cfg)
-    cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), "--", *args]
+    deadline = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
+    cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), *deadline, "--", *args]
     env = dict(os.environ, HF_HUB_OFFLINE="1", TQDM_DISABLE="1", HF_DATASETS_DISABLE_PROGRESS_BARS="1")
     repo = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = os.pathsep.join([repo, *filter(None, [env.get("PYTHONPATH")])])
@@ -146,10 +154,13 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
 
     png = plot_curve(out / "curve.csv", out / "curve.png")
     last = float(rows[-1]["loss"]) if rows and rows[-1].get("loss") else None
+    stop = out / "stopped.json"
+    steps = int(json.loads(stop.read_text())["step"]) if stop.is_file() else cfg.steps
     res = TrainResult(checkpoint=ckpt, curve_csv=out / "curve.csv", curve_png=png, wall_seconds=round(wall, 2),
-                      steps=cfg.steps, last_loss=last, command=("lerobot-train", *args))
+                      steps=steps, last_loss=last, command=("lerobot-train", *args), stopped=stop.is_file())
     summary = {"config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
-               "checkpoint": str(ckpt), "wall_seconds": res.wall_seconds, "steps": cfg.steps,
+               "checkpoint": str(ckpt), "wall_seconds": res.wall_seconds, "steps": steps,
+               "steps_planned": cfg.steps, "stopped_at_max_seconds": res.stopped,
                "curve_points": len(rows), "last_loss": last, "command": list(res.command)}
     (out / "train.json").write_text(json.dumps(summary, indent=2) + "\n")
     return res

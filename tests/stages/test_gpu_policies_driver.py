@@ -52,3 +52,173 @@ def test_table_lists_trained_runs_with_their_held_out_success(driver, tmp_path):
 def test_table_of_no_trained_run_is_written_empty(driver, tmp_path):
     assert driver.main(["table", "--runs", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 0
     assert json.loads((tmp_path / "out" / "table.json").read_text()) == []
+
+
+def _part(scene: str, results: list[tuple[bool, str]]) -> dict:
+    """An eval.json of one kitchen as ``agentworld eval`` writes it (the keys the merge reads)."""
+    eps = [{"task": "push_object", "scene": scene, "seed": k, "world": k, "success": ok, "reason": why,
+            "frames": 30, "sim_seconds": 1.0, "video": ""} for k, (ok, why) in enumerate(results)]
+    n, s = len(eps), sum(ok for ok, _ in results)
+    fails: dict = {}
+    for ok, why in results:
+        if not ok:
+            fails[why] = fails.get(why, 0) + 1
+    row = {"episodes": n, "successes": s, "success_rate": round(s / n, 4), "failures": fails}
+    return {"checkpoint": "/c", "policy": {"type": "act"}, "device": "cuda", "worlds": n, "scenes": [scene],
+            "seeds": list(range(n)), "held_out": {"checked": True, "seen_scenes": [], "training_scenes": ["k0"]},
+            "tasks": {"push_object": row}, "families": {"push_pull": row}, "overall": row, "episodes": eps,
+            "runner": {"model_calls": 10, "chunks": 20}, "engine": [{"steps": 1}], "wall_seconds": 100.0 + n}
+
+
+def test_per_kitchen_reports_merge_into_the_runs_report():
+    from stages.policy.evalmerge import merge_reports
+
+    a = _part("kitchen_ws101", [(True, ""), (False, "object not moved"), (False, "object not moved")])
+    b = _part("kitchen_ws102", [(False, "object not moved"), (False, "fell over"), (True, "")])
+    b["checkpoint"] = "/c"
+    r = merge_reports([a, b])
+    assert r["overall"] == {"episodes": 6, "successes": 2, "success_rate": 0.3333,
+                            "failures": {"fell over": 1, "object not moved": 3}}
+    assert r["tasks"]["push_object"] == r["families"]["push_pull"] == r["overall"]
+    assert r["scenes"] == ["kitchen_ws101", "kitchen_ws102"] and len(r["episodes"]) == 6
+    assert r["runner"] == {"model_calls": 20, "chunks": 40} and r["wall_seconds"] == 103.0
+    assert [p["successes"] for p in r["parts"]] == [1, 1] and r["held_out"]["checked"]
+    b["checkpoint"] = "/other"
+    with pytest.raises(ValueError, match="different checkpoints"):
+        merge_reports([a, b])
+    with pytest.raises(ValueError, match="no eval.json parts"):
+        merge_reports([])
+
+
+def test_default_eval_limit_is_a_multiple_of_the_experts_median_episode(driver, tmp_path):
+    """A dataset of three push_object episodes of 30, 60 and 150 frames at 30 fps (median 2 s): the
+    default limit is 1.5 x 2 s, at most the task's 20 s; without a dataset, the task's limit."""
+    from stages.dataset import DatasetSpec, EpisodeInfo, merge_shards, open_shard
+    from stages.dataset.synthetic import synthetic_frame
+    from stages.demos.tasks import task
+
+    spec = DatasetSpec(cameras=())
+    with open_shard(tmp_path / "shards", "s0", spec) as shard:
+        for e, n in enumerate((30, 60, 150)):
+            shard.begin_episode(EpisodeInfo(task="push the mug", task_kind="push_object", scene_id="k", seed=e))
+            for i in range(n):
+                shard.add_frame(synthetic_frame(spec, 0, e, i))
+            shard.end_episode(success=True)
+    ds = merge_shards(tmp_path / "shards", tmp_path / "ds").root
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "train.json").write_text(json.dumps({"config": {"dataset": str(ds)}}))
+    limit, why = driver._default_max_seconds(run, "push_object", 1.5)
+    assert limit == pytest.approx(3.0) and "median episode 2.0 s (3 training episodes)" in why
+    task_limit = task("push_object").max_seconds
+    assert driver._default_max_seconds(run, "push_object", 100.0)[0] == pytest.approx(task_limit)
+    assert driver._default_max_seconds(run, "open_drawer", 1.5)[0] is None  # no such episode: the task's
+    (run / "train.json").write_text("{}")
+    assert driver._default_max_seconds(run, "push_object", 1.5) == (
+        None, f"the task's limit {task_limit:.0f} s (no training dataset in train.json)")
+
+
+TINY_ACT = ("--policy.dim_model=32", "--policy.dim_feedforward=64", "--policy.n_heads=2",
+            "--policy.n_encoder_layers=1", "--policy.latent_dim=8")
+
+
+@pytest.mark.slow  # 86-149 s on 2 shared cores (data job, a training, 1 eval process)
+def test_all_records_rgb_only_trains_evaluates_and_packs_one_archive(tmp_path):
+    """``all`` at CPU scale on a data job of one kitchen, two push_object episodes, RGB only
+    (record_depth = false): every phase runs, the dataset has no depth column, ACT trains 3 steps,
+    the held-out eval runs its checkpoint, and one tgz holds the table, eval.json and logs."""
+    import subprocess
+    import sys
+    import tarfile
+
+    pytest.importorskip("newton")
+    pytest.importorskip("lerobot")
+    from kitchen_testutil import KITCHEN, PACKAGES
+
+    job = tmp_path / "tiny.toml"
+    job.write_text(f"""[job]
+name = "tiny_all"
+seed = 0
+out = "{tmp_path / 'unused'}"
+executor = "inline"
+workers = 1
+[[step]]
+name = "catalog"
+kind = "default_catalog"
+[step.config]
+variants = 5
+categories = {json.dumps(list(KITCHEN))}
+[[step]]
+name = "assets"
+kind = "ingest"
+[step.config]
+catalog_step = "catalog"
+only = {json.dumps(list(PACKAGES))}
+[[step]]
+name = "push_pull"
+kind = "demos"
+[step.config]
+tasks = ["push_object"]
+episodes_per_shard = 2
+batch_worlds = 2
+width = 64
+height = 48
+record_depth = false
+""")
+    work, out = tmp_path / "work", tmp_path / "out"
+    cmd = [sys.executable, str(SCRIPT), "all", "--seconds", "1200", "--work", str(work), "--out", str(out),
+           "--job", str(job), "--device", "cpu", "--policy", "act", "--probe-steps", "0", "--max-steps", "3",
+           "--num-workers", "0", *(f"--act-arg={x}" for x in TINY_ACT), "--scenes", "6", "--seeds", "9",
+           "--max-seconds", "0.5", "--jobs", "1", "--eval-seconds", "400", "--min-train-seconds", "100"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=1500, env={**__import__("os").environ,
+                                                                                  "OMP_NUM_THREADS": "1"})
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    info = json.loads((work / "data" / "datasets" / "push_pull" / "meta" / "info.json").read_text())
+    assert not [k for k in info["features"] if k.startswith("depth.")]
+    assert "observation.images.head" in info["features"]
+    phases = json.loads((work / "all.json").read_text())["phases"]
+    assert [phases[p]["exit"] for p in ("data", "train", "eval", "done")] == [0, 0, 0, 0]
+    log = (work / "all.log").read_text()
+    assert "eval [1/1] push_pull_act kitchen_ws6: 0/1 successes" in log or "1/1 successes" in log
+    with tarfile.open(out / "policies_all.tgz") as tar:
+        names = set(tar.getnames())
+        rows = json.loads(tar.extractfile("results/table.json").read())
+        merged = json.loads(tar.extractfile("runs/push_pull_act/eval/eval.json").read())
+    assert {"all.log", "all.json", "runs/push_pull_act/train.json", "runs/push_pull_act/eval/ws6/eval.json",
+            "results/table.md", "logs/data.log"} <= names
+    assert [(r["policy"], r["steps"], r["episodes"]) for r in rows] == [("act", 3, 1)]
+    (ep,) = merged["episodes"]
+    assert (ep["scene"], ep["seed"], ep["frames"]) == ("kitchen_ws6", 9, 15)
+    assert merged["overall"]["successes"] + sum(merged["overall"]["failures"].values()) == 1
+
+
+def test_data_loader_workers_share_the_cores_left_by_the_runs(driver, monkeypatch):
+    monkeypatch.setattr(driver.os, "cpu_count", lambda: 16)
+    assert [driver._num_workers(n, None) for n in (1, 3, 6, 12, 20)] == [4, 4, 2, 1, 1]
+    assert driver._num_workers(6, 0) == 0  # asked: as asked
+
+
+def test_eval_processes_run_capped_and_are_stopped_at_the_deadline(driver, monkeypatch, tmp_path, capsys):
+    """The scheduler of ``eval``: at most ``cap`` processes at once, a line per finished one, those
+    still running at the deadline stopped and those not started listed (real processes that sleep)."""
+    import subprocess
+    import sys
+    import time
+
+    started = []
+
+    def launch(argv, device, log, threads=None):
+        started.append((argv[0], time.perf_counter()))
+        return subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({argv[0]})"])
+
+    monkeypatch.setattr(driver, "_launch", launch)
+    jobs = [{"argv": [str(s)], "device": "cpu", "log": tmp_path / f"{k}.log", "name": f"job{k}",
+             "out": tmp_path / f"o{k}"} for k, s in enumerate((0.1, 60, 0.1, 60))]
+    t0 = time.perf_counter()
+    done = driver._run_all(jobs, 2, deadline=t0 + 6.0)
+    assert time.perf_counter() - t0 < 40
+    rc = {j["name"]: j["rc"] for j in done}
+    assert rc == {"job0": 0, "job1": "stopped at the deadline", "job2": 0, "job3": "stopped at the deadline"}
+    assert [a for a, _ in started] == ["0.1", "60", "0.1", "60"]  # job2 waited for a free slot
+    out = capsys.readouterr().out
+    assert "eval [1/4] job0: no eval.json, exit 0" in out and "job3: no eval.json, exit stopped at the deadline" in out

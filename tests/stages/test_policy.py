@@ -169,3 +169,19 @@ def test_agentworld_eval_refuses_a_kitchen_the_policy_was_trained_in(trained_act
         held_out_check(cfg)
     assert held_out_check(EvalConfig(checkpoint=trained_act.checkpoint, tasks=("push_object",), scenes=(5,),
                                      seeds=(1,), allow_seen=True))["seen_scenes"] == ["kitchen_ws5"]
+
+
+def test_train_policy_stops_at_max_seconds_and_saves_the_step_reached(policy_dataset, tmp_path):
+    """A run of 100,000 planned steps with a 1 s wall limit: start-up alone takes longer, so the first
+    step is the last; its checkpoint is saved and is the evaluable one."""
+    from stages.policy.train import TrainConfig, train_policy
+
+    cfg = TrainConfig(policy="act", dataset=policy_dataset, out=tmp_path / "run", steps=100_000, batch_size=2,
+                      chunk_size=10, device="cpu", num_workers=0, log_freq=1, extra_args=TINY["act"],
+                      max_seconds=1.0)
+    res = train_policy(cfg, timeout=600)
+    assert (res.steps, res.stopped) == (1, True)
+    assert (res.checkpoint / "model.safetensors").is_file() and res.checkpoint.resolve().parent.name == "000001"
+    summary = json.loads((tmp_path / "run" / "train.json").read_text())
+    assert (summary["steps"], summary["steps_planned"], summary["stopped_at_max_seconds"]) == (1, 100_000, True)
+    assert [int(r["step"]) for r in csv.DictReader(res.curve_csv.open())] == [1]
