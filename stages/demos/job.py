@@ -70,7 +70,9 @@ class DemosConfig(_Strict):
     episodes per item; width, height: camera image size [px]; fps; device: "cpu" or "cuda";
     record_images: False writes state/action only (no camera is rendered: a fast success-rate
     run); record_depth: with record_images, each camera's lossless depth too (False: RGB only, a
-    fraction of the bytes: no policy of stages/policy reads depth); batch_worlds: worlds of the batched engine per item (one model of that many worlds on
+    fraction of the bytes: no policy of stages/policy reads depth); video_gop: keyframe interval
+    of the RGB videos [frames] (30: small files; 2: lerobot's, random access while training decodes
+    at most one extra frame per sample instead of about 15); batch_worlds: worlds of the batched engine per item (one model of that many worlds on
     CUDA, one MuJoCo C model each on CPU); program_procs: worker processes for the experts'
     planning and IK of an item's engine (0: threads; needs the batched layout, i.e. CUDA);
     program_wait: with program_procs, seconds the engine waits for planning experts before it
@@ -105,6 +107,7 @@ class DemosConfig(_Strict):
     device: str = "cpu"
     record_images: bool = True
     record_depth: bool = True
+    video_gop: int = Field(default=30, ge=1, le=300)
     batch_worlds: int = Field(default=1, ge=1, le=4096)
     program_procs: int = Field(default=0, ge=0, le=256)
     program_wait: float | None = Field(default=None, ge=0.0, le=60.0)
@@ -188,6 +191,7 @@ class ShardParams(_Strict):
     panda_root: str | None = None
     record_images: bool = True
     record_depth: bool = True
+    video_gop: int = 30
     batch_worlds: int = 1
     program_procs: int = 0
     program_wait: float | None = None
@@ -283,7 +287,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 episodes_per_task=config.episodes_per_task, max_sim_seconds=config.max_sim_seconds,
                 max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
                 device=config.item_device(w), record_images=config.record_images,
-                record_depth=config.record_depth, batch_worlds=config.batch_worlds, program_procs=config.program_procs, program_wait=config.program_wait,
+                record_depth=config.record_depth, video_gop=config.video_gop, batch_worlds=config.batch_worlds, program_procs=config.program_procs, program_wait=config.program_wait,
                 writer_procs=config.writer_procs, generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
         return items
@@ -293,6 +297,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  episodes=config.episodes_per_shard, width=config.width, height=config.height,
                                  fps=config.fps, device=config.item_device(w),
                                  record_images=config.record_images, record_depth=config.record_depth,
+                                 video_gop=config.video_gop,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
                                  program_wait=config.program_wait, writer_procs=config.writer_procs,
                                  max_seconds=config.max_seconds,
@@ -337,7 +342,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
                           subtasks=params.task in MULTISTAGE,
                           device=params.device, record_images=params.record_images,
-                          record_depth=params.record_depth, max_seconds=params.max_seconds,
+                          record_depth=params.record_depth, video_gop=params.video_gop,
+                          max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),

@@ -62,6 +62,7 @@ class MixedParams(_Strict):
     device: str
     record_images: bool
     record_depth: bool = True
+    video_gop: int = 30
     batch_worlds: int
     program_procs: int = 0
     program_wait: float | None = None
@@ -199,7 +200,8 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
     config = EngineConfig(worlds=n, width=params.width, height=params.height, fps=params.fps,
                           subtasks=any(t in MULTISTAGE for t in params.tasks),
                           device=params.device, record_images=params.record_images,
-                          record_depth=params.record_depth, max_seconds=params.max_seconds,
+                          record_depth=params.record_depth, video_gop=params.video_gop,
+                          max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None)
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
