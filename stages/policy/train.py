@@ -48,7 +48,9 @@ class TrainConfig:
     log_freq: steps per curve point; save_freq: steps per checkpoint; extra_args: more
     lerobot-train arguments (``--policy.dim_model=64``); max_seconds: stop after this wall time [s]
     (from the start of :func:`train_policy`), saving the checkpoint of the step reached (None: run
-    all ``steps``; the learning-rate schedule is still that of ``steps``)."""
+    all ``steps``; the learning-rate schedule is still that of ``steps``); frame_cache: a folder where
+    the RGB videos are decoded once and read from by the data loader (:mod:`stages.policy.frame_cache`;
+    None: lerobot's per-sample decoding; runs on one dataset may share it)."""
 
     policy: str
     dataset: Path
@@ -64,6 +66,7 @@ class TrainConfig:
     save_freq: int = 20_000
     extra_args: tuple[str, ...] = field(default_factory=tuple)
     max_seconds: float | None = None
+    frame_cache: Path | None = None
 
     def __post_init__(self) -> None:
         problems = []
@@ -136,6 +139,8 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
     out.mkdir(parents=True)
     args = lerobot_args(cfg)
     deadline = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
+    if cfg.frame_cache is not None:
+        deadline += ["--frame-cache", str(Path(cfg.frame_cache).resolve())]
     cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), *deadline, "--", *args]
     env = dict(os.environ, HF_HUB_OFFLINE="1", TQDM_DISABLE="1", HF_DATASETS_DISABLE_PROGRESS_BARS="1")
     repo = str(Path(__file__).resolve().parents[2])

@@ -33,11 +33,12 @@ TINY = {
 STEPS = 3
 
 
-def _train(policy: str, dataset: Path, out: Path):
+def _train(policy: str, dataset: Path, out: Path, **kw):
     from stages.policy.train import TrainConfig, train_policy
 
+    kw.setdefault("num_workers", 0)
     cfg = TrainConfig(policy=policy, dataset=dataset, out=out, steps=STEPS, batch_size=2, chunk_size=10,
-                      device="cpu", num_workers=0, log_freq=1, extra_args=TINY[policy])
+                      device="cpu", log_freq=1, extra_args=TINY[policy], **kw)
     return train_policy(cfg, timeout=600)
 
 
@@ -54,7 +55,9 @@ def eval_work(kitchen_catalog, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def trained_act(policy_dataset, tmp_path_factory):
-    return _train("act", policy_dataset, tmp_path_factory.mktemp("act") / "run")
+    """ACT trained through the frame cache, read by one data loader worker process."""
+    tmp = tmp_path_factory.mktemp("act")
+    return _train("act", policy_dataset, tmp / "run", num_workers=1, frame_cache=tmp / "frames")
 
 
 def test_our_dataset_gives_lerobot_policies_rgb_cameras_and_no_depth(policy_dataset):
@@ -95,6 +98,8 @@ def test_lerobot_train_trains_act_on_our_dataset(trained_act):
     cfg = json.loads((trained_act.checkpoint / "config.json").read_text())
     assert (cfg["chunk_size"], cfg["n_action_steps"], cfg["temporal_ensemble_coeff"]) == (10, 1, 0.01)
     assert "--policy.pretrained_backbone_weights=null" in trained_act.command
+    frames = trained_act.curve_csv.parent.parent / "frames"  # the frame cache: one file per camera video
+    assert len(list(frames.glob("*.frames.npy"))) == 2
 
 
 def test_lerobot_train_trains_diffusion_policy_on_our_dataset(policy_dataset, tmp_path):

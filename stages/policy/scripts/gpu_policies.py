@@ -121,6 +121,7 @@ def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus:
                 "--log-freq", str(max(1, min(100 if max_seconds is None else 50, steps[pol] // 10))), *extra[pol]]
         if max_seconds is not None:
             argv += ["--max-seconds", f"{max_seconds:.0f}"]
+        argv += ["--frame-cache", str(runs / "frames" / fam)]  # a family's runs decode its videos once
         procs[out] = (time.perf_counter(), _launch(argv, gpus[k % len(gpus)], runs / "logs" / f"{out.name}.log"))
     walls = {}
     for out, (t0, p) in procs.items():
