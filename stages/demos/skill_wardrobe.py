@@ -78,8 +78,6 @@ HOOK_TIP = -0.002       # the pulling hand's tool point aimed this far [m] above
                         # 8-11 mm above a low target, the fingertips ~9 mm below it: they reach under a 2 mm wire's top)
 HOOK_FINGER = 0.010     # the closed fingertips' half thickness along the pull [m] (they drag the hook's inside)
 PUSH_TIP = 0.009        # the closed hand's tool point this far [m] above the rod's middle (its fingertips just clear the blanket)
-CREEP = np.array([0.0, 0.0075, 0.0])  # light things creep on the blanket (+Y in the task frame) [m/s]
-GRASP_LEAD = 1.0        # the neck is aimed where it will be this long [s] after it is read
 PICK_YAW = 0.0          # the pinching hand may point this far off square to the neck, towards the bed [rad]
                         # (35 deg: the lower fingertip met the blanket's edge)
 TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long [s]
@@ -193,7 +191,7 @@ def _pull_out(d, world, hanger, rod: float, cx: float) -> None:
 
     def hook_at(lead: float) -> np.ndarray:  # the hook's centre where it will be in ``lead`` [s] (it creeps)
         pos, rot = _hanger_pose(read_state(d.sim), hanger)
-        c = pos + rot @ np.array([cx, 0.0, rod]) + CREEP * lead
+        c = pos + rot @ np.array([cx, 0.0, rod])
         return np.array([c[0], c[1], z])
 
     down = top_down(0.0)
@@ -366,8 +364,7 @@ def hang_on_rail(inst, d) -> None:
     d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
     _pull_out(d, w, h, rod, cx)
     pos, rot = _hanger_pose(read_state(d.sim), h)
-    # aimed where it will be when the fingers close (it creeps on the blanket: CREEP)
-    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    neck = pos + rot @ np.array([gx, 0.0, rod])
     along = rot @ np.array([0.0, 1.0, 0.0])          # local +Y (the hook's tip side): the approach
     hook_dir = -(rot @ np.array([1.0, 0.0, 0.0]))    # towards the hook
     # turned PICK_YAW in the hanger's plane towards its shoulders (the wrist off the blanket's edge); the
@@ -381,7 +378,7 @@ def hang_on_rail(inst, d) -> None:
     app = grasp[:, 2]  # the approach
     d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
     pos, rot = _hanger_pose(read_state(d.sim), h)
-    neck = pos + rot @ np.array([gx, 0.0, rod]) + CREEP * GRASP_LEAD
+    neck = pos + rot @ np.array([gx, 0.0, rod])
     d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
     d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)

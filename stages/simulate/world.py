@@ -55,7 +55,11 @@ class SolverSettings:
     cuda_graph: on CUDA, replay MuJoCo-Warp's step as a captured CUDA graph (one graph per
     state-buffer parity) instead of launching its kernels one by one from Python; fast_cpu_step: on
     the MuJoCo C library, Newton's step from recorded kernel launches into buffers allocated once (the
-    same states; a teleop frame's 17 steps 43 -> 28 ms of CPU: :mod:`stages.simulate.mujoco_cpu`).
+    same states; a teleop frame's 17 steps 43 -> 28 ms of CPU: :mod:`stages.simulate.mujoco_cpu`);
+    multiccd: MuJoCo's multi-CCD contacts (up to 4 points per convex pair instead of 1; margins zeroed):
+    with one point, light objects on a large hull (a bed's blanket) creep 3-8 mm/s towards the hull's
+    middle; with it they stay put (measured in flat_008's bedroom, issue 16). Off by default (the
+    kitchens' experts were tuned without it).
     """
 
     kind: SolverKind = SolverKind.MUJOCO
@@ -72,6 +76,7 @@ class SolverSettings:
     contact_check_every: int = 250
     cuda_graph: bool = True
     fast_cpu_step: bool = True
+    multiccd: bool = False
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
@@ -503,6 +508,8 @@ def _make_solver(model, s: SolverSettings, device: str, world_count: int, capaci
             nconmax=s.nconmax if s.nconmax is not None or capacity is None else capacity.nconmax,
             disable_sensors=True,
         )
+        if s.multiccd:
+            opts["enable_multiccd"] = True
         return SolverMuJoCo(model, **opts), None, cpu, separate, opts
     pipeline = newton.CollisionPipeline(model)
     if s.kind == SolverKind.FEATHERSTONE:
