@@ -59,6 +59,9 @@ HOOK_TOL = 0.03         # success: the hook's centre this near [m] its resting p
 HANG_TILT = math.radians(30.0)  # success: the hanger's neck within this of vertical (it hangs from the hook)
 PICK_SIDE = 0.20        # the base stands this far [m] along +X from the neck (the hand comes from +X)
 PICK_GAP = 0.22         # ... and its chassis front this far [m] before the blanket's near edge
+LOW_BED = 0.48          # on a blanket lower than this [m] ...
+LOW_GAP = 0.10          # ... the base stands this much further back [m] (the arm folded down to a 0.42 m bed had
+                        # no lifting posture: CLIK jumped branch, flat_018/037)
 HANG_GAP = 0.06         # the chassis front this far [m] before the wardrobe's front
 LEAF_NEAR = 0.12        # a hand this near [m] the open leaf's free edge is first moved on ...
 LEAF_PAST = 0.15        # ... out past it this far [m]
@@ -82,6 +85,10 @@ PICK_YAW = 0.0          # the pinching hand may point this far off square to the
                         # (35 deg: the lower fingertip met the blanket's edge)
 TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long [s]
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
+LIFT_MARGIN = 0.08      # the lift's postures may come this near [rad] their joints' limits (the pinch on a 0.42 m
+                        # bed stands with joint 4 at -150 deg)
+RELEASE_DROP = 0.008    # the closed hand is pressed this far [m] below the hook's rest on the rail before it opens
+RELEASE_CLEAR = 0.012   # ... and the open hand lowered this much more [m] before it backs out
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
 
 
@@ -244,10 +251,10 @@ CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
 WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
 
 
-def _posture(d, target: np.ndarray):
+def _posture(d, target: np.ndarray, margin: float = 0.25):
     """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
-    :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep 0.25 rad from their
-    limits, the nearest the current targets; None if none."""
+    :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep ``margin`` [rad]
+    from their limits, the nearest the current targets; None if none."""
     from stages.simulate.control import Clik
 
     goal = Clik.world_to_root(d.sim.spawn, target)
@@ -261,11 +268,23 @@ def _posture(d, target: np.ndarray):
         q = d.ik.arm_q(r.q)
         if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
             continue
-        if float(np.min(np.minimum(q - lo, hi - q))) < 0.25:
+        if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
         if float(np.abs(q - now).max()) < dist:
             best, dist = q, float(np.abs(q - now).max())
     return best
+
+
+def _joint_move(d, target: np.ndarray, seconds: float) -> None:
+    """The held hanger's hand to ``target`` (4x4, world) in joint space where :func:`_posture` finds a
+    posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by CLIK: CLIK's waypoints
+    after the pinch on a low bed (0.42 m, flat_037) jumped to another branch (joint 6 at 209 deg) and
+    dropped the hanger."""
+    for margin in (0.25, LIFT_MARGIN):
+        if (qa := _posture(d, target, margin)) is not None:
+            _ramp(d, qa, seconds)
+            return
+    d.move(target, seconds, segments=2, carry=True, tol=APPROACH_TOL)
 
 
 def _clear_leaf(d, part, q: float) -> None:
@@ -360,8 +379,15 @@ def hang_on_rail(inst, d) -> None:
     # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod])
-    pick = facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=PICK_GAP)
-    d.drive_to(pick, grid, tuck=stow(d, on_the_way=True))
+    gaps = (PICK_GAP + LOW_GAP, PICK_GAP) if w.table_z < LOW_BED else (PICK_GAP,)
+    for k, gap in enumerate(gaps):  # planned before the base moves: a blocked pose costs no motion
+        try:
+            d.drive_to(facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=gap), grid,
+                       tuck=stow(d, on_the_way=True))
+            break
+        except ExpertFailure as e:
+            if e.reason != "no_path" or k == len(gaps) - 1:
+                raise
     _pull_out(d, w, h, rod, cx)
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod])
@@ -382,9 +408,9 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
     d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)
-    d.move(_pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, segments=2, carry=True)
+    _joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8)
     # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
-    d.move(_pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, segments=2, carry=True, tol=APPROACH_TOL)
+    _joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0)
     if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
         raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
     # --- upright beside the base: hook up, the hand pointing ahead of the base
@@ -395,8 +421,7 @@ def hang_on_rail(inst, d) -> None:
     app = grasp[:, 2]
     side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
     tip = _upright(side) @ in_hanger
-    d.move(_pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0,
-           segments=4, carry=True, tol=APPROACH_TOL)
+    _joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0)
     # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
     # width: carried with its plane along the way, it swept the open door half shut on the way to it);
     # reached in joint space with the wrist rolled (WRIST_SEEDS)
@@ -443,8 +468,14 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(hand_for(c_in), put), 1.2, segments=3, carry=True)
     rest = spot - (hr - rail.radius - 0.003) * up
     d.move(_pose(hand_for(rest), put), 0.8, segments=2, carry=True, settle=0.2)
+    # the hand pressed on down past where the hook rests on the rail (the fingers slide down the neck, off the
+    # boss), so that the opening fingers do not drag the boss along the rail (4 cm in flat_008) ...
+    d.move(_pose(hand_for(rest) - RELEASE_DROP * up, put), 0.6, segments=1, carry=True, settle=0.2)
     d.grip(0.0, 0.6)
-    d.move(_pose(hand_for(rest) + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
+    # ... and lowered clear of it before they back out (backing out under it, they swung the hanger off the rail)
+    low = hand_for(rest) - (RELEASE_DROP + RELEASE_CLEAR) * up
+    d.move(_pose(low, put), 0.5, segments=1)
+    d.move(_pose(low + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
     d.step(0.5)
     bx, by, th = base_pose(d.sim)
     d.drive_straight((bx + 0.2 * f[0], by + 0.2 * f[1], th))
