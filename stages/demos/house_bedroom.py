@@ -151,7 +151,11 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     from stages.demos.skill_wardrobe import PICK_GAP, PICK_SIDE, rail_facts
 
     wr = rs.one("wardrobe", lambda r: r["support"] is None and "low_rail" in rs.asset(r).params)
-    hanger = wr and rs.one("hanger", lambda r: r["support"] == wr["name"] and "neck_stop" in rs.asset(r).params)
+    # of the wardrobe's hangers (2-3), the one with the thickest rod: a wire hanger (1.8-2.5 mm) rolled about its
+    # neck in the pinch (its one-sided boss turned aside and the neck slid: flat_000)
+    hangers = [r for r in rs.mine.values() if r["category"] == "hanger" and wr is not None
+               and r["support"] == wr["name"] and "neck_stop" in rs.asset(r).params]
+    hanger = max(hangers, key=lambda r: float(rs.asset(r).params.get("rod", 0.0)), default=None)
     if wr is None or hanger is None:
         log.info("bedroom %s: no wardrobe with a lower rail and a hanger: no organize_wardrobe", rs.room)
         return None
