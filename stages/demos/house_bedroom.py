@@ -57,6 +57,10 @@ log = logging.getLogger(__name__)
 HEADBOARD = 0.06    # the bed generator's headboard thickness [m] (asset_catalog.generators.furniture.bed)
 PAPER_STRIP = 0.24  # table_rect: the blanket top's foot-end strip this long [m] (the paper: PAPER_AT
                     # in from its west end)
+HANGER_CLEAR = 0.03  # the hanger lies this far [m] at least from the blanket's ends
+LEAF_SWEEP = 0.6     # the wardrobe's open leaves reach this share of its footprint's longer side out from it
+ARM_BACK = 0.65      # the arm pinching the hanger's neck sweeps from this far [m] before the blanket's edge ...
+ARM_SIDE = 0.25      # ... to this far [m] beyond the base's x (the base PICK_SIDE along +X from the neck)
 PAPER_SLIDE = 0.15  # the strip slides this far [m] at most from the foot end (the can stays within reach)
 
 
@@ -162,15 +166,31 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     edge = float(bp.footprint()[1] + 0.01)
     top, _ = top_surface(bp)
     boxes = obstacles(list(furniture.values()))
-    for d in (0.26, 0.32, 0.38, 0.44):
-        x = top[0] + d if foot < 0 else top[2] - d
-        if base_free(facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP), rf.walls, boxes):
-            break
-    else:
+    wp = furniture[wr["name"]]
+    hp = rf.placed(hanger, rs.asset(hanger))
+    half = 0.5 * float(hp.asset.params.get("width", 0.45)) + HANGER_CLEAR
+    # the open doors' leaves sweep about the wardrobe's half width out from its footprint: the arm, reaching
+    # the neck from +X, kept clear of that (flat_039: the leaf stood where the elbow went; the base was pushed)
+    fp = wp.footprint()
+    keep = float(LEAF_SWEEP * max(fp[2] - fp[0], fp[3] - fp[1]))
+    keep_out = (fp[0] - keep, fp[1] - keep, fp[2] + keep, fp[3] + keep)
+    free, clear = [], []
+    for d in np.arange(0.26, 1.2, 0.06):
+        x = float(top[0] + d if foot < 0 else top[2] - d)
+        if x - half < top[0] or x + half > top[2]:  # flat on the blanket (the cushion goes aside: sampling)
+            continue
+        if not base_free(facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP), rf.walls, boxes):
+            continue
+        free.append(x)
+        arm = (x - 0.05, edge - ARM_BACK, x + PICK_SIDE + ARM_SIDE, edge + 0.1)
+        if not overlaps(arm, keep_out, 0.0):
+            clear.append(x)
+    if not free:
         log.info("bedroom %s: no free base pose before the hanger's spot on the bed", rs.room)
         return None
-    pl["wardrobe"] = furniture[wr["name"]]
-    pl["hanger"] = rf.placed(hanger, rs.asset(hanger))
+    x = (clear or free)[0]
+    pl["wardrobe"] = wp
+    pl["hanger"] = hp
     return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"])}
 
 

@@ -140,6 +140,23 @@ def hanger_start(world, seed: int) -> dict:
     return {h.body(): (x, y, world.table_z + 0.003, math.pi / 2 + float(rng.uniform(-0.05, 0.05)))}
 
 
+def aside(world) -> dict:
+    """The paper's and the cushion's poses (body -> (x, y, z, yaw)) in the wardrobe tasks: on the blanket's
+    far band, the paper by the foot end, the cushion by the blanket's start (along X), off the near edge
+    where the hanger may lie anywhere along the blanket (house_bedroom keeps its arm clear of the open leaf)."""
+    top, pl, out = world.table_rect, world.placed, {}
+    foot_x = top[2] - 0.1 if world.foot > 0 else top[0] + 0.1
+    if "paper" in pl:
+        out[pl["paper"].body()] = (foot_x, top[3] - 0.08, world.table_z + 0.01, 0.0)
+    if "cushion" in pl:
+        c = pl["cushion"]
+        length = float(c.asset.params.get("length", c.asset.hi[1] - c.asset.lo[1]))
+        width = float(c.asset.params.get("width", c.asset.hi[0] - c.asset.lo[0]))
+        x = world.blanket_x + world.foot * (0.5 * length + 0.05)
+        out[c.body()] = (x, top[3] - 0.5 * width - 0.06, world.table_z + 0.002, math.pi / 2)
+    return out
+
+
 def _hanger_pose(state, hanger) -> tuple[np.ndarray, np.ndarray]:
     st = state.objects[hanger.body()]
     return np.asarray(st.position, float), st.matrix()[:3, :3]
@@ -466,6 +483,11 @@ def hang_on_rail(inst, d) -> None:
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
     d.move(_pose(hand_for(c_in + (R + rail.radius + ENTRY) * f), put), 0.4, segments=1, carry=True, settle=0.2)
     d.move(_pose(hand_for(c_in), put), 1.2, segments=3, carry=True)
+    # the neck may have slid in the pinch on the way in (1.5 cm in flat_019: the hook went down behind the rail):
+    # measured again over the rail and set right before it goes down
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
+    d.move(_pose(hand_for(c_in), put), 0.5, segments=1, carry=True, settle=0.2)
+    off = _hook_in_hand(read_state(d.sim), h, cx, rod)
     rest = spot - (hr - rail.radius - 0.003) * up
     d.move(_pose(hand_for(rest), put), 0.8, segments=2, carry=True, settle=0.2)
     # the hand pressed on down past where the hook rests on the rail (the fingers slide down the neck, off the
