@@ -87,6 +87,8 @@ TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long 
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
 LIFT_MARGIN = 0.08      # the lift's postures may come this near [rad] their joints' limits (the pinch on a 0.42 m
                         # bed stands with joint 4 at -150 deg)
+STAGE_STEP = 0.08       # the base drives on this far [m] towards the hang pose where the staged hand is out of reach ...
+STAGE_MIN = 0.25        # ... while it stays this far [m] from it
 RELEASE_DROP = 0.008    # the closed hand is pressed this far [m] below the hook's rest on the rail before it opens
 RELEASE_CLEAR = 0.012   # ... and the open hand lowered this much more [m] before it backs out
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
@@ -292,12 +294,13 @@ def _posture(d, target: np.ndarray, margin: float = 0.25):
     return best
 
 
-def _joint_move(d, target: np.ndarray, seconds: float) -> None:
-    """The held hanger's hand to ``target`` (4x4, world) in joint space where :func:`_posture` finds a
-    posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by CLIK: CLIK's waypoints
-    after the pinch on a low bed (0.42 m, flat_037) jumped to another branch (joint 6 at 209 deg) and
-    dropped the hanger."""
-    for margin in (0.25, LIFT_MARGIN):
+def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
+    """The held hanger's hand to ``target`` (4x4, world): on a ``low`` bed in joint space where
+    :func:`_posture` finds a posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by
+    CLIK: CLIK's waypoints after the pinch on a low bed (0.42 m, flat_037) jumped to another branch
+    (joint 6 at 209 deg) and dropped the hanger; on a higher bed CLIK's way holds the hanger as the
+    carry wants it (with the ramp, flat_023's hand was out of reach before the wardrobe)."""
+    for margin in (0.25, LIFT_MARGIN) if low else ():
         if (qa := _posture(d, target, margin)) is not None:
             _ramp(d, qa, seconds)
             return
@@ -425,9 +428,10 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(neck - 0.10 * app + [0, 0, 0.01], grasp), 0.3, segments=1, tol=APPROACH_TOL)
     d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)
-    _joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8)
+    low = w.table_z < LOW_BED
+    _joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, low)
     # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
-    _joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0)
+    _joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, low)
     if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
         raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
     # --- upright beside the base: hook up, the hand pointing ahead of the base
@@ -438,7 +442,7 @@ def hang_on_rail(inst, d) -> None:
     app = grasp[:, 2]
     side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
     tip = _upright(side) @ in_hanger
-    _joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0)
+    _joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0, low)
     # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
     # width: carried with its plane along the way, it swept the open door half shut on the way to it);
     # reached in joint space with the wrist rolled (WRIST_SEEDS)
@@ -451,6 +455,7 @@ def hang_on_rail(inst, d) -> None:
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
+    _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
     drive_in(d, grid, goal, _leaf_points(part, q))
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
@@ -472,8 +477,16 @@ def hang_on_rail(inst, d) -> None:
     staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
     # turned slowly about the neck, its plane now along the way in (the pinch holds the neck's roll only by
     # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
-    # path ended on another, by joint 7's limit, from which the rail was out of reach)
-    if (qa := _posture(d, staged)) is not None:
+    # path ended on another, by joint 7's limit, from which the rail was out of reach); where the hand is out
+    # of reach there (the staging point 0.55 m back: flat_023), the base first drives on towards the goal
+    qa = _posture(d, staged)
+    while qa is None and math.dist((bx, by), goal[:2]) > STAGE_MIN + STAGE_STEP:
+        u = (np.asarray(goal[:2]) - [bx, by]) / math.dist((bx, by), goal[:2])
+        d.drive_straight((bx + STAGE_STEP * u[0], by + STAGE_STEP * u[1], goal[2]))
+        bx, by, _ = base_pose(d.sim)
+        staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
+        qa = _posture(d, staged)
+    if qa is not None:
         _ramp(d, qa, TURN_SLOW)
     d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     d.drive_straight(goal)
