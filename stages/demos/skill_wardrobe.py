@@ -87,6 +87,8 @@ TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long 
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
 LIFT_MARGIN = 0.08      # the lift's postures may come this near [rad] their joints' limits (the pinch on a 0.42 m
                         # bed stands with joint 4 at -150 deg)
+APPROACHES = (0.35, 0.2)  # the straight way in to the hang pose [m], the first the planner finds room for (a 1.2 m
+                          # band between the wardrobe and the bed had none at 0.35: flat_026)
 STAGE_STEP = 0.08       # the base drives on this far [m] towards the hang pose where the staged hand is out of reach ...
 STAGE_MIN = 0.25        # ... while it stays this far [m] from it
 RELEASE_DROP = 0.008    # the closed hand is pressed this far [m] below the hook's rest on the rail before it opens
@@ -268,12 +270,24 @@ def _rot(x_h, z_h) -> np.ndarray:
 CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
 #: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
 WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
+#: more seeds for the posture before the wardrobe (:func:`_posture`'s ``narrow``) [rad]
+NARROW_SEEDS = tuple((j1, j2, j3, -1.8, j5, 1.2, j7) for j1 in (-0.3, 0.3) for j2 in (-0.5, 0.2)
+                     for j3 in (-0.6, 0.6) for j5 in (-1.5, 1.5) for j7 in (-0.8, 2.4))
 
 
-def _posture(d, target: np.ndarray, margin: float = 0.25):
+def _width(d, q: np.ndarray) -> float:
+    """How far [m] the arm of robot configuration ``q`` reaches sideways: the largest |y| of the elbow's and
+    the wrist's links in the arm's mount frame."""
+    mount = np.linalg.inv(d.ik.fk(q, "panda_link0"))
+    return max(abs(float((mount @ d.ik.fk(q, f))[1, 3])) for f in ("panda_link4", "panda_link6"))
+
+
+def _posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
     """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
     :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep ``margin`` [rad]
-    from their limits, the nearest the current targets; None if none."""
+    from their limits, the nearest the current targets (``narrow``: the one whose elbow and wrist stay
+    nearest the base's centre line, :func:`_width`: with the elbow out sideways, the arm met the wardrobe's
+    carcass on the way in and the base stopped 8-10 cm short, flat_026/038); None if none."""
     from stages.simulate.control import Clik
 
     goal = Clik.world_to_root(d.sim.spawn, target)
@@ -282,15 +296,16 @@ def _posture(d, target: np.ndarray, margin: float = 0.25):
     idx = d.ik.v_idx[: len(now)]
     lo, hi = d.ik.lower[idx], d.ik.upper[idx]
     best, dist = None, math.inf
-    for seed in (now, *WRIST_SEEDS):
+    for seed in (now, *WRIST_SEEDS, *(NARROW_SEEDS if narrow else ())):
         r = d.ik.solve(goal, d.ik.with_arm(base_q, np.asarray(seed, float)), max_iters=600)
         q = d.ik.arm_q(r.q)
         if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
             continue
         if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
-        if float(np.abs(q - now).max()) < dist:
-            best, dist = q, float(np.abs(q - now).max())
+        score = _width(d, r.q) if narrow else float(np.abs(q - now).max())
+        if score < dist:
+            best, dist = q, score
     return best
 
 
@@ -456,7 +471,13 @@ def hang_on_rail(inst, d) -> None:
     # --- before the wardrobe's open half
     goal, spot = hang_base(w, rail, part, q)
     _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
-    drive_in(d, grid, goal, _leaf_points(part, q))
+    for k, approach in enumerate(APPROACHES):  # planned before the base moves
+        try:
+            drive_in(d, grid, goal, _leaf_points(part, q), approach=approach)
+            break
+        except ExpertFailure as e:
+            if e.reason != "no_path" or k == len(APPROACHES) - 1:
+                raise
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
     # the hanger as it is held now (it slid onto its boss and may have swung in the pinch): measured
@@ -479,13 +500,13 @@ def hang_on_rail(inst, d) -> None:
     # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
     # path ended on another, by joint 7's limit, from which the rail was out of reach); where the hand is out
     # of reach there (the staging point 0.55 m back: flat_023), the base first drives on towards the goal
-    qa = _posture(d, staged)
+    qa = _posture(d, staged, narrow=True)
     while qa is None and math.dist((bx, by), goal[:2]) > STAGE_MIN + STAGE_STEP:
         u = (np.asarray(goal[:2]) - [bx, by]) / math.dist((bx, by), goal[:2])
         d.drive_straight((bx + STAGE_STEP * u[0], by + STAGE_STEP * u[1], goal[2]))
         bx, by, _ = base_pose(d.sim)
         staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
-        qa = _posture(d, staged)
+        qa = _posture(d, staged, narrow=True)
     if qa is not None:
         _ramp(d, qa, TURN_SLOW)
     d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
