@@ -270,6 +270,9 @@ def _rot(x_h, z_h) -> np.ndarray:
 CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
 #: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
 WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
+NARROW_MAX = 0.25  #: the posture before the wardrobe reaches at most this far [m] sideways ...
+NARROW_TURN = 1.5  #: ... and lies at most this far [rad] from the current one (any joint), or another is sought
+                   #: (flat_038: the one near solution, 3.8 rad away, swept the elbow out; the base stopped 10 cm short)
 #: more seeds for the posture before the wardrobe (:func:`_posture`'s ``narrow``) [rad]
 NARROW_SEEDS = tuple((j1, j2, j3, -1.8, j5, 1.2, j7) for j1 in (-0.3, 0.3) for j2 in (-0.5, 0.2)
                      for j3 in (-0.6, 0.6) for j5 in (-1.5, 1.5) for j7 in (-0.8, 2.4))
@@ -295,18 +298,30 @@ def _posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
     base_q = d.ik.from_sim(d.sim)
     idx = d.ik.v_idx[: len(now)]
     lo, hi = d.ik.lower[idx], d.ik.upper[idx]
-    best, dist = None, math.inf
-    for seed in (now, *WRIST_SEEDS, *(NARROW_SEEDS if narrow else ())):
+    sols = []  # (joint distance from now, width, q)
+    for k, seed in enumerate((now, *WRIST_SEEDS, *(NARROW_SEEDS if narrow else ()))):
+        if narrow and k == 1 + len(WRIST_SEEDS) and sols and _fits(min(sols, key=lambda t: t[0])):
+            break  # the nearest of the first seeds' solutions is near and narrow enough
         r = d.ik.solve(goal, d.ik.with_arm(base_q, np.asarray(seed, float)), max_iters=600)
         q = d.ik.arm_q(r.q)
         if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
             continue
         if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
-        score = _width(d, r.q) if narrow else float(np.abs(q - now).max())
-        if score < dist:
-            best, dist = q, score
-    return best
+        sols.append((float(np.abs(q - now).max()), _width(d, r.q) if narrow else 0.0, q))
+    if not sols:
+        return None
+    near = min(sols, key=lambda t: t[0])
+    if not narrow or _fits(near):
+        return near[2]
+    ok = [t for t in sols if t[1] <= NARROW_MAX]
+    log.debug("posture: nearest %.2f rad away, %.3f m wide; %d of %d narrow", near[0], near[1], len(ok), len(sols))
+    return (min(ok, key=lambda t: t[0]) if ok else min(sols, key=lambda t: t[1]))[2]
+
+
+def _fits(sol) -> bool:
+    """Whether a posture (joint distance [rad], width [m], q) is near enough and narrow enough as it is."""
+    return sol[0] <= NARROW_TURN and sol[1] <= NARROW_MAX
 
 
 def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
