@@ -190,7 +190,7 @@ def bedroom(tmp_path_factory):
     assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
     scene = out / "scenes" / "flat_008_p0"
     return house_bedroom(scene, tmp_path_factory.mktemp("task"), out / "catalog" / "default" / "generated.json",
-                         scene_id=scene.name)
+                         scene_id=scene.name, multiccd=True)
 
 
 @pytest.mark.slow  # ~1 min on 2 shared cores (the catalog, 9 layouts, flat_008's bedroom, one episode)
