@@ -14,10 +14,10 @@ it turns the hanger upright (hook up, its plane across the way), carries it so, 
 the neck before the wardrobe (in joint space, on the branch with the wrist rolled ~90 deg: CLIK's own
 path ended by joint 7's limit, from where the rail was out of reach), drives straight in and hooks it
 over the wardrobe's lower rail (``low_rail``: 0.95-1.1 m, a double-hang rail; the upper one at
-1.4-1.7 m is out of the arm's reach), the hook mid open half. Light things creep on the blanket (the
-hanger 7.5-10 mm/s towards +Y; cause not found): where it has crept back onto the bed the expert
-first pulls it out again by its hook (:func:`_pull_out`); after a long first stage (50-80 s) it lies
-out of reach (``ik_unreachable``). The arm is first homed in joint space and a door that swung under
+1.4-1.7 m is out of the arm's reach), the hook mid open half. Light things crept on the blanket (the
+hanger 7.4 mm/s towards the bed's middle): MuJoCo's one contact point per convex pair; the wardrobe
+tasks' bedroom worlds step with multi-CCD contacts (``HouseBedroom.multiccd``), where it stays put;
+where it lies back on the bed the expert still first pulls it out by its hook (:func:`_pull_out`). The arm is first homed in joint space and a door that swung under
 60% open is opened again (open_wardrobe's tuck swept it half shut in flat_023).
 
 - :func:`rail_facts`: the lower rail's axis (two end points, world) and radius from the wardrobe's
@@ -218,16 +218,16 @@ def _pull_out(d, world, hanger, rod: float, cx: float) -> None:
         return
     z = world.table_z + rod + HOOK_TIP
 
-    def hook_at(lead: float) -> np.ndarray:  # the hook's centre where it will be in ``lead`` [s] (it creeps)
+    def hook_at() -> np.ndarray:  # the hook's centre now, at the pulling height
         pos, rot = _hanger_pose(read_state(d.sim), hanger)
         c = pos + rot @ np.array([cx, 0.0, rod])
         return np.array([c[0], c[1], z])
 
     down = top_down(0.0)
     d.grip(1.0, 0.8)
-    d.move(_pose(hook_at(2.0) + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(_pose(hook_at(0.8) + [0, 0, 0.08], down), 0.3, segments=1, tol=APPROACH_TOL)
-    at = hook_at(0.6)
+    d.move(_pose(hook_at() + [0, 0, 0.08], down), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
+    d.move(_pose(hook_at() + [0, 0, 0.08], down), 0.3, segments=1, tol=APPROACH_TOL)
+    at = hook_at()
     d.move(_pose(at, down), 0.6, segments=2, settle=0.1)
     out = _apex_out(read_state(d.sim), world, hanger)
     push = PULL_TO - out + max(0.0, float(hanger.asset.params["hook_radius"]) - HOOK_FINGER) + PULL_LAG
