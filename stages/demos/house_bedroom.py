@@ -57,6 +57,10 @@ log = logging.getLogger(__name__)
 HEADBOARD = 0.06    # the bed generator's headboard thickness [m] (asset_catalog.generators.furniture.bed)
 PAPER_STRIP = 0.24  # table_rect: the blanket top's foot-end strip this long [m] (the paper: PAPER_AT
                     # in from its west end)
+HANGER_CLEAR = 0.03  # the hanger lies this far [m] at least from the blanket's ends
+LEAF_SWEEP = 0.6     # the wardrobe's open leaves reach this share of its footprint's longer side out from it
+ARM_BACK = 0.65      # the arm pinching the hanger's neck sweeps from this far [m] before the blanket's edge ...
+ARM_SIDE = 0.25      # ... to this far [m] beyond the base's x (the base PICK_SIDE along +X from the neck)
 PAPER_SLIDE = 0.15  # the strip slides this far [m] at most from the foot end (the can stays within reach)
 
 
@@ -73,6 +77,10 @@ class HouseBedroom(HouseRoom):
     blanket_edge: float = 0.0
     hanger_x: float = 0.0
     rail: object = None
+    #: the engine steps this world with MuJoCo's multi-CCD contacts (:class:`~stages.simulate.world.SolverSettings`):
+    #: with one contact point per convex pair, the hanger, cushion and paper crept 3-8 mm/s across the blanket.
+    #: Off unless asked (make_bed's base, driven up to the bed, stopped 1 cm short with it: flat_008 seed 1)
+    multiccd: bool = False
 
 
 def _bed_facts(bed: Placed, foot: int) -> tuple[tuple[float, float, float, float], float, float]:
@@ -148,30 +156,51 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     from stages.demos.skill_wardrobe import PICK_GAP, PICK_SIDE, rail_facts
 
     wr = rs.one("wardrobe", lambda r: r["support"] is None and "low_rail" in rs.asset(r).params)
-    hanger = wr and rs.one("hanger", lambda r: r["support"] == wr["name"] and "neck_stop" in rs.asset(r).params)
+    # of the wardrobe's hangers (2-3), the one with the thickest rod: a wire hanger (1.8-2.5 mm) rolled about its
+    # neck in the pinch (its one-sided boss turned aside and the neck slid: flat_000)
+    hangers = [r for r in rs.mine.values() if r["category"] == "hanger" and wr is not None
+               and r["support"] == wr["name"] and "neck_stop" in rs.asset(r).params]
+    hanger = max(hangers, key=lambda r: float(rs.asset(r).params.get("rod", 0.0)), default=None)
     if wr is None or hanger is None:
         log.info("bedroom %s: no wardrobe with a lower rail and a hanger: no organize_wardrobe", rs.room)
         return None
     edge = float(bp.footprint()[1] + 0.01)
     top, _ = top_surface(bp)
     boxes = obstacles(list(furniture.values()))
-    for d in (0.26, 0.32, 0.38, 0.44):
-        x = top[0] + d if foot < 0 else top[2] - d
-        if base_free(facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP), rf.walls, boxes):
-            break
-    else:
+    wp = furniture[wr["name"]]
+    hp = rf.placed(hanger, rs.asset(hanger))
+    half = 0.5 * float(hp.asset.params.get("width", 0.45)) + HANGER_CLEAR
+    # the open doors' leaves sweep about the wardrobe's half width out from its footprint: the arm, reaching
+    # the neck from +X, kept clear of that (flat_039: the leaf stood where the elbow went; the base was pushed)
+    fp = wp.footprint()
+    keep = float(LEAF_SWEEP * max(fp[2] - fp[0], fp[3] - fp[1]))
+    keep_out = (fp[0] - keep, fp[1] - keep, fp[2] + keep, fp[3] + keep)
+    free, clear = [], []
+    for d in np.arange(0.26, 1.2, 0.06):
+        x = float(top[0] + d if foot < 0 else top[2] - d)
+        if x - half < top[0] or x + half > top[2]:  # flat on the blanket (the cushion goes aside: sampling)
+            continue
+        if not base_free(facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP), rf.walls, boxes):
+            continue
+        free.append(x)
+        arm = (x - 0.05, edge - ARM_BACK, x + PICK_SIDE + ARM_SIDE, edge + 0.1)
+        if not overlaps(arm, keep_out, 0.0):
+            clear.append(x)
+    if not free:
         log.info("bedroom %s: no free base pose before the hanger's spot on the bed", rs.room)
         return None
-    pl["wardrobe"] = furniture[wr["name"]]
-    pl["hanger"] = rf.placed(hanger, rs.asset(hanger))
+    x = (clear or free)[0]
+    pl["wardrobe"] = wp
+    pl["hanger"] = hp
     return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"])}
 
 
 def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,
-                  room: str | None = None) -> HouseBedroom:
+                  room: str | None = None, multiccd: bool = False) -> HouseBedroom:
     """The task world of the bedroom ``room`` (default: the house's first populated bedroom) of the
-    scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc). ItemError names
-    what the room lacks or why neither long side of the bed works."""
+    scene in ``scene_dir``, written to ``out_dir/scene.usda`` (see the module doc; ``multiccd``: the
+    world's field, for the wardrobe tasks). ItemError names what the room lacks or why neither long
+    side of the bed works."""
     from stages.demos.experts import COUNTER_STAGE
 
     scene_dir, out_dir = Path(scene_dir), Path(out_dir)
@@ -216,7 +245,7 @@ def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene
     w = HouseBedroom(
         usd=usd, scene_id=scene_id, placed=pl, furniture=furniture, cut=tuple(sorted(cut)), moved=moved,
         anchor=(float(goal[0]), float(goal[1] - COUNTER_STAGE)), head_band=band, mattress_z=mattress_z,
-        blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x,
+        blanket_x=blanket, foot=foot, pillow_spot=spot, pillow_base_x=base_x, multiccd=multiccd,
         **(wardrobe or {}),
         **room_fields(rs, rf, rect, z, paper_spot))
     spawn_in(w)

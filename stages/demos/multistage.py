@@ -285,3 +285,12 @@ def needs_clock(tasks) -> bool:
     """Whether any of ``tasks`` (names) is a clock skill or a multistage task with a clock skill's stage."""
     return any(t in CLOCK_SKILLS or (t in MULTISTAGE and any(st.skill in CLOCK_SKILLS for st in MULTISTAGE[t].stages))
                for t in tasks)
+
+
+def needs_wardrobe(tasks) -> bool:
+    """Whether any of ``tasks`` (names) is a wardrobe skill or a multistage task with one: its bedroom world
+    steps with multi-CCD contacts (``house_bedroom(multiccd=True)``: the hanger crept on the blanket)."""
+    from stages.demos.sampling import WARDROBE_SKILLS
+
+    return any(t in WARDROBE_SKILLS or (t in MULTISTAGE and any(st.skill in WARDROBE_SKILLS for st in MULTISTAGE[t].stages))
+               for t in tasks)

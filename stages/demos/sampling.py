@@ -216,9 +216,10 @@ def sample_instance(task_name: str, world: KitchenWorld, seed: int) -> TaskInsta
         from stages.demos.skill_wardrobe import hanger_start
 
         objects.update(hanger_start(world, seed))
-        if task_name in WARDROBE_SKILLS and "paper" in pl:  # the paper off the hanger's way: the bed's far side
-            top = world.table_rect
-            objects[pl["paper"].body()] = (world.hanger_x, top[3] - 0.08, world.table_z + 0.01, 0.0)
+        if task_name in WARDROBE_SKILLS:  # the paper and the cushion off the hanger's way: the bed's far side
+            from stages.demos.skill_wardrobe import aside
+
+            objects.update(aside(world))
     if task_name == "hang_on_rail":
         part = world_part(world, "wardrobe")
         joints[part.joint_path] = part.closed + FRIDGE_OPEN * part.travel

@@ -279,7 +279,9 @@ class BatchEngine:
         cfg = self.config
         # batched: MuJoCo-Warp for any world count, so a world's trajectory does not depend on how
         # many run beside it; per_world: MuJoCo C (one world per model)
-        solver = SolverSettings(use_mujoco_cpu=False if cfg.resolved_layout() == "batched" else None)
+        # a world may ask for multi-CCD contacts (a bedroom: light things crept on the blanket's hull)
+        solver = SolverSettings(use_mujoco_cpu=False if cfg.resolved_layout() == "batched" else None,
+                                multiccd=bool(getattr(self.world, "multiccd", False)))
         sim = build_sim(SimConfig(scenes=(self.world.usd,), spawn=self.world.spawn, device=cfg.device,
                                   world_count=count, solver=solver), desc, np.random.default_rng(seed))
         bank = _Bank(sim=sim, ctl=RobotControl(sim), snapshot=Snapshot(sim), model=_WorldModel(sim),

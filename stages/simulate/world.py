@@ -45,18 +45,18 @@ class SolverKind(StrEnum):
 
 @dataclass(frozen=True, kw_only=True)
 class SolverSettings:
-    """dt: physics step [s] (the time one :meth:`Sim.step` advances); substeps: solver steps per
-    physics step (1 for MuJoCo; the others need dt / substeps <= 1/960 s); use_mujoco_cpu: None = auto
-    (True on CPU with one world); iterations / ls_iterations: MuJoCo solver iterations;
-    cone, impratio, integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and
-    contacts for MuJoCo-Warp (None: sized from the model, :mod:`stages.simulate.contacts`);
-    contact_check_every: steps between overflow checks (a small host read; an overflow raises
-    ``ContactOverflowError`` naming the world and the count; 0: at :meth:`Sim.check_contacts` only);
-    cuda_graph: on CUDA, replay MuJoCo-Warp's step as a captured CUDA graph (one graph per
-    state-buffer parity) instead of launching its kernels one by one from Python; fast_cpu_step: on
-    the MuJoCo C library, Newton's step from recorded kernel launches into buffers allocated once (the
-    same states; a teleop frame's 17 steps 43 -> 28 ms of CPU: :mod:`stages.simulate.mujoco_cpu`).
-    """
+    """dt: physics step [s] (the time one :meth:`Sim.step` advances); substeps: solver steps per physics
+    step (1 for MuJoCo; the others need dt / substeps <= 1/960 s); use_mujoco_cpu: None = auto (True on
+    CPU with one world); iterations / ls_iterations: MuJoCo solver iterations; cone, impratio,
+    integrator: MuJoCo options; njmax / nconmax: per-world constraint rows and contacts for MuJoCo-Warp
+    (None: sized from the model, :mod:`stages.simulate.contacts`); contact_check_every: steps between
+    overflow checks (a small host read; an overflow raises ``ContactOverflowError`` naming the world and
+    the count; 0: at :meth:`Sim.check_contacts` only); cuda_graph: on CUDA, replay MuJoCo-Warp's step as
+    a captured CUDA graph (one graph per state-buffer parity) instead of launching its kernels one by
+    one from Python; fast_cpu_step: on the MuJoCo C library, Newton's step from recorded kernel launches
+    into buffers allocated once (the same states; a teleop frame's 17 steps 43 -> 28 ms of CPU:
+    :mod:`stages.simulate.mujoco_cpu`); multiccd: MuJoCo's multi-CCD contacts (up to 4 points per
+    convex pair, not 1: light things on a bed crept 3-8 mm/s)."""
 
     kind: SolverKind = SolverKind.MUJOCO
     dt: float = 0.002
@@ -72,6 +72,7 @@ class SolverSettings:
     contact_check_every: int = 250
     cuda_graph: bool = True
     fast_cpu_step: bool = True
+    multiccd: bool = False
 
     def __post_init__(self) -> None:
         if self.dt <= 0 or self.substeps < 1:
@@ -480,8 +481,7 @@ def _build_template(cfg: SimConfig, scene: Path, desc: RobotDescription, rng):
 
 
 def _make_solver(model, s: SolverSettings, device: str, world_count: int, capacity=None):
-    """The solver; for MuJoCo, ``capacity`` (a :class:`~stages.simulate.contacts.ContactCapacity`)
-    gives njmax / nconmax where the settings leave them None."""
+    """The solver; MuJoCo's unset njmax / nconmax come from ``capacity`` (a contacts.ContactCapacity)."""
     import newton
 
     opts: dict = {}
@@ -501,7 +501,7 @@ def _make_solver(model, s: SolverSettings, device: str, world_count: int, capaci
             ls_iterations=s.ls_iterations,
             njmax=s.njmax if s.njmax is not None or capacity is None else capacity.njmax,
             nconmax=s.nconmax if s.nconmax is not None or capacity is None else capacity.nconmax,
-            disable_sensors=True,
+            disable_sensors=True, **({"enable_multiccd": True} if s.multiccd else {}),
         )
         return SolverMuJoCo(model, **opts), None, cpu, separate, opts
     pipeline = newton.CollisionPipeline(model)

@@ -70,12 +70,13 @@ def run(work: Path, houses: int, tasks: list[str], seeds: list[int], room: str =
     from stages.demos.house_bedroom import house_bedroom
     from stages.demos.house_bedside import house_bedside
     from stages.demos.house_living import house_living
-    from stages.demos.multistage import needs_clock, needs_drink, needs_household
+    from stages.demos.multistage import needs_clock, needs_drink, needs_household, needs_wardrobe
     from stages.demos.house_record import HouseRecordConfig, merge_and_sheet, run_world
 
     rows, unconverted, converted = [], [], 0
     dishes = needs_household(tasks) or bool({"wipe_plate", "place_in_rack"} & set(tasks))  # the kitchen's dish rack
-    make = {"kitchen": lambda *a, **k: house_kitchen(*a, **k, dishes=dishes), "bedroom": house_bedroom,
+    make = {"kitchen": lambda *a, **k: house_kitchen(*a, **k, dishes=dishes),
+            "bedroom": lambda *a, **k: house_bedroom(*a, **k, multiccd=needs_wardrobe(tasks)),
             "living_room": lambda *a, **k: house_living(*a, **k, drink=needs_drink(tasks))}[room]
     if room == "bedroom" and needs_clock(tasks):  # the alarm clock's world: the nightstand as the surface
         if not all(needs_clock([t]) for t in tasks):

@@ -142,6 +142,28 @@ def test_hang_on_rail_predicate(tmp_path):
     assert hang_on_rail_success(inst, _state(h, [0.3, 0.4, 0.02], flat))[1] == "hanger_fell"
 
 
+def test_arm_width_tells_an_elbow_out_sideways(tmp_path):
+    """The posture before the wardrobe is judged by how far the elbow and wrist reach sideways of the arm's
+    mount (skill_wardrobe._width, on the Panda's Pinocchio model): the home posture and the carry posture
+    of flat_008 stay within NARROW_MAX, the posture flat_038's nearest IK solution had (joint 1 at 122 deg,
+    the base stopped 10 cm short of the wardrobe) does not."""
+    from types import SimpleNamespace
+
+    from stages.demos.experts import timed_clik
+    from stages.demos.skill_wardrobe import NARROW_MAX, _width
+    from stages.simulate.robot import find_panda_description, write_robot_urdf
+
+    desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
+    d = SimpleNamespace(ik=timed_clik(desc))
+
+    def width(deg) -> float:
+        return _width(d, d.ik.with_arm(d.ik.neutral(), np.radians(deg)))
+
+    assert width(np.degrees(desc.arm_home)) < NARROW_MAX
+    assert width([-3, -24, 16, -123, 69, 175, 160]) < NARROW_MAX       # flat_008's staged posture (hung)
+    assert width([122, -80, -47, -124, -143, 82, -64]) > NARROW_MAX    # flat_038 s2's (drive_timeout)
+
+
 @pytest.fixture(scope="module")
 def bedroom(tmp_path_factory):
     """The task world of flat_008's bedroom (job seed 0, as ``bench_house_tasks.py --room bedroom``):
@@ -168,7 +190,7 @@ def bedroom(tmp_path_factory):
     assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0, "layouts": 0, "scenes": 0}
     scene = out / "scenes" / "flat_008_p0"
     return house_bedroom(scene, tmp_path_factory.mktemp("task"), out / "catalog" / "default" / "generated.json",
-                         scene_id=scene.name)
+                         scene_id=scene.name, multiccd=True)
 
 
 @pytest.mark.slow  # ~1 min on 2 shared cores (the catalog, 9 layouts, flat_008's bedroom, one episode)
@@ -214,3 +236,35 @@ def test_hanger_hung_on_the_rail_in_a_generated_bedroom(bedroom, tmp_path):
     eng.run(Listed(bedroom, {0: [("hang_on_rail", 1, None)]}), begin=lambda *_: None,
             end=lambda _w, t, r: rows.append((t.task, r.success, r.reason)))
     assert rows == [("hang_on_rail", True, "")]
+
+
+@pytest.mark.slow  # ~1 min more on 2 shared cores (two idle episodes of 8 s)
+def test_the_hanger_stays_put_on_the_blanket_with_multiccd(bedroom, tmp_path, monkeypatch):
+    """With the robot idle, the hanger lying on the blanket's near edge stays put on the engine with the
+    bedroom's multi-CCD contacts (MuJoCo's one contact point per convex pair let it creep 7.4 mm/s
+    towards the bed's middle in flat_008: ~6 cm in 8 s)."""
+    from dataclasses import replace
+
+    import stages.demos.experts as experts
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+    from stages.simulate.state import read_state
+
+    def drift(world) -> float:
+        body, track = world.placed["hanger"].body(), []
+
+        def idle(inst, d):  # the expert: the robot stands still while the hanger's position is read
+            for _ in range(9):
+                track.append(np.asarray(read_state(d.sim).objects[body].position, float))
+                d.step(1.0)
+
+        monkeypatch.setitem(experts.EXPERTS, "hang_on_rail", idle)
+        eng = BatchEngine(world, panda_root=None, work_dir=tmp_path / f"engine_{world.multiccd}",
+                          config=EngineConfig(worlds=1, layout="per_world", record_images=False, subtasks=True))
+        eng.run(Listed(world, {0: [("hang_on_rail", 1, None)]}), begin=lambda *_: None, end=lambda *_: None)
+        return float(np.linalg.norm(track[-1][:2] - track[1][:2]))  # over 8 s, after 1 s of settling
+
+    assert bedroom.multiccd
+    still, crept = drift(bedroom), drift(replace(bedroom, multiccd=False))
+    assert still < 0.003, f"the hanger moved {still * 1000:.1f} mm in 8 s with multi-CCD"
+    assert crept > 0.02, f"without multi-CCD it moved {crept * 1000:.1f} mm in 8 s (it crept ~7 mm/s)"
