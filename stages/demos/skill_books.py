@@ -24,7 +24,7 @@ along the table's depth, so that a hand over the spine grasps one across its cov
   the wrist through its limits) grasps it across its covers :data:`GRIP_DOWN` below the spine, above
   its centre of mass (held by one end, the 0.5-1 kg book swung down in the fingers); lift, raise it
   :data:`RAISE` over the table, carry it high by the base (:data:`CARRY`), drive before the bookshelf
-  (:func:`stages.demos.skill_fridge.staging`), hold it :data:`LIFT` over the board's height, drive
+  (:func:`stages.demos.base_approach.staging`), hold it :data:`LIFT` over the board's height, drive
   straight in, set it down on its spot, release, draw the open fingers out along its covers, back
   out the way in;
 - :func:`shelve_book_success` (the predicate): the book's centre over a board (1 cm in), its
@@ -65,7 +65,7 @@ REACH_TABLE = 0.66         # the grasp's TCP this far [m] ahead of the base's ce
 REACH_SHELF = 0.66         # the place's TCP this far [m] ahead of the base's centre
 RAISE = 0.10               # the lifted book raised this far [m] over the table before it is carried off
 LIFT = 0.025               # the book lifted / held this far [m] above the table or board
-STAGE = 0.25               # the drive before the bookshelf ends at least this far [m] back (skill_fridge.staging:
+STAGE = 0.25               # the drive before the bookshelf ends at least this far [m] back (base_approach.staging:
                            # further back or aside where that is blocked), straight in after
 EDGE_IN = 0.06             # the book set down with its centre this far [m] behind the board's front edge
 CARRY = (0.35, 1.0)        # the carried TCP this far ahead of the base's centre, this high [m] while driving
@@ -257,7 +257,8 @@ def shelve_book(inst, d, k: int) -> None:
     from stages.demos.counter import _pose
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.skill_fridge import drive_in, facing_rot
+    from stages.demos.base_approach import drive_in
+    from stages.demos.skill_fridge import facing_rot
     from stages.simulate.state import read_state
 
     w = inst.world

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stages.demos.base_approach import CHASSIS, HALF_WIDTH, drive_in, grid_with_leaf, leaf_points
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
 from stages.demos.record import base_pose
 
@@ -31,8 +32,6 @@ SHELF_PREFER = 0.95      # of those, the one nearest this height [m]
 SHELF_BACK = 0.09        # the mug's spot: behind the shelf's front edge [m]
 HAND_ROOM = 0.12         # free height above the mug a shelf needs for the hand [m]
 BASE_GAP = 0.08          # the base's front before the fridge's (closed) front [m]
-HALF_WIDTH = 0.25 + 0.06  # the chassis half width and a margin to the open leaf [m]
-CHASSIS = 0.60           # chassis length [m]
 HAND_AWAY = 0.15         # a hand this far from the mug [m] does not hold it, open or closed
 COUNTER_SHIFT = 0.25     # the base takes the mug up to this far along the counter from its usual spot [m]
 MUG_OFF = 0.5            # ... and up to this far beside the mug [m] (the side grasp reaches it)
@@ -114,19 +113,6 @@ def facing_rot(u, pitch_deg: float) -> np.ndarray:
     return np.stack([np.cross(y, z), y, z], axis=1)
 
 
-def _leaf_points(part, q: float) -> np.ndarray:
-    """Points (N, 2) [m] covering the door leaf (and its handle) at joint value ``q``."""
-    from stages.demos.part_grasps import lateral
-
-    o = np.asarray(part.origin, float)
-    a = np.asarray(part.axis, float)
-    v = np.asarray(part.handle, float) - o
-    reach = float(np.linalg.norm(v - np.dot(v, a) * a)) + 0.08
-    lat, n, rot = lateral(part), np.asarray(part.front, float), part.rotation_at(q)
-    return np.array([(o + rot @ (t * reach * lat + off * n))[:2]
-                     for t in np.linspace(0.0, 1.0, 40) for off in (-0.03, 0.04, 0.11)])
-
-
 def fridge_base(world, part, shelf: Shelf, q: float) -> tuple[tuple[float, float, float], float]:
     """The base pose (x, y, yaw) before the fridge with the door at ``q`` and the length [m] of the
     way in that reaches beyond the leaf: the chassis (and that way in) clear of the open leaf by
@@ -135,7 +121,7 @@ def fridge_base(world, part, shelf: Shelf, q: float) -> tuple[tuple[float, float
     fr = world.placed["fridge"]
     c, s = math.cos(fr.yaw), math.sin(fr.yaw)
     to_local = np.array([[c, s], [-s, c]])
-    leaf = (_leaf_points(part, q) - np.asarray(fr.position[:2])) @ to_local.T
+    leaf = (leaf_points(part, q) - np.asarray(fr.position[:2])) @ to_local.T
     front = float(fr.asset.hi[0])
     x_base = front + BASE_GAP + CHASSIS / 2
     # the way in starts beyond the leaf's reach, at least 0.35 m back
@@ -170,56 +156,6 @@ def counter_x(grid, front_y: float, x: float, mug_x: float, most: float = COUNTE
     return x
 
 
-def _grid_with_leaf(world, part, q: float):
-    from stages.demos.part_planning import swept_grid
-
-    return swept_grid(world.grid(), part, q, q)
-
-
-def staging(grid, goal, leaf: np.ndarray, *, approach: float = 0.35, more: float = 1.5,
-            side: float = 0.6) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Where the planned drive to ``goal`` (x, y, yaw) ends: ``(point, behind)``: the point
-    ``approach`` [m] behind the goal on its way in, or where that is blocked for the planner (its
-    0.4 m disc near a wall or the open leaf: a fridge in a corner), the free point nearest it up to
-    ``more`` further back and ``side`` [m] aside whose sideways drive onto the way in keeps the
-    chassis clear of the ``leaf`` (points (N, 2), world) [m]; ``behind`` (x, y): the point on the way
-    in level with it, from where the base drives straight in (the chassis, narrower than the disc,
-    fits). ExpertFailure("no_path") when there is none."""
-    from stages.demos.driver import ROBOT_RADIUS
-
-    blocked = grid.inflate(ROBOT_RADIUS)
-    gx, gy, th = goal
-    u, v = np.array([math.cos(th), math.sin(th)]), np.array([-math.sin(th), math.cos(th)])
-    cands = [(abs(o) + 0.5 * (a - approach), a, o) for a in np.arange(approach, approach + more + 1e-9, 0.05)
-             for o in np.arange(-side, side + 1e-9, 0.05)]
-    for _, a, o in sorted(cands):
-        behind = np.array([gx, gy]) - a * u
-        p = behind + o * v
-        iy, ix = grid.cell_of(float(p[0]), float(p[1]))
-        if not (0 <= iy < blocked.shape[0] and 0 <= ix < blocked.shape[1]) or blocked[iy, ix]:
-            continue
-        # the chassis (its half length ahead and behind) along the sideways leg, and on the way in
-        rel = leaf - behind
-        along, across = rel @ u, rel @ v
-        lo, hi = min(0.0, o), max(0.0, o)
-        near = (np.abs(along) < CHASSIS / 2 + 0.06) & (across > lo - HALF_WIDTH) & (across < hi + HALF_WIDTH)
-        if not near.any():
-            return (float(p[0]), float(p[1])), (float(behind[0]), float(behind[1]))
-    raise ExpertFailure("no_path", f"no free point behind the base pose {goal} before the fridge")
-
-
-
-def drive_in(d, grid, goal, leaf: np.ndarray, **kw) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Drive the base to the ``staging`` point of ``goal`` (x, y, yaw) (``leaf``, ``kw``: as there) and,
-    where that point lies aside, sideways onto the way in; the caller drives the last straight stretch.
-    Returns staging's ``(point, behind)`` (the way back out)."""
-    point, behind = staging(grid, goal, leaf, **kw)
-    d.drive_to((*point, goal[2]), grid, approach=0.0)
-    if math.dist(point, behind) > 0.02:
-        d.drive_straight((*behind, goal[2]))  # sideways onto the way in
-    return point, behind
-
-
 def pick_place_fridge(inst, d) -> None:
     """The expert (see the module doc)."""
     from stages.demos.counter import (
@@ -240,7 +176,7 @@ def pick_place_fridge(inst, d) -> None:
     start = np.asarray(inst.objects[body][:3], float)
     cav = w.cavity
     q = float(inst.joints[part.joint_path])
-    grid = _grid_with_leaf(w, part, q)
+    grid = grid_with_leaf(w, part, q)
     # after open_fridge the base may stand where the planner counts it blocked (by the fridge or its
     # leaf: no_path from there in the test kitchen, world seed 5): move it clear first
     from stages.demos.articulated import _escape
@@ -258,7 +194,7 @@ def pick_place_fridge(inst, d) -> None:
     d.move(_pose(up, held), 1.2, segments=3, carry=True, tol=APPROACH_TOL)
     d.drive_straight((bx - COUNTER_STAGE * math.cos(th), by - COUNTER_STAGE * math.sin(th), th))
     goal, _ = fridge_base(w, part, shelf, q)
-    drive_in(d, grid, goal, _leaf_points(part, q))
+    drive_in(d, grid, goal, leaf_points(part, q))
     d.drive_straight(goal)
     # in over the shelf: the hand points into the fridge (-front)
     n = np.asarray(shelf.front[:2])

@@ -400,7 +400,7 @@ def hang_on_rail(inst, d) -> None:
     from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.skill_fridge import _grid_with_leaf, _leaf_points, drive_in
+    from stages.demos.base_approach import drive_in, grid_with_leaf, leaf_points
     from stages.simulate.state import read_state
 
     w = inst.world
@@ -425,7 +425,7 @@ def hang_on_rail(inst, d) -> None:
     gx, cx, rod = _hook(h)
     hr = float(h.asset.params["hook_radius"])
     R = hr + rod
-    grid = _grid_with_leaf(w, part, q)
+    grid = grid_with_leaf(w, part, q)
     _escape(d, grid, reach=1.0)
     # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
     pos, rot = _hanger_pose(read_state(d.sim), h)
@@ -489,7 +489,7 @@ def hang_on_rail(inst, d) -> None:
     _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
     for k, approach in enumerate(APPROACHES):  # planned before the base moves
         try:
-            drive_in(d, grid, goal, _leaf_points(part, q), approach=approach)
+            drive_in(d, grid, goal, leaf_points(part, q), approach=approach)
             break
         except ExpertFailure as e:
             if e.reason != "no_path" or k == len(APPROACHES) - 1:

@@ -110,7 +110,7 @@ def test_the_fridge_staging_point_is_free_for_the_planner_and_its_side_leg_misse
 
     from stages.demos.driver import ExpertFailure
     from stages.demos.planner import NavGrid
-    from stages.demos.skill_fridge import HALF_WIDTH, staging
+    from stages.demos.base_approach import HALF_WIDTH, staging
 
     walls = np.array([(-0.1, -0.1, 0.0, 3.0), (0.0, 2.0, 0.8, 2.8), (-0.1, -0.1, 3.0, 0.0)])
     leaf = np.array([(0.75, y) for y in np.linspace(1.2, 2.0, 30)])
