@@ -429,6 +429,7 @@ def hang_on_rail(inst, d) -> None:
     # home in joint space first
     d.home(3.0)
     q = float(d.sim.joint_q_of_path(part.joint_path))
+    log.debug("hang: hanger at %s at the start", np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
     if q - part.closed < REOPEN_BELOW * part.travel:
         # the door swung half shut (the arm's sweep): open it again from where it stands (the same expert),
         # or the leaf stands in the hanger's way
@@ -569,10 +570,13 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(low, put), 0.5, segments=1)
     d.move(_pose(low + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
     d.step(0.5)
-    log.debug("hang: door at %.2f after the release", float(d.sim.joint_q_of_path(part.joint_path)))
+    log.debug("hang: door at %.2f, hanger at %s after the release", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
     bx, by, th = base_pose(d.sim)
     back = _back_out(part, float(d.sim.joint_q_of_path(part.joint_path)), f)
     d.drive_straight((bx + BACK_OUT * back[0], by + BACK_OUT * back[1], th))
-    log.debug("hang: door at %.2f backed out", float(d.sim.joint_q_of_path(part.joint_path)))
+    log.debug("hang: door at %.2f, hanger at %s backed out", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
     d.home(2.0)
-    log.debug("hang: door at %.2f homed", float(d.sim.joint_q_of_path(part.joint_path)))  # a canonical posture: close_wardrobe plans its base poses by IK from it
+    log.debug("hang: door at %.2f, hanger at %s homed", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))  # a canonical posture: close_wardrobe plans its base poses by IK from it
