@@ -61,6 +61,7 @@ HANGER_CLEAR = 0.03  # the hanger lies this far [m] at least from the blanket's 
 LEAF_SWEEP = 0.6     # the wardrobe's open leaves reach this share of its footprint's longer side out from it
 ARM_BACK = 0.65      # the arm pinching the hanger's neck sweeps from this far [m] before the blanket's edge ...
 ARM_SIDE = 0.25      # ... to this far [m] beyond the base's x (the base PICK_SIDE along +X from the neck)
+FRONT_OUT = 0.75    # the base's way before the wardrobe: this far [m] out from its front's middle
 PAPER_SLIDE = 0.15  # the strip slides this far [m] at most from the foot end (the can stays within reach)
 
 
@@ -147,6 +148,23 @@ def _side(rs, bed: dict, can: dict, cushion: dict, foot: int):
     return rf, furniture, cp, rect, z, band, mattress_z, blanket, goal, spot, base_x
 
 
+def _floor_to_front(rf, boxes: list, wp: Placed, pick: tuple[float, float, float]) -> bool:
+    """Whether the base (the planner's footprint disc) gets from ``pick`` (x, y, yaw: its pose before the
+    hanger's spot) to before the closed wardrobe ``wp`` (FRONT_OUT [m] out from its front's middle, or a
+    free point within 0.3 m of there) on the room's floor (walls and ``boxes``, footprints [m]): flat_013's
+    wardrobe stood behind a 0.76 m gap between its corner and the bed's, the base's disc 0.8 m wide."""
+    from stages.demos.part_planning import connected, is_free
+    from stages.demos.planner import NavGrid
+
+    x0, y0, x1, y1 = rf.area
+    grid = NavGrid.from_boxes((x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2), np.asarray(list(rf.walls) + list(boxes), float))
+    on = connected(grid, pick[:2], reach=0.3)
+    f = np.asarray(wp.dir_to_world((1.0, 0.0, 0.0)), float)[:2]
+    out = np.asarray(wp.to_world((wp.asset.hi[0], 0.0, 0.0)), float)[:2] + FRONT_OUT * f / max(float(np.linalg.norm(f)), 1e-9)
+    return any(is_free(grid, ~on, float(out[0] + r * math.cos(a)), float(out[1] + r * math.sin(a)))
+               for r in (0.0, 0.1, 0.2, 0.3) for a in np.linspace(0.0, 2 * math.pi, 12, endpoint=False))
+
+
 def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict | None:
     """The organize-wardrobe facts (:mod:`stages.demos.skill_wardrobe`), or None where the bedroom
     has no wardrobe with a lower rail and a hanger in it (make_bed does not need them): adds
@@ -190,6 +208,9 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
         log.info("bedroom %s: no free base pose before the hanger's spot on the bed", rs.room)
         return None
     x = (clear or free)[0]
+    if not _floor_to_front(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)):
+        log.info("bedroom %s: no floor for the base from the bed to the wardrobe's front", rs.room)
+        return None
     pl["wardrobe"] = wp
     pl["hanger"] = hp
     return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"])}

@@ -95,6 +95,7 @@ STAGE_MIN = 0.25        # ... while it stays this far [m] from it
 RELEASE_DROP = 0.008    # the closed hand is pressed this far [m] below the hook's rest on the rail before it opens
 RELEASE_CLEAR = 0.012   # ... and the open hand lowered this much more [m] before it backs out
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
+BACK_OUT = 0.2          # the base backs out this far [m] from the hang pose (along the open leaf: _back_out)
 
 
 @dataclass(frozen=True)
@@ -338,6 +339,20 @@ def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
     d.move(target, seconds, segments=2, carry=True, tol=APPROACH_TOL)
 
 
+def _back_out(part, q: float, f: np.ndarray) -> np.ndarray:
+    """The way (2,) unit out from the hang pose: along the leaf open at ``q`` [rad] (hinge to free edge),
+    or the wardrobe's front normal ``f`` where the leaf points less than 45 deg outward (at its stop the two
+    are one): straight out along ``f`` with the leaf short of its stop, the chassis' corner pushed it open
+    to its stop (flat_023: 78 -> 90 deg, a wall 0.4 m before it, no room left to push it shut)."""
+    from stages.demos.part_grasps import lateral
+
+    along = (part.rotation_at(q) @ np.asarray(lateral(part), float))[:2]
+    along = along / max(1e-9, float(np.linalg.norm(along)))
+    if float(np.dot(along, f[:2])) < 0:
+        along = -along
+    return along if float(np.dot(along, f[:2])) > math.cos(math.pi / 4) else np.asarray(f[:2], float)
+
+
 def _clear_leaf(d, part, q: float) -> None:
     """Where open_wardrobe left the hand by the open leaf's free edge (within :data:`LEAF_NEAR` of it),
     move it on along the leaf, out past that edge by :data:`LEAF_PAST` (hand open, orientation kept):
@@ -414,6 +429,7 @@ def hang_on_rail(inst, d) -> None:
     # home in joint space first
     d.home(3.0)
     q = float(d.sim.joint_q_of_path(part.joint_path))
+    log.debug("hang: hanger at %s at the start", np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
     if q - part.closed < REOPEN_BELOW * part.travel:
         # the door swung half shut (the arm's sweep): open it again from where it stands (the same expert),
         # or the leaf stands in the hanger's way
@@ -554,6 +570,13 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(low, put), 0.5, segments=1)
     d.move(_pose(low + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
     d.step(0.5)
+    log.debug("hang: door at %.2f, hanger at %s after the release", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
     bx, by, th = base_pose(d.sim)
-    d.drive_straight((bx + 0.2 * f[0], by + 0.2 * f[1], th))
-    d.home(2.0)  # a canonical posture: close_wardrobe plans its base poses by IK from it
+    back = _back_out(part, float(d.sim.joint_q_of_path(part.joint_path)), f)
+    d.drive_straight((bx + BACK_OUT * back[0], by + BACK_OUT * back[1], th))
+    log.debug("hang: door at %.2f, hanger at %s backed out", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))
+    d.home(2.0)
+    log.debug("hang: door at %.2f, hanger at %s homed", float(d.sim.joint_q_of_path(part.joint_path)),
+              np.round(_hanger_pose(read_state(d.sim), h)[0], 3))  # a canonical posture: close_wardrobe plans its base poses by IK from it

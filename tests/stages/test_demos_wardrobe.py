@@ -268,3 +268,47 @@ def test_the_hanger_stays_put_on_the_blanket_with_multiccd(bedroom, tmp_path, mo
     still, crept = drift(bedroom), drift(replace(bedroom, multiccd=False))
     assert still < 0.003, f"the hanger moved {still * 1000:.1f} mm in 8 s with multi-CCD"
     assert crept > 0.02, f"without multi-CCD it moved {crept * 1000:.1f} mm in 8 s (it crept ~7 mm/s)"
+
+
+def test_floor_to_front_needs_a_gap_the_base_fits():
+    """house_bedroom._floor_to_front on a synthetic room (4 x 3.5 m, a wardrobe against the south wall facing
+    +Y, a bed whose corner leaves a diagonal gap to the wardrobe's corner): flat_013's 0.76 m gap keeps the
+    base (the planner's 0.8 m disc) from the bed's side to the wardrobe's front; a 1.1 m gap does not."""
+    from types import SimpleNamespace
+
+    from stages.demos.house_bedroom import _floor_to_front
+    from stages.demos.packages import Placed
+
+    walls = ((-0.2, -0.2, 4.2, 0.0), (-0.2, 3.5, 4.2, 3.7), (-0.2, -0.2, 0.0, 3.7), (4.0, -0.2, 4.2, 3.7))
+    rf = SimpleNamespace(area=(0.0, 0.0, 4.0, 3.5), walls=walls)
+    # the wardrobe's asset frame: +X its front; yaw pi/2 turns it to +Y; footprint x 0.36-1.34, y 0.08-0.74
+    wp = Placed("Objects/wardrobe_01", SimpleNamespace(hi=(0.33, 0.49, 2.0)), (0.85, 0.41, 0.0), math.pi / 2)
+    pick = (2.6, 0.9, math.pi / 2)  # before the bed's near edge, east of the wardrobe
+    for corner, ok in (((1.66, 1.43), False), ((1.9, 1.7), True)):
+        bed = (corner[0], corner[1], 3.68, 3.07)
+        assert math.dist(corner, (1.34, 0.74)) < 0.8 or ok
+        assert _floor_to_front(rf, [(0.36, 0.08, 1.34, 0.74), bed], wp, pick) is ok, corner
+
+
+def test_back_out_runs_along_the_open_leaf():
+    """skill_wardrobe._back_out: with the leaf at its stop (90 deg) the way out is the wardrobe's front normal
+    (as before); at 78 deg it runs along the leaf (hinge to free edge, leaning 12 deg over the open half), so the
+    chassis beside it does not push it open; under 45 deg it falls back on the front normal."""
+    import dataclasses
+
+    from stages.demos.parts import ArticulatedPart
+    from stages.demos.skill_wardrobe import _back_out
+
+    # a wardrobe facing +Y, the door hinged at x = 2.48 (its east side), its handle 0.48 m west at closed
+    part = ArticulatedPart(asset_id="w", category="wardrobe", role="door", joint_path="/j", link="door_0",
+                           kind="revolute", axis=(0.0, 0.0, 1.0), origin=(2.48, 0.71, 1.0), lower=0.0,
+                           upper=math.pi / 2, closed=0.0, handle=(2.0, 0.74, 1.05), bar_axis=(0.0, 0.0, 1.0),
+                           grip_width=0.02, clearance=0.03, front=(0.0, 1.0, 0.0))
+    # positive q opens: the free edge swings out (+Y) from the west: turning about -Z (check the axis sign)
+    if part.handle_at(0.5)[1] < 0.74:
+        part = dataclasses.replace(part, axis=(0.0, 0.0, -1.0))
+    f = np.array([0.0, 1.0, 0.0])
+    assert np.allclose(_back_out(part, math.pi / 2, f), [0.0, 1.0], atol=0.05)
+    way = _back_out(part, math.radians(78.0), f)
+    assert way[1] > 0.95 and way[0] < -0.15  # out and away from the hinge, along the leaf
+    assert np.allclose(_back_out(part, math.radians(30.0), f), [0.0, 1.0])
