@@ -210,9 +210,7 @@ def _swing(part: ArticulatedPart, d, grid, q0: float, q1: float, step_deg: float
         if done(q):  # a free leaf may have moved on by itself (an oven door past its hold drops open)
             return
         step = math.copysign(math.radians(step_deg), q1 - q)
-        qs = [float(v) for v in np.arange(q + step, q1 + 0.5 * step, step)]
-        if push:
-            qs.append(part.closed - PUSH_OVERSHOOT)
+        qs = arc_steps(q, q1, step, then=part.closed - PUSH_OVERSHOOT if push else None)
         plan = swept_grid(grid, part, min(q, q1), max(q, q1))
         # a later stage (or a chained expert) first tries to go on from where the base stands
         stay = plan_here(d, part, grid, q, qs, mode, goal=part.closed - PUSH_OVERSHOOT if push else q1) \
@@ -427,6 +425,17 @@ def _drive(d, base: tuple[float, float, float], grid, tuck=None) -> None:
             raise
         d.base((0.0, 0.0, 0.0))
         log.info("base %.3f m / %.3f rad off its goal after the drive timeout; going on", off, dyaw)
+
+
+def arc_steps(q: float, q1: float, step: float, then: float | None = None) -> list[float]:
+    """The joint values [rad or m] a stage swings the part through from ``q`` towards ``q1``, ``step``
+    apart (signed), ending within half a step of ``q1``, then ``then`` when given (a push's
+    overshoot); never empty: ``[q1]`` where the part is within half a step of ``q1`` but short of
+    its ``done_at`` (an empty list made the stage planner raise IndexError)."""
+    qs = [float(v) for v in np.arange(q + step, q1 + 0.5 * step, step)]
+    if then is not None:
+        qs.append(float(then))
+    return qs or [float(q1)]
 
 
 def _settle_part(part: ArticulatedPart, d, max_seconds: float = 2.0, speed: float = 0.03) -> None:

@@ -232,3 +232,19 @@ def test_fridge_door_turned_shut_runs_to_its_end_and_stays_shut(catalog: Path, t
     assert not any("turn stopped" in m for m in said), said
     assert res.success, res.detail
     assert res.q_end - part.closed <= math.radians(2.5), math.degrees(res.q_end)
+
+
+def test_a_stage_within_half_a_step_of_its_goal_still_has_one_step():
+    """articulated.arc_steps: the joint values a stage swings through; a leaf within half a step of
+    the stage's goal but short of done (a door opened to 0.80-0.83 of its travel) gets [goal], not an
+    empty list (on which the stage planner raised IndexError)."""
+    import math
+
+    from stages.demos.articulated import arc_steps
+
+    s = math.radians(4.0)
+    assert arc_steps(0.0, 10 * s, s) == pytest.approx([s * k for k in range(1, 11)])
+    assert arc_steps(1.0, 1.0 + 0.3 * s, s) == [1.0 + 0.3 * s]
+    assert arc_steps(1.0, 1.0 - 0.2 * s, -s) == [1.0 - 0.2 * s]
+    assert arc_steps(1.0, 1.0 - 3 * s, -s) == pytest.approx([1.0 - s, 1.0 - 2 * s, 1.0 - 3 * s])
+    assert arc_steps(0.02, 0.0, -s, then=-0.05) == [-0.05]  # a push: its overshoot, as before
