@@ -464,7 +464,7 @@ def hang_on_rail(inst, d) -> None:
     # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod])
-    gaps = (PICK_GAP + LOW_GAP, PICK_GAP) if w.table_z < LOW_BED else (PICK_GAP,)
+    gaps = (PICK_GAP + LOW_GAP, PICK_GAP + LOW_GAP / 2, PICK_GAP) if w.table_z < LOW_BED else (PICK_GAP,)
     for k, gap in enumerate(gaps):  # planned before the base moves: a blocked pose costs no motion
         try:
             d.drive_to(facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=gap), grid,
