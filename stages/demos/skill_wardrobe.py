@@ -95,6 +95,8 @@ STAGE_MIN = 0.25        # ... while it stays this far [m] from it
 RELEASE_DROP = 0.008    # the closed hand is pressed this far [m] below the hook's rest on the rail before it opens
 RELEASE_CLEAR = 0.012   # ... and the open hand lowered this much more [m] before it backs out
 ENTRY = 0.02            # the hook starts this far [m] outside the rail before it goes in
+WITHDRAW_HOLD, WITHDRAW_STEP, WITHDRAW_STEP_S = 0.3, 0.005, 0.15  # the open hand held [s] under the hung hook,
+WITHDRAW_SLOW, WITHDRAW_OUT = 0.06, 0.15   # then out in steps [m] of [s] each to SLOW [m], then to OUT [m] in one move
 BACK_OUT = 0.2          # the base backs out this far [m] from the hang pose (along the open leaf: _back_out)
 
 
@@ -379,6 +381,22 @@ def _clear_leaf(d, part, q: float) -> None:
         log.info("%s: the hand could not move on past the leaf's edge", part.joint_path)
 
 
+def _withdraw(d, low: np.ndarray, f: np.ndarray, rot: np.ndarray) -> None:
+    """The open hand, its tool point at ``low`` (3,) [m] under the hung hanger's hook (the fingers either side
+    of its plane), out along the wardrobe's front normal ``f`` (3,) with its rotation ``rot`` (3, 3) kept: held
+    :data:`WITHDRAW_HOLD` [s], then in steps of :data:`WITHDRAW_STEP` [m], each reached before the next, to
+    :data:`WITHDRAW_SLOW`, then on to :data:`WITHDRAW_OUT` in one move. Backed out in one 0.15 m move from
+    there, the fingers knocked the hook off the rail within the first 5 cm (flat_037 s2; the hanger lay in
+    the wardrobe's bottom; slowed to 1 s for 5 cm it fell the same); stepped, it stays on the rail."""
+    from stages.demos.counter import _pose
+
+    d.move(_pose(low, rot), WITHDRAW_HOLD, segments=1)
+    n = int(round(WITHDRAW_SLOW / WITHDRAW_STEP))
+    for k in range(1, n + 1):
+        d.move(_pose(low + k * WITHDRAW_STEP * f, rot), WITHDRAW_STEP_S, segments=1, tol=APPROACH_TOL)
+    d.move(_pose(low + WITHDRAW_OUT * f, rot), 0.6, segments=1, tol=APPROACH_TOL)
+
+
 def _ramp(d, q: np.ndarray, seconds: float) -> None:
     """Arm joint targets linearly to ``q`` (7,) [rad] in ``seconds`` [s] or slower (the pace's joint speed)."""
     q0 = d.ctl.arm_targets()
@@ -446,7 +464,7 @@ def hang_on_rail(inst, d) -> None:
     # --- pick: the neck pinched from +X, the hand horizontal pointing -X, fingers closing vertically
     pos, rot = _hanger_pose(read_state(d.sim), h)
     neck = pos + rot @ np.array([gx, 0.0, rod])
-    gaps = (PICK_GAP + LOW_GAP, PICK_GAP) if w.table_z < LOW_BED else (PICK_GAP,)
+    gaps = (PICK_GAP + LOW_GAP, PICK_GAP + LOW_GAP / 2, PICK_GAP) if w.table_z < LOW_BED else (PICK_GAP,)
     for k, gap in enumerate(gaps):  # planned before the base moves: a blocked pose costs no motion
         try:
             d.drive_to(facing_north_goal(w.blanket_edge, float(neck[0]) + PICK_SIDE, gap=gap), grid,
@@ -568,7 +586,7 @@ def hang_on_rail(inst, d) -> None:
     # ... and lowered clear of it before they back out (backing out under it, they swung the hanger off the rail)
     low = hand_for(rest) - (RELEASE_DROP + RELEASE_CLEAR) * up
     d.move(_pose(low, put), 0.5, segments=1)
-    d.move(_pose(low + 0.15 * f, put), 1.0, segments=2, tol=APPROACH_TOL)
+    _withdraw(d, low, f, put)
     d.step(0.5)
     log.debug("hang: door at %.2f, hanger at %s after the release", float(d.sim.joint_q_of_path(part.joint_path)),
               np.round(_hanger_pose(read_state(d.sim), h)[0], 3))

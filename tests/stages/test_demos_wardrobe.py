@@ -312,3 +312,31 @@ def test_back_out_runs_along_the_open_leaf():
     way = _back_out(part, math.radians(78.0), f)
     assert way[1] > 0.95 and way[0] < -0.15  # out and away from the hinge, along the leaf
     assert np.allclose(_back_out(part, math.radians(30.0), f), [0.0, 1.0])
+
+
+def test_withdraw_backs_the_open_hand_out_in_small_steps():
+    """skill_wardrobe._withdraw: the open hand under the hung hook is held, then moved out along the front
+    normal in 5 mm steps (each its own move) to 6 cm, then on to 0.15 m, its rotation kept (a single 0.15 m
+    move knocked the hook off the rail, flat_037 s2). The moves are recorded from a stand-in driver."""
+    from stages.demos import skill_wardrobe as sw
+
+    class Recorder:  # records the driver's move targets (the arm is not under test here)
+        def __init__(self):
+            self.moves = []
+
+        def move(self, target, seconds, **kw):
+            self.moves.append((np.asarray(target, float), float(seconds)))
+
+    low, f = np.array([0.4, 0.7, 0.99]), np.array([1.0, 0.0, 0.0])
+    rot = np.array([[0.09, 0.04, -0.995], [-0.08, -0.995, -0.05], [-0.993, 0.08, -0.09]])
+    d = Recorder()
+    sw._withdraw(d, low, f, rot)
+    pts = np.array([t[:3, 3] for t, _ in d.moves])
+    assert np.allclose(pts[0], low) and d.moves[0][1] == sw.WITHDRAW_HOLD
+    out = (pts - low) @ f
+    assert np.allclose(pts - low - np.outer(out, f), 0.0)  # straight out along f
+    steps = np.diff(out)
+    n = int(round(sw.WITHDRAW_SLOW / sw.WITHDRAW_STEP))
+    assert np.allclose(steps[:n], sw.WITHDRAW_STEP) and out[n] == pytest.approx(sw.WITHDRAW_SLOW)
+    assert out[-1] == pytest.approx(sw.WITHDRAW_OUT) and len(d.moves) == n + 2
+    assert all(np.allclose(t[:3, :3], rot) for t, _ in d.moves)
