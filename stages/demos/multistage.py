@@ -273,7 +273,12 @@ def needs_drink(tasks) -> bool:
     kitchen parks a pitcher with the drink and a cup (``write_kitchen(drink=True)``)."""
     from stages.demos.sampling import POUR_SKILLS
 
-    return any(t in POUR_SKILLS or (t in MULTISTAGE and any(st.skill in POUR_SKILLS for st in MULTISTAGE[t].stages))
+    return uses_skills(tasks, POUR_SKILLS)
+
+
+def uses_skills(tasks, skills) -> bool:
+    """Whether any of ``tasks`` (names) is one of ``skills`` or a multistage task with a stage of one."""
+    return any(t in skills or (t in MULTISTAGE and any(st.skill in skills for st in MULTISTAGE[t].stages))
                for t in tasks)
 
 
@@ -283,8 +288,7 @@ CLOCK_SKILLS = ("press_clock_button", "slide_clock_switch")
 
 def needs_clock(tasks) -> bool:
     """Whether any of ``tasks`` (names) is a clock skill or a multistage task with a clock skill's stage."""
-    return any(t in CLOCK_SKILLS or (t in MULTISTAGE and any(st.skill in CLOCK_SKILLS for st in MULTISTAGE[t].stages))
-               for t in tasks)
+    return uses_skills(tasks, CLOCK_SKILLS)
 
 
 def needs_wardrobe(tasks) -> bool:
@@ -292,5 +296,4 @@ def needs_wardrobe(tasks) -> bool:
     steps with multi-CCD contacts (``house_bedroom(multiccd=True)``: the hanger crept on the blanket)."""
     from stages.demos.sampling import WARDROBE_SKILLS
 
-    return any(t in WARDROBE_SKILLS or (t in MULTISTAGE and any(st.skill in WARDROBE_SKILLS for st in MULTISTAGE[t].stages))
-               for t in tasks)
+    return uses_skills(tasks, WARDROBE_SKILLS)

@@ -159,7 +159,7 @@ class FrameCapture:
         e = self.e
         t0 = time.perf_counter()
         images = {bid: r.wait() for bid, r in self._renders.items()}  # RGB uint8, depth [mm] uint16
-        if not getattr(e.config, "record_depth", True):  # RGB-only recording: the frames carry no depth
+        if not e.config.record_depth:  # RGB-only recording: the frames carry no depth
             images = {bid: {c: (im[0], None) for c, im in ims.items()} for bid, ims in images.items()}
         self._renders.clear()
         t1 = time.perf_counter()

@@ -59,7 +59,8 @@ class EngineConfig:
     size [px]; fps: recorded frames per second; record_images: render the cameras (False: state and
     action only); record_depth: with record_images, record each camera's depth too (False: RGB
     only; the render still makes depth, the recorder drops it); video_gop: keyframe interval of the
-    recorded RGB videos [frames] (the dataset spec's VideoCodecSpec.gop); cameras: names of the recorded cameras (wrist, head, third_person);
+    recorded RGB videos [frames] (the dataset spec's VideoCodecSpec.gop); cameras: names of the
+    recorded cameras (wrist, head, third_person);
     layout: "batched" (one model of ``worlds`` worlds, MuJoCo-Warp: the GPU layout), "per_world"
     (one single-world model per world, the MuJoCo C library: on a CPU it is several times faster
     than MuJoCo-Warp's CPU path) or "auto" (batched on CUDA, per_world on CPU);
@@ -129,9 +130,9 @@ class EngineConfig:
         from stages.dataset import CameraSpec, DatasetSpec, VideoCodecSpec
 
         cams = self.cameras if self.record_images else ()
-        return DatasetSpec(fps=self.fps, cameras=tuple(CameraSpec(c, height=self.height, width=self.width,
-                                                                  depth=self.record_depth) for c in cams), hand_joints=self.hand_joints(),
-                           subtasks=self.subtasks, video=VideoCodecSpec(gop=self.video_gop))
+        cameras = tuple(CameraSpec(c, height=self.height, width=self.width, depth=self.record_depth) for c in cams)
+        return DatasetSpec(fps=self.fps, cameras=cameras, hand_joints=self.hand_joints(), subtasks=self.subtasks,
+                           video=VideoCodecSpec(gop=self.video_gop))
 
     def hand_joints(self) -> tuple[str, ...]:
         """The dexterous hand's joints (control order), or () for a parallel gripper."""

@@ -52,10 +52,11 @@ def decode_all(video_path: Path) -> tuple[np.ndarray, np.ndarray]:
 def cached_arrays(video_path: Path | str, cache_dir: Path | str) -> tuple[np.ndarray, np.ndarray]:
     """The frames and times of ``video_path`` from ``cache_dir`` (decoded and written there by the
     first caller; a concurrent first caller writes its own copy and the last rename wins)."""
+    memo = f"{video_path}|{cache_dir}"  # a sample's hot path: no stat or hash once a file is open
+    if memo in _MEMO:
+        return _MEMO[memo]
     video_path, cache_dir = Path(video_path), Path(cache_dir)
     key = _key(video_path)
-    if key in _MEMO:
-        return _MEMO[key]
     fpath, tpath = cache_dir / f"{key}.frames.npy", cache_dir / f"{key}.ts.npy"
     if not (fpath.is_file() and tpath.is_file()):
         cache_dir.mkdir(parents=True, exist_ok=True)
@@ -67,7 +68,7 @@ def cached_arrays(video_path: Path | str, cache_dir: Path | str) -> tuple[np.nda
                 np.save(f, arr)
             tmp.replace(path)
     out = (np.load(fpath, mmap_mode="r"), np.load(tpath))
-    _MEMO[key] = out
+    _MEMO[memo] = out
     return out
 
 

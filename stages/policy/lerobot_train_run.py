@@ -1,4 +1,4 @@
-"""``python -m stages.policy.lerobot_train_run CURVE.csv [--deadline T] -- <lerobot-train arguments>``.
+"""``python -m stages.policy.lerobot_train_run CURVE.csv [--deadline T] [--frame-cache DIR] -- <lerobot-train arguments>``.
 
 Runs lerobot's own training entry point (``lerobot.scripts.lerobot_train:main``, what the
 ``lerobot-train`` command runs) with the given arguments, in this process, offline. One addition: a
@@ -10,10 +10,10 @@ It is a filter of the root logger, which lerobot's ``init_logging`` keeps (it re
 
 ``--deadline T`` (Unix time [s]): the first step that ends at or after T is a checkpoint step
 (lerobot saves it and points ``checkpoints/last`` at it), and training stops before the next update;
-``CURVE.csv``'s folder then gets ``stopped.json`` (the step reached). ``--frame-cache DIR``: the
-data loader reads RGB video frames through :mod:`stages.policy.frame_cache` (each video decoded once
-into DIR, then memory-mapped: about 4x fewer CPU seconds per sample). Two of lerobot-train's module
-functions are wrapped for this (``should_save_checkpoint``, ``update_policy``); nothing else changes.
+``CURVE.csv``'s folder then gets ``stopped.json`` (the step reached); two of lerobot-train's module
+functions are wrapped for this (``should_save_checkpoint``, ``update_policy``). ``--frame-cache DIR``:
+the data loader reads RGB video frames through :mod:`stages.policy.frame_cache` (each video decoded
+once into DIR, then memory-mapped: about 4x fewer CPU seconds per sample).
 """
 
 from __future__ import annotations

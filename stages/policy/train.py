@@ -138,10 +138,10 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
         raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
     out.mkdir(parents=True)
     args = lerobot_args(cfg)
-    deadline = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
+    wrapper = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
     if cfg.frame_cache is not None:
-        deadline += ["--frame-cache", str(Path(cfg.frame_cache).resolve())]
-    cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), *deadline, "--", *args]
+        wrapper += ["--frame-cache", str(Path(cfg.frame_cache).resolve())]
+    cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), *wrapper, "--", *args]
     env = dict(os.environ, HF_HUB_OFFLINE="1", TQDM_DISABLE="1", HF_DATASETS_DISABLE_PROGRESS_BARS="1")
     repo = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = os.pathsep.join([repo, *filter(None, [env.get("PYTHONPATH")])])

@@ -96,9 +96,9 @@ def _runs(data: Path | None, runs: Path, policies: tuple[str, ...] = POLICIES) -
 
 def _num_workers(n_runs: int, asked: int | None) -> int:
     """Data loader workers per training run: ``asked``, or the cores left after one per run's main
-    process, shared by the runs, rounded up (1-4: 16 cores, 6 runs -> 2; 3 runs -> 4). A worker
-    decodes a batch of 16 samples (3 cameras, 128x96, pyav) in about 0.3 s on a loaded CPU core;
-    ``data_s`` in a run's curve.csv says whether the GPU waited for data."""
+    process, shared by the runs, rounded up (1-4: 16 cores, 6 runs -> 2; 3 runs -> 4). Through the
+    frame cache a sample costs about 4 ms of a core (lerobot's own decoding about 18 ms); ``data_s``
+    in a run's curve.csv says whether the GPU waited for data."""
     if asked is not None:
         return asked
     return max(1, min(4, -(-((os.cpu_count() or 1) - n_runs) // max(1, n_runs))))
