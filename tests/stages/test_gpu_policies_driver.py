@@ -122,7 +122,7 @@ TINY_ACT = ("--policy.dim_model=32", "--policy.dim_feedforward=64", "--policy.n_
             "--policy.n_encoder_layers=1", "--policy.latent_dim=8")
 
 
-@pytest.mark.slow  # 86-149 s on 2 shared cores (data job, a training, 1 eval process)
+@pytest.mark.slow  # 86-149 s on 2 shared cores (data job, a training, 1 eval process), twice with --data
 def test_all_records_rgb_only_trains_evaluates_and_packs_one_archive(tmp_path):
     """``all`` at CPU scale on a data job of one kitchen, two push_object episodes, RGB only
     (record_depth = false): every phase runs, the dataset has no depth column, ACT trains 3 steps,
@@ -190,6 +190,22 @@ record_depth = false
     (ep,) = merged["episodes"]
     assert (ep["scene"], ep["seed"], ep["frames"]) == ("kitchen_ws6", 9, 15)
     assert merged["overall"]["successes"] + sum(merged["overall"]["failures"].values()) == 1
+
+    # --data: the datasets made elsewhere (a CPU data job): no data job, the same training and eval
+    work2 = tmp_path / "work2"
+    cmd2 = [work2 if c == work else c for c in cmd]
+    cmd2[cmd2.index("--out") + 1] = str(work2)
+    cmd2[cmd2.index("--job"):cmd2.index("--job") + 2] = ["--data", str(work / "data")]
+    run = subprocess.run([str(c) for c in cmd2], capture_output=True, text=True, timeout=1500,
+                         env={**__import__("os").environ, "OMP_NUM_THREADS": "1"})
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    phases = json.loads((work2 / "all.json").read_text())["phases"]
+    assert (phases["data"]["seconds"], phases["data"]["datasets"]) == (0, "push_pull")
+    assert not (work2 / "data").exists() and not (work2 / "logs" / "data.log").exists()
+    train = json.loads((work2 / "runs" / "push_pull_act" / "train.json").read_text())
+    assert Path(train["config"]["dataset"]) == work / "data" / "datasets" / "push_pull"
+    with tarfile.open(work2 / "policies_all.tgz") as tar:
+        assert "push_pull.json" in tar.getnames()  # the data job's report, from --data
 
 
 def test_data_loader_workers_share_the_cores_left_by_the_runs(driver, monkeypatch):

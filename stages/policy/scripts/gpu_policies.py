@@ -36,7 +36,8 @@ work dir with its runner state copied and the catalog linked.
 ``table``: success per family and policy beside the paper's figures (``table.json``, ``table.md``),
 plus each run's curve and train.json, copied to ``--out``.
 
-``all``: the data job (``--job``, default jobs/policies_gpu1.toml, into ``WORK/data``; stopped when
+``all``: the data job (``--job``, default jobs/policies_gpu1.toml, into ``WORK/data``; or ``--data DIR``, a
+data job's folder made elsewhere, e.g. jobs/policies_cpu.toml on the CPU, and no data job; stopped when
 less than the eval reserve ``--eval-seconds`` (default 0.3 x ``--seconds``, 240-900 s) +
 ``--min-train-seconds`` + 60 s would be left), then ``train`` (no probe) with what is left minus
 the eval reserve (a policy whose lerobot module does not import is skipped with one line), ``eval``
@@ -432,7 +433,8 @@ def _data_job(job: Path, out: Path, seconds: float, log: Path) -> int:
             return 124
 
 
-def _pack(work: Path, runs: Path, results: Path, dst: Path, limit_mb: float = 15.0) -> Path:
+def _pack(work: Path, runs: Path, results: Path, dst: Path, limit_mb: float = 15.0,
+          data: Path | None = None) -> Path:
     """One tgz of what a device call brings back: the table, each run's train.json / curve / eval.json
     (merged and per kitchen) and logs, the data job's reports, the driver's log; rollout videos
     only while the archive stays under ``limit_mb`` MiB."""
@@ -440,7 +442,7 @@ def _pack(work: Path, runs: Path, results: Path, dst: Path, limit_mb: float = 15
 
     files = [p for p in (work / "all.log", work / "all.json", runs / "plan.json") if p.is_file()]
     files += sorted(results.rglob("*")) + sorted((work / "logs").glob("*.log")) + sorted((runs / "logs").glob("*.log"))
-    files += sorted((work / "data" / "reports").glob("*.json"))
+    files += sorted(((data or work / "data") / "reports").glob("*.json"))
     for run in sorted(runs.glob("*_*")):
         files += [run / n for n in ("train.json", "curve.csv", "curve.png", "train.log") if (run / n).is_file()]
         files += sorted((run / "eval").rglob("eval.json")) + sorted((run / "eval").rglob("eval.log"))
@@ -480,11 +482,15 @@ def run_all(a) -> int:
 
     eval_s = a.eval_seconds if a.eval_seconds is not None else min(900.0, max(240.0, 0.3 * a.seconds))
     tail_s = 60.0  # table and the archive
-    status("start", job=str(a.job), work=str(work), eval_reserve_s=eval_s)
+    data = a.data.resolve() if a.data is not None else work / "data"
+    status("start", job=str(a.job) if a.data is None else None, data=str(data), work=str(work), eval_reserve_s=eval_s)
     t = time.perf_counter()
-    data_s = left() - eval_s - tail_s - a.min_train_seconds
-    rc = _data_job(a.job, work / "data", data_s, work / "logs" / "data.log")
-    have = [f for f in FAMILIES if (work / "data" / "datasets" / f / "meta" / "info.json").is_file()]
+    if a.data is None:
+        data_s = left() - eval_s - tail_s - a.min_train_seconds
+        rc = _data_job(a.job, data, data_s, work / "logs" / "data.log")
+    else:  # datasets made elsewhere (jobs/policies_cpu.toml): no data job
+        data_s, rc = 0.0, 0
+    have = [f for f in FAMILIES if (data / "datasets" / f / "meta" / "info.json").is_file()]
     status("data", exit=rc, seconds=round(time.perf_counter() - t), limit_s=round(data_s), datasets=",".join(have) or "none")
     code = 1
     if have:
@@ -498,7 +504,7 @@ def run_all(a) -> int:
         t = time.perf_counter()
         if policies:
             train_s = left() - eval_s - tail_s
-            targs = argparse.Namespace(data=work / "data", runs=runs, seconds=train_s, probe_steps=a.probe_steps,
+            targs = argparse.Namespace(data=data, runs=runs, seconds=train_s, probe_steps=a.probe_steps,
                                        max_steps=a.max_steps, act_arg=a.act_arg, diffusion_arg=a.diffusion_arg,
                                        device=a.device, policies=tuple(policies), num_workers=a.num_workers)
             rc = train(targs)
@@ -512,9 +518,9 @@ def run_all(a) -> int:
             status("eval", exit=rc, seconds=round(time.perf_counter() - t), reserve_s=round(eval_s))
             code = rc
     table(argparse.Namespace(runs=runs, out=results))
-    tgz = _pack(work, runs, results, a.out / "policies_all.tgz")
+    tgz = _pack(work, runs, results, a.out / "policies_all.tgz", data=data)
     status("done", exit=code, archive=str(tgz), mib=round(tgz.stat().st_size / 2**20, 2))
-    _pack(work, runs, results, a.out / "policies_all.tgz")  # again, with the final all.json / all.log
+    _pack(work, runs, results, a.out / "policies_all.tgz", data=data)  # again, with the final all.json / all.log
     return code
 
 
@@ -556,6 +562,8 @@ def main(argv: list[str] | None = None) -> int:
     al.add_argument("--work", type=Path, required=True, help="work folder (data/, runs/, results/, all.log)")
     al.add_argument("--out", type=Path, default=None, help="where policies_all.tgz goes (default WORK)")
     al.add_argument("--job", type=Path, default=REPO / "jobs" / "policies_gpu1.toml", help="the data job")
+    al.add_argument("--data", type=Path, default=None,
+                    help="a data job's work dir made elsewhere (DATA/datasets/<family>): no data job here")
     al.add_argument("--policy", action="append", choices=POLICIES, default=None, help="default both")
     al.add_argument("--eval-seconds", type=float, default=None,
                     help="reserve of the eval phase [s] (default 0.3 x --seconds, 240-900 s)")
