@@ -193,7 +193,7 @@ record_depth = false
 
     # --data: the datasets made elsewhere (a CPU data job): no data job, the same training and eval
     work2 = tmp_path / "work2"
-    cmd2 = [work2 if c == work else c for c in cmd]
+    cmd2 = [str(work2) if c == str(work) else c for c in cmd]
     cmd2[cmd2.index("--out") + 1] = str(work2)
     cmd2[cmd2.index("--job"):cmd2.index("--job") + 2] = ["--data", str(work / "data")]
     run = subprocess.run([str(c) for c in cmd2], capture_output=True, text=True, timeout=1500,
