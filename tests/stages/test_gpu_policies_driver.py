@@ -238,3 +238,22 @@ def test_eval_processes_run_capped_and_are_stopped_at_the_deadline(driver, monke
     assert [a for a, _ in started] == ["0.1", "60", "0.1", "60"]  # job2 waited for a free slot
     out = capsys.readouterr().out
     assert "eval [1/4] job0: no eval.json, exit 0" in out and "job3: no eval.json, exit stopped at the deadline" in out
+
+
+def test_warm_job_is_a_tiny_demos_job_on_the_training_data_jobs_catalog(tmp_path):
+    """The kernel warm-up job ``all`` starts beside the training on cuda: the data job's catalog and
+    assets steps, then one kitchen of two push_object worlds for at most 2 s, unmerged."""
+    import tomllib
+
+    from pipeline import build_job
+    from stages.policy.device_jobs import REPO, warm_job
+
+    path = warm_job(tmp_path, "cuda")
+    spec = build_job(tomllib.loads(path.read_text()), source=str(path), base_dir=tmp_path)
+    base = tomllib.loads((REPO / "jobs" / "policies_gpu1.toml").read_text())["step"]
+    assert [s.name for s in spec.steps] == ["catalog", "assets", "warm"]
+    assert spec.steps[0].config.categories == tuple(base[0]["config"]["categories"])
+    demos = spec.steps[2].config
+    assert (demos.tasks, demos.worlds, demos.batch_worlds, demos.device, demos.max_seconds, demos.merge) == (
+        ("push_object",), 1, 2, "cuda", 2.0, False)
+    assert spec.out == tmp_path / "warm" / "out"

@@ -42,7 +42,8 @@ less than the eval reserve ``--eval-seconds`` (default 0.3 x ``--seconds``, 240-
 ``--min-train-seconds`` + 60 s would be left), then ``train`` (no probe) with what is left minus
 the eval reserve (a policy whose lerobot module does not import is skipped with one line), ``eval``
 (processes still running 60 s before the end are stopped; their kitchens are listed as missing),
-``table`` into ``WORK/results``, and one ``policies_all.tgz`` in ``--out`` (default WORK: a later
+``table`` into ``WORK/results`` (on cuda, beside the training, a tiny demos job fills Warp's kernel
+cache for the eval processes: ``--no-warm-kernels`` skips it), and one ``policies_all.tgz`` in ``--out`` (default WORK: a later
 device call copies it to its $OUT) with the table, each run's train.json / curve / eval.json (merged
 and per kitchen) / logs, the data job's reports, ``all.log`` and ``all.json`` (each phase's
 seconds); rollout videos while it stays under 12 MiB.
@@ -63,6 +64,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[3]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))  # stages.* (light modules; heavy ones load in the subprocesses)
+from stages.policy.device_jobs import data_job, pack, warm_job  # noqa: E402
+
 FAMILIES = {"pick_place": "pick_place_bowl", "open_close": "open_drawer", "push_pull": "push_object"}
 PAPER_ACT = {"pick_place": 0.66, "open_close": 0.84, "push_pull": 0.72}  # AgentWorld paper, ACT
 POLICIES = ("act", "diffusion")
@@ -415,53 +418,6 @@ def _policy_importable(pol: str) -> str | None:
     return None if r.returncode == 0 else ((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
 
 
-def _data_job(job: Path, out: Path, seconds: float, log: Path) -> int:
-    """``agentworld run JOB --out OUT`` for at most ``seconds`` (its process group stopped then)."""
-    log.parent.mkdir(parents=True, exist_ok=True)
-    with log.open("w") as f:
-        p = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "run", str(job), "--no-progress", "--out", str(out)],
-                             cwd=REPO, stdout=f, stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            return p.wait(timeout=max(1.0, seconds))
-        except subprocess.TimeoutExpired:
-            os.killpg(p.pid, 15)  # the job's own process group (its workers)
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, 9)
-                p.wait()
-            return 124
-
-
-def _pack(work: Path, runs: Path, results: Path, dst: Path, limit_mb: float = 15.0,
-          data: Path | None = None) -> Path:
-    """One tgz of what a device call brings back: the table, each run's train.json / curve / eval.json
-    (merged and per kitchen) and logs, the data job's reports, the driver's log; rollout videos
-    only while the archive stays under ``limit_mb`` MiB."""
-    import tarfile
-
-    files = [p for p in (work / "all.log", work / "all.json", runs / "plan.json") if p.is_file()]
-    files += sorted(results.rglob("*")) + sorted((work / "logs").glob("*.log")) + sorted((runs / "logs").glob("*.log"))
-    files += sorted(((data or work / "data") / "reports").glob("*.json"))
-    for run in sorted(runs.glob("*_*")):
-        files += [run / n for n in ("train.json", "curve.csv", "curve.png", "train.log") if (run / n).is_file()]
-        files += sorted((run / "eval").rglob("eval.json")) + sorted((run / "eval").rglob("eval.log"))
-    videos = sorted(runs.glob("*/eval/*/videos/*/*.mp4"))
-    size = sum(p.stat().st_size for p in files if p.is_file())
-    for v in videos:  # compressed logs shrink; videos do not
-        if size + v.stat().st_size < limit_mb * 2**20 * 0.8:
-            files.append(v)
-            size += v.stat().st_size
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    tmp = dst.with_suffix(".tmp")
-    with tarfile.open(tmp, "w:gz") as tar:
-        for f in dict.fromkeys(files):
-            if f.is_file():
-                tar.add(f, arcname=str(f.relative_to(work)) if f.is_relative_to(work) else f.name)
-    tmp.rename(dst)
-    return dst
-
-
 def run_all(a) -> int:
     """data job -> train -> eval -> table under one wall budget (see the module docstring)."""
     t_start = time.perf_counter()
@@ -487,7 +443,7 @@ def run_all(a) -> int:
     t = time.perf_counter()
     if a.data is None:
         data_s = left() - eval_s - tail_s - a.min_train_seconds
-        rc = _data_job(a.job, data, data_s, work / "logs" / "data.log")
+        rc = data_job(a.job, data, data_s, work / "logs" / "data.log")
     else:  # datasets made elsewhere (jobs/policies_cpu.toml): no data job
         data_s, rc = 0.0, 0
     have = [f for f in FAMILIES if (data / "datasets" / f / "meta" / "info.json").is_file()]
@@ -502,6 +458,14 @@ def run_all(a) -> int:
             else:
                 policies.append(pol)
         t = time.perf_counter()
+        warm = None
+        if policies and a.device == "cuda" and a.warm_kernels:  # compile the engine's kernels beside the training
+            job = warm_job(work, "cuda")
+            log = (work / "logs" / "warm.log")
+            log.parent.mkdir(parents=True, exist_ok=True)
+            warm = (time.perf_counter(), subprocess.Popen(
+                [sys.executable, "-m", "pipeline.cli", "run", str(job), "--no-progress", "--out", str(work / "warm" / "out")],
+                cwd=REPO, stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True))
         if policies:
             train_s = left() - eval_s - tail_s
             targs = argparse.Namespace(data=data, runs=runs, seconds=train_s, probe_steps=a.probe_steps,
@@ -510,6 +474,14 @@ def run_all(a) -> int:
             rc = train(targs)
             status("train", exit=rc, seconds=round(time.perf_counter() - t), budget_s=round(train_s),
                    policies=",".join(policies))
+            if warm is not None:  # the eval waits for the kernels (at most a third of its reserve)
+                t_w, p = warm
+                try:
+                    rc_w = p.wait(timeout=max(1.0, min(eval_s / 3, left() - tail_s)))
+                except subprocess.TimeoutExpired:
+                    os.killpg(p.pid, 9)
+                    rc_w = p.wait()
+                status("warm", exit=rc_w, seconds=round(time.perf_counter() - t_w))
             t = time.perf_counter()
             eargs = argparse.Namespace(runs=runs, scenes=a.scenes, seeds=a.seeds, device=a.device,
                                        max_seconds=a.max_seconds, limit_factor=a.limit_factor, jobs=a.jobs,
@@ -518,9 +490,9 @@ def run_all(a) -> int:
             status("eval", exit=rc, seconds=round(time.perf_counter() - t), reserve_s=round(eval_s))
             code = rc
     table(argparse.Namespace(runs=runs, out=results))
-    tgz = _pack(work, runs, results, a.out / "policies_all.tgz", data=data)
+    tgz = pack(work, runs, results, a.out / "policies_all.tgz", data=data)
     status("done", exit=code, archive=str(tgz), mib=round(tgz.stat().st_size / 2**20, 2))
-    _pack(work, runs, results, a.out / "policies_all.tgz", data=data)  # again, with the final all.json / all.log
+    pack(work, runs, results, a.out / "policies_all.tgz", data=data)  # again, with the final all.json / all.log
     return code
 
 
@@ -567,6 +539,8 @@ def main(argv: list[str] | None = None) -> int:
     al.add_argument("--policy", action="append", choices=POLICIES, default=None, help="default both")
     al.add_argument("--eval-seconds", type=float, default=None,
                     help="reserve of the eval phase [s] (default 0.3 x --seconds, 240-900 s)")
+    al.add_argument("--no-warm-kernels", dest="warm_kernels", action="store_false",
+                    help="no kernel warm-up job beside the training (cuda; see device_jobs.warm_job)")
     al.add_argument("--min-train-seconds", type=float, default=300.0,
                     help="the data job stops when less than this would be left to training [s]")
     for name, kw in (("--probe-steps", {"type": int, "default": 0}), ("--max-steps", {"type": int, "default": None}),
