@@ -35,7 +35,7 @@ import numpy as np
 
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
-from stages.scene.assets import AssetGeometry, side_zones, stand_zones
+from stages.scene.assets import AssetGeometry, leaf_zones, side_zones, stand_zones
 from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
     convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
@@ -124,6 +124,7 @@ class Populator:
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
         self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
+        self._leaf_on = True  # the rules' leaf zones are kept (the first half of a room's arrangements)
         self._others: tuple | None = None  # (insts, their and the layout's pieces, piece_bounds) for _collides
 
     # -- public ---------------------------------------------------------------------------------
@@ -156,6 +157,7 @@ class Populator:
             # room): the narrower half of each category's variants, down to the narrowest one
             half = n_arr // 2
             self._compact = 0.5 * (1.0 - (a - half) / max(n_arr - half, 1)) if n_arr > 1 and a >= half else 0.0
+            self._leaf_on = a < half or n_arr == 1  # rules' leaf zones: a preference, kept in the first half
             try:
                 for rule in rr.furniture:
                     self._entry(rule, ctx, grid, rep, furniture=True)
@@ -233,7 +235,8 @@ class Populator:
         return f"{category}_{self.counter[category]:02d}"
 
     def _instance(self, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext, xy: np.ndarray, z: float,
-                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0)) -> _Inst:
+                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0),
+                  leaf=(0.0, None)) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
         R2 = R3[:2, :2]
@@ -247,7 +250,8 @@ class Populator:
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
             clear = _rect(c, side, max((geo.hi[1] - geo.lo[1]) / 2 - SWING_MARGIN, 0.05), front, clearance)
-        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)]
+        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)
+                  + leaf_zones(geo, *leaf)]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
         return _Inst(p, geo, (R3, t), fp, block, zones, support is None, swings=len(geo.swings), clear=clear)
 
@@ -284,7 +288,8 @@ class Populator:
                 continue
             xy, yaw = pose
             inst = self._instance(rec, geo, ctx, xy, ctx.elevation + REST_GAP - geo.lo[2], yaw, None, rule.clearance,
-                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]))
+                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]),
+                                  (rule.leaf * self._leaf_on, k if rule.leaf_door == "one" else None))
             why = self._floor_conflict(inst, rule, ctx, geo)
             no_room = why == "outside the room"
             if why is None:
