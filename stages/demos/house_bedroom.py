@@ -169,17 +169,21 @@ def _floor_to_front(rf, boxes: list, wp: Placed, pick: tuple[float, float, float
 
 def _door_with_room(rf, boxes: list, wp: Placed, pick: tuple[float, float, float]) -> str | None:
     """The joint path of the first door of the wardrobe ``wp`` (in :func:`~stages.demos.sampling.world_part`'s
-    order) whose leaf, open to its stop and to 0.9 of its travel, leaves the base (the planner's disc) a pose
-    round its free edge to push it shut (the push plan's candidates, the turned fists' 140 deg:
-    :func:`~stages.demos.part_planning._swing_bases`) and a drive from ``pick`` (x, y, yaw) to the hang pose's
-    staging point (:func:`~stages.demos.base_approach.staging`), on the room's floor (walls and ``boxes``
-    [m]); None where no door does (the 40-flat bench's flat_023: the leaf ended 0.39 m from a wall, no base
-    to push it shut; flat_028: the open leaf cut the floor between the bed and the hang pose)."""
+    order) whose leaf, open to its stop, to 0.9 and to 0.8 of its travel (open_wardrobe's stage may end short),
+    leaves the base (the planner's disc) on the room's floor (walls and ``boxes`` [m]) the staging point of its
+    pose ``pick`` (x, y, yaw facing +Y) before the hanger's spot (or drive_to's nearer one), a pose round the
+    leaf's free edge to push it shut (the push plan's candidates, the turned fists' 140 deg:
+    :func:`~stages.demos.part_planning._swing_bases`) and the staging point of the hang pose
+    (:func:`~stages.demos.base_approach.staging`), all on one floor; None where no door does (the 40-flat
+    bench's flat_023: the leaf ended 0.39 m from a wall, no base to push it shut; flat_028: the open leaf cut
+    the floor between the bed and the hang pose; flat_013 at 0.8 of the travel: the leaf blocked the pinch
+    pose's staging point)."""
     from types import SimpleNamespace
 
     from stages.demos.base_approach import leaf_points, staging
-    from stages.demos.driver import ExpertFailure
-    from stages.demos.part_planning import _swing_bases, connected, swept_grid
+    from stages.demos.counter import COUNTER_STAGE
+    from stages.demos.driver import NEAR_STAGING, ExpertFailure
+    from stages.demos.part_planning import _swing_bases, connected, is_free, swept_grid
     from stages.demos.parts import parts_of_package
     from stages.demos.planner import NavGrid
     from stages.demos.skill_wardrobe import hang_base, rail_facts
@@ -191,10 +195,12 @@ def _door_with_room(rf, boxes: list, wp: Placed, pick: tuple[float, float, float
              if q.role == "door" and q.kind == "revolute"]
     rail, world = rail_facts(wp), SimpleNamespace(placed={"wardrobe": wp})
     for part in sorted(doors, key=lambda q: abs(q.handle[2] - 1.0)):  # stable: world_part's first door first
-        for frac in (1.0, 0.9):
+        for frac in (1.0, 0.9, 0.8):
             q = part.closed + frac * part.travel
             g = swept_grid(grid, part, q, q)
             on = connected(g, pick[:2], reach=1.0)
+            if not any(is_free(g, ~on, pick[0], pick[1] - back) for back in (COUNTER_STAGE, NEAR_STAGING)):
+                break
             if not _swing_bases(part, g, q, list(np.linspace(q, part.closed, 8)), spread=140.0, within=on):
                 break
             try:
@@ -254,10 +260,13 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     if not _floor_to_front(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)):
         log.info("bedroom %s: no floor for the base from the bed to the wardrobe's front", rs.room)
         return None
-    door = _door_with_room(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP))
+    # the first spot (arm clear of the leaves first) with a door whose open leaf leaves the base its floor
+    door = next(((x, d) for x in clear + [v for v in free if v not in clear]
+                 if (d := _door_with_room(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)))), None)
     if door is None:
         log.info("bedroom %s: no wardrobe door whose open leaf leaves the base room to hang and to push it shut", rs.room)
         return None
+    x, door = door
     pl["wardrobe"] = wp
     pl["hanger"] = hp
     return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"]), "wardrobe_door": door}
