@@ -433,7 +433,7 @@ def hang_on_rail(inst, d) -> None:
     from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.base_approach import drive_in, grid_with_leaf, leaf_points
+    from stages.demos.base_approach import drive_in, grid_with_leaf, held_points, leaf_points
     from stages.simulate.state import read_state
 
     w = inst.world
@@ -523,7 +523,7 @@ def hang_on_rail(inst, d) -> None:
     _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
     for k, approach in enumerate(APPROACHES):  # planned before the base moves
         try:
-            drive_in(d, grid, goal, leaf_points(part, q), approach=approach)
+            drive_in(d, grid, goal, leaf_points(part, q), approach=approach, held=held_points(d, h))
             break
         except ExpertFailure as e:
             if e.reason != "no_path" or k == len(APPROACHES) - 1:
