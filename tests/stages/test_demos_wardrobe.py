@@ -340,3 +340,30 @@ def test_withdraw_backs_the_open_hand_out_in_small_steps():
     assert np.allclose(steps[:n], sw.WITHDRAW_STEP) and out[n] == pytest.approx(sw.WITHDRAW_SLOW)
     assert out[-1] == pytest.approx(sw.WITHDRAW_OUT) and len(d.moves) == n + 2
     assert all(np.allclose(t[:3, :3], rot) for t, _ in d.moves)
+
+
+def test_drive_clear_turns_the_held_hanger_clear_of_the_open_leaf():
+    """base_approach.plan_turn on flat_018's geometry (a leaf from its hinge at (1.93, 0.70) out to its free
+    edge at (1.87, 1.21); the base backed off the bed at (2.08, 1.67) facing +Y, a 0.4 m wide hanger held
+    0.4 m ahead; the staging point (1.50, 1.55) facing -Y): the follower's own drive turns the short way
+    (through +X) while passing the free edge, the hanger sweeping within TURN_MARGIN of the leaf (in the
+    simulation it swept the door half shut); the plan turns on the spot the long way (through -X), with
+    every leg clear; a leaf 3 m away leaves the follower's drive as it is."""
+    from stages.demos.base_approach import (TURN_MARGIN, chassis_outline, clearance, plan_turn, rollout,
+                                            spin)
+
+    leaf = np.array([(1.933 + t * (1.866 - 1.933), 0.70 + t * (1.21 - 0.70)) for t in np.linspace(0, 1, 40)])
+    held = np.array([(0.4, y) for y in np.linspace(-0.2, 0.2, 9)])
+    body = np.vstack([chassis_outline(), held])
+    start, goal_yaw, dt = (2.077, 1.672, 1.561), -1.571, 1.0 / 30.0
+    path = np.array([start[:2], (1.504, 1.555)])
+    direct = rollout(path, goal_yaw, start, dt)
+    assert np.allclose(direct[-1, :2], path[-1], atol=0.02) and direct[-1, 2] == pytest.approx(goal_yaw, abs=0.02)
+    assert direct[5, 2] < start[2]  # the follower turns the short way: clockwise, through +X
+    assert clearance(direct, body, leaf) < TURN_MARGIN
+    i, p, turn = plan_turn(path, start, goal_yaw, held, leaf, dt)
+    assert turn == pytest.approx(goal_yaw - start[2] + 2 * math.pi, abs=1e-6)  # the long way, through -X
+    legs = np.vstack([rollout(np.vstack([path[: i + 1], p]), start[2], start, dt), spin(p, start[2], turn),
+                      rollout(np.vstack([p, path[i + 1:]]), goal_yaw, (*p, goal_yaw), dt)])
+    assert clearance(legs, body, leaf) >= TURN_MARGIN
+    assert plan_turn(path, start, goal_yaw, held, leaf + [3.0, 0.0], dt) is None
