@@ -144,13 +144,13 @@ def test_hang_on_rail_predicate(tmp_path):
 
 def test_arm_width_tells_an_elbow_out_sideways(tmp_path):
     """The posture before the wardrobe is judged by how far the elbow and wrist reach sideways of the arm's
-    mount (skill_wardrobe._width, on the Panda's Pinocchio model): the home posture and the carry posture
+    mount (wardrobe_arm._width, on the Panda's Pinocchio model): the home posture and the carry posture
     of flat_008 stay within NARROW_MAX, the posture flat_038's nearest IK solution had (joint 1 at 122 deg,
     the base stopped 10 cm short of the wardrobe) does not."""
     from types import SimpleNamespace
 
     from stages.demos.experts import timed_clik
-    from stages.demos.skill_wardrobe import NARROW_MAX, _width
+    from stages.demos.wardrobe_arm import NARROW_MAX, _width
     from stages.simulate.robot import find_panda_description, write_robot_urdf
 
     desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
@@ -367,3 +367,28 @@ def test_drive_clear_turns_the_held_hanger_clear_of_the_open_leaf():
                       rollout(np.vstack([p, path[i + 1:]]), goal_yaw, (*p, goal_yaw), dt)])
     assert clearance(legs, body, leaf) >= TURN_MARGIN
     assert plan_turn(path, start, goal_yaw, held, leaf + [3.0, 0.0], dt) is None
+
+
+def test_roll_limited_leaves_the_hand_at_most_the_limit_off_square():
+    """wardrobe_arm.roll_limited: a hanger rolled 25 deg about its neck in the pinch (the hand's approach 25 deg
+    off its plane) is taken as rolled 10 deg (ROLL_LIMIT): the hand set square to the taken hanger turns 10 deg, the
+    hanger keeps 15 deg (flat_014 s2: turned 30 deg, the hand met the closed door); a 6 deg roll is kept whole; the
+    result is a rotation whose neck axis (local X) is the measured one's."""
+    from stages.demos.wardrobe_arm import ROLL_LIMIT, roll_limited
+
+    def about_x(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+    pinch = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])[:, [2, 0, 1]]  # a rotation, approach +Y
+    assert np.allclose(pinch[:, 2], [0.0, 1.0, 0.0]) and np.isclose(np.linalg.det(pinch), 1.0)
+
+    def roll_of(r):
+        return math.atan2(-r[2, 2], r[1, 2])
+
+    for deg, want in ((25.0, math.degrees(ROLL_LIMIT)), (-25.0, -math.degrees(ROLL_LIMIT)), (6.0, 6.0)):
+        measured = about_x(-math.radians(deg)) @ pinch
+        assert math.degrees(roll_of(measured)) == pytest.approx(deg)
+        taken = roll_limited(measured)
+        assert math.degrees(roll_of(taken)) == pytest.approx(want)
+        assert np.allclose(taken.T @ taken, np.eye(3)) and np.allclose(taken[0], measured[0])
