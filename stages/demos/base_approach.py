@@ -1,6 +1,8 @@
 """Driving the mobile base up to furniture with an open leaf (the fridge's, the wardrobe's) or along
 a narrow way in (the bookshelf): the leaf's footprint, the grid with the leaf on it, the staging
-point of the planned drive and the drive there (the caller drives the last straight stretch).
+point of the planned drive and the drive there (the caller drives the last straight stretch); with
+something held out ahead of the base (a hanger), the drive turns where its sweep clears the open leaf
+(:func:`drive_clear`).
 
 Used by the store-food, organize-books and organize-wardrobe skills. Frame: world, Z up, metres,
 radians.
@@ -8,11 +10,15 @@ radians.
 
 from __future__ import annotations
 
+import logging
 import math
+import time
 
 import numpy as np
 
 from stages.demos.driver import ExpertFailure
+
+log = logging.getLogger(__name__)
 
 HALF_WIDTH = 0.25 + 0.06  # the chassis half width and a margin to the open leaf [m]
 CHASSIS = 0.60           # chassis length [m]
@@ -212,12 +218,11 @@ def drive_clear(d, grid, goal, leaf: np.ndarray, held: np.ndarray) -> None:
     (:func:`plan_turn`): turned on the way while 0.55 m from an open leaf's free edge, a hanger held out ahead
     swept the wardrobe's door half shut (flat_018: 1.36 -> 0.36-0.71 rad). Where no place is clear, the
     follower's own drive (logged). ExpertFailure("no_path") where the planner finds no way."""
-    import logging
-
     from stages.demos.driver import ROBOT_RADIUS
     from stages.demos.planner import NoPathError, plan_path
     from stages.demos.record import base_pose
 
+    t0 = time.perf_counter()
     pose = base_pose(d.sim)
     try:
         path = plan_path(grid, (float(pose[0]), float(pose[1])), goal[:2], ROBOT_RADIUS)
@@ -227,14 +232,15 @@ def drive_clear(d, grid, goal, leaf: np.ndarray, held: np.ndarray) -> None:
     try:
         plan = plan_turn(path, pose, goal[2], held, leaf, d.frame_dt)
     except ExpertFailure as e:
-        logging.getLogger(__name__).info("drive_clear: %s: turning on the way", e)
+        log.info("drive_clear: %s: turning on the way", e)
         plan = None
+    d.plan_seconds += time.perf_counter() - t0
     if plan is None:
         d.follow(path, goal[2])
         return
     i, p, turn = plan
-    logging.getLogger(__name__).info("drive_clear: turning %.0f deg at (%.2f, %.2f) on the way to %s",
-                                     math.degrees(turn), p[0], p[1], np.round(goal, 2))
+    log.info("drive_clear: turning %.0f deg at (%.2f, %.2f) on the way to %s", math.degrees(turn), p[0], p[1],
+             np.round(goal, 2))
     th = float(pose[2])
     if float(np.linalg.norm(p - path[0])) > 0.01:
         d.follow(np.vstack([path[: i + 1], p]), th)
