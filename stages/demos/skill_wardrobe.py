@@ -437,7 +437,10 @@ def hang_on_rail(inst, d) -> None:
             break
     log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
-    # --- before the wardrobe's open half
+    # --- before the wardrobe's open half, as the leaf stands now (the drive to the bed may have pushed it: flat_023
+    # 1.35 -> 1.17 rad, planned for 1.35 the chassis met the leaf's edge on the way in)
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    grid = grid_with_leaf(w, part, q)
     goal, spot = hang_base(w, rail, part, q)
     _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
     for k, approach in enumerate(APPROACHES):  # planned before the base moves
