@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
-from stages.demos.wardrobe_arm import CARRY, _joint_move, _posture, _ramp, roll_limited
+from stages.demos.wardrobe_arm import CARRY, joint_move, posture, ramp, roll_limited
 
 log = logging.getLogger(__name__)
 
@@ -413,9 +413,9 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)
     low = w.table_z < LOW_BED
-    _joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, low)
+    joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, low)
     # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
-    _joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, low)
+    joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, low)
     if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
         raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
     # --- upright beside the base: hook up, the hand pointing ahead of the base
@@ -426,14 +426,14 @@ def hang_on_rail(inst, d) -> None:
     app = grasp[:, 2]
     side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
     tip = _upright(side) @ in_hanger
-    _joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0, low)
+    joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0, low)
     # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
     # width: carried with its plane along the way, it swept the open door half shut on the way to it);
     # reached in joint space with the wrist rolled (WRIST_SEEDS)
     for reach, hz in CARRY:
         held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], tip)
-        if (qa := _posture(d, held)) is not None:
-            _ramp(d, qa, 1.5)
+        if (qa := posture(d, held)) is not None:
+            ramp(d, qa, 1.5)
             break
     log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
@@ -472,15 +472,15 @@ def hang_on_rail(inst, d) -> None:
     # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
     # path ended on another, by joint 7's limit, from which the rail was out of reach); where the hand is out
     # of reach there (the staging point 0.55 m back: flat_023), the base first drives on towards the goal
-    qa = _posture(d, staged, narrow=True)
+    qa = posture(d, staged, narrow=True)
     while qa is None and math.dist((bx, by), goal[:2]) > STAGE_MIN + STAGE_STEP:
         u = (np.asarray(goal[:2]) - [bx, by]) / math.dist((bx, by), goal[:2])
         d.drive_straight((bx + STAGE_STEP * u[0], by + STAGE_STEP * u[1], goal[2]))
         bx, by, _ = base_pose(d.sim)
         staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
-        qa = _posture(d, staged, narrow=True)
+        qa = posture(d, staged, narrow=True)
     if qa is not None:
-        _ramp(d, qa, TURN_SLOW)
+        ramp(d, qa, TURN_SLOW)
     d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     try:
         d.drive_straight(goal)

@@ -1,6 +1,6 @@
 """The arm's postures for the hang-on-rail skill (:mod:`stages.demos.skill_wardrobe`): the carry posture's
-candidates and IK seeds, postures found by IK from several seeds (:func:`_posture`, with the arm kept narrow
-before the wardrobe: :func:`_width`), the held hanger's moves (:func:`_joint_move`: CLIK without restarts,
+candidates and IK seeds, postures found by IK from several seeds (:func:`posture`, with the arm kept narrow
+before the wardrobe: :func:`arm_width`), the held hanger's moves (:func:`joint_move`: CLIK without restarts,
 else a ramp in joint space), and the hand's rotation in the hanger's frame with the hanger's roll in the
 pinch partly taken up by the hanger (:func:`roll_limited`).
 
@@ -31,23 +31,23 @@ WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0
 #: the posture before the wardrobe reaches at most this far [m] sideways, or a narrower one of more seeds is sought
 #: (flat_038: the one solution, 0.22 m wide, met the wardrobe on the way in: the base stopped 10 cm short)
 NARROW_MAX = 0.2
-#: more seeds for the posture before the wardrobe (:func:`_posture`'s ``narrow``) [rad]
+#: more seeds for the posture before the wardrobe (:func:`posture`'s ``narrow``) [rad]
 NARROW_SEEDS = tuple((j1, j2, j3, -1.8, j5, 1.2, j7) for j1 in (-0.3, 0.3) for j2 in (-0.5, 0.2)
                      for j3 in (-0.6, 0.6) for j5 in (-1.5, 1.5) for j7 in (-0.8, 2.4))
 
 
-def _width(d, q: np.ndarray) -> float:
+def arm_width(d, q: np.ndarray) -> float:
     """How far [m] the arm of robot configuration ``q`` reaches sideways: the largest |y| of the elbow's and
     the wrist's links in the arm's mount frame."""
     mount = np.linalg.inv(d.ik.fk(q, "panda_link0"))
     return max(abs(float((mount @ d.ik.fk(q, f))[1, 3])) for f in ("panda_link4", "panda_link6"))
 
 
-def _posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
+def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
     """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
     :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep ``margin`` [rad]
     from their limits, the nearest the current targets (``narrow``: the one whose elbow and wrist stay
-    nearest the base's centre line, :func:`_width`: with the elbow out sideways, the arm met the wardrobe's
+    nearest the base's centre line, :func:`arm_width`: with the elbow out sideways, the arm met the wardrobe's
     carcass on the way in and the base stopped 8-10 cm short, flat_026/038); None if none."""
     from stages.simulate.control import Clik
 
@@ -66,7 +66,7 @@ def _posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
             continue
         if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
-        sols.append((float(np.abs(q - now).max()), _width(d, r.q) if narrow else 0.0, q))
+        sols.append((float(np.abs(q - now).max()), arm_width(d, r.q) if narrow else 0.0, q))
     if not sols:
         return None
     near = min(sols, key=lambda t: t[0])
@@ -82,9 +82,9 @@ def _fits(sol) -> bool:
     return sol[1] <= NARROW_MAX
 
 
-def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
+def joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
     """The held hanger's hand to ``target`` (4x4, world): on a ``low`` bed in joint space where
-    :func:`_posture` finds a posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by
+    :func:`posture` finds a posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by
     CLIK: CLIK's waypoints after the pinch on a low bed (0.42 m, flat_037) jumped to another branch
     (joint 6 at 209 deg) and dropped the hanger; on a higher bed CLIK's way holds the hanger as the
     carry wants it (with the ramp, flat_023's hand was out of reach before the wardrobe), without CLIK's restarts:
@@ -97,13 +97,13 @@ def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
             if e.reason != "ik_unreachable":
                 raise
     for margin in (0.25, LIFT_MARGIN):
-        if (qa := _posture(d, target, margin)) is not None:
-            _ramp(d, qa, seconds)
+        if (qa := posture(d, target, margin)) is not None:
+            ramp(d, qa, seconds)
             return
     d.move(target, seconds, segments=2, carry=True, tol=APPROACH_TOL)
 
 
-def _ramp(d, q: np.ndarray, seconds: float) -> None:
+def ramp(d, q: np.ndarray, seconds: float) -> None:
     """Arm joint targets linearly to ``q`` (7,) [rad] in ``seconds`` [s] or slower (the pace's joint speed)."""
     q0 = d.ctl.arm_targets()
     n = max(len(d._arm_ramp(q)), int(seconds / d.frame_dt))

@@ -144,20 +144,20 @@ def test_hang_on_rail_predicate(tmp_path):
 
 def test_arm_width_tells_an_elbow_out_sideways(tmp_path):
     """The posture before the wardrobe is judged by how far the elbow and wrist reach sideways of the arm's
-    mount (wardrobe_arm._width, on the Panda's Pinocchio model): the home posture and the carry posture
+    mount (wardrobe_arm.arm_width, on the Panda's Pinocchio model): the home posture and the carry posture
     of flat_008 stay within NARROW_MAX, the posture flat_038's nearest IK solution had (joint 1 at 122 deg,
     the base stopped 10 cm short of the wardrobe) does not."""
     from types import SimpleNamespace
 
     from stages.demos.experts import timed_clik
-    from stages.demos.wardrobe_arm import NARROW_MAX, _width
+    from stages.demos.wardrobe_arm import NARROW_MAX, arm_width
     from stages.simulate.robot import find_panda_description, write_robot_urdf
 
     desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
     d = SimpleNamespace(ik=timed_clik(desc))
 
     def width(deg) -> float:
-        return _width(d, d.ik.with_arm(d.ik.neutral(), np.radians(deg)))
+        return arm_width(d, d.ik.with_arm(d.ik.neutral(), np.radians(deg)))
 
     assert width(np.degrees(desc.arm_home)) < NARROW_MAX
     assert width([-3, -24, 16, -123, 69, 175, 160]) < NARROW_MAX       # flat_008's staged posture (hung)
