@@ -472,13 +472,15 @@ def hang_on_rail(inst, d) -> None:
     # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
     # path ended on another, by joint 7's limit, from which the rail was out of reach); where the hand is out
     # of reach there (the staging point 0.55 m back: flat_023), the base first drives on towards the goal
-    qa = posture(d, staged, narrow=True)
+    mid = 0.5 * (np.asarray(rail.p0[:2]) + np.asarray(rail.p1[:2]))  # the closed door's edge; the open half towards spot
+    beside = (mid, (spot[:2] - mid) / np.linalg.norm(spot[:2] - mid))
+    qa = posture(d, staged, narrow=True, beside=beside)
     while qa is None and math.dist((bx, by), goal[:2]) > STAGE_MIN + STAGE_STEP:
         u = (np.asarray(goal[:2]) - [bx, by]) / math.dist((bx, by), goal[:2])
         d.drive_straight((bx + STAGE_STEP * u[0], by + STAGE_STEP * u[1], goal[2]))
         bx, by, _ = base_pose(d.sim)
         staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
-        qa = posture(d, staged, narrow=True)
+        qa = posture(d, staged, narrow=True, beside=beside)
     if qa is not None:
         ramp(d, qa, TURN_SLOW)
     d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)

@@ -31,6 +31,8 @@ WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0
 #: the posture before the wardrobe reaches at most this far [m] sideways, or a narrower one of more seeds is sought
 #: (flat_038: the one solution, 0.22 m wide, met the wardrobe on the way in: the base stopped 10 cm short)
 NARROW_MAX = 0.2
+#: ... and its forearm at least this far [m] on the open side of the wardrobe's middle (:func:`posture`'s ``beside``)
+BESIDE_CLEAR = 0.08
 #: more seeds for the posture before the wardrobe (:func:`posture`'s ``narrow``) [rad]
 NARROW_SEEDS = tuple((j1, j2, j3, -1.8, j5, 1.2, j7) for j1 in (-0.3, 0.3) for j2 in (-0.5, 0.2)
                      for j3 in (-0.6, 0.6) for j5 in (-1.5, 1.5) for j7 in (-0.8, 2.4))
@@ -43,12 +45,16 @@ def arm_width(d, q: np.ndarray) -> float:
     return max(abs(float((mount @ d.ik.fk(q, f))[1, 3])) for f in ("panda_link4", "panda_link6"))
 
 
-def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
+def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False, beside=None):
     """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
     :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep ``margin`` [rad]
     from their limits, the nearest the current targets (``narrow``: the one whose elbow and wrist stay
     nearest the base's centre line, :func:`arm_width`: with the elbow out sideways, the arm met the wardrobe's
-    carcass on the way in and the base stopped 8-10 cm short, flat_026/038); None if none."""
+    carcass on the way in and the base stopped 8-10 cm short, flat_026/038; ``beside``: (point (2,), normal (2,)
+    unit) [m] (world): with ``narrow``, a posture whose forearm (:func:`forearm_off`) lies less than
+    :data:`BESIDE_CLEAR` on the normal's side of the line through the point counts as not narrow: the forearm
+    of a mirrored wrist branch, 2 cm from the wardrobe's middle, met the closed door: flat_018 s5); None if none."""
+
     from stages.simulate.control import Clik
 
     goal = Clik.world_to_root(d.sim.spawn, target)
@@ -66,7 +72,10 @@ def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
             continue
         if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
-        sols.append((float(np.abs(q - now).max()), arm_width(d, r.q) if narrow else 0.0, q))
+        wide = arm_width(d, r.q) if narrow else 0.0
+        if narrow and beside is not None and forearm_off(d, r.q, *beside) < BESIDE_CLEAR:
+            wide = max(wide, NARROW_MAX + 1e-3 + BESIDE_CLEAR - forearm_off(d, r.q, *beside))
+        sols.append((float(np.abs(q - now).max()), wide, q))
     if not sols:
         return None
     near = min(sols, key=lambda t: t[0])
@@ -75,6 +84,16 @@ def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
     ok = [t for t in sols if t[1] <= NARROW_MAX]
     log.debug("posture: nearest %.2f rad away, %.3f m wide; %d of %d narrow", near[0], near[1], len(ok), len(sols))
     return (min(ok, key=lambda t: t[0]) if ok else min(sols, key=lambda t: t[1]))[2]
+
+
+def forearm_off(d, q: np.ndarray, point, normal) -> float:
+    """How far [m] the forearm of robot configuration ``q`` (the links panda_link5 and panda_link6, world) lies
+    on the side of the unit ``normal`` (2,) of the vertical plane through ``point`` (2,) [m]: the least of the two."""
+    from stages.simulate.control import Clik
+
+    to_world = np.linalg.inv(Clik.root_from_world(d.sim.spawn))
+    return min(float(((to_world @ d.ik.fk(q, f))[:2, 3] - np.asarray(point, float)) @ np.asarray(normal, float))
+               for f in ("panda_link5", "panda_link6"))
 
 
 def _fits(sol) -> bool:

@@ -392,3 +392,25 @@ def test_roll_limited_leaves_the_hand_at_most_the_limit_off_square():
         taken = roll_limited(measured)
         assert math.degrees(roll_of(taken)) == pytest.approx(want)
         assert np.allclose(taken.T @ taken, np.eye(3)) and np.allclose(taken[0], measured[0])
+
+
+def test_forearm_off_tells_a_forearm_by_the_wardrobes_middle(tmp_path):
+    """wardrobe_arm.forearm_off on the Panda's Pinocchio model, the base at the world's origin facing +X, the
+    wardrobe's middle (the closed door's edge) 5.5 cm to its right, the open half to its left (flat_018's
+    staging): the two staged postures IK gave there, both within NARROW_MAX, differ in their forearm: seed 1's
+    (hung) lies ~0.19 m on the open side, seed 5's mirrored wrist branch ~2 cm (its drive in stopped 11 cm short
+    against the closed door): the second is under BESIDE_CLEAR, the first not."""
+    from types import SimpleNamespace
+
+    from stages.demos.experts import timed_clik
+    from stages.demos.wardrobe_arm import BESIDE_CLEAR, NARROW_MAX, arm_width, forearm_off
+    from stages.simulate.robot import find_panda_description, write_robot_urdf
+
+    desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
+    d = SimpleNamespace(ik=timed_clik(desc), sim=SimpleNamespace(spawn=(0.0, 0.0, 0.0)))
+    mid, open_side = (0.0, -0.055), (0.0, 1.0)
+    hung = d.ik.with_arm(d.ik.neutral(), np.radians([-57, -39, 51, -111, 121, 159, 147]))
+    stuck = d.ik.with_arm(d.ik.neutral(), np.radians([59, -30, -46, -112, -89, 172, -51]))
+    assert arm_width(d, hung) < NARROW_MAX and arm_width(d, stuck) < NARROW_MAX
+    assert forearm_off(d, hung, mid, open_side) > BESIDE_CLEAR + 0.05
+    assert forearm_off(d, stuck, mid, open_side) < BESIDE_CLEAR - 0.03
