@@ -78,6 +78,8 @@ class HouseBedroom(HouseRoom):
     blanket_edge: float = 0.0
     hanger_x: float = 0.0
     rail: object = None
+    #: the joint path of the wardrobe door the wardrobe tasks open (:func:`_door_with_room`; "": the first)
+    wardrobe_door: str = ""
     #: the engine steps this world with MuJoCo's multi-CCD contacts (:class:`~stages.simulate.world.SolverSettings`):
     #: with one contact point per convex pair, the hanger, cushion and paper crept 3-8 mm/s across the blanket.
     #: Off unless asked (make_bed's base, driven up to the bed, stopped 1 cm short with it: flat_008 seed 1)
@@ -165,6 +167,53 @@ def _floor_to_front(rf, boxes: list, wp: Placed, pick: tuple[float, float, float
                for r in (0.0, 0.1, 0.2, 0.3) for a in np.linspace(0.0, 2 * math.pi, 12, endpoint=False))
 
 
+def _door_with_room(rf, boxes: list, wp: Placed, pick: tuple[float, float, float]) -> str | None:
+    """The joint path of the first door of the wardrobe ``wp`` (in :func:`~stages.demos.sampling.world_part`'s
+    order) whose leaf, open to its stop, to 0.9 and to 0.8 of its travel (open_wardrobe's stage may end short),
+    leaves the base (the planner's disc) on the room's floor (walls and ``boxes`` [m]) the staging point of its
+    pose ``pick`` (x, y, yaw facing +Y) before the hanger's spot (or drive_to's nearer one), a pose round the
+    leaf's free edge to push it shut (the push plan's candidates, the turned fists' 140 deg:
+    :func:`~stages.demos.part_planning._swing_bases`) and the staging point of the hang pose
+    (:func:`~stages.demos.base_approach.staging`), all on one floor; None where no door does (the 40-flat
+    bench's flat_023: the leaf ended 0.39 m from a wall, no base to push it shut; flat_028: the open leaf cut
+    the floor between the bed and the hang pose; flat_013 at 0.8 of the travel: the leaf blocked the pinch
+    pose's staging point)."""
+    from types import SimpleNamespace
+
+    from stages.demos.base_approach import leaf_points, staging
+    from stages.demos.counter import COUNTER_STAGE
+    from stages.demos.driver import NEAR_STAGING, ExpertFailure
+    from stages.demos.part_planning import _swing_bases, connected, is_free, swept_grid
+    from stages.demos.parts import parts_of_package
+    from stages.demos.planner import NavGrid
+    from stages.demos.skill_wardrobe import hang_base, rail_facts
+
+    x0, y0, x1, y1 = rf.area
+    grid = NavGrid.from_boxes((x0 - 0.2, y0 - 0.2, x1 + 0.2, y1 + 0.2), np.asarray(list(rf.walls) + list(boxes), float))
+    doors = [q for q in parts_of_package(wp.info, asset_id=wp.asset.asset_id, prim_root=wp.prim,
+                                         pose=(*wp.position, wp.yaw), package_usd=wp.asset.usd)
+             if q.role == "door" and q.kind == "revolute"]
+    rail, world = rail_facts(wp), SimpleNamespace(placed={"wardrobe": wp})
+    for part in sorted(doors, key=lambda q: abs(q.handle[2] - 1.0)):  # stable: world_part's first door first
+        for frac in (1.0, 0.9, 0.8):
+            q = part.closed + frac * part.travel
+            g = swept_grid(grid, part, q, q)
+            on = connected(g, pick[:2], reach=1.0)
+            if not any(is_free(g, ~on, pick[0], pick[1] - back) for back in (COUNTER_STAGE, NEAR_STAGING)):
+                break
+            if not _swing_bases(part, g, q, list(np.linspace(q, part.closed, 8)), spread=140.0, within=on):
+                break
+            try:
+                point, _ = staging(g, hang_base(world, rail, part, q)[0], leaf_points(part, q))
+            except ExpertFailure:
+                break
+            if not on[g.cell_of(*point)]:
+                break
+        else:
+            return part.joint_path
+    return None
+
+
 def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict | None:
     """The organize-wardrobe facts (:mod:`stages.demos.skill_wardrobe`), or None where the bedroom
     has no wardrobe with a lower rail and a hanger in it (make_bed does not need them): adds
@@ -211,9 +260,16 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
     if not _floor_to_front(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)):
         log.info("bedroom %s: no floor for the base from the bed to the wardrobe's front", rs.room)
         return None
+    # the first spot (arm clear of the leaves first) with a door whose open leaf leaves the base its floor
+    door = next(((x, d) for x in clear + [v for v in free if v not in clear]
+                 if (d := _door_with_room(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)))), None)
+    if door is None:
+        log.info("bedroom %s: no wardrobe door whose open leaf leaves the base room to hang and to push it shut", rs.room)
+        return None
+    x, door = door
     pl["wardrobe"] = wp
     pl["hanger"] = hp
-    return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"])}
+    return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"]), "wardrobe_door": door}
 
 
 def house_bedroom(scene_dir: Path, out_dir: Path, generated_json: Path, *, scene_id: str,

@@ -267,4 +267,6 @@ def world_part(world: KitchenWorld, which: str):
         raise ItemError(f"{p.asset.usd}: {p.asset.asset_id} has no {part_role} for the {which} tasks")
     if which == "drawer":
         return max(parts, key=lambda q: q.handle[2])
+    if which == "wardrobe" and getattr(world, "wardrobe_door", ""):  # the bedroom's door with room (house_bedroom)
+        parts = [q for q in parts if q.joint_path == world.wardrobe_door] or parts
     return min(parts, key=lambda q: abs(q.handle[2] - 1.0))

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ExpertFailure
+from stages.demos.wardrobe_arm import CARRY, joint_move, posture, ramp, roll_limited
 
 log = logging.getLogger(__name__)
 
@@ -85,8 +86,6 @@ PICK_YAW = 0.0          # the pinching hand may point this far off square to the
                         # (35 deg: the lower fingertip met the blanket's edge)
 TURN_SLOW = 6.0         # the held hanger is turned about its neck in this long [s]
 ROLL = -1.0             # the hand's tool X points away from the hook (+1: towards it; symmetric fingers)
-LIFT_MARGIN = 0.08      # the lift's postures may come this near [rad] their joints' limits (the pinch on a 0.42 m
-                        # bed stands with joint 4 at -150 deg)
 SHORT_OK = 0.03         # the base may stop this far [m] short of the hang pose (the hook's moves aim in the world)
 APPROACHES = (0.35, 0.2)  # the straight way in to the hang pose [m], the first the planner finds room for (a 1.2 m
                           # band between the wardrobe and the bed had none at 0.35: flat_026)
@@ -270,77 +269,6 @@ def _rot(x_h, z_h) -> np.ndarray:
     return np.stack([x_h, np.cross(z_h, x_h), z_h], axis=1)
 
 
-#: the carry pose's candidates: (hand ahead of the base centre, height) [m], the first with a posture wins
-CARRY = ((0.40, 1.0), (0.45, 0.95), (0.35, 1.05), (0.50, 0.95))
-#: seeds of the carry posture's IK (the wrist rolled ~90 deg, its last joint ~140 deg) [rad]
-WRIST_SEEDS = tuple((j1, -0.3, 0.0, -2.0, 1.6, 0.7, 2.4) for j1 in (-0.5, 0.0, 0.5))
-#: the posture before the wardrobe reaches at most this far [m] sideways, or a narrower one of more seeds is sought
-#: (flat_038: the one solution, 0.22 m wide, met the wardrobe on the way in: the base stopped 10 cm short)
-NARROW_MAX = 0.2
-#: more seeds for the posture before the wardrobe (:func:`_posture`'s ``narrow``) [rad]
-NARROW_SEEDS = tuple((j1, j2, j3, -1.8, j5, 1.2, j7) for j1 in (-0.3, 0.3) for j2 in (-0.5, 0.2)
-                     for j3 in (-0.6, 0.6) for j5 in (-1.5, 1.5) for j7 in (-0.8, 2.4))
-
-
-def _width(d, q: np.ndarray) -> float:
-    """How far [m] the arm of robot configuration ``q`` reaches sideways: the largest |y| of the elbow's and
-    the wrist's links in the arm's mount frame."""
-    mount = np.linalg.inv(d.ik.fk(q, "panda_link0"))
-    return max(abs(float((mount @ d.ik.fk(q, f))[1, 3])) for f in ("panda_link4", "panda_link6"))
-
-
-def _posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False):
-    """Arm joint targets (7,) [rad] for the hand at ``target`` (4x4, world) from the current targets and
-    :data:`WRIST_SEEDS`: of the solutions within 3 mm and 2 deg whose joints all keep ``margin`` [rad]
-    from their limits, the nearest the current targets (``narrow``: the one whose elbow and wrist stay
-    nearest the base's centre line, :func:`_width`: with the elbow out sideways, the arm met the wardrobe's
-    carcass on the way in and the base stopped 8-10 cm short, flat_026/038); None if none."""
-    from stages.simulate.control import Clik
-
-    goal = Clik.world_to_root(d.sim.spawn, target)
-    now = d.ctl.arm_targets()
-    base_q = d.ik.from_sim(d.sim)
-    idx = d.ik.v_idx[: len(now)]
-    lo, hi = d.ik.lower[idx], d.ik.upper[idx]
-    sols = []  # (joint distance from now, width, q)
-    for k, seed in enumerate((now, *WRIST_SEEDS, *(NARROW_SEEDS if narrow else ()))):
-        if narrow and k == 1 + len(WRIST_SEEDS) and sols and _fits(min(sols, key=lambda t: t[0])):
-            break  # the nearest of the first seeds' solutions is narrow enough
-        r = d.ik.solve(goal, d.ik.with_arm(base_q, np.asarray(seed, float)), max_iters=600)
-        q = d.ik.arm_q(r.q)
-        if r.position_error > 0.003 or r.rotation_error > math.radians(2.0):
-            continue
-        if float(np.min(np.minimum(q - lo, hi - q))) < margin:
-            continue
-        sols.append((float(np.abs(q - now).max()), _width(d, r.q) if narrow else 0.0, q))
-    if not sols:
-        return None
-    near = min(sols, key=lambda t: t[0])
-    if not narrow or _fits(near):
-        return near[2]
-    ok = [t for t in sols if t[1] <= NARROW_MAX]
-    log.debug("posture: nearest %.2f rad away, %.3f m wide; %d of %d narrow", near[0], near[1], len(ok), len(sols))
-    return (min(ok, key=lambda t: t[0]) if ok else min(sols, key=lambda t: t[1]))[2]
-
-
-def _fits(sol) -> bool:
-    """Whether a posture (joint distance [rad], width [m], q) is narrow enough as it is."""
-    return sol[1] <= NARROW_MAX
-
-
-def _joint_move(d, target: np.ndarray, seconds: float, low: bool) -> None:
-    """The held hanger's hand to ``target`` (4x4, world): on a ``low`` bed in joint space where
-    :func:`_posture` finds a posture (a linear ramp of the arm's joints over ``seconds`` [s]), else by
-    CLIK: CLIK's waypoints after the pinch on a low bed (0.42 m, flat_037) jumped to another branch
-    (joint 6 at 209 deg) and dropped the hanger; on a higher bed CLIK's way holds the hanger as the
-    carry wants it (with the ramp, flat_023's hand was out of reach before the wardrobe)."""
-    for margin in (0.25, LIFT_MARGIN) if low else ():
-        if (qa := _posture(d, target, margin)) is not None:
-            _ramp(d, qa, seconds)
-            return
-    d.move(target, seconds, segments=2, carry=True, tol=APPROACH_TOL)
-
-
 def _back_out(part, q: float, f: np.ndarray) -> np.ndarray:
     """The way (2,) unit out from the hang pose: along the leaf open at ``q`` [rad] (hinge to free edge),
     or the wardrobe's front normal ``f`` where the leaf points less than 45 deg outward (at its stop the two
@@ -397,15 +325,6 @@ def _withdraw(d, low: np.ndarray, f: np.ndarray, rot: np.ndarray) -> None:
     d.move(_pose(low + WITHDRAW_OUT * f, rot), 0.6, segments=1, tol=APPROACH_TOL)
 
 
-def _ramp(d, q: np.ndarray, seconds: float) -> None:
-    """Arm joint targets linearly to ``q`` (7,) [rad] in ``seconds`` [s] or slower (the pace's joint speed)."""
-    q0 = d.ctl.arm_targets()
-    n = max(len(d._arm_ramp(q)), int(seconds / d.frame_dt))
-    for k in range(1, n + 1):
-        d.ctl.set_arm_targets(q0 + (q - q0) * k / n)
-        d.step(d.frame_dt)
-
-
 def hang_base(world, rail: Rail, part, q: float) -> tuple[tuple[float, float, float], np.ndarray]:
     """The base pose (x, y, yaw) facing into the wardrobe before its open half (the chassis beside the
     door ``part`` open at ``q``, clear of its leaf) and the rail point (3,) where the hook goes [m]."""
@@ -433,7 +352,7 @@ def hang_on_rail(inst, d) -> None:
     from stages.demos.counter import _pose, facing_north_goal
     from stages.demos.driver import stow
     from stages.demos.record import base_pose
-    from stages.demos.base_approach import drive_in, grid_with_leaf, leaf_points
+    from stages.demos.base_approach import drive_in, grid_with_leaf, held_points, leaf_points
     from stages.simulate.state import read_state
 
     w = inst.world
@@ -494,9 +413,9 @@ def hang_on_rail(inst, d) -> None:
     d.move(_pose(neck + PINCH_PAST * app, grasp), 0.8, segments=2, settle=0.5, tol=0.003)
     d.grip(1.0, 0.8)
     low = w.table_z < LOW_BED
-    _joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, low)
+    joint_move(d, _pose(neck + [0.0, -0.05, 0.15], grasp), 0.8, low)
     # clear of the bed before it is turned upright (its shoulders would sweep the blanket)
-    _joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, low)
+    joint_move(d, _pose(neck + [0.0, -0.15, 0.35], grasp), 1.0, low)
     if read_state(d.sim).objects[h.body()].position[2] < pos[2] + 0.02:
         raise ExpertFailure("grasp_missed", "the hanger stayed on the bed")
     # --- upright beside the base: hook up, the hand pointing ahead of the base
@@ -507,23 +426,26 @@ def hang_on_rail(inst, d) -> None:
     app = grasp[:, 2]
     side = np.array([app[0], app[1], 0.0]) / max(1e-9, float(np.linalg.norm(app[:2])))
     tip = _upright(side) @ in_hanger
-    _joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0, low)
+    joint_move(d, _pose([bx + 0.35 * ahead[0] + 0.2 * side[0], by + 0.35 * ahead[1] + 0.2 * side[1], 1.05], tip), 2.0, low)
     # the carry pose: the hand ahead of the base, the hanger's plane across the way (within the base's
     # width: carried with its plane along the way, it swept the open door half shut on the way to it);
     # reached in joint space with the wrist rolled (WRIST_SEEDS)
     for reach, hz in CARRY:
         held = _pose([bx + reach * ahead[0], by + reach * ahead[1], hz], tip)
-        if (qa := _posture(d, held)) is not None:
-            _ramp(d, qa, 1.5)
+        if (qa := posture(d, held)) is not None:
+            ramp(d, qa, 1.5)
             break
     log.debug("carry: %s", None if qa is None else np.round(np.degrees(qa)))
     d.drive_straight((bx - 0.25 * ahead[0], by - 0.25 * ahead[1], th))
-    # --- before the wardrobe's open half
+    # --- before the wardrobe's open half, as the leaf stands now (the drive to the bed may have pushed it: flat_023
+    # 1.35 -> 1.17 rad, planned for 1.35 the chassis met the leaf's edge on the way in)
+    q = float(d.sim.joint_q_of_path(part.joint_path))
+    grid = grid_with_leaf(w, part, q)
     goal, spot = hang_base(w, rail, part, q)
     _escape(d, grid, reach=1.0)  # backed off the bed, the base may still stand where the planner counts it blocked
     for k, approach in enumerate(APPROACHES):  # planned before the base moves
         try:
-            drive_in(d, grid, goal, leaf_points(part, q), approach=approach)
+            drive_in(d, grid, goal, leaf_points(part, q), approach=approach, held=held_points(d, h))
             break
         except ExpertFailure as e:
             if e.reason != "no_path" or k == len(APPROACHES) - 1:
@@ -531,7 +453,7 @@ def hang_on_rail(inst, d) -> None:
     f = np.array([*rail.front, 0.0])
     up = np.array([0.0, 0.0, 1.0])
     # the hanger as it is held now (it slid onto its boss and may have swung in the pinch): measured
-    put = _upright(-f) @ _in_hanger(read_state(d.sim), h)
+    put = _upright(-f) @ roll_limited(_in_hanger(read_state(d.sim), h))  # the hand at most ROLL_LIMIT off square
     off = _hook_in_hand(read_state(d.sim), h, cx, rod)
 
     def hand_for(centre):  # the hand's tool point for the hook's centre at ``centre``, the hand at ``put``
@@ -550,15 +472,17 @@ def hang_on_rail(inst, d) -> None:
     # friction: a quick turn spun the hanger 90 deg); in joint space, on the wrist-rolled branch (CLIK's own
     # path ended on another, by joint 7's limit, from which the rail was out of reach); where the hand is out
     # of reach there (the staging point 0.55 m back: flat_023), the base first drives on towards the goal
-    qa = _posture(d, staged, narrow=True)
+    mid = 0.5 * (np.asarray(rail.p0[:2]) + np.asarray(rail.p1[:2]))  # the closed door's edge; the open half towards spot
+    beside = (mid, (spot[:2] - mid) / np.linalg.norm(spot[:2] - mid))
+    qa = posture(d, staged, narrow=True, beside=beside)
     while qa is None and math.dist((bx, by), goal[:2]) > STAGE_MIN + STAGE_STEP:
         u = (np.asarray(goal[:2]) - [bx, by]) / math.dist((bx, by), goal[:2])
         d.drive_straight((bx + STAGE_STEP * u[0], by + STAGE_STEP * u[1], goal[2]))
         bx, by, _ = base_pose(d.sim)
         staged = _pose(entry - [goal[0] - bx, goal[1] - by, 0.0], put)
-        qa = _posture(d, staged, narrow=True)
+        qa = posture(d, staged, narrow=True, beside=beside)
     if qa is not None:
-        _ramp(d, qa, TURN_SLOW)
+        ramp(d, qa, TURN_SLOW)
     d.move(staged, 1.0, segments=2, carry=True, tol=APPROACH_TOL)
     try:
         d.drive_straight(goal)

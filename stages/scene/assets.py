@@ -225,29 +225,63 @@ def _inside(p: ConvexPiece, x: np.ndarray) -> bool:
     return bool(np.all(p.normals @ x < (p.vertices @ p.normals.T).max(axis=0)))
 
 
-def stand_zones(geo: AssetGeometry, width: float, depth: float, hinge_width: float = 0.0) -> list[np.ndarray]:
-    """Asset-frame rectangles (4, 2) [m] of floor a robot stands on to open and close a vertically
-    hinged door: ``width`` out beside each such door's free edge (where the base takes the handle)
-    and ``hinge_width`` out beyond its hinge (where the base pushes the open leaf shut), from the
-    asset's front face (asset +X) out by ``depth`` or the swing's depth, whichever is larger. A
-    swing whose far end spans its width (a drawer, a bottom-hinged oven door) has none; a door's
-    hinge side is where its swing reaches furthest out."""
-    out: list[np.ndarray] = []
-    for s in geo.swings:
+def _hinged(geo: AssetGeometry) -> list[tuple[int, float, float, float, bool]]:
+    """The vertically hinged doors' swings of ``geo``: (index in ``geo.swings``, the swing's far x, its
+    y_lo, y_hi, hinge at +Y) [m], asset frame. A swing whose far end spans its width (a drawer, a
+    bottom-hinged oven door) or reaching under 0.2 m out is none; a door's hinge side is where its
+    swing reaches furthest out (the leaf opened to its stop lies along the hinge's line)."""
+    out = []
+    for k, s in enumerate(geo.swings):
         x_far = float(s[:, 0].max())
         if x_far - geo.hi[0] < 0.2:
             continue
         far = s[s[:, 0] > x_far - 0.02]
         if float(np.ptp(far[:, 1])) > 0.5 * float(np.ptp(s[:, 1])):
             continue
-        x0, x1 = float(geo.hi[0]), float(geo.hi[0] + max(depth, x_far - geo.hi[0]))
         y_lo, y_hi = float(s[:, 1].min()), float(s[:, 1].max())
-        hinge_up = float(far[:, 1].mean()) >= 0.5 * (y_lo + y_hi)   # hinge at +Y: free edge at -Y
+        out.append((k, x_far, y_lo, y_hi, float(far[:, 1].mean()) >= 0.5 * (y_lo + y_hi)))
+    return out
+
+
+def stand_zones(geo: AssetGeometry, width: float, depth: float, hinge_width: float = 0.0) -> list[np.ndarray]:
+    """Asset-frame rectangles (4, 2) [m] of floor a robot stands on to open and close a vertically
+    hinged door: ``width`` out beside each such door's free edge (where the base takes the handle)
+    and ``hinge_width`` out beyond its hinge (where the base pushes the open leaf shut), from the
+    asset's front face (asset +X) out by ``depth`` or the swing's depth, whichever is larger (see
+    :func:`_hinged` for which swings are doors)."""
+    out: list[np.ndarray] = []
+    for _, x_far, y_lo, y_hi, hinge_up in _hinged(geo):
+        x0, x1 = float(geo.hi[0]), float(geo.hi[0] + max(depth, x_far - geo.hi[0]))
         lo_w, hi_w = (width, hinge_width) if hinge_up else (hinge_width, width)
         for y0, y1 in ((y_lo - lo_w, y_lo), (y_hi, y_hi + hi_w)):
             z = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
             if y1 - y0 > 0 and not any(np.allclose(z, o) for o in out):
                 out.append(z)
+    return out
+
+
+def leaf_doors(geo: AssetGeometry) -> int:
+    """How many vertically hinged doors ``geo`` has (the doors :func:`leaf_zones` numbers, in order)."""
+    return len(_hinged(geo))
+
+
+def leaf_zones(geo: AssetGeometry, radius: float, door: int | None = None) -> list[np.ndarray]:
+    """Asset-frame rectangles (4, 2) [m] of floor a robot's base goes round an open door's leaf on:
+    for each vertically hinged door (:func:`_hinged`; ``door``: only the door-th of them), the square
+    ``2 radius`` wide centred on the free edge of its leaf opened to its stop (on the hinge's line, the
+    swing's far x), less what lies behind the asset's front face. The base's disc (0.4 m radius) passes
+    round that edge, and stands beyond it to push the leaf shut, within ~0.8 m of it (organize the
+    wardrobe: a leaf ending 0.39 m from a wall left no base to push it shut). None for radius 0."""
+    if radius <= 0:
+        return []
+    doors = _hinged(geo)
+    if door is not None:
+        doors = [doors[door % len(doors)]] if doors else []
+    out = []
+    for _, x_far, y_lo, y_hi, hinge_up in doors:
+        y = y_hi if hinge_up else y_lo
+        x0, x1, y0, y1 = float(geo.hi[0]), x_far + radius, y - radius, y + radius
+        out.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
     return out
 
 

@@ -66,6 +66,8 @@ class FurnitureRule(_Entry):
     stand: tuple[float, float] = (0.0, 0.0)
     clear_of_swings: bool = False
     side: tuple[float, float] = (0.0, 0.0)
+    leaf: float = 0.0
+    leaf_door: Literal["each", "one"] = "each"
 
     def fits(self, record, geo) -> bool:
         """Whether the longest top surface of the package (within 2 cm of its highest surface), along
@@ -83,6 +85,8 @@ class FurnitureRule(_Entry):
             errs.append(f"mode {self.mode!r} needs a target category")
         if not all(0.0 <= w <= 3.0 for w in self.stand):
             errs.append(f"stand {list(self.stand)} must be [free edge, hinge] widths in [0, 3] m")
+        if not 0.0 <= self.leaf <= 3.0:
+            errs.append(f"leaf {self.leaf} must be a radius in [0, 3] m")
         if not all(0.0 <= w <= 3.0 for w in self.side):
             errs.append(f"side {list(self.side)} must be [depth, beyond] in [0, 3] m")
         if self.distance[0] < 0 or self.distance[1] < self.distance[0]:

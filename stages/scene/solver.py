@@ -4,10 +4,10 @@ Room by room, each furniture entry of the rules is sampled (its mode gives candi
 a wall, facing another asset, in front of / beside / around a target, free on the floor), and a
 candidate is kept only if
 
-- its 2-D footprint lies inside the room's interior (wall faces), keeps ``min_gap`` to other
-  floor-standing assets and stays out of keep-out zones (room doors, windows for tall assets, the
-  front clearances and door/drawer swings of assets already placed), and its own clearance and
-  swing zones are inside the room and free (with ``clear_of_swings``, its clearance also out of their swings);
+- its 2-D footprint lies inside the room's interior (wall faces), keeps ``min_gap`` to other floor-standing
+  assets and stays out of keep-out zones (room doors, windows for tall assets, the front clearances, door/drawer
+  swings and stand, side and leaf zones of assets already placed), and its own zones are inside the room and
+  free (with ``clear_of_swings``, its clearance also out of their swings; leaf zones are a preference);
 - its colliders do not penetrate the layout's colliders or any placed asset's by more than 1 mm
   (``stages.scene.collide``, on the convex collider pieces);
 - the robot path stays connected: on the floor's occupancy grid with the footprints added, the
@@ -17,10 +17,8 @@ candidate is kept only if
 Then objects are placed on support surfaces (tops, shelves, seats, beds) of the furniture named by
 their rule, resting 1 mm above it, collision-checked the same way, and kept only if reachable and
 its center of mass is over the part of its base that stands on the surface (``stages.scene.support``).
-Randomness comes only from the ``numpy.random.Generator`` passed in.
-
-Room geometry and the robot-path grid live in ``stages.scene.room``, the catalog view in
-``stages.scene.library``, the final checks in ``stages.scene.verify``.
+Randomness comes only from the ``numpy.random.Generator`` passed in. Room geometry and the robot-path grid live
+in ``stages.scene.room``, the catalog view in ``stages.scene.library``, the final checks in ``stages.scene.verify``.
 """
 
 from __future__ import annotations
@@ -35,7 +33,7 @@ import numpy as np
 
 from asset_catalog.index import CatalogRecord
 from stages.layout.floorplan import FloorPlan, RoomModel
-from stages.scene.assets import AssetGeometry, side_zones, stand_zones
+from stages.scene.assets import AssetGeometry, leaf_zones, side_zones, stand_zones
 from stages.scene.collide import ConvexPiece, find_penetrations, piece_bounds
 from stages.scene.geom import (
     convex_inside, convex_overlap, edge_normals, points_in_convex, points_in_polygon, polygon_area, rot2, rot3,
@@ -124,6 +122,7 @@ class Populator:
         self.reports: list[RoomReport] = []
         self.room_ctx: dict[str, RoomContext] = {}
         self._compact = 0.0  # > 0: furniture restricted to this fraction of each category's narrowest variants
+        self._leaf_on = True  # the rules' leaf zones are kept (the first half of a room's arrangements)
         self._others: tuple | None = None  # (insts, their and the layout's pieces, piece_bounds) for _collides
 
     # -- public ---------------------------------------------------------------------------------
@@ -150,17 +149,24 @@ class Populator:
         ctx = replace(ctx, door_points=live)  # doors the robot can use in the empty room
         self.room_ctx[room.id] = ctx
         n_arr = self.rules.defaults.room_attempts
-        for a in range(n_arr):
+        # the rules' leaf zones are a preference: first half as many arrangements with them, on a stream of their own
+        # (a room too small for them is furnished as it was without them), then the room's arrangements without
+        n_leaf, main = (max(1, n_arr // 2) if any(r.leaf for r in rr.furniture) else 0), self.rng
+        for a in range(n_leaf + n_arr):
             mark, counts = len(self.insts), Counter(self.counter)
+            self._leaf_on, b = a < n_leaf, max(a - n_leaf, 0)
+            if a in (0, n_leaf):  # the leaf arrangements' own stream, then the room's
+                self.rng = np.random.Generator(main.bit_generator.jumped()) if a < n_leaf else main
             # the later half of the arrangements furnishes with ever more compact variants (a small
             # room): the narrower half of each category's variants, down to the narrowest one
             half = n_arr // 2
-            self._compact = 0.5 * (1.0 - (a - half) / max(n_arr - half, 1)) if n_arr > 1 and a >= half else 0.0
+            self._compact = 0.5 * (1.0 - (b - half) / max(n_arr - half, 1)) if n_arr > 1 and b >= half else 0.0
             try:
                 for rule in rr.furniture:
                     self._entry(rule, ctx, grid, rep, furniture=True)
                 for rule in rr.objects:
                     self._entry(rule, ctx, grid, rep, furniture=False)
+                self.rng = main
                 return rep
             except PlacementFailure as e:
                 rep.arrangements_rejected.append(str(e))
@@ -168,13 +174,11 @@ class Populator:
                 rep.placed.clear()
                 rep.skipped.clear()
                 log.debug("%s: arrangement %d rejected: %s", room.id, a, e)
-        raise PlacementFailure(f"{rep.arrangements_rejected[-1]} [{n_arr} arrangements]")
+        raise PlacementFailure(f"{rep.arrangements_rejected[-1]} [{n_leaf + n_arr} arrangements]")
 
     def _rollback(self, mark: int, counts: Counter) -> None:
         """Forget the instances placed after the first ``mark`` (one room's failed arrangement)."""
-        gone = {i.p.inst for i in self.insts[mark:]}
-        self.insts = self.insts[:mark]
-        self.counter = counts
+        gone, self.insts, self.counter = {i.p.inst for i in self.insts[mark:]}, self.insts[:mark], counts
         for g in self.grids.values():
             for k in gone & set(g.blocks):
                 del g.blocks[k]
@@ -233,7 +237,8 @@ class Populator:
         return f"{category}_{self.counter[category]:02d}"
 
     def _instance(self, rec: CatalogRecord, geo: AssetGeometry, ctx: RoomContext, xy: np.ndarray, z: float,
-                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0)) -> _Inst:
+                  yaw: float, support: str | None, clearance: float, stand=(0.0, 0.0), free=(0.0, 0.0),
+                  leaf=(0.0, None)) -> _Inst:
         inst = f"{rec.category}_{self.counter[rec.category] + 1:02d}"
         R3, t = rot3(yaw), np.array([xy[0], xy[1], z])
         R2 = R3[:2, :2]
@@ -247,7 +252,8 @@ class Populator:
             c = np.array([geo.hi[0], (geo.lo[1] + geo.hi[1]) / 2]) @ R2.T + xy
             zones.append(_rect(c, side, (geo.hi[1] - geo.lo[1]) / 2, front, clearance))
             clear = _rect(c, side, max((geo.hi[1] - geo.lo[1]) / 2 - SWING_MARGIN, 0.05), front, clearance)
-        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)]
+        zones += [z @ R2.T + xy for z in stand_zones(geo, stand[0], clearance, stand[1]) + side_zones(geo, *free)
+                  + leaf_zones(geo, *leaf)]
         p = Placement(inst, rec, ctx.room.id, ctx.room.floor, (float(xy[0]), float(xy[1]), float(z)), float(yaw), support)
         return _Inst(p, geo, (R3, t), fp, block, zones, support is None, swings=len(geo.swings), clear=clear)
 
@@ -284,7 +290,8 @@ class Populator:
                 continue
             xy, yaw = pose
             inst = self._instance(rec, geo, ctx, xy, ctx.elevation + REST_GAP - geo.lo[2], yaw, None, rule.clearance,
-                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]))
+                                  rule.stand, (rule.side[0] * (-1) ** k * (k < tries // 2), rule.side[1]),
+                                  (rule.leaf * self._leaf_on, k if rule.leaf_door == "one" else None))
             why = self._floor_conflict(inst, rule, ctx, geo)
             no_room = why == "outside the room"
             if why is None:

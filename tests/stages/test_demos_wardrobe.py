@@ -144,20 +144,20 @@ def test_hang_on_rail_predicate(tmp_path):
 
 def test_arm_width_tells_an_elbow_out_sideways(tmp_path):
     """The posture before the wardrobe is judged by how far the elbow and wrist reach sideways of the arm's
-    mount (skill_wardrobe._width, on the Panda's Pinocchio model): the home posture and the carry posture
+    mount (wardrobe_arm.arm_width, on the Panda's Pinocchio model): the home posture and the carry posture
     of flat_008 stay within NARROW_MAX, the posture flat_038's nearest IK solution had (joint 1 at 122 deg,
     the base stopped 10 cm short of the wardrobe) does not."""
     from types import SimpleNamespace
 
     from stages.demos.experts import timed_clik
-    from stages.demos.skill_wardrobe import NARROW_MAX, _width
+    from stages.demos.wardrobe_arm import NARROW_MAX, arm_width
     from stages.simulate.robot import find_panda_description, write_robot_urdf
 
     desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
     d = SimpleNamespace(ik=timed_clik(desc))
 
     def width(deg) -> float:
-        return _width(d, d.ik.with_arm(d.ik.neutral(), np.radians(deg)))
+        return arm_width(d, d.ik.with_arm(d.ik.neutral(), np.radians(deg)))
 
     assert width(np.degrees(desc.arm_home)) < NARROW_MAX
     assert width([-3, -24, 16, -123, 69, 175, 160]) < NARROW_MAX       # flat_008's staged posture (hung)
@@ -340,3 +340,77 @@ def test_withdraw_backs_the_open_hand_out_in_small_steps():
     assert np.allclose(steps[:n], sw.WITHDRAW_STEP) and out[n] == pytest.approx(sw.WITHDRAW_SLOW)
     assert out[-1] == pytest.approx(sw.WITHDRAW_OUT) and len(d.moves) == n + 2
     assert all(np.allclose(t[:3, :3], rot) for t, _ in d.moves)
+
+
+def test_drive_clear_turns_the_held_hanger_clear_of_the_open_leaf():
+    """base_approach.plan_turn on flat_018's geometry (a leaf from its hinge at (1.93, 0.70) out to its free
+    edge at (1.87, 1.21); the base backed off the bed at (2.08, 1.67) facing +Y, a 0.4 m wide hanger held
+    0.4 m ahead; the staging point (1.50, 1.55) facing -Y): the follower's own drive turns the short way
+    (through +X) while passing the free edge, the hanger sweeping within TURN_MARGIN of the leaf (in the
+    simulation it swept the door half shut); the plan turns on the spot the long way (through -X), with
+    every leg clear; a leaf 3 m away leaves the follower's drive as it is."""
+    from stages.demos.base_approach import (TURN_MARGIN, chassis_outline, clearance, plan_turn, rollout,
+                                            spin)
+
+    leaf = np.array([(1.933 + t * (1.866 - 1.933), 0.70 + t * (1.21 - 0.70)) for t in np.linspace(0, 1, 40)])
+    held = np.array([(0.4, y) for y in np.linspace(-0.2, 0.2, 9)])
+    body = np.vstack([chassis_outline(), held])
+    start, goal_yaw, dt = (2.077, 1.672, 1.561), -1.571, 1.0 / 30.0
+    path = np.array([start[:2], (1.504, 1.555)])
+    direct = rollout(path, goal_yaw, start, dt)
+    assert np.allclose(direct[-1, :2], path[-1], atol=0.02) and direct[-1, 2] == pytest.approx(goal_yaw, abs=0.02)
+    assert direct[5, 2] < start[2]  # the follower turns the short way: clockwise, through +X
+    assert clearance(direct, body, leaf) < TURN_MARGIN
+    i, p, turn = plan_turn(path, start, goal_yaw, held, leaf, dt)
+    assert turn == pytest.approx(goal_yaw - start[2] + 2 * math.pi, abs=1e-6)  # the long way, through -X
+    legs = np.vstack([rollout(np.vstack([path[: i + 1], p]), start[2], start, dt), spin(p, start[2], turn),
+                      rollout(np.vstack([p, path[i + 1:]]), goal_yaw, (*p, goal_yaw), dt)])
+    assert clearance(legs, body, leaf) >= TURN_MARGIN
+    assert plan_turn(path, start, goal_yaw, held, leaf + [3.0, 0.0], dt) is None
+
+
+def test_roll_limited_leaves_the_hand_at_most_the_limit_off_square():
+    """wardrobe_arm.roll_limited: a hanger rolled 25 deg about its neck in the pinch (the hand's approach 25 deg
+    off its plane) is taken as rolled 10 deg (ROLL_LIMIT): the hand set square to the taken hanger turns 10 deg, the
+    hanger keeps 15 deg (flat_014 s2: turned 30 deg, the hand met the closed door); a 6 deg roll is kept whole; the
+    result is a rotation whose neck axis (local X) is the measured one's."""
+    from stages.demos.wardrobe_arm import ROLL_LIMIT, roll_limited
+
+    def about_x(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+    pinch = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])[:, [2, 0, 1]]  # a rotation, approach +Y
+    assert np.allclose(pinch[:, 2], [0.0, 1.0, 0.0]) and np.isclose(np.linalg.det(pinch), 1.0)
+
+    def roll_of(r):
+        return math.atan2(-r[2, 2], r[1, 2])
+
+    for deg, want in ((25.0, math.degrees(ROLL_LIMIT)), (-25.0, -math.degrees(ROLL_LIMIT)), (6.0, 6.0)):
+        measured = about_x(-math.radians(deg)) @ pinch
+        assert math.degrees(roll_of(measured)) == pytest.approx(deg)
+        taken = roll_limited(measured)
+        assert math.degrees(roll_of(taken)) == pytest.approx(want)
+        assert np.allclose(taken.T @ taken, np.eye(3)) and np.allclose(taken[0], measured[0])
+
+
+def test_forearm_off_tells_a_forearm_by_the_wardrobes_middle(tmp_path):
+    """wardrobe_arm.forearm_off on the Panda's Pinocchio model, the base at the world's origin facing +X, the
+    wardrobe's middle (the closed door's edge) 5.5 cm to its right, the open half to its left (flat_018's
+    staging): the two staged postures IK gave there, both within NARROW_MAX, differ in their forearm: seed 1's
+    (hung) lies ~0.19 m on the open side, seed 5's mirrored wrist branch ~2 cm (its drive in stopped 11 cm short
+    against the closed door): the second is under BESIDE_CLEAR, the first not."""
+    from types import SimpleNamespace
+
+    from stages.demos.experts import timed_clik
+    from stages.demos.wardrobe_arm import BESIDE_CLEAR, NARROW_MAX, arm_width, forearm_off
+    from stages.simulate.robot import find_panda_description, write_robot_urdf
+
+    desc = write_robot_urdf(tmp_path / "robot", panda_root=find_panda_description(None))
+    d = SimpleNamespace(ik=timed_clik(desc), sim=SimpleNamespace(spawn=(0.0, 0.0, 0.0)))
+    mid, open_side = (0.0, -0.055), (0.0, 1.0)
+    hung = d.ik.with_arm(d.ik.neutral(), np.radians([-57, -39, 51, -111, 121, 159, 147]))
+    stuck = d.ik.with_arm(d.ik.neutral(), np.radians([59, -30, -46, -112, -89, 172, -51]))
+    assert arm_width(d, hung) < NARROW_MAX and arm_width(d, stuck) < NARROW_MAX
+    assert forearm_off(d, hung, mid, open_side) > BESIDE_CLEAR + 0.05
+    assert forearm_off(d, stuck, mid, open_side) < BESIDE_CLEAR - 0.03
