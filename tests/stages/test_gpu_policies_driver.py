@@ -257,3 +257,26 @@ def test_warm_job_is_a_tiny_demos_job_on_the_training_data_jobs_catalog(tmp_path
     assert (demos.tasks, demos.worlds, demos.batch_worlds, demos.device, demos.max_seconds, demos.merge) == (
         ("push_object",), 1, 2, "cuda", 2.0, False)
     assert spec.out == tmp_path / "warm" / "out"
+
+
+def test_training_runs_get_the_batch_size_asked_for(driver, monkeypatch, tmp_path):
+    """``--batch-size`` reaches every run's train-policy command (none asked: train-policy's own
+    default, the paper's 16); real processes stand in for the trainings (``true``)."""
+    import subprocess
+
+    ds = tmp_path / "data" / "datasets" / "push_pull" / "meta"
+    ds.mkdir(parents=True)
+    (ds / "info.json").write_text("{}")
+    seen = []
+
+    def launch(argv, device, log, threads=None):
+        seen.append(argv)
+        return subprocess.Popen(["true"])
+
+    monkeypatch.setattr(driver, "_launch", launch)
+    extra = {"act": [], "diffusion": []}
+    driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5, "diffusion": 5}, False, ["cuda:0"], extra,
+                      batch_size=64)
+    driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5}, False, ["cuda:0"], extra)
+    assert [a[a.index("--batch-size") + 1] for a in seen[:2]] == ["64", "64"]
+    assert "--batch-size" not in seen[2]

@@ -110,7 +110,7 @@ def _num_workers(n_runs: int, asked: int | None) -> int:
 
 def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus: list[str],
                extra: dict[str, list[str]], workers: int | None = None,
-               max_seconds: float | None = None) -> dict[str, float]:
+               max_seconds: float | None = None, batch_size: int | None = None) -> dict[str, float]:
     """Start one train-policy per (family, policy of ``steps``) with ``steps[policy]`` steps
     (``probe``: into ``RUNS/.probe_<family>_<policy>``; ``max_seconds``: each stops then [s],
     saving the step reached); wait; wall [s] per run folder."""
@@ -125,6 +125,8 @@ def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus:
                 "--log-freq", str(max(1, min(100 if max_seconds is None else 50, steps[pol] // 10))), *extra[pol]]
         if max_seconds is not None:
             argv += ["--max-seconds", f"{max_seconds:.0f}"]
+        if batch_size is not None:  # default: train-policy's (the paper's 16)
+            argv += ["--batch-size", str(batch_size)]
         argv += ["--frame-cache", str(runs / "frames" / fam)]  # a family's runs decode its videos once
         procs[out] = (time.perf_counter(), _launch(argv, gpus[k % len(gpus)], runs / "logs" / f"{out.name}.log"))
     walls = {}
@@ -149,6 +151,7 @@ def train(a) -> int:
     gpus, runs = _gpus(a.device), a.runs
     policies = tuple(getattr(a, "policies", None) or POLICIES)
     workers = getattr(a, "num_workers", None)
+    batch = getattr(a, "batch_size", None)
     runs.mkdir(parents=True, exist_ok=True)
     extra = {"act": [f"--lerobot-arg={x}" for x in a.act_arg],
              "diffusion": [f"--lerobot-arg={x}" for x in a.diffusion_arg]}
@@ -159,11 +162,13 @@ def train(a) -> int:
         (runs / "plan.json").write_text(json.dumps({"mode": "deadline", "max_seconds": wall, "steps_cap": cap,
                                                     "gpus": gpus, "num_workers": _num_workers(
                                                         len(_runs(a.data, runs, policies)), workers)}, indent=2))
-        _train_all(a.data, runs, {p: cap for p in policies}, False, gpus, extra, workers, max_seconds=wall)
+        _train_all(a.data, runs, {p: cap for p in policies}, False, gpus, extra, workers, max_seconds=wall,
+                   batch_size=batch)
         ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs, policies))
         print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
         return 0 if ok else 1
-    walls = _train_all(a.data, runs, {p: a.probe_steps for p in policies}, True, gpus, extra, workers)
+    walls = _train_all(a.data, runs, {p: a.probe_steps for p in policies}, True, gpus, extra, workers,
+                       batch_size=batch)
     plan: dict[str, list] = {}
     for fam, pol, _ in _runs(a.data, runs, policies):
         probe = runs / f".probe_{fam}_{pol}"
@@ -188,7 +193,7 @@ def train(a) -> int:
                                                 "gpus": gpus, "budget_s": budget,
                                                 "num_workers": _num_workers(len(_runs(a.data, runs, tuple(steps))),
                                                                             workers)}, indent=2))
-    _train_all(a.data, runs, steps, False, gpus, extra, workers)
+    _train_all(a.data, runs, steps, False, gpus, extra, workers, batch_size=batch)
     ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs, tuple(steps)))
     print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
     return 0 if ok else 1
@@ -470,7 +475,8 @@ def run_all(a) -> int:
             train_s = left() - eval_s - tail_s
             targs = argparse.Namespace(data=data, runs=runs, seconds=train_s, probe_steps=a.probe_steps,
                                        max_steps=a.max_steps, act_arg=a.act_arg, diffusion_arg=a.diffusion_arg,
-                                       device=a.device, policies=tuple(policies), num_workers=a.num_workers)
+                                       device=a.device, policies=tuple(policies), num_workers=a.num_workers,
+                                       batch_size=a.batch_size)
             rc = train(targs)
             status("train", exit=rc, seconds=round(time.perf_counter() - t), budget_s=round(train_s),
                    policies=",".join(policies))
@@ -527,6 +533,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--out", type=Path, required=True)
     t.add_argument("--policy", dest="policies", action="append", choices=POLICIES, default=None,
                    help="train only this policy (repeatable; default both)")
+    t.add_argument("--batch-size", type=int, default=None, help="samples per step (default train-policy's: 16)")
     t.add_argument("--num-workers", type=int, default=None,
                    help="data loader workers per run (default: the cores left after one per run, shared)")
     al = sub.add_parser("all", help="data job, training, eval and table under one wall budget; one tgz in --out")
@@ -545,6 +552,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the data job stops when less than this would be left to training [s]")
     for name, kw in (("--probe-steps", {"type": int, "default": 0}), ("--max-steps", {"type": int, "default": None}),
                      ("--num-workers", {"type": int, "default": None}),
+                     ("--batch-size", {"type": int, "default": None}),
                      ("--act-arg", {"action": "append", "default": []}),
                      ("--diffusion-arg", {"action": "append", "default": []}),
                      ("--scenes", {"default": "101-105"}), ("--seeds", {"default": "1000000-1000009"}),
