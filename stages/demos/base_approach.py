@@ -106,6 +106,7 @@ def held_points(d, placed) -> np.ndarray:
     world = np.asarray(o.position, float) + box @ o.matrix()[:3, :3].T
     return in_base_frame(base_pose(d.sim), np.vstack([world, np.asarray(st.robot.ee_pose.position, float)]))
 
+
 TURN_MARGIN = 0.05         # the swept chassis and held points keep this far [m] from the open leaf's points
 TURN_STEP = math.radians(60.0)  # a turn on the spot is driven in steps of at most this [rad] (the follower
                                 # turns the short way: a 180 deg turn is driven the way that was chosen)
@@ -213,22 +214,16 @@ def plan_turn(path: np.ndarray, pose, yaw: float, body: np.ndarray, leaf: np.nda
 
 
 def drive_clear(d, grid, goal, leaf: np.ndarray, held: np.ndarray) -> None:
-    """Drive the base to ``goal`` (x, y, yaw) planned on ``grid`` (as ``Driver.drive_to(approach=0)``), turning
+    """Drive the base to ``goal`` (x, y, yaw) planned on ``grid`` (``Driver.plan_drive``, approach 0), turning
     where the chassis and the ``held`` points (M, 2) [m, base frame] sweep clear of the ``leaf`` (N, 2)
     (:func:`plan_turn`): turned on the way while 0.55 m from an open leaf's free edge, a hanger held out ahead
     swept the wardrobe's door half shut (flat_018: 1.36 -> 0.36-0.71 rad). Where no place is clear, the
     follower's own drive (logged). ExpertFailure("no_path") where the planner finds no way."""
-    from stages.demos.driver import ROBOT_RADIUS
-    from stages.demos.planner import NoPathError, plan_path
     from stages.demos.record import base_pose
 
+    path = d.plan_drive(goal, grid, approach=0.0)
     t0 = time.perf_counter()
     pose = base_pose(d.sim)
-    try:
-        path = plan_path(grid, (float(pose[0]), float(pose[1])), goal[:2], ROBOT_RADIUS)
-    except NoPathError as e:
-        raise ExpertFailure("no_path", str(e)) from None
-    path = np.vstack([path, goal[:2]])
     try:
         plan = plan_turn(path, pose, goal[2], held, leaf, d.frame_dt)
     except ExpertFailure as e:

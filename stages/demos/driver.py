@@ -215,6 +215,11 @@ class Driver:
         staging point is blocked for the planner (a tight floor: a wall behind the goal), from one
         NEAR_STAGING behind the goal. ``tuck``:
         arm joint targets (7,) [rad] the arm moves to while the base sets off (:func:`stow`)."""
+        self.follow(self.plan_drive(goal, grid, approach=approach), goal[2], timeout=timeout, tuck=tuck)
+
+    def plan_drive(self, goal: tuple[float, float, float], grid: NavGrid, *, approach: float = 0.35) -> np.ndarray:
+        """The path (N, 2) [m] :meth:`drive_to` follows from the base's pose to ``goal`` (x, y, yaw), ending at
+        the goal (planning time added to ``plan_seconds``); ExpertFailure("no_path") where none is found."""
         t0 = time.perf_counter()
         x, y, th = base_pose(self.sim)
         gx, gy, gyaw = goal
@@ -229,9 +234,8 @@ class Driver:
                 path = plan_path(grid, (x, y), near, ROBOT_RADIUS)
             except NoPathError:
                 raise ExpertFailure("no_path", str(e)) from None
-        path = np.vstack([path, [gx, gy]])
         self.plan_seconds += time.perf_counter() - t0
-        self.follow(path, gyaw, timeout=timeout, tuck=tuck)
+        return np.vstack([path, [gx, gy]])
 
     def drive_straight(self, goal: tuple[float, float, float], *, timeout: float = 10.0) -> None:
         """Drive the base in a straight line to ``goal`` (x, y, yaw), no planning (the last metre

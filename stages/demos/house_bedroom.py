@@ -167,17 +167,17 @@ def _floor_to_front(rf, boxes: list, wp: Placed, pick: tuple[float, float, float
                for r in (0.0, 0.1, 0.2, 0.3) for a in np.linspace(0.0, 2 * math.pi, 12, endpoint=False))
 
 
-def _door_with_room(rf, boxes: list, wp: Placed, pick: tuple[float, float, float]) -> str | None:
-    """The joint path of the first door of the wardrobe ``wp`` (in :func:`~stages.demos.sampling.world_part`'s
-    order) whose leaf, open to its stop, to 0.9 and to 0.8 of its travel (open_wardrobe's stage may end short),
-    leaves the base (the planner's disc) on the room's floor (walls and ``boxes`` [m]) the staging point of its
-    pose ``pick`` (x, y, yaw facing +Y) before the hanger's spot (or drive_to's nearer one), a pose round the
-    leaf's free edge to push it shut (the push plan's candidates, the turned fists' 140 deg:
+def _door_with_room(rf, boxes: list, wp: Placed, picks: list) -> tuple[int, str] | None:
+    """``(k, joint path)``: the first of the hanger's base poses ``picks`` (x, y, yaw facing +Y) with a door of the
+    wardrobe ``wp`` (in :func:`~stages.demos.sampling.world_part`'s order) whose leaf, open to its stop, to 0.9 and to
+    0.8 of its travel (open_wardrobe's stage may end short), leaves the base (the planner's disc) on the room's floor
+    (walls and ``boxes`` [m]) the staging point of that pose (or drive_to's nearer one), a pose round the leaf's
+    free edge to push it shut (the push plan's candidates, the turned fists' 140 deg:
     :func:`~stages.demos.part_planning._swing_bases`) and the staging point of the hang pose
-    (:func:`~stages.demos.base_approach.staging`), all on one floor; None where no door does (the 40-flat
-    bench's flat_023: the leaf ended 0.39 m from a wall, no base to push it shut; flat_028: the open leaf cut
-    the floor between the bed and the hang pose; flat_013 at 0.8 of the travel: the leaf blocked the pinch
-    pose's staging point)."""
+    (:func:`~stages.demos.base_approach.staging`), all on one floor; None where no pose has such a door (the
+    40-flat bench's flat_023: the leaf ended 0.39 m from a wall, no base to push it shut; flat_028: the open leaf
+    cut the floor between the bed and the hang pose; flat_013 at 0.8 of the travel: the leaf blocked the pinch
+    pose's staging point). The grid, the doors and each open leaf's grid and hang staging are made once."""
     from types import SimpleNamespace
 
     from stages.demos.base_approach import leaf_points, staging
@@ -193,25 +193,38 @@ def _door_with_room(rf, boxes: list, wp: Placed, pick: tuple[float, float, float
     doors = [q for q in parts_of_package(wp.info, asset_id=wp.asset.asset_id, prim_root=wp.prim,
                                          pose=(*wp.position, wp.yaw), package_usd=wp.asset.usd)
              if q.role == "door" and q.kind == "revolute"]
+    doors.sort(key=lambda q: abs(q.handle[2] - 1.0))  # stable: world_part's first door first
     rail, world = rail_facts(wp), SimpleNamespace(placed={"wardrobe": wp})
-    for part in sorted(doors, key=lambda q: abs(q.handle[2] - 1.0)):  # stable: world_part's first door first
-        for frac in (1.0, 0.9, 0.8):
+    opened: dict = {}  # (door index, fraction) -> (its grid, the hang pose's staging point or None)
+
+    def leaf_open(n: int, frac: float):
+        if (n, frac) not in opened:
+            part = doors[n]
             q = part.closed + frac * part.travel
             g = swept_grid(grid, part, q, q)
-            on = connected(g, pick[:2], reach=1.0)
-            if not any(is_free(g, ~on, pick[0], pick[1] - back) for back in (COUNTER_STAGE, NEAR_STAGING)):
-                break
-            if not _swing_bases(part, g, q, list(np.linspace(q, part.closed, 8)), spread=140.0, within=on):
-                break
             try:
                 point, _ = staging(g, hang_base(world, rail, part, q)[0], leaf_points(part, q))
             except ExpertFailure:
-                break
-            if not on[g.cell_of(*point)]:
-                break
-        else:
-            return part.joint_path
-    return None
+                point = None
+            opened[n, frac] = g, point
+        return opened[n, frac]
+
+    def room_for(n: int, pick) -> bool:
+        part = doors[n]
+        for frac in (1.0, 0.9, 0.8):
+            q = part.closed + frac * part.travel
+            g, point = leaf_open(n, frac)
+            on = connected(g, pick[:2], reach=1.0)
+            if not any(is_free(g, ~on, pick[0], pick[1] - back) for back in (COUNTER_STAGE, NEAR_STAGING)):
+                return False
+            if not _swing_bases(part, g, q, list(np.linspace(q, part.closed, 8)), spread=140.0, within=on):
+                return False
+            if point is None or not on[g.cell_of(*point)]:
+                return False
+        return True
+
+    return next(((k, doors[n].joint_path) for k, pick in enumerate(picks) for n in range(len(doors))
+                 if room_for(n, pick)), None)
 
 
 def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict | None:
@@ -261,12 +274,12 @@ def _wardrobe(rs, rf, furniture: dict, pl: dict, bp: Placed, foot: int) -> dict 
         log.info("bedroom %s: no floor for the base from the bed to the wardrobe's front", rs.room)
         return None
     # the first spot (arm clear of the leaves first) with a door whose open leaf leaves the base its floor
-    door = next(((x, d) for x in clear + [v for v in free if v not in clear]
-                 if (d := _door_with_room(rf, boxes, wp, facing_north_goal(edge, x + PICK_SIDE, gap=PICK_GAP)))), None)
-    if door is None:
+    spots = clear + [v for v in free if v not in clear]
+    found = _door_with_room(rf, boxes, wp, [facing_north_goal(edge, v + PICK_SIDE, gap=PICK_GAP) for v in spots])
+    if found is None:
         log.info("bedroom %s: no wardrobe door whose open leaf leaves the base room to hang and to push it shut", rs.room)
         return None
-    x, door = door
+    x, door = spots[found[0]], found[1]
     pl["wardrobe"] = wp
     pl["hanger"] = hp
     return {"blanket_edge": edge, "hanger_x": float(x), "rail": rail_facts(pl["wardrobe"]), "wardrobe_door": door}

@@ -54,7 +54,6 @@ def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False, b
     unit) [m] (world): with ``narrow``, a posture whose forearm (:func:`forearm_off`) lies less than
     :data:`BESIDE_CLEAR` on the normal's side of the line through the point counts as not narrow: the forearm
     of a mirrored wrist branch, 2 cm from the wardrobe's middle, met the closed door: flat_018 s5); None if none."""
-
     from stages.simulate.control import Clik
 
     goal = Clik.world_to_root(d.sim.spawn, target)
@@ -73,8 +72,8 @@ def posture(d, target: np.ndarray, margin: float = 0.25, narrow: bool = False, b
         if float(np.min(np.minimum(q - lo, hi - q))) < margin:
             continue
         wide = arm_width(d, r.q) if narrow else 0.0
-        if narrow and beside is not None and forearm_off(d, r.q, *beside) < BESIDE_CLEAR:
-            wide = max(wide, NARROW_MAX + 1e-3 + BESIDE_CLEAR - forearm_off(d, r.q, *beside))
+        if narrow and beside is not None and (off := forearm_off(d, r.q, *beside)) < BESIDE_CLEAR:
+            wide = max(wide, NARROW_MAX + 1e-3 + BESIDE_CLEAR - off)
         sols.append((float(np.abs(q - now).max()), wide, q))
     if not sols:
         return None
