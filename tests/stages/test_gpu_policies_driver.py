@@ -210,7 +210,7 @@ record_depth = false
 
 def test_data_loader_workers_share_the_cores_left_by_the_runs(driver, monkeypatch):
     monkeypatch.setattr(driver.os, "cpu_count", lambda: 16)
-    assert [driver._num_workers(n, None) for n in (1, 3, 6, 12, 20)] == [4, 4, 2, 1, 1]
+    assert [driver._num_workers(n, None) for n in (1, 3, 6, 12, 20)] == [8, 5, 2, 1, 1]
     assert driver._num_workers(6, 0) == 0  # asked: as asked
 
 
@@ -278,5 +278,40 @@ def test_training_runs_get_the_batch_size_asked_for(driver, monkeypatch, tmp_pat
     driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5, "diffusion": 5}, False, ["cuda:0"], extra,
                       batch_size=64)
     driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5}, False, ["cuda:0"], extra)
+    driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5, "diffusion": 5}, False, ["cuda:0"], extra,
+                      batch_size={"*": 64, "diffusion": 32})
     assert [a[a.index("--batch-size") + 1] for a in seen[:2]] == ["64", "64"]
     assert "--batch-size" not in seen[2]
+    assert [a[a.index("--batch-size") + 1] for a in seen[3:5]] == ["64", "32"]  # act, diffusion
+
+
+def test_runs_are_placed_on_the_gpus_their_policy_is_given(driver, monkeypatch, tmp_path):
+    """``--place act=0,1,2 --place diffusion=3`` on four GPUs: one family's ACT per GPU, the three
+    Diffusion Policy runs on the fourth (real stand-in processes); bad values fail in one line."""
+    import subprocess
+
+    from stages.policy.placement import parse_place, per_policy, run_devices
+
+    for fam in ("pick_place", "open_close", "push_pull"):
+        ds = tmp_path / "data" / "datasets" / fam / "meta"
+        ds.mkdir(parents=True)
+        (ds / "info.json").write_text("{}")
+    seen = []
+
+    def launch(argv, device, log, threads=None):
+        seen.append((argv[argv.index("--policy") + 1], device))
+        return subprocess.Popen(["true"])
+
+    monkeypatch.setattr(driver, "_launch", launch)
+    gpus = [f"cuda:{i}" for i in range(4)]
+    place = parse_place(["act=0,1,2", "diffusion=3"], 4)
+    driver._train_all(tmp_path / "data", tmp_path / "runs", {"act": 5, "diffusion": 5}, False, gpus,
+                      {"act": [], "diffusion": []}, place=place)
+    assert sorted(seen) == [("act", "cuda:0"), ("act", "cuda:1"), ("act", "cuda:2")] + [("diffusion", "cuda:3")] * 3
+    assert run_devices(["act", "diffusion", "act"], gpus[:2]) == ["cuda:0", "cuda:1", "cuda:0"]  # none given
+    assert run_devices(["act"], ["cpu"], place) == ["cpu"]
+    assert per_policy(["64", "diffusion=32"], "--batch-size") == {"*": 64, "diffusion": 32}
+    for bad, fn in ((["act=0,4"], lambda v: parse_place(v, 4)), (["act"], lambda v: parse_place(v, 4)),
+                    (["0"], lambda v: per_policy(v, "--batch-size")), (["act=x"], lambda v: per_policy(v, "--b"))):
+        with pytest.raises(ValueError, match="expected"):
+            fn(bad)

@@ -17,10 +17,11 @@ or phase by phase (a call may run 10 minutes)::
 
 ``train``: for every family dataset (``DATA/datasets/<family>``) and policy (ACT, Diffusion Policy;
 ``--policy`` picks), one ``agentworld train-policy`` run, all at once, spread round robin over the
-GPUs, each with ``--num-workers`` data loader workers (default: the cores left after one per run,
-shared by the runs, 1-4). A probe of ``--probe-steps`` steps per run (same placement, so the same
-contention) measures seconds per step; the real runs then get as many steps as fit in
-``--seconds`` (start-up measured by the probe subtracted). ``--probe-steps 0`` (``all``'s default):
+GPUs (``--place POLICY=GPU,...`` puts a policy's runs on those: ``act=0,1,2 diffusion=3`` on four),
+each with ``--num-workers`` data loader workers (default: the cores left after one per run, shared
+by the runs, 1-8) and ``--batch-size`` (``N`` or ``POLICY=N``). A probe of ``--probe-steps`` steps
+per run (same placement, so the same contention) measures seconds per step; the real runs then get
+as many steps as fit in ``--seconds`` (start-up measured by the probe subtracted). ``--probe-steps 0`` (``all``'s default):
 no probe; every run trains until ``--seconds`` - 30 s and saves the step it reached
 (``train-policy --max-seconds``; at most ``--max-steps``, default 100,000, whose learning-rate
 schedule Diffusion Policy's cosine follows), which saves the probe's start-up (~90 s on the GPU).
@@ -65,6 +66,7 @@ REPO = Path(__file__).resolve().parents[3]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))  # stages.* (light modules; heavy ones load in the subprocesses)
 from stages.policy.device_jobs import data_job, pack, warm_job  # noqa: E402
+from stages.policy.placement import parse_place, per_policy, run_devices  # noqa: E402
 
 FAMILIES = {"pick_place": "pick_place_bowl", "open_close": "open_drawer", "push_pull": "push_object"}
 PAPER_ACT = {"pick_place": 0.66, "open_close": 0.84, "push_pull": 0.72}  # AgentWorld paper, ACT
@@ -100,23 +102,28 @@ def _runs(data: Path | None, runs: Path, policies: tuple[str, ...] = POLICIES) -
 
 def _num_workers(n_runs: int, asked: int | None) -> int:
     """Data loader workers per training run: ``asked``, or the cores left after one per run's main
-    process, shared by the runs, rounded up (1-4: 16 cores, 6 runs -> 2; 3 runs -> 4). Through the
+    process, shared by the runs, rounded up (1-8: 16 cores, 6 runs -> 2; 3 runs -> 5). Through the
     frame cache a sample costs about 4 ms of a core (lerobot's own decoding about 18 ms); ``data_s``
     in a run's curve.csv says whether the GPU waited for data."""
     if asked is not None:
         return asked
-    return max(1, min(4, -(-((os.cpu_count() or 1) - n_runs) // max(1, n_runs))))
+    return max(1, min(8, -(-((os.cpu_count() or 1) - n_runs) // max(1, n_runs))))
 
 
 def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus: list[str],
                extra: dict[str, list[str]], workers: int | None = None,
-               max_seconds: float | None = None, batch_size: int | None = None) -> dict[str, float]:
+               max_seconds: float | None = None, batch_size: int | dict[str, int] | None = None,
+               place: dict[str, list[int]] | None = None) -> dict[str, float]:
     """Start one train-policy per (family, policy of ``steps``) with ``steps[policy]`` steps
     (``probe``: into ``RUNS/.probe_<family>_<policy>``; ``max_seconds``: each stops then [s],
-    saving the step reached); wait; wall [s] per run folder."""
+    saving the step reached; ``batch_size``: every run's, or per policy with ``*`` for the rest;
+    ``place``: the GPUs of a policy's runs, :func:`~stages.policy.placement.run_devices`); wait;
+    wall [s] per run folder."""
     procs = {}
     todo = _runs(data, runs, tuple(steps))
     workers = _num_workers(len(todo), workers)
+    devices = run_devices([pol for _, pol, _ in todo], gpus, place)
+    sizes = batch_size if isinstance(batch_size, dict) else {} if batch_size is None else {"*": batch_size}
     for k, (fam, pol, run) in enumerate(todo):
         out = runs / f".probe_{fam}_{pol}" if probe else run
         shutil.rmtree(out, ignore_errors=True)
@@ -125,10 +132,11 @@ def _train_all(data: Path, runs: Path, steps: dict[str, int], probe: bool, gpus:
                 "--log-freq", str(max(1, min(100 if max_seconds is None else 50, steps[pol] // 10))), *extra[pol]]
         if max_seconds is not None:
             argv += ["--max-seconds", f"{max_seconds:.0f}"]
-        if batch_size is not None:  # default: train-policy's (the paper's 16)
-            argv += ["--batch-size", str(batch_size)]
+        size = sizes.get(pol, sizes.get("*"))
+        if size is not None:  # default: train-policy's (the paper's 16)
+            argv += ["--batch-size", str(size)]
         argv += ["--frame-cache", str(runs / "frames" / fam)]  # a family's runs decode its videos once
-        procs[out] = (time.perf_counter(), _launch(argv, gpus[k % len(gpus)], runs / "logs" / f"{out.name}.log"))
+        procs[out] = (time.perf_counter(), _launch(argv, devices[k], runs / "logs" / f"{out.name}.log"))
     walls = {}
     for out, (t0, p) in procs.items():
         rc = p.wait()
@@ -151,7 +159,8 @@ def train(a) -> int:
     gpus, runs = _gpus(a.device), a.runs
     policies = tuple(getattr(a, "policies", None) or POLICIES)
     workers = getattr(a, "num_workers", None)
-    batch = getattr(a, "batch_size", None)
+    batch = per_policy(getattr(a, "batch_size", None), "--batch-size")
+    place = parse_place(getattr(a, "place", None), len(gpus))
     runs.mkdir(parents=True, exist_ok=True)
     extra = {"act": [f"--lerobot-arg={x}" for x in a.act_arg],
              "diffusion": [f"--lerobot-arg={x}" for x in a.diffusion_arg]}
@@ -163,12 +172,12 @@ def train(a) -> int:
                                                     "gpus": gpus, "num_workers": _num_workers(
                                                         len(_runs(a.data, runs, policies)), workers)}, indent=2))
         _train_all(a.data, runs, {p: cap for p in policies}, False, gpus, extra, workers, max_seconds=wall,
-                   batch_size=batch)
+                   batch_size=batch, place=place)
         ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs, policies))
         print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
         return 0 if ok else 1
     walls = _train_all(a.data, runs, {p: a.probe_steps for p in policies}, True, gpus, extra, workers,
-                       batch_size=batch)
+                       batch_size=batch, place=place)
     plan: dict[str, list] = {}
     for fam, pol, _ in _runs(a.data, runs, policies):
         probe = runs / f".probe_{fam}_{pol}"
@@ -193,7 +202,7 @@ def train(a) -> int:
                                                 "gpus": gpus, "budget_s": budget,
                                                 "num_workers": _num_workers(len(_runs(a.data, runs, tuple(steps))),
                                                                             workers)}, indent=2))
-    _train_all(a.data, runs, steps, False, gpus, extra, workers, batch_size=batch)
+    _train_all(a.data, runs, steps, False, gpus, extra, workers, batch_size=batch, place=place)
     ok = all((run / "train.json").is_file() for _, _, run in _runs(a.data, runs, tuple(steps)))
     print(f"train: {'ok' if ok else 'FAILED (see runs/logs)'} in {time.perf_counter() - t0:.0f} s", flush=True)
     return 0 if ok else 1
@@ -476,7 +485,7 @@ def run_all(a) -> int:
             targs = argparse.Namespace(data=data, runs=runs, seconds=train_s, probe_steps=a.probe_steps,
                                        max_steps=a.max_steps, act_arg=a.act_arg, diffusion_arg=a.diffusion_arg,
                                        device=a.device, policies=tuple(policies), num_workers=a.num_workers,
-                                       batch_size=a.batch_size)
+                                       batch_size=a.batch_size, place=a.place)
             rc = train(targs)
             status("train", exit=rc, seconds=round(time.perf_counter() - t), budget_s=round(train_s),
                    policies=",".join(policies))
@@ -533,7 +542,10 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--out", type=Path, required=True)
     t.add_argument("--policy", dest="policies", action="append", choices=POLICIES, default=None,
                    help="train only this policy (repeatable; default both)")
-    t.add_argument("--batch-size", type=int, default=None, help="samples per step (default train-policy's: 16)")
+    t.add_argument("--batch-size", action="append", default=None,
+                   help="samples per step, N or POLICY=N (repeatable; default train-policy's: 16)")
+    t.add_argument("--place", action="append", default=None,
+                   help="POLICY=GPU[,GPU...]: the GPUs that policy's runs share (default: round robin over all)")
     t.add_argument("--num-workers", type=int, default=None,
                    help="data loader workers per run (default: the cores left after one per run, shared)")
     al = sub.add_parser("all", help="data job, training, eval and table under one wall budget; one tgz in --out")
@@ -552,7 +564,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the data job stops when less than this would be left to training [s]")
     for name, kw in (("--probe-steps", {"type": int, "default": 0}), ("--max-steps", {"type": int, "default": None}),
                      ("--num-workers", {"type": int, "default": None}),
-                     ("--batch-size", {"type": int, "default": None}),
+                     ("--batch-size", {"action": "append", "default": None}),
+                     ("--place", {"action": "append", "default": None}),
                      ("--act-arg", {"action": "append", "default": []}),
                      ("--diffusion-arg", {"action": "append", "default": []}),
                      ("--scenes", {"default": "101-105"}), ("--seeds", {"default": "1000000-1000009"}),
@@ -562,6 +575,12 @@ def main(argv: list[str] | None = None) -> int:
                      ("--device", {"choices": ("cuda", "cpu"), "default": "cuda"})):
         al.add_argument(name, **kw)
     a = p.parse_args(argv)
+    if a.cmd in ("train", "all"):
+        try:  # bad values fail here, in one line, before any work
+            per_policy(a.batch_size, "--batch-size")
+            parse_place(a.place, len(_gpus(a.device)))
+        except ValueError as e:
+            p.error(str(e))
     if a.cmd == "all":
         a.policy = tuple(a.policy or POLICIES)
         a.out = a.out or a.work
