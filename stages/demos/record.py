@@ -67,18 +67,19 @@ class Commands:
     mode: int = 0
 
 
-def quat_wxyz(rot: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) -> unit quaternion (w, x, y, z) with w >= 0."""
+def quat_wxyz(rot: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:
+    """Rotation matrix (3, 3) -> unit quaternion (w, x, y, z) in the hemisphere of ``ref`` (4,)
+    (q . ref >= 0; None: w >= 0; see :func:`stages.simulate.batch_fk.pose7_batch`)."""
     from scipy.spatial.transform import Rotation
 
     x, y, z, w = Rotation.from_matrix(rot).as_quat()
     q = np.array([w, x, y, z])
-    return -q if w < 0 else q
+    return -q if (w if ref is None else float(q @ np.asarray(ref, float))) < 0 else q
 
 
-def pose7(m: np.ndarray) -> np.ndarray:
-    """4x4 -> (7,) x, y, z, qw, qx, qy, qz."""
-    return np.concatenate([m[:3, 3], quat_wxyz(m[:3, :3])])
+def pose7(m: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:
+    """4x4 -> (7,) x, y, z, qw, qx, qy, qz (quaternion in the hemisphere of ``ref``, :func:`quat_wxyz`)."""
+    return np.concatenate([m[:3, 3], quat_wxyz(m[:3, :3], ref)])
 
 
 def base_pose(sim, world: int = 0) -> np.ndarray:
@@ -111,6 +112,7 @@ class Recorder:
         self.active = False
         self._next = 0
         self._q0 = ik.neutral()
+        self._ref: np.ndarray | None = None
         self._last_t = None
         sim.pre_step.append(self)
 
@@ -136,7 +138,9 @@ class Recorder:
 
     def ee_in_base(self, arm: np.ndarray) -> np.ndarray:
         """(7,) pose of the end-effector in the base frame for arm joint positions ``arm`` (7,)."""
-        return pose7(self.ik.fk(self.ik.with_arm(self._q0, arm)))
+        if self._ref is None:  # the orientation at the arm's home pose: the engine's hemisphere too
+            self._ref = pose7(self.ik.fk(self.ik.with_arm(self._q0, np.asarray(self.sim.desc.arm_home, float))))[3:]
+        return pose7(self.ik.fk(self.ik.with_arm(self._q0, arm)), self._ref)
 
     def capture(self) -> None:
         from stages.dataset import Frame, depth_m_to_mm

@@ -131,7 +131,8 @@ class FrameCapture:
         if not worlds:
             return
         q_all, t_all, base_all = self.robot_state(worlds)
-        ee_all = pose7_batch(e.arm_fk(np.concatenate([q_all, t_all])))  # measured, then targets
+        fk = e.arm_fk
+        ee_all = pose7_batch(fk(np.concatenate([q_all, t_all])), fk.home_quat)  # measured, then targets
         k = len(worlds)
         hand_q, hand_t = self.hand_state(worlds)
         base_v, grip, mode = self.commands(worlds)

@@ -290,7 +290,7 @@ class Evaluator:
 
         e = self.engine
         q, _, base = e.capture.robot_state(worlds)
-        ee = pose7_batch(e.arm_fk(q))
+        ee = pose7_batch(e.arm_fk(q), e.arm_fk.home_quat)  # the recorder's hemisphere
         state = np.concatenate([q, ee, base], axis=1).astype(np.float32)
         out = {w: {"observation.state": state[j]} for j, w in enumerate(worlds)}
         images: dict[int, dict] = {}

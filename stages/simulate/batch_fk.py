@@ -66,6 +66,10 @@ class ArmFK:
                 self._steps.append(("fixed", pin.SE3(jd.M).homogeneous.copy()))
         self._steps.append(("fixed", fr.placement.homogeneous.copy()))
         self.arm_count = len(arm)
+        home = getattr(ik.desc, "arm_home", None)
+        self.home_quat = None if home is None else pose7_batch(self(np.asarray(home, float)))[0, 3:]
+        """(4,) w, x, y, z: the end effector's orientation at the arm's home pose (``desc.arm_home``;
+        None without one), the reference hemisphere of recorded orientations (:func:`pose7_batch`)."""
 
     def __call__(self, arm_q: np.ndarray) -> np.ndarray:
         """(K, 4, 4) end-effector poses in the root frame for arm joint positions (K, arm_count) [rad]."""
@@ -81,12 +85,20 @@ class ArmFK:
         return out @ fixed
 
 
-def pose7_batch(m: np.ndarray) -> np.ndarray:
-    """(K, 4, 4) -> (K, 7): x, y, z, qw, qx, qy, qz with qw >= 0 (as ``record.pose7``, per row)."""
+def pose7_batch(m: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:
+    """(K, 4, 4) -> (K, 7): x, y, z, qw, qx, qy, qz (as ``record.pose7``, per row), each quaternion
+    in the hemisphere of ``ref`` (4,) w, x, y, z (q . ref >= 0; None: qw >= 0).
+
+    q and -q are one rotation; the sign flips where q . ref changes sign, i.e. at rotations 180 deg
+    from ``ref``. With qw >= 0 that is 180 deg from the identity, where a gripper pointing down
+    lives (the Panda's home orientation is (0, 1, 0, 0)): its recorded quaternion then flipped
+    with the sign of a qw of ~0.001 (666 flips within pick_place's 64 episodes, session 20). The
+    engine passes the home orientation (:attr:`ArmFK.home_quat`): no flip in those episodes."""
     from scipy.spatial.transform import Rotation
 
     m = np.asarray(m, float).reshape(-1, 4, 4)
     xyzw = Rotation.from_matrix(m[:, :3, :3]).as_quat()
     q = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
-    q[q[:, 0] < 0] *= -1.0
+    d = q[:, 0] if ref is None else q @ np.asarray(ref, float)
+    q[d < 0] *= -1.0
     return np.concatenate([m[:, :3, 3], q], axis=1)
