@@ -50,6 +50,8 @@ def train_main(argv: list[str]) -> int:
                    help="stop after this wall time [s], saving the step reached (default: all --steps)")
     p.add_argument("--frame-cache", type=Path, default=None,
                    help="decode the RGB videos once into this folder and train from it (shared by runs on one dataset)")
+    p.add_argument("--init", type=Path, default=None,
+                   help="start from this checkpoint's weights (same policy; pretrained_model or train-policy folder)")
     p.add_argument("--lerobot-arg", action="append", default=[], metavar="--KEY=VALUE",
                    help="a further lerobot-train argument (repeatable), e.g. --lerobot-arg=--policy.dim_model=256")
     a = p.parse_args(argv)
@@ -58,7 +60,7 @@ def train_main(argv: list[str]) -> int:
                           chunk_size=a.chunk_size, temporal_ensemble=None if a.no_ensemble else 0.01,
                           device=a.device, seed=a.seed, num_workers=a.num_workers, log_freq=a.log_freq,
                           save_freq=a.save_freq, extra_args=tuple(a.lerobot_arg), max_seconds=a.max_seconds,
-                          frame_cache=a.frame_cache)
+                          frame_cache=a.frame_cache, init=a.init)
         print(f"train-policy: {a.policy} on {a.dataset} ({a.steps} steps, {a.device}); log {a.out / 'train.log'}",
               flush=True)
         res = train_policy(cfg)

@@ -50,7 +50,10 @@ class TrainConfig:
     (from the start of :func:`train_policy`), saving the checkpoint of the step reached (None: run
     all ``steps``; the learning-rate schedule is still that of ``steps``); frame_cache: a folder where
     the RGB videos are decoded once and read from by the data loader (:mod:`stages.policy.frame_cache`;
-    None: lerobot's per-sample decoding; runs on one dataset may share it)."""
+    None: lerobot's per-sample decoding; runs on one dataset may share it); init: a checkpoint
+    (``pretrained_model`` folder, or a train-policy output folder) of the same policy whose weights
+    the training starts from (lerobot's ``--policy.pretrained_path``: fresh optimizer and learning-rate
+    schedule, normalization from ``dataset``), so training can go on across machines."""
 
     policy: str
     dataset: Path
@@ -67,9 +70,21 @@ class TrainConfig:
     extra_args: tuple[str, ...] = field(default_factory=tuple)
     max_seconds: float | None = None
     frame_cache: Path | None = None
+    init: Path | None = None
 
     def __post_init__(self) -> None:
         problems = []
+        if self.init is not None:
+            init = Path(self.init)
+            ck = init if (init / "config.json").is_file() else checkpoint_of(init)
+            if not ((ck / "config.json").is_file() and (ck / "model.safetensors").is_file()):
+                problems.append(f"init {init}: not a checkpoint (no config.json and model.safetensors)")
+            else:
+                import json
+
+                kind = json.loads((ck / "config.json").read_text()).get("type")
+                if kind != self.policy:
+                    problems.append(f"init {init}: a {kind} checkpoint, not {self.policy}")
         if self.policy not in POLICIES:
             problems.append(f"policy must be one of {POLICIES}, got {self.policy!r}")
         for name in ("steps", "batch_size", "chunk_size", "log_freq", "save_freq"):
@@ -120,6 +135,9 @@ def lerobot_args(cfg: TrainConfig) -> list[str]:
             args += ["--policy.n_action_steps=1", f"--policy.temporal_ensemble_coeff={cfg.temporal_ensemble}"]
         else:
             args += [f"--policy.n_action_steps={cfg.chunk_size}"]
+    if cfg.init is not None:
+        init = Path(cfg.init).resolve()
+        args += [f"--policy.pretrained_path={init if (init / 'config.json').is_file() else checkpoint_of(init)}"]
     return args + list(cfg.extra_args)
 
 

@@ -190,3 +190,27 @@ def test_train_policy_stops_at_max_seconds_and_saves_the_step_reached(policy_dat
     summary = json.loads((tmp_path / "run" / "train.json").read_text())
     assert (summary["steps"], summary["steps_planned"], summary["stopped_at_max_seconds"]) == (1, 100_000, True)
     assert [int(r["step"]) for r in csv.DictReader(res.curve_csv.open())] == [1]
+
+
+def test_train_policy_starts_from_a_checkpoints_weights(trained_act, policy_dataset, tmp_path):
+    """``init``: a run with another seed (so another random initialization) starting from the trained
+    ACT ends one step later next to that ACT's weights, not at a fresh model's; a folder that is no
+    checkpoint, or one of another policy, fails in one line before any training."""
+    from safetensors.numpy import load_file
+
+    from stages.policy.train import TrainConfig, train_policy
+
+    cfg = TrainConfig(policy="act", dataset=policy_dataset, out=tmp_path / "run", steps=1, batch_size=2,
+                      chunk_size=10, device="cpu", num_workers=0, log_freq=1, seed=7, init=trained_act.checkpoint,
+                      extra_args=(*TINY["act"], "--policy.optimizer_lr=1e-7", "--policy.optimizer_lr_backbone=1e-7"))
+    res = train_policy(cfg, timeout=600)
+    assert f"--policy.pretrained_path={trained_act.checkpoint.resolve()}" in res.command
+    before, after = load_file(trained_act.checkpoint / "model.safetensors"), load_file(res.checkpoint / "model.safetensors")
+    assert before.keys() == after.keys()
+    moved = max(float(np.abs(after[k] - before[k]).max()) for k in before if before[k].dtype.kind == "f")
+    spread = max(float(np.abs(before[k]).max()) for k in before if before[k].dtype.kind == "f")
+    assert moved < 1e-3 < spread  # one step of lr 1e-7 from the init, not a fresh draw
+    with pytest.raises(ValueError, match="not a checkpoint"):
+        TrainConfig(policy="act", dataset=policy_dataset, out=tmp_path / "x", init=tmp_path)
+    with pytest.raises(ValueError, match="a act checkpoint, not diffusion"):
+        TrainConfig(policy="diffusion", dataset=policy_dataset, out=tmp_path / "x", init=trained_act.checkpoint)
