@@ -17,6 +17,7 @@ import argparse
 import hashlib
 import io
 import json
+import shutil
 import sys
 import tarfile
 from pathlib import Path
@@ -92,12 +93,19 @@ def unpack(parts: Path, out: Path) -> Path:
     tensors = load(blob)
     dtypes = manifest.get("dtypes", {})
     tensors = {k: (v.astype(np.dtype(dtypes[k])) if k in dtypes else v) for k, v in tensors.items()}
+    if out.exists():
+        raise FileExistsError(f"{out}: exists (unpack writes a new folder)")
     tmp = out.with_name(out.name + ".partial")
-    tmp.mkdir(parents=True, exist_ok=False)
-    with tarfile.open(fileobj=io.BytesIO(meta)) as tar:
-        tar.extractall(tmp, filter="data")
-    save_file(tensors, str(tmp / MODEL))
-    tmp.rename(out)  # nothing half-written at ``out``
+    shutil.rmtree(tmp, ignore_errors=True)  # a crashed earlier unpack's
+    tmp.mkdir(parents=True)
+    try:
+        with tarfile.open(fileobj=io.BytesIO(meta)) as tar:
+            tar.extractall(tmp, filter="data")
+        save_file(tensors, str(tmp / MODEL))
+        tmp.rename(out)  # nothing half-written at ``out``
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return out
 
 

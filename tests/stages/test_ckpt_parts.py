@@ -61,3 +61,13 @@ def test_a_damaged_or_missing_part_fails_in_one_line_and_writes_nothing(tmp_path
     assert not (tmp_path / "back").exists() and not (tmp_path / "back.partial").exists()
     assert main(["pack", str(tmp_path / "nothing"), str(tmp_path / "p2")]) == 2
     assert "no model.safetensors" in capsys.readouterr().err
+
+
+def test_unpack_never_writes_over_an_existing_folder(tmp_path, capsys):
+    from stages.policy.ckpt_parts import main, pack
+
+    _ckpt(tmp_path / "ck")
+    pack(tmp_path / "ck", tmp_path / "parts")
+    (tmp_path / "back").mkdir()
+    assert main(["unpack", str(tmp_path / "parts"), str(tmp_path / "back")]) == 2
+    assert "exists" in capsys.readouterr().err and not any((tmp_path / "back").iterdir())

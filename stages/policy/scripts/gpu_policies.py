@@ -577,8 +577,9 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if a.cmd in ("train", "all"):
         try:  # bad values fail here, in one line, before any work
-            per_policy(a.batch_size, "--batch-size")
-            parse_place(a.place, len(_gpus(a.device)))
+            named = {*per_policy(a.batch_size, "--batch-size"), *parse_place(a.place, len(_gpus(a.device)))}
+            if named - {"*", *POLICIES}:
+                raise ValueError(f"--batch-size / --place: unknown policies {sorted(named - {'*', *POLICIES})}")
         except ValueError as e:
             p.error(str(e))
     if a.cmd == "all":
