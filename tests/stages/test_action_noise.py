@@ -28,7 +28,8 @@ def room(kitchen_room):
     return kitchen_room
 
 
-def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | None = None) -> dict:
+def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | None = None, *,
+         layout: str = "auto", program_procs: int = 0) -> dict:
     """Run ``queues`` (world -> [(task, seed, limit)]; default EPISODE in one world) without images;
     per (task, seed): frames, result, and the arm targets uploaded to the simulation at each frame
     step (what the next steps execute), read in a pre-step hook after the controller's upload."""
@@ -37,7 +38,8 @@ def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | 
 
     queues = queues or {0: [EPISODE]}
     eng = BatchEngine(room, panda_root=None, work_dir=work,
-                      config=EngineConfig(worlds=len(queues), record_images=False, action_noise=noise))
+                      config=EngineConfig(worlds=len(queues), record_images=False, action_noise=noise,
+                                          layout=layout, program_procs=program_procs))
     out: dict = {}
     uploads: dict[int, dict[int, np.ndarray]] = {w: {} for w in queues}
     for w, (bank, i) in enumerate(eng._where):
@@ -126,6 +128,24 @@ def test_a_noisy_episode_is_the_same_beside_another_world(room, runs, tmp_path):
     two = _run(room, tmp_path, ARM_ONLY, {0: [("push_object", 7, 1.5)], 1: [("press_button", 3, 0.1), EPISODE]})
     _assert_same(runs["noisy"], two[EPISODE[:2]])
     np.testing.assert_array_equal(runs["noisy"]["uploaded"], two[EPISODE[:2]]["uploaded"])
+
+
+def test_noise_in_one_batched_model_is_the_same_with_programs_in_worker_processes(room, tmp_path):
+    # MuJoCo-Warp's batched layout (the GPU's), the experts in threads and in a worker process
+    # (commands in shared memory, events over pipes): the same noisy recordings, noise applied
+    queues = {0: [("push_object", 7, 0.6)], 1: [("press_button", 3, 0.1), ("push_object", 1, 0.6)]}
+    threads = _run(room, tmp_path / "t", ARM_ONLY, queues, layout="batched")
+    procs = _run(room, tmp_path / "p", ARM_ONLY, queues, layout="batched", program_procs=1)
+    assert threads.keys() == procs.keys() and len(threads) == 3
+    for key, a in threads.items():
+        b = procs[key]
+        assert len(a["frames"]) == len(b["frames"]) and a["result"].reason == b["result"].reason
+        for x, y in zip(a["frames"], b["frames"], strict=True):  # one model: contacts may reorder sums
+            np.testing.assert_allclose(x.state(), y.state(), rtol=0, atol=1e-5, err_msg=str(key))
+            np.testing.assert_allclose(x.action(), y.action(), rtol=0, atol=1e-5, err_msg=str(key))
+        np.testing.assert_allclose(a["uploaded"], b["uploaded"], rtol=0, atol=1e-5, err_msg=str(key))
+        off = a["uploaded"] - _field(a["frames"], "arm_joint_target")
+        assert (np.abs(off).max(axis=1) > 1e-3).all(), key
 
 
 def test_noise_process_holds_draws_gates_by_mode_and_seeds_by_episode():
