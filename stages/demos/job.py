@@ -299,8 +299,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
                 device=config.item_device(w), record_images=config.record_images,
                 record_depth=config.record_depth, video_gop=config.video_gop, batch_worlds=config.batch_worlds, program_procs=config.program_procs, program_wait=config.program_wait,
-                writer_procs=config.writer_procs, generated=str(generated), packages=packages, panda_root=panda_root,
-                action_noise=config.action_noise)
+                writer_procs=config.writer_procs, generated=str(generated), packages=packages,
+                panda_root=panda_root, action_noise=config.action_noise)
             items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
         return items
     for t in config.tasks:

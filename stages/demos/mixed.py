@@ -66,8 +66,8 @@ class ActionNoiseSpec(_Strict):
         """The engine's :class:`~stages.engine.action_noise.ActionNoise`."""
         from stages.engine.action_noise import ActionNoise
 
-        return ActionNoise(arm_std=self.arm_std, base_std=tuple(self.base_std), hold_seconds=self.hold_seconds,
-                           mode_aware=self.mode_aware)
+        return ActionNoise(arm_std=self.arm_std, base_std=tuple(self.base_std),
+                           hold_seconds=self.hold_seconds, mode_aware=self.mode_aware)
 
 
 class MixedParams(_Strict):

@@ -88,7 +88,8 @@ class NoiseProcess:
         """Steps from episode step ``step`` to the next draw (1 .. H)."""
         return self.hold_steps - int(step) % self.hold_steps
 
-    def offsets(self, w: int, step: int, mode: int | None = None, base_cmd=None) -> tuple[np.ndarray, np.ndarray]:
+    def offsets(self, w: int, step: int, mode: int | None = None,
+                base_cmd=None) -> tuple[np.ndarray, np.ndarray]:
         """World ``w``'s arm (7,) [rad] and base (3,) offsets at episode step ``step``, given the
         expert's mode (0 locomotion, 1 manipulation) and base command (3,) (``mode_aware``).
         Draws are taken in order (arm, then base), the same whichever offsets the mode gates."""

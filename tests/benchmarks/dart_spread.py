@@ -35,7 +35,8 @@ def episodes(step_dir: Path) -> dict[tuple[str, int], dict[str, np.ndarray]]:
 
     out = {}
     for shard in sorted(step_dir.glob("*/dataset_w*")):
-        meta = pd.concat([pd.read_parquet(p) for p in sorted((shard / "meta" / "episodes").rglob("*.parquet"))])
+        metas = sorted((shard / "meta" / "episodes").rglob("*.parquet"))
+        meta = pd.concat([pd.read_parquet(p) for p in metas])
         data = pd.concat([pd.read_parquet(p) for p in sorted((shard / "data").rglob("*.parquet"))])
         for _, m in meta.iterrows():
             rows = data[data["episode_index"] == m["episode_index"]].sort_values("frame_index")
@@ -66,21 +67,25 @@ def compare(clean: dict, noisy: dict) -> dict[str, dict]:
         r["dev_mean"].append(float(dev.mean()))
         r["dev_max"].append(float(dev.max()))
         first = [int(np.argmax(e["action"][:, 18] == 1)) for e in (c, n)]
-        r["base_at_manip"].append(float(np.linalg.norm(n["state"][first[1], 14:16] - c["state"][first[0], 14:16])))
+        at = n["state"][first[1], 14:16] - c["state"][first[0], 14:16]
+        r["base_at_manip"].append(float(np.linalg.norm(at)))
         for e, tag in ((c, "c"), (n, "n")):
             m = e["action"][:, 18] == 1
             r[f"arm_{tag}"].append(float(np.abs(e["state"][m, :7] - e["action"][m, :7]).mean()))
-            r[f"ee_{tag}"].append(float(np.linalg.norm(e["state"][m, 7:10] - e["action"][m, 7:10], axis=1).mean()))
+            ee = np.linalg.norm(e["state"][m, 7:10] - e["action"][m, 7:10], axis=1)
+            r[f"ee_{tag}"].append(float(ee.mean()))
             r[f"len_{tag}"].append(len(e["state"]))
     out = {}
     for task, r in per.items():
         med = {k: statistics.median(v) for k, v in r.items()}
         out[task] = {"matched": len(r["dev_mean"]),
                      "base_path_dev_m": {"median_of_means": round(med["dev_mean"], 4),
-                                         "median_of_max": round(med["dev_max"], 4), "max": round(max(r["dev_max"]), 4)},
+                                         "median_of_max": round(med["dev_max"], 4),
+                                         "max": round(max(r["dev_max"]), 4)},
                      "base_at_manipulation_m": {"median": round(med["base_at_manip"], 4),
                                                 "max": round(max(r["base_at_manip"]), 4)},
-                     "arm_q_minus_target_rad": {"clean": round(med["arm_c"], 4), "noisy": round(med["arm_n"], 4)},
+                     "arm_q_minus_target_rad": {"clean": round(med["arm_c"], 4),
+                                                "noisy": round(med["arm_n"], 4)},
                      "ee_minus_target_m": {"clean": round(med["ee_c"], 4), "noisy": round(med["ee_n"], 4)},
                      "median_frames": {"clean": med["len_c"], "noisy": med["len_n"]}}
     return out

@@ -62,7 +62,8 @@ def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | 
         rec = out[(inst.task, inst.seed)]
         rec["result"] = res
         S = eng.steps_per_second
-        rec["uploaded"] = np.array([uploads[w][-(-k * S // eng.config.fps)] for k in range(len(rec["frames"]))])
+        steps = [-(-k * S // eng.config.fps) for k in range(len(rec["frames"]))]  # frame k's step
+        rec["uploaded"] = np.array([uploads[w][s] for s in steps])
 
     eng.run(Listed(room, queues), begin=begin, end=end)
     return out
@@ -84,7 +85,8 @@ def runs(room, tmp_path_factory) -> dict:
 
 def _assert_same(a: dict, b: dict) -> None:
     ra, rb = a["result"], b["result"]
-    assert (ra.success, ra.reason, ra.frames, ra.sim_seconds) == (rb.success, rb.reason, rb.frames, rb.sim_seconds)
+    assert ((ra.success, ra.reason, ra.frames, ra.sim_seconds)
+            == (rb.success, rb.reason, rb.frames, rb.sim_seconds))
     assert len(a["frames"]) == len(b["frames"]) > 30
     for i, (x, y) in enumerate(zip(a["frames"], b["frames"], strict=True)):
         np.testing.assert_array_equal(x.state(), y.state(), err_msg=f"frame {i} state")
@@ -125,7 +127,8 @@ def test_the_same_seed_records_the_same_noisy_episode(runs):
 def test_a_noisy_episode_is_the_same_beside_another_world(room, runs, tmp_path):
     # world 1 runs EPISODE after a short one (it starts at a later sync point) while world 0 runs
     # another noisy episode: the two worlds' redraws fall on different steps
-    two = _run(room, tmp_path, ARM_ONLY, {0: [("push_object", 7, 1.5)], 1: [("press_button", 3, 0.1), EPISODE]})
+    queues = {0: [("push_object", 7, 1.5)], 1: [("press_button", 3, 0.1), EPISODE]}
+    two = _run(room, tmp_path, ARM_ONLY, queues)
     _assert_same(runs["noisy"], two[EPISODE[:2]])
     np.testing.assert_array_equal(runs["noisy"]["uploaded"], two[EPISODE[:2]]["uploaded"])
 
@@ -183,6 +186,7 @@ def test_the_demos_job_validates_action_noise_naming_the_job_file(tmp_path):
     noise = load_job(job).steps[0].config.action_noise
     assert noise.engine() == ActionNoise(arm_std=0.01, base_std=(0.02, 0.02, 0.05), hold_seconds=0.5)
     job.write_text(head + "arm_std = -0.01\nhold_seconds = 0\n")
-    with pytest.raises(JobError, match=r"dart\.toml: .*action_noise\.arm_std.*action_noise\.hold_seconds") as e:
+    both = r"dart\.toml: .*action_noise\.arm_std.*action_noise\.hold_seconds"
+    with pytest.raises(JobError, match=both) as e:
         load_job(job)
     assert "\n" not in str(e.value)
