@@ -30,7 +30,6 @@ import logging
 import statistics
 from collections import Counter
 from pathlib import Path
-
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field

@@ -179,7 +179,7 @@ class RobotControl(CommandBuffers):
     def set_execution_offset(self, world: int, arm: np.ndarray | None = None,
                              base: np.ndarray | None = None) -> None:
         """Offsets that world ``world`` executes on top of its commands from the next step on: arm
-        joint offsets (7,) [rad] added to the arm targets (the sum clipped to the joint limits) and
+        joint offsets (A,) [rad] (A arm joints, 7 for the Panda) added to the arm targets (the sum clipped to the joint limits) and
         base velocity offsets (3,) [m/s, m/s, rad/s] added to the base-frame command; None: zero.
         Only the simulation sees them: ``_targets`` / ``_cmd_np`` (what a recorder reads) keep the
         commands as given."""
