@@ -190,3 +190,20 @@ def test_the_demos_job_validates_action_noise_naming_the_job_file(tmp_path):
     with pytest.raises(JobError, match=both) as e:
         load_job(job)
     assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_the_demos_items_carry_the_noise_to_their_engines(kitchen_catalog, tmp_path, mixed):
+    from pipeline import load_results
+    from pipeline.types import PlanContext
+    from stages.demos.job import DemosConfig, plan_demos
+    from stages.demos.mixed import ActionNoiseSpec
+
+    prev = {s: load_results(kitchen_catalog, s) for s in ("catalog", "assets")}
+    ctx = PlanContext(job_file=tmp_path / "job.toml", job_dir=tmp_path, work_dir=kitchen_catalog, seed=0,
+                      previous=prev)
+    spec = ActionNoiseSpec(arm_std=0.01, base_std=(0.1, 0.1, 0.15), hold_seconds=0.3)
+    for noise in (None, spec):
+        items = plan_demos(DemosConfig(tasks=("push_object",), mixed=mixed, action_noise=noise), ctx)
+        assert len(items) == 1 and items[0].params.action_noise == noise
+    assert items[0].params.action_noise.engine() == ActionNoise(arm_std=0.01, base_std=(0.1, 0.1, 0.15))
