@@ -20,6 +20,10 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     width = 128
     height = 96
     # panda_root = "..."        # the Panda description's root (default: pip example-robot-data)
+    # [step.config.action_noise]  # DART: execute the expert's commands plus noise, record them clean
+    # arm_std = 0.02            # [rad] per arm joint
+    # base_std = [0.05, 0.05, 0.1]   # base velocity vx, vy [m/s], vtheta [rad/s]
+    # hold_seconds = 0.3        # each draw held this long [s]
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
@@ -94,7 +98,12 @@ class DemosConfig(_Strict):
 
     merge: merge the shards into ``datasets/<step>`` (False: a success-rate run keeps the items'
     shards only; the report says ``dataset: null``; merging a thousand one-episode shards takes
-    minutes)."""
+    minutes).
+
+    action_noise: DART noise while recording (``[step.config.action_noise]``: arm_std [rad],
+    base_std [m/s, m/s, rad/s], hold_seconds [s], mode_aware; :class:`~stages.demos.mixed.ActionNoiseSpec`):
+    the robot executes the expert's commands plus held random offsets, the frames record the clean
+    commands and the perturbed state (None: no noise)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -119,6 +128,7 @@ class DemosConfig(_Strict):
     max_sim_seconds: float | None = Field(default=None, gt=0.0, le=86400.0)
     devices: tuple[str, ...] = ()
     merge: bool = True
+    action_noise: _mixed.ActionNoiseSpec | None = None
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -197,6 +207,7 @@ class ShardParams(_Strict):
     program_wait: float | None = None
     writer_procs: int = 0
     max_seconds: float | None = None
+    action_noise: _mixed.ActionNoiseSpec | None = None
 
 
 class EpisodeRecord(_Strict):
@@ -288,7 +299,8 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                 max_seconds=config.max_seconds, width=config.width, height=config.height, fps=config.fps,
                 device=config.item_device(w), record_images=config.record_images,
                 record_depth=config.record_depth, video_gop=config.video_gop, batch_worlds=config.batch_worlds, program_procs=config.program_procs, program_wait=config.program_wait,
-                writer_procs=config.writer_procs, generated=str(generated), packages=packages, panda_root=panda_root)
+                writer_procs=config.writer_procs, generated=str(generated), packages=packages,
+                panda_root=panda_root, action_noise=config.action_noise)
             items.append(WorkItem(item_id=item_id, fn=_mixed.FN, params=mp, input_files=inputs))
         return items
     for t in config.tasks:
@@ -300,7 +312,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  video_gop=config.video_gop,
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
                                  program_wait=config.program_wait, writer_procs=config.writer_procs,
-                                 max_seconds=config.max_seconds,
+                                 max_seconds=config.max_seconds, action_noise=config.action_noise,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -345,7 +357,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           record_depth=params.record_depth, video_gop=params.video_gop,
                           max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
-                          program_wait=params.program_wait if n > 1 and params.program_procs else None)
+                          program_wait=params.program_wait if n > 1 and params.program_procs else None,
+                          action_noise=None if params.action_noise is None else params.action_noise.engine())
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0

@@ -30,8 +30,9 @@ import logging
 import statistics
 from collections import Counter
 from pathlib import Path
+from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from pipeline.types import ItemContext, ItemError, derive_seed
 
@@ -43,6 +44,29 @@ OVERFLOW_PREFIX = "contact overflow: "
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+_Std = Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)]
+
+
+class ActionNoiseSpec(_Strict):
+    """The demos step's DART noise (``[step.config.action_noise]``; see
+    :mod:`stages.engine.action_noise`): the robot executes the expert's commands plus held random
+    offsets while the frames record the clean commands. arm_std: per arm joint [rad]; base_std:
+    base velocity (vx, vy [m/s], vtheta [rad/s]); hold_seconds: each draw held this long [s];
+    mode_aware: base noise only while the base drives, arm noise only in manipulation."""
+
+    arm_std: _Std = 0.02
+    base_std: tuple[_Std, _Std, _Std] = (0.05, 0.05, 0.1)
+    hold_seconds: float = Field(default=0.3, gt=0.0, le=60.0, allow_inf_nan=False)
+    mode_aware: bool = True
+
+    def engine(self):
+        """The engine's :class:`~stages.engine.action_noise.ActionNoise`."""
+        from stages.engine.action_noise import ActionNoise
+
+        return ActionNoise(arm_std=self.arm_std, base_std=tuple(self.base_std),
+                           hold_seconds=self.hold_seconds, mode_aware=self.mode_aware)
 
 
 class MixedParams(_Strict):
@@ -70,6 +94,7 @@ class MixedParams(_Strict):
     generated: str
     packages: dict[str, str]
     panda_root: str | None = None
+    action_noise: ActionNoiseSpec | None = None
 
 
 class Episode(_Strict):
@@ -203,7 +228,8 @@ def _record_mixed(params: MixedParams, ctx: ItemContext) -> MixedResult:
                           record_depth=params.record_depth, video_gop=params.video_gop,
                           max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
-                          program_wait=params.program_wait if n > 1 and params.program_procs else None)
+                          program_wait=params.program_wait if n > 1 and params.program_procs else None,
+                          action_noise=None if params.action_noise is None else params.action_noise.engine())
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0

@@ -42,6 +42,7 @@ import numpy as np
 from stages.demos.experts import timed_clik
 from stages.demos.kitchen import FREE_ROLES, watched_joints
 from stages.demos.record import Timings
+from stages.engine.action_noise import ActionNoise, NoiseProcess, apply_noise
 from stages.engine.capture import FrameCapture
 from stages.engine.lockstep import Lockstep
 from stages.engine.peaks import LocalPeaks, Peaks
@@ -81,7 +82,9 @@ class EngineConfig:
     is multistage); background_render: on the CPU, render each frame in a thread of its own from a
     copy of the body poses while the physics steps run on (:mod:`stages.simulate.compact`: the same
     images), and deliver the frame as soon as its render is done (teleop: the frames reach the page
-    sooner; False: each render runs in the engine's thread)."""
+    sooner; False: each render runs in the engine's thread); action_noise: execute every
+    episode's commands with DART noise while the frames record the clean ones
+    (:mod:`stages.engine.action_noise`; None: none)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -105,6 +108,7 @@ class EngineConfig:
     gripper: str = "panda_hand"
     subtasks: bool = False
     background_render: bool = False
+    action_noise: ActionNoise | None = None
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
@@ -270,6 +274,8 @@ class BatchEngine:
         self._begin = self._end = None
         self.side: WorldSide | None = None
         self.stats = EngineStats(worlds=n)
+        self.noise = None if config.action_noise is None else NoiseProcess(
+            config.action_noise, n, self.steps_per_second, len(desc.arm_joints))
         self.build_seconds = time.perf_counter() - t0
 
     def _bank(self, desc, count: int, first: int, seed: int) -> _Bank:
@@ -390,6 +396,10 @@ class BatchEngine:
 
     def on_event(self, kind: str, w: int, payload) -> None:
         """An event of world ``w``'s program (see :mod:`stages.engine.programs`)."""
+        if self.noise is not None and kind == "begin":  # at once (not deferred): before the next step
+            self.noise.begin(w, payload.task, payload.seed)
+        elif self.noise is not None and kind == "end":
+            self.noise.end(w)
         if kind == "reset":
             self._pending_reset[w] = payload
         elif kind in ("begin", "end", "stage"):
@@ -427,6 +437,8 @@ class BatchEngine:
         ready = [w for w in np.nonzero(held)[0] if not ls.running(int(w))]
         if ready:
             k = min(k, int((P - (self.global_step - self.held_at[ready]) % P).min()))
+        if self.noise is not None:  # execution offsets set, k cut at the next redraw
+            k = apply_noise(self, k)
         k = max(1, min(k, self._next_frame_step() - self.global_step))
         # a frame rendering in the background (background_render): steps one at a time until its
         # render is done, then the frame is delivered and the rest of the steps run at once

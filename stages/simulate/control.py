@@ -140,7 +140,8 @@ class RobotControl(CommandBuffers):
     that uploads what changed and turns base commands into base joint velocity targets.
 
     Arrays: base commands (W, 3); arm and finger targets (the model's joint-coordinate layout),
-    written into ``sim.control.joint_target_q`` before the next step.
+    written into ``sim.control.joint_target_q`` before the next step. Execution offsets per world
+    (:meth:`set_execution_offset`) are added to the uploaded arm targets and base commands only.
     """
 
     def __init__(self, sim) -> None:
@@ -160,6 +161,10 @@ class RobotControl(CommandBuffers):
                          np.array([hi[sim.robot.dof[n]] for n in desc.arm_joints]),
                          sim.control.joint_target_q.numpy().copy(), np.zeros((nw, 3), np.float32))
         self._default_targets = sim.model.joint_target_q.numpy().copy()
+        # execution offsets (DART noise, stages.engine.action_noise): added to what is uploaded,
+        # never stored in the command buffers (a recorder reads the clean commands there)
+        self._arm_off = np.zeros((nw, len(desc.arm_joints)))
+        self._base_off = np.zeros((nw, 3), np.float32)
         # the base kernel, replayed from recorded launches (one per state buffer: they alternate)
         self._launch = LaunchCache(_KERNEL, nw, sim.model.device)
         sim.pre_step.append(self._pre_step)
@@ -171,6 +176,39 @@ class RobotControl(CommandBuffers):
         cmd[:] = self._cmd_np
         self._targets, self._cmd_np = targets, cmd
 
+    def set_execution_offset(self, world: int, arm: np.ndarray | None = None,
+                             base: np.ndarray | None = None) -> None:
+        """Offsets that world ``world`` executes on top of its commands from the next step on: arm
+        joint offsets (A,) [rad] (A arm joints, 7 for the Panda) added to the arm targets (the sum clipped to the joint limits) and
+        base velocity offsets (3,) [m/s, m/s, rad/s] added to the base-frame command; None: zero.
+        Only the simulation sees them: ``_targets`` / ``_cmd_np`` (what a recorder reads) keep the
+        commands as given."""
+        arm = np.zeros(self._arm_off.shape[1]) if arm is None else np.asarray(arm, float)
+        base = np.zeros(3, np.float32) if base is None else np.asarray(base, np.float32)
+        if arm.shape != self._arm_off.shape[1:] or base.shape != (3,):
+            raise ValueError(f"execution offset: arm {self._arm_off.shape[1:]} and base (3,) expected, "
+                             f"got {arm.shape} and {base.shape}")
+        if not np.array_equal(arm, self._arm_off[world]):
+            self._arm_off[world] = arm
+            self._dirty = True
+        if not np.array_equal(base, self._base_off[world]):
+            self._base_off[world] = base
+            self._cmd_dirty = True
+
+    def executed_targets(self) -> np.ndarray:
+        """The drive position targets (W*C,) float32 uploaded to the simulation: the commands
+        plus the arm execution offsets, clipped to the arm's joint limits."""
+        t = self._targets.astype(np.float32)
+        if self._arm_off.any():
+            at = self._at(self._arm_idx, None).reshape(self._arm_off.shape)
+            t[at] = np.clip(self._targets[at] + self._arm_off, self.arm_lower, self.arm_upper)
+        return t
+
+    def executed_base(self) -> np.ndarray:
+        """The base-frame velocity commands (W, 3) float32 [m/s, m/s, rad/s] the simulation
+        executes: the commands plus the base execution offsets."""
+        return self._cmd_np + self._base_off if self._base_off.any() else self._cmd_np
+
     def mark_dirty(self) -> None:
         """Upload targets and base commands before the next step (they were written elsewhere)."""
         self._dirty = self._cmd_dirty = True
@@ -178,6 +216,8 @@ class RobotControl(CommandBuffers):
     def reset(self) -> None:
         """After ``sim.reset()``: zero base commands and take the drive targets from the sim."""
         self._cmd_np[:] = 0.0
+        self._arm_off[:] = 0.0
+        self._base_off[:] = 0.0
         self._cmd.assign(self._cmd_np)
         self._targets[:] = self.sim.control.joint_target_q.numpy()
         self._dirty = self._cmd_dirty = False
@@ -189,15 +229,17 @@ class RobotControl(CommandBuffers):
         sl = slice(world * c, (world + 1) * c)
         self._targets[sl] = self._default_targets[sl]
         self._cmd_np[world] = 0.0
+        self._arm_off[world] = 0.0
+        self._base_off[world] = 0.0
         self._dirty = self._cmd_dirty = True
 
     # -- per-step --------------------------------------------------------------------------
     def _pre_step(self, sim) -> None:
         if self._dirty:
-            sim.control.joint_target_q.assign(self._targets.astype(np.float32))
+            sim.control.joint_target_q.assign(self.executed_targets())
             self._dirty = False
         if self._cmd_dirty:
-            self._cmd.assign(self._cmd_np)
+            self._cmd.assign(self.executed_base())
             self._cmd_dirty = False
         r = sim.robot
         self._launch.launch([self._cmd, sim.state_0.joint_q, sim.control.joint_target_qd, r.coord["base_yaw"],
