@@ -315,3 +315,11 @@ def test_runs_are_placed_on_the_gpus_their_policy_is_given(driver, monkeypatch, 
                     (["0"], lambda v: per_policy(v, "--batch-size")), (["act=x"], lambda v: per_policy(v, "--b"))):
         with pytest.raises(ValueError, match="expected"):
             fn(bad)
+
+
+def test_gpus_are_those_cuda_visible_devices_names(driver, monkeypatch):
+    """Two drivers share a four-GPU machine with ``CUDA_VISIBLE_DEVICES=0,1`` and ``2,3``: each
+    places its runs on its own (the ids are the machine's; each run then sees one)."""
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "2,3")
+    assert driver._gpus("cuda") == ["cuda:2", "cuda:3"]
+    assert driver._gpus("cpu") == ["cpu"]

@@ -74,8 +74,13 @@ POLICIES = ("act", "diffusion")
 
 
 def _gpus(device: str = "cuda") -> list[str]:
+    """The GPUs to use: those of ``CUDA_VISIBLE_DEVICES`` when set (two drivers can share a machine),
+    else every GPU ``nvidia-smi -L`` lists."""
     if device == "cpu":
         return ["cpu"]
+    seen = [x.strip() for x in os.environ.get("CUDA_VISIBLE_DEVICES", "").split(",") if x.strip()]
+    if seen:
+        return [f"cuda:{x}" for x in seen]
     out = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True).stdout
     n = sum(line.startswith("GPU ") for line in out.splitlines())
     return [f"cuda:{i}" for i in range(max(1, n))]
