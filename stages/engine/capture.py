@@ -30,7 +30,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.dataset.columns import FrameColumns, Images, frame_images
-from stages.simulate.batch_fk import pose7_batch
 
 
 @dataclass
@@ -131,8 +130,7 @@ class FrameCapture:
         if not worlds:
             return
         q_all, t_all, base_all = self.robot_state(worlds)
-        fk = e.arm_fk
-        ee_all = pose7_batch(fk(np.concatenate([q_all, t_all])), fk.home_quat)  # measured, then targets
+        ee_all = e.arm_fk.pose7(np.concatenate([q_all, t_all]))  # measured, then targets
         k = len(worlds)
         hand_q, hand_t = self.hand_state(worlds)
         base_v, grip, mode = self.commands(worlds)

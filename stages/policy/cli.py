@@ -94,7 +94,7 @@ def _eval_logging(out: Path, verbose: bool):
 
 def eval_main(argv: list[str]) -> int:
     from .evaluate import EvalConfig, evaluate
-    from .train import checkpoint_of
+    from .train import resolve_checkpoint
 
     p = argparse.ArgumentParser(prog="agentworld eval",
                                 description="evaluate a lerobot policy closed-loop in held-out task kitchens")
@@ -113,9 +113,7 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--work", type=Path, default=None, help="where kitchens are built (default OUT/.work; reused)")
     p.add_argument("--verbose", action="store_true")
     a = p.parse_args(argv)
-    ckpt = a.checkpoint
-    if not (ckpt / "config.json").is_file() and checkpoint_of(ckpt).is_dir():
-        ckpt = checkpoint_of(ckpt)
+    ckpt = resolve_checkpoint(a.checkpoint)
     try:
         cfg = EvalConfig(checkpoint=ckpt, tasks=tuple(t for t in a.tasks.split(",") if t), scenes=_ints(a.scenes),
                          seeds=_ints(a.seeds), worlds=a.worlds, device=a.device, max_seconds=a.max_seconds,

@@ -286,11 +286,9 @@ class Evaluator:
         """The policy's observations of ``worlds`` at this frame step: ``observation.state``
         (arm q, end-effector pose in the base frame, base pose: the recorder's) and the RGB image
         of each policy camera (H, W, 3) uint8."""
-        from stages.simulate.batch_fk import pose7_batch
-
         e = self.engine
         q, _, base = e.capture.robot_state(worlds)
-        ee = pose7_batch(e.arm_fk(q), e.arm_fk.home_quat)  # the recorder's hemisphere
+        ee = e.arm_fk.pose7(q)  # as the recorder writes it
         state = np.concatenate([q, ee, base], axis=1).astype(np.float32)
         out = {w: {"observation.state": state[j]} for j, w in enumerate(worlds)}
         images: dict[int, dict] = {}

@@ -76,7 +76,7 @@ class TrainConfig:
         problems = []
         if self.init is not None:
             init = Path(self.init)
-            ck = init if (init / "config.json").is_file() else checkpoint_of(init)
+            ck = resolve_checkpoint(init)
             if not ((ck / "config.json").is_file() and (ck / "model.safetensors").is_file()):
                 problems.append(f"init {init}: not a checkpoint (no config.json and model.safetensors)")
             else:
@@ -136,14 +136,22 @@ def lerobot_args(cfg: TrainConfig) -> list[str]:
         else:
             args += [f"--policy.n_action_steps={cfg.chunk_size}"]
     if cfg.init is not None:
-        init = Path(cfg.init).resolve()
-        args += [f"--policy.pretrained_path={init if (init / 'config.json').is_file() else checkpoint_of(init)}"]
+        args += [f"--policy.pretrained_path={resolve_checkpoint(Path(cfg.init).resolve())}"]
     return args + list(cfg.extra_args)
 
 
 def checkpoint_of(out: Path) -> Path:
     """The evaluable checkpoint (``pretrained_model`` folder) of a train-policy output folder."""
     return Path(out) / CHECKPOINT
+
+
+def resolve_checkpoint(path: Path) -> Path:
+    """``path`` when it is a checkpoint folder (has config.json), else the checkpoint of the
+    train-policy output folder ``path`` when there is one, else ``path``."""
+    path = Path(path)
+    if not (path / "config.json").is_file() and checkpoint_of(path).is_dir():
+        return checkpoint_of(path)
+    return path
 
 
 def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResult:

@@ -84,6 +84,11 @@ class ArmFK:
             fixed = np.eye(4)
         return out @ fixed
 
+    def pose7(self, arm_q: np.ndarray) -> np.ndarray:
+        """(K, 7) x, y, z, qw, qx, qy, qz of the end effector for arm joint positions (K, arm_count)
+        [rad], quaternions in the hemisphere of :attr:`home_quat` (what the recorders write)."""
+        return pose7_batch(self(arm_q), self.home_quat)
+
 
 def pose7_batch(m: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:
     """(K, 4, 4) -> (K, 7): x, y, z, qw, qx, qy, qz (as ``record.pose7``, per row), each quaternion
