@@ -31,6 +31,35 @@ def data_job(job: Path, out: Path, seconds: float, log: Path) -> int:
             return 124
 
 
+def policy_importable(pol: str) -> str | None:
+    """None if lerobot's ``pol`` policy and what it needs import, else the last line of the error
+    (lerobot's diffusion module imports without diffusers; its training then fails)."""
+    mods = {"act": "lerobot.policies.act.modeling_act",
+            "diffusion": "lerobot.policies.diffusion.modeling_diffusion, diffusers"}
+    r = subprocess.run([sys.executable, "-c", f"import {mods[pol]}"], capture_output=True, text=True, cwd=REPO)
+    return None if r.returncode == 0 else ((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
+
+
+EVAL_MODULES = ("greenlet", "av", "lerobot", "warp", "newton", "pxr")  # engine programs, videos, policy, sim, scenes
+
+
+def eval_preflight(python: str = sys.executable, modules: tuple[str, ...] = EVAL_MODULES) -> list[str]:
+    """What the closed-loop eval processes need and ``python`` lacks, one line each, [] when nothing:
+    ``modules`` (default :data:`EVAL_MODULES`) and example-robot-data's Panda description (the engine's
+    robot). Checked in a subprocess with the eval's environment before any training: session 21
+    trained for 12 minutes, then every eval process stopped in its first seconds for want of the
+    Panda description (and the kernel warm-up job beside the training had failed on it unseen)."""
+    code = ("import importlib.util as u\n"
+            "from stages.simulate.robot import find_panda_description\n"
+            f"bad = ['python module ' + m + ' is not installed' for m in {tuple(modules)!r} if u.find_spec(m) is None]\n"
+            "try:\n    find_panda_description(None)\nexcept Exception as e:\n    bad.append(str(e))\n"
+            "print('\\n'.join(bad))")
+    r = subprocess.run([python, "-c", code], cwd=REPO, capture_output=True, text=True)
+    if r.returncode != 0:
+        return [f"the eval's preflight failed: {(r.stderr.strip().splitlines() or ['exit %d' % r.returncode])[-1]}"]
+    return [line for line in r.stdout.splitlines() if line.strip()]
+
+
 def warm_job(work: Path, device: str, base: Path = REPO / "jobs" / "policies_gpu1.toml") -> Path:
     """A tiny demos job (``base``'s catalog and assets steps, one kitchen, two push_object worlds for
     at most 2 s, no merge) written to ``WORK/warm/job.toml``: run beside the training, it fills Warp's

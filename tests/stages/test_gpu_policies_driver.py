@@ -323,3 +323,32 @@ def test_gpus_are_those_cuda_visible_devices_names(driver, monkeypatch):
     monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "2,3")
     assert driver._gpus("cuda") == ["cuda:2", "cuda:3"]
     assert driver._gpus("cpu") == ["cpu"]
+
+
+def test_eval_preflight_names_what_the_eval_processes_would_lack():
+    """Real subprocess checks with this interpreter: nothing lacking here; a module that is not
+    installed is named in one line."""
+    pytest.importorskip("lerobot")
+    from stages.policy.device_jobs import eval_preflight
+
+    assert eval_preflight() == []
+    assert eval_preflight(modules=("agentworld_no_such_module",)) == [
+        "python module agentworld_no_such_module is not installed"]
+
+
+def test_all_stops_before_any_training_when_the_eval_would_fail(driver, monkeypatch, tmp_path):
+    """Session 21: 12 minutes of training, then every eval process stopped at once (no Panda
+    description on the device). ``all`` now checks first: nothing is trained, all.json says why
+    under ``done`` (which a device poll waits for)."""
+    import argparse
+
+    monkeypatch.setattr(driver, "eval_preflight", lambda: ["robots/panda_description/urdf/panda.urdf: not found"])
+    monkeypatch.setattr(driver, "data_job", lambda *a, **k: pytest.fail("the data job ran"))
+    monkeypatch.setattr(driver, "train", lambda *a, **k: pytest.fail("training ran"))
+    monkeypatch.setattr(driver.sys, "stdout", driver.sys.stdout)  # run_all tees stdout: restored after the test
+    args = argparse.Namespace(seconds=100.0, work=tmp_path / "w", out=tmp_path, job=tmp_path / "job.toml", data=None,
+                              eval_seconds=None)
+    assert driver.run_all(args) == 2
+    done = json.loads((tmp_path / "w" / "all.json").read_text())["phases"]["done"]
+    assert done["exit"] == 2 and "panda.urdf: not found" in done["preflight"]
+    assert not (tmp_path / "w" / "runs").exists()

@@ -65,7 +65,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[3]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))  # stages.* (light modules; heavy ones load in the subprocesses)
-from stages.policy.device_jobs import data_job, pack, warm_job  # noqa: E402
+from stages.policy.device_jobs import data_job, eval_preflight, pack, policy_importable, warm_job  # noqa: E402
 from stages.policy.placement import parse_place, per_policy, run_devices  # noqa: E402
 
 FAMILIES = {"pick_place": "pick_place_bowl", "open_close": "open_drawer", "push_pull": "push_object"}
@@ -428,15 +428,6 @@ class _Tee:
             pass
 
 
-def _policy_importable(pol: str) -> str | None:
-    """None if lerobot's ``pol`` policy and what it needs import, else the last line of the error
-    (lerobot's diffusion module imports without diffusers; its training then fails)."""
-    mods = {"act": "lerobot.policies.act.modeling_act",
-            "diffusion": "lerobot.policies.diffusion.modeling_diffusion, diffusers"}
-    r = subprocess.run([sys.executable, "-c", f"import {mods[pol]}"], capture_output=True, text=True, cwd=REPO)
-    return None if r.returncode == 0 else ((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
-
-
 def run_all(a) -> int:
     """data job -> train -> eval -> table under one wall budget (see the module docstring)."""
     t_start = time.perf_counter()
@@ -459,6 +450,10 @@ def run_all(a) -> int:
     tail_s = 60.0  # table and the archive
     data = a.data.resolve() if a.data is not None else work / "data"
     status("start", job=str(a.job) if a.data is None else None, data=str(data), work=str(work), eval_reserve_s=eval_s)
+    lack = eval_preflight()  # before any training: what the eval processes would stop on
+    if lack:
+        status("done", exit=2, preflight=" | ".join(lack))  # "done": a device poll waiting on all.json stops
+        return 2
     t = time.perf_counter()
     if a.data is None:
         data_s = left() - eval_s - tail_s - a.min_train_seconds
@@ -471,7 +466,7 @@ def run_all(a) -> int:
     if have:
         policies = []
         for pol in a.policy:
-            err = _policy_importable(pol)
+            err = policy_importable(pol)
             if err:
                 print(f"{pol}: skipped: its lerobot policy does not import ({err})", flush=True)
             else:
@@ -483,7 +478,8 @@ def run_all(a) -> int:
             log = (work / "logs" / "warm.log")
             log.parent.mkdir(parents=True, exist_ok=True)
             warm = (time.perf_counter(), subprocess.Popen(
-                [sys.executable, "-m", "pipeline.cli", "run", str(job), "--no-progress", "--out", str(work / "warm" / "out")],
+                [sys.executable, "-m", "pipeline.cli", "run", str(job), "--no-progress", "--strict", "--out",
+                 str(work / "warm" / "out")],
                 cwd=REPO, stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True))
         if policies:
             train_s = left() - eval_s - tail_s
