@@ -14,8 +14,8 @@ the images rendered at that step (:meth:`~stages.engine.capture.FrameCapture.ima
 that render, which the engine launched before the programs ran; the recorded frames get the same
 images one step later), and, for a policy trained with ``observation.environment_state``, the task
 objects' state as the recorder computes it (:mod:`stages.engine.env_state`, from the same state
-read; the evaluation engine then records it too). Actions are applied as the dataset's action vector reads: arm joint
-targets [rad], base velocity (vx, vy [m/s], vtheta [rad/s]) in the base frame, gripper command in
+read; the evaluation engine then records it too). Actions are applied as the dataset's action
+vector reads: arm joint targets [rad], base velocity (vx, vy [m/s], vtheta [rad/s]) in the base frame, gripper command in
 [0, 1] (clipped); the end-effector target and mode entries are not commands.
 
 An episode ends when the task's success predicate holds (checked every ``check_seconds``) or at the

@@ -16,7 +16,8 @@ step and one model call for those that need a new chunk. Per world it does exact
   the world's own generator (seeded by the episode seed), so a world's actions do not depend on the
   others.
 
-Observations are what the dataset's frames hold: ``observation.state`` (S,) float32 and, per policy
+Observations are what the dataset's frames hold: ``observation.state`` (S,) float32, for a policy
+trained with it ``observation.environment_state`` (D,) float32 (lerobot's ENV input) and, per policy
 camera, ``observation.images.<camera>`` RGB uint8 (H, W, 3), given to the policy as float32
 (3, H, W) in [0, 1] as ``LeRobotDataset`` gives decoded video frames. Actions come back unnormalized
 by the checkpoint's postprocessor, float32 (A,) in the dataset's action layout.

@@ -192,3 +192,117 @@ def test_demos_config_option_is_typed_and_checked():
         DemosConfig(tasks=("push_object", "open_drawer"), environment_state=True)
     with pytest.raises(ValidationError, match="mixed = false"):
         DemosConfig(tasks=("push_object",), mixed=True, environment_state=True)
+
+
+def test_writer_processes_carry_the_environment_state_to_the_dataset(tmp_path):
+    """Frames handed to a shard pool's writer process as columns (the engine's path with
+    ``writer_procs``) and one by one: the merged dataset holds each frame's values; a NaN is refused
+    by the batch screen's per-frame check."""
+    import dataclasses
+
+    from stages.dataset import CameraSpec, DatasetSpec, FrameError, load_dataset, merge_shards
+    from stages.dataset.columns import NUMERIC, FrameColumns, suspect_rows
+    from stages.dataset.pool import PoolConfig, ShardPool
+    from stages.dataset.synthetic import synthetic_episode_info, synthetic_frame
+
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 24, 32, depth=False),), environment_state=PUSH_NAMES)
+    want = {s: [np.array([0.1 * s, 0.01 * i, 0.8, -0.2, 0.5 + i, 0.75]) for i in range(4)] for s in range(2)}
+    with ShardPool(tmp_path / "shards", ["s0", "s1"], spec, PoolConfig(workers=1)) as pool:
+        for s in range(2):
+            pool.begin_episode(s, synthetic_episode_info(s, 0))
+        for i in range(4):
+            frames = [dataclasses.replace(synthetic_frame(spec, s, 0, i), environment_state=want[s][i]) for s in range(2)]
+            if i % 2:
+                for s, f in enumerate(frames):
+                    pool.add_frame(s, f)
+                continue
+            cols = FrameColumns({n: np.array([getattr(f, n) for f in frames]) for n in NUMERIC
+                                 if getattr(frames[0], n) is not None})
+            images = {"wrist": (np.stack([f.rgb["wrist"] for f in frames]), None)}
+            assert not suspect_rows(spec, cols, images).any()
+            pool.add_frames([0, 1], cols, images, [0, 1])
+        for s in range(2):
+            pool.end_episode(s, success=True)
+    ds = load_dataset(merge_shards(tmp_path / "shards", tmp_path / "dataset").root)
+    got = {(int(ds[k]["episode_index"]), int(ds[k]["frame_index"])): ds[k]["observation.environment_state"].numpy()
+           for k in range(len(ds))}
+    assert len(got) == 8
+    eps = sorted({e for e, _ in got})
+    for s, e in enumerate(eps):  # shards merge in order
+        for i in range(4):
+            np.testing.assert_allclose(got[(e, i)], want[s][i], rtol=1e-6)
+    frames = [dataclasses.replace(synthetic_frame(spec, 0, 0, 0), environment_state=np.array([np.nan, 0, 0, 0, 0, 0.0]))]
+    cols = FrameColumns({n: np.array([getattr(f, n) for f in frames]) for n in NUMERIC if getattr(frames[0], n) is not None})
+    images = {"wrist": (np.stack([f.rgb["wrist"] for f in frames]), None)}
+    assert suspect_rows(spec, cols, images).all()
+    with pytest.raises(FrameError, match="s0 frame 0: 1 problem.*environment_state: contains NaN"):
+        with ShardPool(tmp_path / "bad", ["s0"], spec, PoolConfig(workers=1)) as pool:
+            pool.begin_episode(0, synthetic_episode_info(0, 0))
+            pool.add_frames([0], cols, images, [0])
+
+
+@pytest.mark.parametrize("policy_type, overrides", [
+    ("act", dict(chunk_size=6, n_action_steps=1, temporal_ensemble_coeff=0.01, dim_model=32,
+                 dim_feedforward=64, n_heads=2, n_encoder_layers=1, latent_dim=8)),
+    ("diffusion", dict(horizon=8, n_obs_steps=2, n_action_steps=3, crop_shape=(32, 40), down_dims=(16, 32),
+                       diffusion_step_embed_dim=16, num_inference_steps=2, spatial_softmax_num_keypoints=8)),
+], ids=["act", "diffusion"])
+def test_batched_runner_feeds_the_environment_state_as_lerobot_does(tmp_path, policy_type, overrides):
+    """Untrained tiny policies built from a synthetic dataset with the feature: the runner's actions
+    per world equal lerobot's select_action fed that world alone (the Diffusion history holds the
+    environment state too), and they depend on the environment state."""
+    pytest.importorskip("diffusers")
+    import torch
+    from lerobot.policies.factory import make_policy, make_policy_config, make_pre_post_processors
+
+    from stages.dataset import CameraSpec, DatasetSpec, load_dataset
+    from stages.dataset.synthetic import write_synthetic_shard
+    from stages.policy.runner import BatchedRunner, LoadedPolicy, to_policy_batch
+
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 32, 40, depth=False),), environment_state=PUSH_NAMES)
+    write_synthetic_shard(tmp_path, "s0", spec, shard_index=0, episodes=1, frames=12)
+    meta = load_dataset(tmp_path / "s0").meta
+    torch.manual_seed(0)
+    cfg = make_policy_config(policy_type, device="cpu", push_to_hub=False, pretrained_backbone_weights=None,
+                             **overrides)
+    policy = make_policy(cfg, ds_meta=meta)
+    policy.eval()
+    assert policy.config.env_state_feature.shape == (6,)
+    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
+    lp = LoadedPolicy(policy=policy, preprocessor=pre, postprocessor=post, type=policy_type, device="cpu",
+                      image_shapes={"observation.images.wrist": (3, 32, 40)}, state_dim=spec.state_dim,
+                      action_dim=spec.action_dim, env_state_dim=6)
+    rng = np.random.default_rng(3)
+    obs = {w: [{"observation.state": rng.normal(size=spec.state_dim).astype(np.float32),
+                "observation.environment_state": rng.normal(size=6).astype(np.float32),
+                "observation.images.wrist": rng.integers(0, 256, (32, 40, 3), dtype=np.uint8)} for _ in range(6)]
+           for w in (0, 1)}
+    runner = BatchedRunner(lp)
+    got = {0: [], 1: []}
+    for w in (0, 1):
+        runner.reset(w, 20 + w)
+    for t in range(6):
+        for w, a in runner.act({w: obs[w][t] for w in (0, 1)}).items():
+            got[w].append(a)
+
+    def reference(world_obs, seed):
+        policy.reset()
+        gen = torch.Generator().manual_seed(seed)
+        out = []
+        for k, o in enumerate(world_obs):
+            with torch.inference_mode():
+                batch = pre(to_policy_batch([o], lp.image_shapes))
+                noise = None
+                if policy_type == "diffusion" and k % policy.config.n_action_steps == 0:
+                    noise = torch.randn((policy.config.horizon, spec.action_dim), generator=gen)[None]
+                    torch.random.set_rng_state(gen.get_state())
+                a = policy.select_action(batch, noise=noise) if policy_type == "diffusion" else policy.select_action(batch)
+                if noise is not None:
+                    gen.set_state(torch.random.get_rng_state())
+                out.append(post(a)[0].numpy())
+        return np.stack(out)
+
+    for w in (0, 1):
+        np.testing.assert_allclose(np.stack(got[w]), reference(obs[w], 20 + w), rtol=1e-4, atol=1e-5)
+    moved = [dict(o, **{"observation.environment_state": o["observation.environment_state"] + 1.0}) for o in obs[0]]
+    assert not np.allclose(reference(moved, 20), reference(obs[0], 20), atol=1e-4)  # the input is used
