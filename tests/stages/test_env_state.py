@@ -306,3 +306,23 @@ def test_batched_runner_feeds_the_environment_state_as_lerobot_does(tmp_path, po
         np.testing.assert_allclose(np.stack(got[w]), reference(obs[w], 20 + w), rtol=1e-4, atol=1e-5)
     moved = [dict(o, **{"observation.environment_state": o["observation.environment_state"] + 1.0}) for o in obs[0]]
     assert not np.allclose(reference(moved, 20), reference(obs[0], 20), atol=1e-4)  # the input is used
+
+
+def test_both_writer_backends_write_the_same_environment_state(tmp_path):
+    """The direct writer (the recorder's) and lerobot's own add_frame/save_episode write the same
+    values, names and stats of the feature (synthetic frames: 0.5 + 0.01 i + 0.1 j)."""
+    from stages.dataset import CameraSpec, DatasetSpec, load_dataset
+    from stages.dataset.synthetic import write_synthetic_shard
+
+    spec = DatasetSpec(cameras=(CameraSpec("wrist", 24, 32, depth=False),), environment_state=PUSH_NAMES)
+    got = {}
+    for backend in ("direct", "lerobot"):
+        write_synthetic_shard(tmp_path / backend, "s0", spec, shard_index=0, episodes=1, frames=5, backend=backend)
+        ds = load_dataset(tmp_path / backend / "s0")
+        assert ds.meta.features["observation.environment_state"]["names"] == list(PUSH_NAMES)
+        got[backend] = (np.stack([ds[i]["observation.environment_state"].numpy() for i in range(len(ds))]),
+                        ds.meta.stats["observation.environment_state"])
+    want = 0.5 + 0.01 * np.arange(5)[:, None] + 0.1 * np.arange(6)[None, :]
+    for backend, (values, stats) in got.items():
+        np.testing.assert_allclose(values, want, rtol=1e-6, err_msg=backend)
+        np.testing.assert_allclose(stats["mean"], want.mean(axis=0), rtol=1e-5, err_msg=backend)
