@@ -409,7 +409,8 @@ def summarize(cfg: EvalConfig, records: list[EpisodeRecord], held: dict, loaded,
     policy = {"type": loaded.type, "cameras": list(loaded.cameras), "chunk_size": getattr(pc, "chunk_size", None),
               "n_action_steps": getattr(pc, "n_action_steps", None),
               "temporal_ensemble_coeff": getattr(pc, "temporal_ensemble_coeff", None),
-              "n_obs_steps": getattr(pc, "n_obs_steps", None), "horizon": getattr(pc, "horizon", None)}
+              "n_obs_steps": getattr(pc, "n_obs_steps", None), "horizon": getattr(pc, "horizon", None),
+              "environment_state": loaded.env_state_dim}
     fams = sorted({str(task(r.task).family) for r in records})
     return {"checkpoint": str(cfg.checkpoint), "policy": policy, "device": cfg.device, "worlds": cfg.worlds,
             "scenes": [scene_id(s) for s in cfg.scenes], "seeds": list(cfg.seeds), "held_out": held,

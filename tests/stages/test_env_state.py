@@ -144,6 +144,7 @@ def test_evaluator_gives_the_policy_the_recorders_environment_state(env_act, kit
     res = evaluate(cfg, tmp_path / "eval", work_dir=work, observers=[lambda w, k, obs: seen.__setitem__(k, obs)],
                    frame_listeners=[lambda w, frame: recorded.append(frame)])
     assert res.report["overall"]["episodes"] == 1 and len(recorded) == 15
+    assert res.report["policy"]["environment_state"] == 6
     for k, frame in enumerate(recorded):
         obs = seen[k]["observation.environment_state"]
         assert obs.dtype == np.float32 and obs.shape == (6,)
