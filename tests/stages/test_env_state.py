@@ -104,7 +104,8 @@ def test_recorded_environment_state_is_the_simulations_object_in_the_base_frame(
                                    atol=2e-3)
         turned = max(turned, abs(b.theta - probes[0].robot.base.theta))
     assert 0.3 < float(np.linalg.norm(ds[0]["observation.environment_state"].numpy()[:2])) < 5.0
-    assert float(np.linalg.norm(np.asarray(probes[-1].robot.base.x) - probes[0].robot.base.x)) > 0.01 or turned > 0.01
+    b0, b1 = probes[0].robot.base, probes[-1].robot.base
+    assert math.hypot(b1.x - b0.x, b1.y - b0.y) > 0.01 or turned > 0.01  # the base moved: the transform is exercised
 
 
 @pytest.fixture(scope="session")
@@ -212,7 +213,8 @@ def test_writer_processes_carry_the_environment_state_to_the_dataset(tmp_path):
         for s in range(2):
             pool.begin_episode(s, synthetic_episode_info(s, 0))
         for i in range(4):
-            frames = [dataclasses.replace(synthetic_frame(spec, s, 0, i), environment_state=want[s][i]) for s in range(2)]
+            frames = [dataclasses.replace(synthetic_frame(spec, s, 0, i), environment_state=want[s][i])
+                      for s in range(2)]
             if i % 2:
                 for s, f in enumerate(frames):
                     pool.add_frame(s, f)
@@ -232,8 +234,10 @@ def test_writer_processes_carry_the_environment_state_to_the_dataset(tmp_path):
     for s, e in enumerate(eps):  # shards merge in order
         for i in range(4):
             np.testing.assert_allclose(got[(e, i)], want[s][i], rtol=1e-6)
-    frames = [dataclasses.replace(synthetic_frame(spec, 0, 0, 0), environment_state=np.array([np.nan, 0, 0, 0, 0, 0.0]))]
-    cols = FrameColumns({n: np.array([getattr(f, n) for f in frames]) for n in NUMERIC if getattr(frames[0], n) is not None})
+    bad = np.array([np.nan, 0, 0, 0, 0, 0.0])
+    frames = [dataclasses.replace(synthetic_frame(spec, 0, 0, 0), environment_state=bad)]
+    cols = FrameColumns({n: np.array([getattr(f, n) for f in frames]) for n in NUMERIC
+                         if getattr(frames[0], n) is not None})
     images = {"wrist": (np.stack([f.rgb["wrist"] for f in frames]), None)}
     assert suspect_rows(spec, cols, images).all()
     with pytest.raises(FrameError, match="s0 frame 0: 1 problem.*environment_state: contains NaN"):
@@ -297,7 +301,8 @@ def test_batched_runner_feeds_the_environment_state_as_lerobot_does(tmp_path, po
                 if policy_type == "diffusion" and k % policy.config.n_action_steps == 0:
                     noise = torch.randn((policy.config.horizon, spec.action_dim), generator=gen)[None]
                     torch.random.set_rng_state(gen.get_state())
-                a = policy.select_action(batch, noise=noise) if policy_type == "diffusion" else policy.select_action(batch)
+                kw = {"noise": noise} if policy_type == "diffusion" else {}
+                a = policy.select_action(batch, **kw)
                 if noise is not None:
                     gen.set_state(torch.random.get_rng_state())
                 out.append(post(a)[0].numpy())
@@ -327,3 +332,48 @@ def test_both_writer_backends_write_the_same_environment_state(tmp_path):
     for backend, (values, stats) in got.items():
         np.testing.assert_allclose(values, want, rtol=1e-6, err_msg=backend)
         np.testing.assert_allclose(stats["mean"], want.mean(axis=0), rtol=1e-5, err_msg=backend)
+
+
+@pytest.mark.slow  # one whole open_drawer episode (~11 s simulated): about 2 minutes on 2 shared cores
+def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, tmp_path):
+    """The handle point and opening recorded at every frame of a scripted open_drawer episode: the
+    opening is the simulated joint's value from closed, the handle moves as the drawer link's body
+    does in the simulation, and both are in the base frame of that frame."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.demos.sampling import world_part
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.env_state import state_names
+    from stages.engine.programs import Listed
+    from stages.policy.evaluate import build_kitchen
+    from stages.simulate.state import read_state
+
+    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
+    cfg = EngineConfig(worlds=1, record_images=False, environment_state=state_names("open_drawer"))
+    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
+    frames, probes, results = [], [], []
+    collect = engine.capture.collect
+
+    def probing_collect() -> None:
+        step = engine.global_step
+        collect()
+        pending = engine.capture._pending
+        if engine.capture.collected_step == step and pending is not None and pending.sinks[0] is not None:
+            probes.append(read_state(engine.side.views[0]))
+
+    engine.capture.collect = probing_collect
+    engine.run(Listed(world, {0: [("open_drawer", 3, None)]}), begin=lambda w, t: frames.append,
+               end=lambda w, t, res: results.append(res))
+    assert [r.success for r in results] == [True], results
+    part = world_part(world, "drawer")
+    prim = world.placed["counter"].prim
+    (link,) = [p for p in probes[0].objects if p.startswith(prim + "/") and p.endswith("/" + part.link)]
+    assert len(frames) == len(probes) > 100
+    for k, (frame, st) in enumerate(zip(frames, probes, strict=True)):
+        b = st.robot.base
+        q = st.scene_joints[part.joint_path]
+        moved = np.asarray(st.objects[link].position) - np.asarray(probes[0].objects[link].position)
+        handle = np.asarray(part.handle_at(probes[0].scene_joints[part.joint_path])) + moved  # rides on the link
+        want = [*_base_frame(handle, b.x, b.y, b.theta), q - part.closed]
+        np.testing.assert_allclose(frame.environment_state, want, atol=1e-3, err_msg=f"frame {k}")
+    assert frames[-1].environment_state[3] > 0.75 * part.travel  # opened, as the predicate says
