@@ -334,9 +334,9 @@ def test_both_writer_backends_write_the_same_environment_state(tmp_path):
         np.testing.assert_allclose(stats["mean"], want.mean(axis=0), rtol=1e-5, err_msg=backend)
 
 
-@pytest.mark.slow  # one whole open_drawer episode (~11 s simulated): about 2 minutes on 2 shared cores
 def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, tmp_path):
-    """The handle point and opening recorded at every frame of a scripted open_drawer episode: the
+    """The handle point and opening recorded at every frame of a whole scripted open_drawer episode
+    (no cameras: ~10 s on 2 cores): the
     opening is the simulated joint's value from closed, the handle moves as the drawer link's body
     does in the simulation, and both are in the base frame of that frame."""
     from kitchen_testutil import link_kitchen_catalog
@@ -375,5 +375,5 @@ def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, 
         moved = np.asarray(st.objects[link].position) - np.asarray(probes[0].objects[link].position)
         handle = np.asarray(part.handle_at(probes[0].scene_joints[part.joint_path])) + moved  # rides on the link
         want = [*_base_frame(handle, b.x, b.y, b.theta), q - part.closed]
-        np.testing.assert_allclose(frame.environment_state, want, atol=1e-3, err_msg=f"frame {k}")
+        np.testing.assert_allclose(frame.environment_state, want, atol=1e-4, err_msg=f"frame {k}")
     assert frames[-1].environment_state[3] > 0.75 * part.travel  # opened, as the predicate says
