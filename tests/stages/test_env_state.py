@@ -336,9 +336,9 @@ def test_both_writer_backends_write_the_same_environment_state(tmp_path):
 
 def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, tmp_path):
     """The handle point and opening recorded at every frame of a whole scripted open_drawer episode
-    (no cameras: ~10 s on 2 cores): the
-    opening is the simulated joint's value from closed, the handle moves as the drawer link's body
-    does in the simulation, and both are in the base frame of that frame."""
+    (no cameras: ~10 s on 2 cores): the opening is the simulated joint's value from closed, the
+    handle moves as the drawer link's body does in the simulation, and both are in the base frame
+    of that frame."""
     from kitchen_testutil import link_kitchen_catalog
 
     from stages.demos.sampling import world_part
