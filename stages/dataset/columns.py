@@ -36,7 +36,8 @@ Images = Mapping[str, tuple[np.ndarray, np.ndarray]]
 class FrameColumns:
     """K frames' non-image fields: name (a :class:`Frame` field) -> (K, ...) array; scalar fields
     (gripper of a one-arm spec, mode, subtask_index) (K,). hand_joint_pos/target default to (K, 0),
-    subtask_index to zeros; state_vector and action_vector may be left out (None in every frame)."""
+    subtask_index to zeros; state_vector, action_vector and environment_state may be left out (None
+    in every frame)."""
 
     fields: dict[str, np.ndarray]
 
@@ -137,6 +138,13 @@ def suspect_rows(spec: DatasetSpec, cols: FrameColumns, images: Images) -> np.nd
         if not (isinstance(s, np.ndarray) and np.issubdtype(s.dtype, np.integer) and s.shape == (k,)):
             return every
         bad |= s < 0
+    env = f.get("environment_state")
+    if spec.environment_state:
+        if env is None or not _numeric(env) or env.shape != (k, len(spec.environment_state)):
+            return every
+        bad |= ~np.isfinite(env).all(axis=1)
+    elif env is not None:
+        return every
     if any(f.get(v) is not None for v in ("state_vector", "action_vector")):
         return every
     return bad

@@ -44,7 +44,7 @@ import numpy as np
 
 from ._lerobot import import_lerobot
 from .depth import encode_depth
-from .schema import ACTION_KEY, STATE_KEY, SUBTASK_KEY, DatasetSpec, Frame
+from .schema import ACTION_KEY, ENV_STATE_KEY, STATE_KEY, SUBTASK_KEY, DatasetSpec, Frame
 from .stats import image_stats, numeric_episode_stats, stats_sample
 
 logger = logging.getLogger(__name__)
@@ -227,6 +227,7 @@ class DirectBackend:
         self._states: list[np.ndarray] = []
         self._actions: list[np.ndarray] = []
         self._subtasks: list[int] = []
+        self._env: list[np.ndarray] = []
         self._depth_png: dict[str, list[Future | str]] = {k: [] for k in self.spec.depth_keys().values()}
         self._samples: dict[str, list[np.ndarray]] = {}  # downsampled (C, h, w) copies for image stats
 
@@ -263,6 +264,8 @@ class DirectBackend:
         self._states.append(frame.state())
         self._actions.append(frame.action())
         self._subtasks.append(int(frame.subtask_index))
+        if self.spec.environment_state:
+            self._env.append(np.asarray(frame.environment_state, np.float32))
         for cam, key in self.spec.rgb_keys().items():
             img = frame.rgb[cam]
             self._videos[key].put(img)
@@ -312,6 +315,8 @@ class DirectBackend:
         }
         if self.spec.subtasks:
             columns[SUBTASK_KEY] = np.asarray(self._subtasks, dtype=np.int64)
+        if self.spec.environment_state:
+            columns[ENV_STATE_KEY] = np.stack(self._env)
         chunk, file = divmod(self._video_file, self.spec.chunk_size)
         ep_meta: dict[str, Any] = {}
         for key, stream in self._videos.items():

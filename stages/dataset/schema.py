@@ -32,6 +32,10 @@ Layout of one frame (``fps`` frames per second, 30 by default):
   ``observation.`` that is not an image is passed through by ``LeRobotDataset`` (as a string per
   frame) and ignored by the policies, so datasets train as they are. (lerobot's depth *video* path
   quantizes to 12 bits, 4096 levels over 0.01-10 m, so it is not used.)
+- optionally (``DatasetSpec.environment_state``: its names) ``observation.environment_state``
+  float32 ``(D,)``: the task objects' key points in the robot base frame [m] (and an articulated
+  part's opening), recorded at the instant of ``observation.state``
+  (:mod:`stages.engine.env_state`); lerobot's ACT and Diffusion Policy take it as an ENV input;
 - the task text (``task``) and, per episode, :class:`EpisodeInfo` as extra ``meta/episodes`` columns
   prefixed ``agentworld/`` (lerobot carries unknown columns through loading and aggregation).
 
@@ -72,6 +76,7 @@ STATE_KEY = "observation.state"
 ACTION_KEY = "action"
 RGB_KEY = "observation.images.{camera}"
 DEPTH_KEY = "depth.{camera}"
+ENV_STATE_KEY = "observation.environment_state"  # optional (specs with environment_state names)
 SUBTASK_KEY = "subtask_index"  # per-frame stage of a multistage task (0-based; specs with subtasks)
 DEPTH_ENCODING = "png16_base64"  # info.agentworld_depth of the depth features
 EPISODE_COLUMN_PREFIX = "agentworld/"
@@ -178,6 +183,9 @@ class DatasetSpec:
     action_layout: tuple[str, ...] = ()
     """an embodiment's ``action`` names (``stages.embodiment.layout.action_names``), with
     ``state_layout``; frames then carry ``action_vector``"""
+    environment_state: tuple[str, ...] = ()
+    """names of ``observation.environment_state`` (float32 (D,), :mod:`stages.engine.env_state`);
+    empty: not recorded (the feature is absent). Frames then carry ``environment_state``"""
 
     def __post_init__(self) -> None:
         problems = []
@@ -206,6 +214,9 @@ class DatasetSpec:
         hj = self.hand_joints
         if any(not _JOINT_RE.match(j) for j in hj) or len(set(hj)) != len(hj):
             problems.append(f"hand_joints must be unique names matching [A-Za-z][A-Za-z0-9_]*, got {list(hj)}")
+        es = self.environment_state
+        if any(not _JOINT_RE.match(n) for n in es) or len(set(es)) != len(es):
+            problems.append(f"environment_state must be unique names matching [A-Za-z][A-Za-z0-9_]*, got {list(es)}")
         if self.data_files_size_mb <= 0 or self.video_files_size_mb <= 0 or self.chunk_size <= 0:
             problems.append("file sizes and chunk_size must be positive")
         if problems:
@@ -284,6 +295,9 @@ class DatasetSpec:
                     "info": {"agentworld_depth": DEPTH_ENCODING, "height": cam.height, "width": cam.width,
                              "depth_unit": "mm"},
                 }  # fmt: skip
+        if self.environment_state:
+            feats[ENV_STATE_KEY] = {"dtype": "float32", "shape": (len(self.environment_state),),
+                                    "names": list(self.environment_state)}
         if self.subtasks:
             feats[SUBTASK_KEY] = {"dtype": "int64", "shape": (1,), "names": None}
         return feats
@@ -300,6 +314,7 @@ class DatasetSpec:
             **({"arms": list(self.arms)} if self.arms else {}),
             **({"state_layout": list(self.state_layout), "action_layout": list(self.action_layout)}
                if self.state_layout else {}),
+            **({"environment_state": list(self.environment_state)} if self.environment_state else {}),
         }  # fmt: skip
 
     @classmethod
@@ -311,6 +326,7 @@ class DatasetSpec:
         d["arms"] = tuple(d.get("arms", ()))
         d["state_layout"] = tuple(d.get("state_layout", ()))
         d["action_layout"] = tuple(d.get("action_layout", ()))
+        d["environment_state"] = tuple(d.get("environment_state", ()))
         return cls(**d)
 
 
@@ -377,6 +393,8 @@ class Frame:
     """the whole ``observation.state`` (S,) of a spec with an embodiment layout (``state_layout``)"""
     action_vector: np.ndarray | None = None
     """the whole ``action`` (A,) of a spec with an embodiment layout (``action_layout``)"""
+    environment_state: np.ndarray | None = None
+    """``observation.environment_state`` (D,) of a spec with ``environment_state`` names (None: none)"""
 
     @staticmethod
     def of_vectors(state: np.ndarray, action: np.ndarray, mode: int, rgb: Mapping[str, np.ndarray],
@@ -495,8 +513,18 @@ def frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
         out.append(f"mode must be 0 (locomotion) or 1 (manipulation), got {frame.mode!r}")
     if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
         out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")
+    out.extend(_env_problems(spec, frame))
     out.extend(_image_problems(spec, frame))
     return out
+
+
+def _env_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
+    """The frame's environment state against the spec's (present with its D entries, or absent)."""
+    if not spec.environment_state:
+        return [] if frame.environment_state is None else ["environment_state given, but the spec records none"]
+    if frame.environment_state is None:
+        return [f"environment_state missing (the spec records {len(spec.environment_state)} entries)"]
+    return _vector_problems("environment_state", frame.environment_state, len(spec.environment_state))
 
 
 def _layout_frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
@@ -510,6 +538,7 @@ def _layout_frame_problems(spec: DatasetSpec, frame: Frame) -> list[str]:
         out.append("action_vector's mode differs from the frame's mode")
     if spec.subtasks and not (isinstance(frame.subtask_index, (int, np.integer)) and frame.subtask_index >= 0):
         out.append(f"subtask_index must be an integer >= 0, got {frame.subtask_index!r}")
+    out.extend(_env_problems(spec, frame))
     out.extend(_image_problems(spec, frame))
     return out
 

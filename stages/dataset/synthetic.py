@@ -62,6 +62,8 @@ def synthetic_frame(spec: DatasetSpec, shard: int, episode: int, i: int) -> Fram
         },
         hand_joint_pos=0.01 * i + np.arange(h) * 0.1,
         hand_joint_target=0.01 * i + 0.05 + np.arange(h) * 0.1,
+        environment_state=(0.5 + 0.01 * i + 0.1 * np.arange(len(spec.environment_state))
+                           if spec.environment_state else None),
     )
 
 

@@ -41,6 +41,7 @@ from .direct import DirectBackend
 from .stats import image_stats, stats_sample
 from .schema import (
     ACTION_KEY,
+    ENV_STATE_KEY,
     STATE_KEY,
     SUBTASK_KEY,
     DatasetSpec,
@@ -149,6 +150,8 @@ class _LerobotBackend:
         row: dict[str, Any] = {STATE_KEY: frame.state(), ACTION_KEY: frame.action(), "task": task}
         if self.spec.subtasks:
             row[SUBTASK_KEY] = np.array([frame.subtask_index], np.int64)
+        if self.spec.environment_state:
+            row[ENV_STATE_KEY] = np.asarray(frame.environment_state, np.float32)
         for cam, key in self.spec.rgb_keys().items():
             row[key] = frame.rgb[cam]
         for cam, key in self.spec.depth_keys().items():

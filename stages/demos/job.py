@@ -24,6 +24,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     # arm_std = 0.02            # [rad] per arm joint
     # base_std = [0.05, 0.05, 0.1]   # base velocity vx, vy [m/s], vtheta [rad/s]
     # hold_seconds = 0.3        # each draw held this long [s]
+    # environment_state = true  # frames record the task objects' state (stages.engine.env_state)
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
@@ -103,7 +104,11 @@ class DemosConfig(_Strict):
     action_noise: DART noise while recording (``[step.config.action_noise]``: arm_std [rad],
     base_std [m/s, m/s, rad/s], hold_seconds [s], mode_aware; :class:`~stages.demos.mixed.ActionNoiseSpec`):
     the robot executes the expert's commands plus held random offsets, the frames record the clean
-    commands and the perturbed state (None: no noise)."""
+    commands and the perturbed state (None: no noise).
+
+    environment_state: every frame records ``observation.environment_state``, the task objects'
+    key points in the robot base frame (:mod:`stages.engine.env_state`; per-task items only, every
+    task of the step with the same layout; False: the feature is absent, the files as before)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -129,6 +134,7 @@ class DemosConfig(_Strict):
     devices: tuple[str, ...] = ()
     merge: bool = True
     action_noise: _mixed.ActionNoiseSpec | None = None
+    environment_state: bool = False
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -169,6 +175,14 @@ class DemosConfig(_Strict):
                              "experts run as threads (program_procs = 0)")
         if self.program_wait is not None and not self.program_procs:
             raise ValueError("program_wait needs program_procs > 0")
+        if self.environment_state:
+            from stages.engine.env_state import state_names
+
+            if self.mixed:
+                raise ValueError("environment_state needs per-task items (mixed = false): a dataset holds one layout")
+            layouts = {t: state_names(t) for t in self.tasks}  # ValueError names a task without one
+            if len(set(layouts.values())) > 1:
+                raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
         return self
 
     @field_validator("tasks")
@@ -208,6 +222,7 @@ class ShardParams(_Strict):
     writer_procs: int = 0
     max_seconds: float | None = None
     action_noise: _mixed.ActionNoiseSpec | None = None
+    environment_state: bool = False
 
 
 class EpisodeRecord(_Strict):
@@ -313,6 +328,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  batch_worlds=config.batch_worlds, program_procs=config.program_procs,
                                  program_wait=config.program_wait, writer_procs=config.writer_procs,
                                  max_seconds=config.max_seconds, action_noise=config.action_noise,
+                                 environment_state=config.environment_state,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -337,6 +353,7 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
     from stages.dataset.pool import open_shards
     from stages.demos.kitchen import AssetLibrary, write_kitchen
     from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.env_state import state_names
     from stages.engine.programs import Listed
     from stages.simulate.contacts import ContactOverflowError
 
@@ -358,7 +375,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           max_seconds=params.max_seconds,
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None,
-                          action_noise=None if params.action_noise is None else params.action_noise.engine())
+                          action_noise=None if params.action_noise is None else params.action_noise.engine(),
+                          environment_state=state_names(params.task) if params.environment_state else ())
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0

@@ -148,6 +148,10 @@ class FrameCapture:
             ee_target=ee_all[k:], base_velocity=base_v, gripper=np.asarray(grip, np.float64),
             mode=np.asarray(mode, np.int64), hand_joint_pos=hand_q, hand_joint_target=hand_t,
             subtask_index=np.asarray(sub, np.int64)))
+        if e.config.environment_state:  # stages.engine.env_state: from the same state read
+            from stages.engine.env_state import recorded_environment_state
+
+            self._pending.columns.fields["environment_state"] = recorded_environment_state(e, worlds, base_all)
         e.stats.timings.encoding += time.perf_counter() - t0
         e.stats.timings.frames += k
         e.stats.renders += 1

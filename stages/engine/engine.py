@@ -44,6 +44,7 @@ from stages.demos.kitchen import FREE_ROLES, watched_joints
 from stages.demos.record import Timings
 from stages.engine.action_noise import ActionNoise, NoiseProcess, apply_noise
 from stages.engine.capture import FrameCapture
+from stages.engine.env_state import ticket_keys
 from stages.engine.lockstep import Lockstep
 from stages.engine.peaks import LocalPeaks, Peaks
 from stages.engine.programs import EpisodeResult, WorldSide
@@ -84,7 +85,9 @@ class EngineConfig:
     images), and deliver the frame as soon as its render is done (teleop: the frames reach the page
     sooner; False: each render runs in the engine's thread); action_noise: execute every
     episode's commands with DART noise while the frames record the clean ones
-    (:mod:`stages.engine.action_noise`; None: none)."""
+    (:mod:`stages.engine.action_noise`; None: none); environment_state: the names of the task objects'
+    state every frame records (``observation.environment_state``, :mod:`stages.engine.env_state`:
+    ``state_names(task)``; every episode's task must have that layout; empty: none recorded)."""
 
     def resolved_layout(self) -> str:
         if self.layout != "auto":
@@ -109,6 +112,7 @@ class EngineConfig:
     subtasks: bool = False
     background_render: bool = False
     action_noise: ActionNoise | None = None
+    environment_state: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto", "batched", "per_world"):
@@ -136,7 +140,7 @@ class EngineConfig:
         cams = self.cameras if self.record_images else ()
         cameras = tuple(CameraSpec(c, height=self.height, width=self.width, depth=self.record_depth) for c in cams)
         return DatasetSpec(fps=self.fps, cameras=cameras, hand_joints=self.hand_joints(), subtasks=self.subtasks,
-                           video=VideoCodecSpec(gop=self.video_gop))
+                           video=VideoCodecSpec(gop=self.video_gop), environment_state=self.environment_state)
 
     def hand_joints(self) -> tuple[str, ...]:
         """The dexterous hand's joints (control order), or () for a parallel gripper."""
@@ -154,6 +158,7 @@ class _WorldRec:
     frames: int = 0
     sink: Callable | None = None
     subtask: int = 0
+    env: object = None  # the episode's EnvKeys (stages.engine.env_state), with environment_state
 
 
 @dataclass(eq=False)
@@ -415,6 +420,8 @@ class BatchEngine:
             self.recs[w].frames = 0
             self.recs[w].subtask = 0
             self.recs[w].sink = self._begin(w, payload) if self._begin is not None else None
+            if self.config.environment_state:
+                self.recs[w].env = ticket_keys(self, payload)
         elif kind == "end":
             ticket, res = payload
             res.frames = self.recs[w].frames

@@ -47,20 +47,24 @@ class EpisodeResult:
 
 @dataclass(frozen=True)
 class Ticket:
-    """What the engine's process learns of an episode: task, seed, instruction, asset ids and the
-    stages' instructions of a multistage task (empty otherwise)."""
+    """What the engine's process learns of an episode: task, seed, instruction, asset ids, the
+    stages' instructions of a multistage task (empty otherwise) and the fixed world points of its
+    environment state (:func:`stages.engine.env_state.episode_goal`)."""
 
     task: str
     seed: int
     instruction: str
     asset_ids: tuple[str, ...]
     subtasks: tuple[str, ...] = ()
+    goal: tuple[float, ...] = ()  # fixed world points of its environment state (env_state.episode_goal)
 
     @classmethod
     def of(cls, inst) -> Ticket:
+        from stages.engine.env_state import episode_goal
+
         ms = MULTISTAGE.get(inst.task)
         return cls(task=inst.task, seed=int(inst.seed), instruction=inst.instruction,
-                   asset_ids=tuple(inst.asset_ids), subtasks=ms.subtasks if ms else ())
+                   asset_ids=tuple(inst.asset_ids), subtasks=ms.subtasks if ms else (), goal=episode_goal(inst))
 
 
 def instance_coords(inst, info, free: dict[str, int], scene_coord: dict[str, int]) -> dict[int, float]:

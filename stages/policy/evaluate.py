@@ -12,8 +12,10 @@ ensembling), applies its own and steps to the next frame.
 What the policy sees is frame ``k`` as the recorder writes it: the state read at the frame step and
 the images rendered at that step (:meth:`~stages.engine.capture.FrameCapture.images_now` waits for
 that render, which the engine launched before the programs ran; the recorded frames get the same
-images one step later). Actions are applied as the dataset's action vector reads: arm joint
-targets [rad], base velocity (vx, vy [m/s], vtheta [rad/s]) in the base frame, gripper command in
+images one step later), and, for a policy trained with ``observation.environment_state``, the task
+objects' state as the recorder computes it (:mod:`stages.engine.env_state`, from the same state
+read; the evaluation engine then records it too). Actions are applied as the dataset's action
+vector reads: arm joint targets [rad], base velocity (vx, vy [m/s], vtheta [rad/s]) in the base frame, gripper command in
 [0, 1] (clipped); the end-effector target and mode entries are not commands.
 
 An episode ends when the task's success predicate holds (checked every ``check_seconds``) or at the
@@ -172,6 +174,7 @@ class Evaluator:
         self._taken: set[int] = set()  # worlds that took their action at this step
         self._queues: dict[int, list] = {}
         self._start: dict[int, int] = {}  # each acting world's episode start [global step]
+        self._env = None  # EnvResolver (a policy with an environment state input)
 
     # -- the engine's callbacks ----------------------------------------------------------------
     def run(self, episodes: list[tuple[str, int]]) -> list[EpisodeRecord]:
@@ -284,13 +287,24 @@ class Evaluator:
 
     def observe(self, worlds: list[int]) -> dict[int, dict[str, np.ndarray]]:
         """The policy's observations of ``worlds`` at this frame step: ``observation.state``
-        (arm q, end-effector pose in the base frame, base pose: the recorder's) and the RGB image
-        of each policy camera (H, W, 3) uint8."""
+        (arm q, end-effector pose in the base frame, base pose: the recorder's), the RGB image
+        of each policy camera (H, W, 3) uint8 and, if the policy takes it,
+        ``observation.environment_state`` (D,) float32 (the recorder's)."""
         e = self.engine
         q, _, base = e.capture.robot_state(worlds)
         ee = e.arm_fk.pose7(q)  # as the recorder writes it
         state = np.concatenate([q, ee, base], axis=1).astype(np.float32)
         out = {w: {"observation.state": state[j]} for j, w in enumerate(worlds)}
+        if self.runner.loaded.env_state_dim and worlds:  # the recorder's function on the same state read
+            from stages.engine.env_state import ENV_STATE_KEY, EnvResolver, engine_environment_state, episode_goal
+
+            if self._env is None:
+                self._env = EnvResolver.of_engine(e)
+            insts = [self._episodes[w].inst for w in worlds]
+            keys = [self._env.keys(i.task, episode_goal(i)) for i in insts]
+            env = engine_environment_state(e, worlds, keys, base)
+            for j, w in enumerate(worlds):
+                out[w][ENV_STATE_KEY] = env[j]
         images: dict[int, dict] = {}
         for w in worlds:
             bank, i = e._where[w]
@@ -338,6 +352,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     if len(sizes) != 1:
         raise ValueError(f"eval: the policy's cameras differ in size {sorted(sizes)}; the engine renders one size")
     (h, wd), = sizes
+    env_names = env_layout(cfg, loaded)
     runner = BatchedRunner(loaded)
     episodes = [(t, int(s)) for t in cfg.tasks for s in cfg.seeds]
     records: list[EpisodeRecord] = []
@@ -346,7 +361,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     for ws in cfg.scenes:
         world = build_kitchen(work / "kitchens", ws)
         ecfg = EngineConfig(worlds=min(cfg.worlds, len(episodes)), device=cfg.device, width=wd, height=h,
-                            fps=cfg.fps, cameras=loaded.cameras)
+                            fps=cfg.fps, cameras=loaded.cameras, environment_state=env_names)
         engine = BatchEngine(world, panda_root=None, work_dir=work / f"engine_ws{ws}", config=ecfg, seed=ws)
         ev = Evaluator(engine, runner, cfg, world, out, quota)
         ev.observers.extend(observers)
@@ -357,6 +372,24 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     report = summarize(cfg, records, held, loaded, runner, time.perf_counter() - t0, engine_stats)
     (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
     return EvalResult(report=report, records=records)
+
+
+def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
+    """The environment state's names of a policy that takes one (() otherwise); ValueError (one
+    line) when the tasks' layouts differ or their size is not the policy's input size."""
+    if not loaded.env_state_dim:
+        return ()
+    from stages.engine.env_state import state_names
+
+    try:
+        layouts = {t: state_names(t) for t in cfg.tasks}
+    except ValueError as e:
+        raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
+    bad = {t: len(n) for t, n in layouts.items() if len(n) != loaded.env_state_dim}
+    if bad or len(set(layouts.values())) > 1:
+        raise ValueError(f"eval: {cfg.checkpoint}: the policy takes an environment state of {loaded.env_state_dim} "
+                         f"entries; the tasks' layouts are {layouts}")
+    return next(iter(layouts.values()))
 
 
 def summarize(cfg: EvalConfig, records: list[EpisodeRecord], held: dict, loaded, runner, wall: float,
@@ -376,7 +409,8 @@ def summarize(cfg: EvalConfig, records: list[EpisodeRecord], held: dict, loaded,
     policy = {"type": loaded.type, "cameras": list(loaded.cameras), "chunk_size": getattr(pc, "chunk_size", None),
               "n_action_steps": getattr(pc, "n_action_steps", None),
               "temporal_ensemble_coeff": getattr(pc, "temporal_ensemble_coeff", None),
-              "n_obs_steps": getattr(pc, "n_obs_steps", None), "horizon": getattr(pc, "horizon", None)}
+              "n_obs_steps": getattr(pc, "n_obs_steps", None), "horizon": getattr(pc, "horizon", None),
+              "environment_state": loaded.env_state_dim}
     fams = sorted({str(task(r.task).family) for r in records})
     return {"checkpoint": str(cfg.checkpoint), "policy": policy, "device": cfg.device, "worlds": cfg.worlds,
             "scenes": [scene_id(s) for s in cfg.scenes], "seeds": list(cfg.seeds), "held_out": held,

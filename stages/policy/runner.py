@@ -16,7 +16,8 @@ step and one model call for those that need a new chunk. Per world it does exact
   the world's own generator (seeded by the episode seed), so a world's actions do not depend on the
   others.
 
-Observations are what the dataset's frames hold: ``observation.state`` (S,) float32 and, per policy
+Observations are what the dataset's frames hold: ``observation.state`` (S,) float32, for a policy
+trained with it ``observation.environment_state`` (D,) float32 (lerobot's ENV input) and, per policy
 camera, ``observation.images.<camera>`` RGB uint8 (H, W, 3), given to the policy as float32
 (3, H, W) in [0, 1] as ``LeRobotDataset`` gives decoded video frames. Actions come back unnormalized
 by the checkpoint's postprocessor, float32 (A,) in the dataset's action layout.
@@ -33,6 +34,7 @@ from typing import Any
 import numpy as np
 
 STATE = "observation.state"
+ENV_STATE = "observation.environment_state"  # optional: the task objects' state (stages.engine.env_state)
 IMAGES = "observation.images"  # lerobot's stacked-camera key (OBS_IMAGES)
 SUPPORTED = ("act", "diffusion")
 
@@ -51,6 +53,8 @@ class LoadedPolicy:
     image_shapes: dict[str, tuple[int, int, int]]
     state_dim: int
     action_dim: int
+    env_state_dim: int = 0
+    """size of the policy's ``observation.environment_state`` input (0: it takes none)"""
 
     @property
     def cameras(self) -> tuple[str, ...]:
@@ -85,14 +89,18 @@ def load_policy(checkpoint: Path, device: str = "cpu") -> LoadedPolicy:
         raise ValueError(f"{path}: the policy has no {STATE} input")
     return LoadedPolicy(policy=policy, preprocessor=pre, postprocessor=post, type=cfg.type, device=device,
                         image_shapes=shapes, state_dim=int(state.shape[0]),
-                        action_dim=int(policy.config.action_feature.shape[0]))
+                        action_dim=int(policy.config.action_feature.shape[0]),
+                        env_state_dim=int(env.shape[0]) if (env := policy.config.env_state_feature) else 0)
 
 
 def to_policy_batch(obs: list[dict[str, np.ndarray]], image_keys) -> dict[str, Any]:
-    """Per-world observations -> a raw batch: state (B, S) float32, images (B, 3, H, W) float32 in [0, 1]."""
+    """Per-world observations -> a raw batch: state (B, S) float32, environment state (B, D) float32
+    where the observations hold it, images (B, 3, H, W) float32 in [0, 1]."""
     import torch
 
     batch = {STATE: torch.from_numpy(np.stack([np.asarray(o[STATE], np.float32) for o in obs]))}
+    if obs and ENV_STATE in obs[0]:
+        batch[ENV_STATE] = torch.from_numpy(np.stack([np.asarray(o[ENV_STATE], np.float32) for o in obs]))
     for k in image_keys:
         hwc = np.stack([o[k] for o in obs])
         batch[k] = torch.from_numpy(hwc).permute(0, 3, 1, 2).float().div_(255.0)
@@ -115,6 +123,8 @@ class _World:
             import torch
 
             self.history = {STATE: deque(maxlen=cfg.n_obs_steps), IMAGES: deque(maxlen=cfg.n_obs_steps)}
+            if runner.loaded.env_state_dim:
+                self.history[ENV_STATE] = deque(maxlen=cfg.n_obs_steps)
             self.generator = torch.Generator().manual_seed(int(seed) % (2**63))
         self.steps = 0
 
@@ -186,7 +196,8 @@ class BatchedRunner:
         images = torch.stack([batch[k] for k in keys], dim=-4) if keys else None  # (B, ncam, 3, H, W)
         for j, w in enumerate(ws):
             h = self.worlds[w].history
-            for key, value in ((STATE, batch[STATE][j]), (IMAGES, None if images is None else images[j])):
+            for key, value in ((STATE, batch[STATE][j]), (IMAGES, None if images is None else images[j]),
+                               (ENV_STATE, batch[ENV_STATE][j] if ENV_STATE in h else None)):
                 if value is None:
                     continue
                 while len(h[key]) < h[key].maxlen - 1:  # lerobot's populate_queues: the first obs repeated
@@ -195,6 +206,8 @@ class BatchedRunner:
         need = [w for w in ws if not self.worlds[w].actions]
         if need:
             hist = {STATE: torch.stack([torch.stack(list(self.worlds[w].history[STATE])) for w in need])}
+            if ENV_STATE in self.worlds[need[0]].history:
+                hist[ENV_STATE] = torch.stack([torch.stack(list(self.worlds[w].history[ENV_STATE])) for w in need])
             if images is not None:
                 hist[IMAGES] = torch.stack([torch.stack(list(self.worlds[w].history[IMAGES])) for w in need])
             shape = (cfg.horizon, cfg.action_feature.shape[0])

@@ -1,0 +1,212 @@
+"""The task objects' state in the robot's base frame: ``observation.environment_state`` (issue 17).
+
+Sim benchmarks (robomimic's low-dim observations, LeRobot's pusht keypoints) give policies the task
+objects' state beside the robot's; lerobot's ACT and Diffusion Policy take it natively as
+``observation.environment_state`` (a dataset feature of that key is a ``FeatureType.ENV`` input).
+Here it is an option of the recorder (``EngineConfig.environment_state``: the feature's names) and
+an input of the closed-loop evaluator when the policy was trained with it; both compute it with
+:func:`engine_environment_state` from the same state read as ``observation.state`` (the engine's
+snapshot at the frame step), so a policy sees in closed loop what it was trained on.
+
+Key points per task (world positions read from the simulation, then expressed in the robot's base
+frame: origin at the base pose (x, y) on the floor (z = 0, the frame of ``observation.state``'s
+end-effector pose), x forward, y left, z up [m]):
+
+- ``pick_place_bowl``: the mug's body origin (3), the bowl's (3);
+- ``push_object``: the pushed object's body origin (3), the push goal (3): the object's start
+  position moved 0.15 m along the push direction (the instance's ``target``, fixed for the episode,
+  at the object's start height);
+- ``open_<part>`` / ``close_<part>`` (``open_drawer`` ...): the handle's grasp centre where the
+  simulated joint value puts it (3: :meth:`~stages.demos.parts.ArticulatedPart.handle_at` of the
+  joint coordinate, the rigid link's kinematics) and the joint opening from closed (1) [m for a
+  drawer, rad for a door].
+
+The dimension D is fixed per task (:func:`state_names`); a dataset holds one layout.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+ENV_STATE_KEY = "observation.environment_state"
+_XYZ = ("x", "y", "z")
+_PICK = tuple(f"object_{c}" for c in _XYZ) + tuple(f"container_{c}" for c in _XYZ)
+_PUSH = tuple(f"object_{c}" for c in _XYZ) + tuple(f"goal_{c}" for c in _XYZ)
+_PART = (*(f"handle_{c}" for c in _XYZ), "opening")
+_BODIES = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("pusher",)}
+
+
+def _part_target(task: str) -> str | None:
+    """The articulated target of an open/close task (``drawer`` of ``open_drawer``), else None."""
+    from stages.demos.tasks import ARTICULATED
+
+    kind, _, which = task.partition("_")
+    return which if kind in ("open", "close") and which in ARTICULATED else None
+
+
+def state_names(task: str) -> tuple[str, ...]:
+    """The names of ``task``'s environment state (D entries; module docstring); ValueError for a
+    task without one."""
+    if task == "pick_place_bowl":
+        return _PICK
+    if task == "push_object":
+        return _PUSH
+    if _part_target(task) is not None:
+        return _PART
+    raise ValueError(f"environment_state: task {task!r} has no environment state (supported: pick_place_bowl, "
+                     f"push_object, open_/close_ of an articulated part)")
+
+
+def episode_goal(inst) -> tuple[float, ...]:
+    """The fixed world points (3 each) of an episode's environment state, from its task instance:
+    the push goal of ``push_object`` (x, y of the instance's target, the object's start z [m]);
+    () for the other tasks (their points are read from the simulation at every frame)."""
+    if inst.task != "push_object":
+        return ()
+    body = inst.world.placed["pusher"].body()
+    return (float(inst.target[0]), float(inst.target[1]), float(inst.objects[body][2]))
+
+
+@dataclass(frozen=True)
+class EnvKeys:
+    """What one episode's environment state reads: ``bodies`` world-local body indices whose
+    origins are key points; ``goal`` (3 g,) fixed world points [m]; ``part`` the articulated part
+    and ``coord`` its joint's world-local coordinate (open/close tasks; None otherwise)."""
+
+    task: str
+    bodies: tuple[int, ...] = ()
+    goal: tuple[float, ...] = ()
+    part: object = None
+    coord: int = -1
+
+    @property
+    def dim(self) -> int:
+        return 3 * len(self.bodies) + len(self.goal) + (4 if self.part is not None else 0)
+
+
+class EnvResolver:
+    """Builds :class:`EnvKeys` for episodes in one task world (a kitchen) simulated by an engine:
+    body and joint indices resolved once per task. ``body_index``: scene prim path -> world-local
+    body index; ``scene_coord``: scene joint prim path -> world-local joint coordinate."""
+
+    def __init__(self, world, body_index: dict[str, int], scene_coord: dict[str, int]) -> None:
+        self.world, self.body_index, self.scene_coord = world, body_index, scene_coord
+        self._parts: dict[str, object] = {}
+
+    @classmethod
+    def of_engine(cls, engine) -> EnvResolver:
+        sim = engine.banks[0].sim
+        return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord))
+
+    def keys(self, task: str, goal: Sequence[float] = ()) -> EnvKeys:
+        """The keys of an episode of ``task`` with the fixed points ``goal`` (:func:`episode_goal`)."""
+        state_names(task)  # raises for a task without an environment state
+        which = _part_target(task)
+        if which is not None:
+            if task not in self._parts:
+                from stages.demos.sampling import world_part
+
+                self._parts[task] = world_part(self.world, which)
+            part = self._parts[task]
+            return EnvKeys(task=task, part=part, coord=int(self.scene_coord[part.joint_path]))
+        roles = _BODIES[task]
+        return EnvKeys(task=task, bodies=tuple(self.body_index[self.world.placed[r].body()] for r in roles),
+                       goal=tuple(float(v) for v in goal))
+
+
+def to_base_frame(points: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """World points (K, P, 3) [m] -> the base frame of base poses (K, 3) (x, y [m], theta [rad] in
+    the world): p_b = R(theta)^T (p - (x, y, 0)); (K, P, 3)."""
+    p = np.asarray(points, np.float64)
+    b = np.asarray(base, np.float64)
+    c, s = np.cos(b[:, 2])[:, None], np.sin(b[:, 2])[:, None]
+    dx, dy = p[..., 0] - b[:, :1], p[..., 1] - b[:, 1:2]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, p[..., 2]], axis=-1)
+
+
+def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.ndarray,
+                      joint_q: np.ndarray) -> np.ndarray:
+    """The environment state of K worlds at one instant, float32 (K, D).
+
+    keys: per world its episode's :class:`EnvKeys` (all of one dimension D); base (K, 3): base
+    poses (x, y [m], theta [rad]) in the world; body_xyz (K, B, 3): world positions of each world's
+    bodies [m] (world-local body index); joint_q (K, C): each world's joint coordinates (world-local).
+    Row k: the key points (bodies', then the goal's, then an articulated handle's) in world k's
+    base frame, then an articulated part's opening [m or rad]."""
+    k = len(keys)
+    dims = {kk.dim for kk in keys}
+    if len(dims) > 1:
+        raise ValueError(f"environment_state: the worlds' tasks have different dimensions {sorted(dims)}: "
+                         f"{sorted({kk.task for kk in keys})}")
+    if k == 0:
+        return np.zeros((0, 0), np.float32)
+    rows = []
+    for j, kk in enumerate(keys):
+        pts = [body_xyz[j, b] for b in kk.bodies]
+        pts += [np.asarray(kk.goal[i:i + 3], np.float64) for i in range(0, len(kk.goal), 3)]
+        extra = []
+        if kk.part is not None:
+            q = float(joint_q[j, kk.coord])
+            pts.append(kk.part.handle_at(q))
+            extra.append(q - kk.part.closed)
+        rows.append((np.asarray(pts, np.float64).reshape(-1, 3), extra))
+    pts = to_base_frame(np.stack([r[0] for r in rows]), base).reshape(k, -1)
+    extra = np.asarray([r[1] for r in rows], np.float64).reshape(k, -1)
+    return np.concatenate([pts, extra], axis=1).astype(np.float32)
+
+
+def engine_environment_state(engine, worlds: Sequence[int], keys: Sequence[EnvKeys],
+                             base: np.ndarray) -> np.ndarray:
+    """:func:`environment_state` of ``worlds`` of a :class:`~stages.engine.BatchEngine` from its
+    snapshot of this step (the state read that gives ``observation.state``); ``base`` (K, 3): their
+    base poses (:meth:`~stages.engine.capture.FrameCapture.robot_state`). float32 (K, D)."""
+    sim = engine.banks[0].sim
+    nb, nc = sim.bodies_per_world, sim.coords_per_world
+    body, jq = [], []
+    for w in worlds:
+        bank, i = engine._where[w]
+        body.append(bank.snapshot.get("body_q")[i * nb:(i + 1) * nb, :3])
+        jq.append(bank.snapshot.get("joint_q")[i * nc:(i + 1) * nc])
+    k = len(worlds)
+    body_xyz = np.asarray(body, np.float64).reshape(k, nb, 3)
+    return environment_state(keys, base, body_xyz, np.asarray(jq, np.float64).reshape(k, nc))
+
+
+def ticket_keys(engine, ticket) -> EnvKeys:
+    """The :class:`EnvKeys` of an episode the engine begins (its :class:`~stages.engine.programs.Ticket`:
+    task and goal); ValueError if the task's layout is not the engine's ``environment_state``."""
+    check_names(engine.config.environment_state, ticket.task, "engine")
+    res = engine.__dict__.get("_env_resolver")
+    if res is None:
+        res = engine._env_resolver = EnvResolver.of_engine(engine)
+    return res.keys(ticket.task, ticket.goal)
+
+
+def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
+    """The recorder's ``environment_state`` column of ``worlds`` at this frame step, float32 (K, D):
+    each world's episode keys (set when the episode began) on this step's state read; zeros for a
+    world without an episode (its frame is dropped)."""
+    out = np.zeros((len(worlds), len(engine.config.environment_state)), np.float32)
+    live = [j for j, w in enumerate(worlds) if engine.recs[w].env is not None]
+    if live:
+        ws = [worlds[j] for j in live]
+        out[live] = engine_environment_state(engine, ws, [engine.recs[w].env for w in ws], np.asarray(base)[live])
+    return out
+
+
+def check_names(names: Sequence[str], task: str, where: str) -> None:
+    """ValueError when ``task``'s environment state is not laid out as ``names`` (a dataset or a
+    policy holds one layout)."""
+    mine = state_names(task)
+    if tuple(names) != mine:
+        raise ValueError(f"{where}: task {task!r} has environment state {list(mine)}, but "
+                         f"{len(names)} entries {list(names)} are recorded or expected")
+
+
+__all__ = ["ENV_STATE_KEY", "EnvKeys", "EnvResolver", "check_names", "engine_environment_state",
+           "environment_state", "episode_goal", "recorded_environment_state", "state_names", "ticket_keys",
+           "to_base_frame"]
+
