@@ -137,7 +137,31 @@ def lerobot_args(cfg: TrainConfig) -> list[str]:
             args += [f"--policy.n_action_steps={cfg.chunk_size}"]
     if cfg.init is not None:
         args += [f"--policy.pretrained_path={resolve_checkpoint(Path(cfg.init).resolve())}"]
+    norm = env_state_normalization(ds, cfg.policy)
+    if norm and not any(a.startswith("--policy.normalization_mapping=") for a in cfg.extra_args):
+        args += [f"--policy.normalization_mapping={json.dumps(norm)}"]
     return args + list(cfg.extra_args)
+
+
+def env_state_normalization(dataset: Path, policy: str) -> dict[str, str] | None:
+    """The policy's normalization mapping with ``ENV`` normalized as its ``STATE`` is, when
+    ``dataset`` has ``observation.environment_state`` (lerobot 0.6.1's defaults map nothing to ENV,
+    which would feed the task objects' positions raw, metres up to ~4 in a kitchen); None otherwise."""
+    try:
+        feats = json.loads((Path(dataset) / "meta" / "info.json").read_text())["features"]
+    except (OSError, KeyError, json.JSONDecodeError):
+        return None
+    if "observation.environment_state" not in feats:
+        return None
+    import dataclasses
+
+    import lerobot.policies  # noqa: F401  (registers the policies' config classes)
+    from lerobot.configs.policies import PreTrainedConfig
+
+    field = next(f for f in dataclasses.fields(PreTrainedConfig.get_choice_class(policy))
+                 if f.name == "normalization_mapping")  # the default, without building a config (its device probe)
+    mapping = {k: getattr(v, "value", v) for k, v in field.default_factory().items()}
+    return {**mapping, "ENV": mapping["STATE"]}
 
 
 def checkpoint_of(out: Path) -> Path:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,7 +118,8 @@ def env_act(env_dataset, tmp_path_factory):
     return train_policy(cfg, timeout=600)
 
 
-def test_act_trains_on_the_environment_state(env_act):
+def test_act_trains_on_the_environment_state(env_act, env_dataset):
+    import pandas as pd
     import torch
     from safetensors.torch import load_file
 
@@ -128,6 +130,13 @@ def test_act_trains_on_the_environment_state(env_act):
     assert tuple(weights["model.encoder_env_state_input_proj.weight"].shape) == (32, 6)
     assert env_act.steps == 2 and math.isfinite(env_act.last_loss)
     assert torch.isfinite(weights["model.encoder_env_state_input_proj.weight"]).all()
+    # normalized as the state is (train.env_state_normalization: lerobot maps nothing to ENV by default):
+    # the checkpoint's preprocessor holds the dataset's statistics of the environment state
+    assert cfg["normalization_mapping"]["ENV"] == cfg["normalization_mapping"]["STATE"] == "MEAN_STD"
+    stats = load_file(next(env_act.checkpoint.glob("policy_preprocessor_step_*_normalizer_processor.safetensors")))
+    frames = pd.concat(pd.read_parquet(f) for f in sorted((Path(env_dataset[0]) / "data").rglob("*.parquet")))
+    env_values = np.stack(frames["observation.environment_state"].to_numpy())
+    assert np.allclose(stats["observation.environment_state.mean"].numpy(), env_values.mean(0), atol=1e-4)
 
 
 def test_evaluator_gives_the_policy_the_recorders_environment_state(env_act, kitchen_catalog, tmp_path):
