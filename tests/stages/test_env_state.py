@@ -33,6 +33,25 @@ def _base_frame(p, x: float, y: float, theta: float) -> np.ndarray:
                      p[2]])
 
 
+def _probe_frames(engine) -> list:
+    """The simulation's own reading (``read_state`` of world 0) at every frame the recorder takes,
+    appended to the returned list as the engine runs (wraps the engine's capture ``collect``)."""
+    from stages.simulate.state import read_state
+
+    probes = []
+    collect = engine.capture.collect
+
+    def probing_collect() -> None:
+        step = engine.global_step
+        collect()
+        pending = engine.capture._pending
+        if engine.capture.collected_step == step and pending is not None and pending.sinks[0] is not None:
+            probes.append(read_state(engine.side.views[0]))
+
+    engine.capture.collect = probing_collect
+    return probes
+
+
 @pytest.fixture(scope="session")
 def env_dataset(kitchen_catalog, tmp_path_factory):
     """(dataset root, probes): the recorded dataset with the option on, and per recorded frame the
@@ -46,24 +65,13 @@ def env_dataset(kitchen_catalog, tmp_path_factory):
     from stages.engine.env_state import state_names
     from stages.engine.programs import Listed
     from stages.policy.evaluate import build_kitchen
-    from stages.simulate.state import read_state
 
     d = tmp_path_factory.mktemp("env_dataset")
     world = build_kitchen(link_kitchen_catalog(kitchen_catalog, d / "work"), 5)
     cfg = EngineConfig(worlds=1, width=64, height=48, cameras=("wrist", "head"),
                        environment_state=state_names("push_object"))
     engine = BatchEngine(world, panda_root=None, work_dir=d / "engine", config=cfg, seed=5)
-    probes = []
-    collect = engine.capture.collect
-
-    def probing_collect() -> None:  # the simulation's reading of every frame the recorder takes
-        step = engine.global_step
-        collect()
-        pending = engine.capture._pending
-        if engine.capture.collected_step == step and pending is not None and pending.sinks[0] is not None:
-            probes.append(read_state(engine.side.views[0]))
-
-    engine.capture.collect = probing_collect
+    probes = _probe_frames(engine)
     with open_shard(d / "shards", "s0", cfg.dataset_spec()) as shard:
         def begin(w, ticket):
             shard.begin_episode(EpisodeInfo(task=ticket.instruction, task_kind=ticket.task, scene_id=world.scene_id,
@@ -355,22 +363,12 @@ def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, 
     from stages.engine.env_state import state_names
     from stages.engine.programs import Listed
     from stages.policy.evaluate import build_kitchen
-    from stages.simulate.state import read_state
 
     world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
     cfg = EngineConfig(worlds=1, record_images=False, environment_state=state_names("open_drawer"))
     engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
-    frames, probes, results = [], [], []
-    collect = engine.capture.collect
-
-    def probing_collect() -> None:
-        step = engine.global_step
-        collect()
-        pending = engine.capture._pending
-        if engine.capture.collected_step == step and pending is not None and pending.sinks[0] is not None:
-            probes.append(read_state(engine.side.views[0]))
-
-    engine.capture.collect = probing_collect
+    frames, results = [], []
+    probes = _probe_frames(engine)
     engine.run(Listed(world, {0: [("open_drawer", 3, None)]}), begin=lambda w, t: frames.append,
                end=lambda w, t, res: results.append(res))
     assert [r.success for r in results] == [True], results
