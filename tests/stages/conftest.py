@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from kitchen_testutil import kitchen_job, link_kitchen_catalog
+from kitchen_testutil import kitchen_job, link_kitchen_catalog, shard_begin
 
 
 @pytest.fixture(scope="session")
@@ -66,7 +66,7 @@ def policy_dataset(kitchen_catalog, tmp_path_factory):
     pytest.importorskip("newton")
     pytest.importorskip("newton_usd_schemas", reason="Newton's USD importer needs newton-usd-schemas")
     pytest.importorskip("lerobot")
-    from stages.dataset import EpisodeInfo, merge_shards, open_shard
+    from stages.dataset import merge_shards, open_shard
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
     from stages.policy.evaluate import build_kitchen
@@ -77,15 +77,10 @@ def policy_dataset(kitchen_catalog, tmp_path_factory):
     engine = BatchEngine(world, panda_root=None, work_dir=d / "engine", config=cfg, seed=5)
     results = []
     with open_shard(d / "shards", "s0", cfg.dataset_spec()) as shard:
-        def begin(w, ticket):
-            shard.begin_episode(EpisodeInfo(task=ticket.instruction, task_kind=ticket.task, scene_id=world.scene_id,
-                                            seed=ticket.seed, asset_ids=ticket.asset_ids))
-            return shard.add_frame
-
         def end(w, ticket, res):
             results.append(res)
             shard.end_episode(success=res.success, reason=res.reason)
 
-        engine.run(Listed(world, {0: [("push_object", 1, None)]}), begin=begin, end=end)
+        engine.run(Listed(world, {0: [("push_object", 1, None)]}), begin=shard_begin(shard, world), end=end)
     assert [r.success for r in results] == [True], results
     return merge_shards(d / "shards", d / "dataset").root

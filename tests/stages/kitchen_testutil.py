@@ -68,3 +68,16 @@ def clock_library(out: Path, clocks: tuple[str, ...]):
     summary = run_job(build_job(job, source="<test>", base_dir=out.parent), progress=False)
     assert {s.name: s.failed for s in summary.steps} == {"catalog": 0, "assets": 0}
     return AssetLibrary.from_folder(out / "assets", out / "catalog" / "default" / "generated.json")
+
+
+def shard_begin(shard, world):
+    """An engine ``begin(w, ticket)`` callback that opens the episode of ``ticket`` in ``shard``
+    (scene ``world.scene_id``) and returns the shard's frame sink."""
+    from stages.dataset import EpisodeInfo
+
+    def begin(w, ticket):
+        shard.begin_episode(EpisodeInfo(task=ticket.instruction, task_kind=ticket.task, scene_id=world.scene_id,
+                                        seed=ticket.seed, asset_ids=ticket.asset_ids))
+        return shard.add_frame
+
+    return begin

@@ -57,9 +57,9 @@ def env_dataset(kitchen_catalog, tmp_path_factory):
     """(dataset root, probes): the recorded dataset with the option on, and per recorded frame the
     simulation's own reading at that frame step (``read_state`` of the world: base link pose, object
     body poses, end-effector body pose [world frame]) and the episode's instance."""
-    from kitchen_testutil import link_kitchen_catalog
+    from kitchen_testutil import link_kitchen_catalog, shard_begin
 
-    from stages.dataset import EpisodeInfo, merge_shards, open_shard
+    from stages.dataset import merge_shards, open_shard
     from stages.demos.sampling import sample_instance
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.env_state import state_names
@@ -73,15 +73,10 @@ def env_dataset(kitchen_catalog, tmp_path_factory):
     engine = BatchEngine(world, panda_root=None, work_dir=d / "engine", config=cfg, seed=5)
     probes = _probe_frames(engine)
     with open_shard(d / "shards", "s0", cfg.dataset_spec()) as shard:
-        def begin(w, ticket):
-            shard.begin_episode(EpisodeInfo(task=ticket.instruction, task_kind=ticket.task, scene_id=world.scene_id,
-                                            seed=ticket.seed, asset_ids=ticket.asset_ids))
-            return shard.add_frame
-
         def end(w, ticket, res):
             shard.end_episode(success=True)  # a 1.5 s prefix of the expert's episode, kept for the test
 
-        engine.run(Listed(world, {0: [("push_object", 1, 1.5)]}), begin=begin, end=end)
+        engine.run(Listed(world, {0: [("push_object", 1, 1.5)]}), begin=shard_begin(shard, world), end=end)
     root = merge_shards(d / "shards", d / "dataset").root
     return root, probes, sample_instance("push_object", world, 1)
 
