@@ -176,13 +176,11 @@ class DemosConfig(_Strict):
         if self.program_wait is not None and not self.program_procs:
             raise ValueError("program_wait needs program_procs > 0")
         if self.environment_state:
-            from stages.engine.env_state import state_names
+            from stages.engine.env_state import common_layout
 
             if self.mixed:
                 raise ValueError("environment_state needs per-task items (mixed = false): a dataset holds one layout")
-            layouts = {t: state_names(t) for t in self.tasks}  # ValueError names a task without one
-            if len(set(layouts.values())) > 1:
-                raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
+            common_layout(self.tasks)  # ValueError names a task without one, or the differing layouts
         return self
 
     @field_validator("tasks")

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ENV_STATE_KEY = "observation.environment_state"
+from stages.dataset.schema import ENV_STATE_KEY
 _XYZ = ("x", "y", "z")
 _PICK = tuple(f"object_{c}" for c in _XYZ) + tuple(f"container_{c}" for c in _XYZ)
 _PUSH = tuple(f"object_{c}" for c in _XYZ) + tuple(f"goal_{c}" for c in _XYZ)
@@ -58,6 +58,15 @@ def state_names(task: str) -> tuple[str, ...]:
         return _PART
     raise ValueError(f"environment_state: task {task!r} has no environment state (supported: pick_place_bowl, "
                      f"push_object, open_/close_ of an articulated part)")
+
+
+def common_layout(tasks: Sequence[str]) -> tuple[str, ...]:
+    """The one environment-state layout of ``tasks`` (a dataset or a policy holds one); ValueError
+    naming a task without one, or the layouts when they differ."""
+    layouts = {t: state_names(t) for t in tasks}
+    if len(set(layouts.values())) > 1:
+        raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
+    return next(iter(layouts.values()), ())
 
 
 def episode_goal(inst) -> tuple[float, ...]:
@@ -179,10 +188,16 @@ def ticket_keys(engine, ticket) -> EnvKeys:
     """The :class:`EnvKeys` of an episode the engine begins (its :class:`~stages.engine.programs.Ticket`:
     task and goal); ValueError if the task's layout is not the engine's ``environment_state``."""
     check_names(engine.config.environment_state, ticket.task, "engine")
-    res = engine.__dict__.get("_env_resolver")
+    return episode_keys(engine, ticket.task, ticket.goal)
+
+
+def episode_keys(engine, task: str, goal: Sequence[float] = ()) -> EnvKeys:
+    """:meth:`EnvResolver.keys` of an episode of ``task`` (fixed points ``goal``) on ``engine``, with
+    the engine's one resolver (made on first use): the recorder's and the evaluator's."""
+    res = getattr(engine, "_env_resolver", None)
     if res is None:
         res = engine._env_resolver = EnvResolver.of_engine(engine)
-    return res.keys(ticket.task, ticket.goal)
+    return res.keys(task, goal)
 
 
 def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
@@ -206,7 +221,7 @@ def check_names(names: Sequence[str], task: str, where: str) -> None:
                          f"{len(names)} entries {list(names)} are recorded or expected")
 
 
-__all__ = ["ENV_STATE_KEY", "EnvKeys", "EnvResolver", "check_names", "engine_environment_state",
-           "environment_state", "episode_goal", "recorded_environment_state", "state_names", "ticket_keys",
+__all__ = ["ENV_STATE_KEY", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
+           "environment_state", "episode_goal", "episode_keys", "recorded_environment_state", "state_names", "ticket_keys",
            "to_base_frame"]
 

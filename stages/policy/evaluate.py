@@ -150,6 +150,7 @@ class _Episode:
     limit: float
     video: object = None
     frames: int = 0
+    env: object = None  # its EnvKeys (stages.engine.env_state), for a policy with an environment state input
 
 
 class Evaluator:
@@ -174,7 +175,6 @@ class Evaluator:
         self._taken: set[int] = set()  # worlds that took their action at this step
         self._queues: dict[int, list] = {}
         self._start: dict[int, int] = {}  # each acting world's episode start [global step]
-        self._env = None  # EnvResolver (a policy with an environment state input)
 
     # -- the engine's callbacks ----------------------------------------------------------------
     def run(self, episodes: list[tuple[str, int]]) -> list[EpisodeRecord]:
@@ -198,6 +198,10 @@ class Evaluator:
                 continue
             limit = self.cfg.max_seconds if self.cfg.max_seconds is not None else task(name).max_seconds
             self._episodes[w] = _Episode(inst=inst, limit=float(limit))
+            if self.runner.loaded.env_state_dim:  # its environment state's keys, once per episode
+                from stages.engine.env_state import episode_goal, episode_keys
+
+                self._episodes[w].env = episode_keys(self.engine, name, episode_goal(inst))
             return inst, float(limit) + 1.0  # the act loop stops at ``limit``; the engine's limit is a guard
         return None
 
@@ -296,13 +300,9 @@ class Evaluator:
         state = np.concatenate([q, ee, base], axis=1).astype(np.float32)
         out = {w: {"observation.state": state[j]} for j, w in enumerate(worlds)}
         if self.runner.loaded.env_state_dim and worlds:  # the recorder's function on the same state read
-            from stages.engine.env_state import ENV_STATE_KEY, EnvResolver, engine_environment_state, episode_goal
+            from stages.engine.env_state import ENV_STATE_KEY, engine_environment_state
 
-            if self._env is None:
-                self._env = EnvResolver.of_engine(e)
-            insts = [self._episodes[w].inst for w in worlds]
-            keys = [self._env.keys(i.task, episode_goal(i)) for i in insts]
-            env = engine_environment_state(e, worlds, keys, base)
+            env = engine_environment_state(e, worlds, [self._episodes[w].env for w in worlds], base)
             for j, w in enumerate(worlds):
                 out[w][ENV_STATE_KEY] = env[j]
         images: dict[int, dict] = {}
@@ -379,17 +379,16 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
     line) when the tasks' layouts differ or their size is not the policy's input size."""
     if not loaded.env_state_dim:
         return ()
-    from stages.engine.env_state import state_names
+    from stages.engine.env_state import common_layout
 
     try:
-        layouts = {t: state_names(t) for t in cfg.tasks}
+        names = common_layout(cfg.tasks)
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
-    bad = {t: len(n) for t, n in layouts.items() if len(n) != loaded.env_state_dim}
-    if bad or len(set(layouts.values())) > 1:
+    if len(names) != loaded.env_state_dim:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes an environment state of {loaded.env_state_dim} "
-                         f"entries; the tasks' layouts are {layouts}")
-    return next(iter(layouts.values()))
+                         f"entries; the tasks' layouts are {dict.fromkeys(cfg.tasks, names)}")
+    return names
 
 
 def summarize(cfg: EvalConfig, records: list[EpisodeRecord], held: dict, loaded, runner, wall: float,
