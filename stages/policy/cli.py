@@ -29,6 +29,13 @@ def _ints(text: str) -> tuple[int, ...]:
     return tuple(out)
 
 
+def camera_list(text: str | None) -> tuple[str, ...] | None:
+    """``--cameras``: None (all), "none" or "" (no camera), or comma-separated names."""
+    if text is None:
+        return None
+    return () if text.strip() in ("", "none") else tuple(c.strip() for c in text.split(",") if c.strip())
+
+
 def train_main(argv: list[str]) -> int:
     from .train import POLICIES, TrainConfig, train_policy
 
@@ -50,6 +57,9 @@ def train_main(argv: list[str]) -> int:
                    help="stop after this wall time [s], saving the step reached (default: all --steps)")
     p.add_argument("--frame-cache", type=Path, default=None,
                    help="decode the RGB videos once into this folder and train from it (shared by runs on one dataset)")
+    p.add_argument("--cameras", default=None, metavar="LIST",
+                   help="the dataset's RGB cameras the policy takes, comma-separated, 'none' for none (state and "
+                        "environment state only); default all")
     p.add_argument("--init", type=Path, default=None,
                    help="start from this checkpoint's weights (same policy; pretrained_model or train-policy folder)")
     p.add_argument("--lerobot-arg", action="append", default=[], metavar="--KEY=VALUE",
@@ -60,7 +70,7 @@ def train_main(argv: list[str]) -> int:
                           chunk_size=a.chunk_size, temporal_ensemble=None if a.no_ensemble else 0.01,
                           device=a.device, seed=a.seed, num_workers=a.num_workers, log_freq=a.log_freq,
                           save_freq=a.save_freq, extra_args=tuple(a.lerobot_arg), max_seconds=a.max_seconds,
-                          frame_cache=a.frame_cache, init=a.init)
+                          frame_cache=a.frame_cache, init=a.init, cameras=camera_list(a.cameras))
         print(f"train-policy: {a.policy} on {a.dataset} ({a.steps} steps, {a.device}); log {a.out / 'train.log'}",
               flush=True)
         res = train_policy(cfg)

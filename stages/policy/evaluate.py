@@ -22,7 +22,8 @@ An episode ends when the task's success predicate holds (checked every ``check_s
 time limit (the task's, or ``max_seconds``); its result is the predicate's (success, or the failure
 reason). Outputs in ``out``: ``eval.json`` (per task and family: episodes, successes, rate, failure
 reasons; every episode; the held-out check; timings) and ``videos/<task>/<scene>_seed<seed>.mp4``
-(the policy's cameras side by side, for the first ``videos`` episodes of each task).
+(the policy's cameras side by side, for the first ``videos`` episodes of each task; a policy of no
+camera, which takes the state and the environment state, gets no render and no video).
 
 Held out: the checkpoint's training dataset (its ``train_config.json``) lists its episodes' scene
 ids, tasks and seeds (``meta/episodes``); an evaluation episode whose kitchen or (task, seed) is
@@ -207,7 +208,7 @@ class Evaluator:
 
     def _begin(self, w: int, ticket):
         ep = self._episodes[w]
-        if self.video_quota[ticket.task] < self.cfg.videos:
+        if self.video_quota[ticket.task] < self.cfg.videos and self.runner.loaded.cameras:
             from .video import RolloutVideo
 
             self.video_quota[ticket.task] += 1
@@ -306,7 +307,7 @@ class Evaluator:
             for j, w in enumerate(worlds):
                 out[w][ENV_STATE_KEY] = env[j]
         images: dict[int, dict] = {}
-        for w in worlds:
+        for w in worlds if self.runner.loaded.cameras else ():
             bank, i = e._where[w]
             if id(bank) not in images:
                 images[id(bank)] = e.capture.images_now(bank)
@@ -349,9 +350,9 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     held = held_out_check(cfg)
     loaded = load_policy(cfg.checkpoint, cfg.device)
     sizes = {s[1:] for s in loaded.image_shapes.values()}
-    if len(sizes) != 1:
+    if len(sizes) > 1:
         raise ValueError(f"eval: the policy's cameras differ in size {sorted(sizes)}; the engine renders one size")
-    (h, wd), = sizes
+    (h, wd), = sizes or {(96, 128)}  # no camera: nothing is rendered, the size is unused
     env_names = env_layout(cfg, loaded)
     runner = BatchedRunner(loaded)
     episodes = [(t, int(s)) for t in cfg.tasks for s in cfg.seeds]
@@ -361,7 +362,8 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     for ws in cfg.scenes:
         world = build_kitchen(work / "kitchens", ws)
         ecfg = EngineConfig(worlds=min(cfg.worlds, len(episodes)), device=cfg.device, width=wd, height=h,
-                            fps=cfg.fps, cameras=loaded.cameras, environment_state=env_names)
+                            fps=cfg.fps, cameras=loaded.cameras, environment_state=env_names,
+                            record_images=bool(loaded.cameras))
         engine = BatchEngine(world, panda_root=None, work_dir=work / f"engine_ws{ws}", config=ecfg, seed=ws)
         ev = Evaluator(engine, runner, cfg, world, out, quota)
         ev.observers.extend(observers)

@@ -1,4 +1,4 @@
-"""``python -m stages.policy.lerobot_train_run CURVE.csv [--deadline T] [--frame-cache DIR] -- <lerobot-train arguments>``.
+"""``python -m stages.policy.lerobot_train_run CURVE.csv [--deadline T] [--frame-cache DIR] [--cameras LIST] -- <args>``.
 
 Runs lerobot's own training entry point (``lerobot.scripts.lerobot_train:main``, what the
 ``lerobot-train`` command runs) with the given arguments, in this process, offline. One addition: a
@@ -7,6 +7,10 @@ row to ``CURVE.csv``: step, samples, epochs, loss and the policy's sub-losses, g
 learning rate, update and data-loading time per step [s], and the wall time since start [s].
 (lerobot's console line rounds the step to thousands, "step:2K"; the tracker has the exact values.)
 It is a filter of the root logger, which lerobot's ``init_logging`` keeps (it replaces handlers).
+
+``--cameras LIST`` (comma-separated camera names, empty for none): the policy takes only these of the
+dataset's RGB cameras (``observation.images.<camera>``) and the data loader decodes only their videos (no depth)
+(a policy of no camera takes the state and ``observation.environment_state``).
 
 ``--deadline T`` (Unix time [s]): the first step that ends at or after T is a checkpoint step
 (lerobot saves it and points ``checkpoints/last`` at it), and training stops before the next update;
@@ -69,6 +73,8 @@ class CurveFilter(logging.Filter):
 
 
 FRAME_CACHE_ENV = "AGENTWORLD_FRAME_CACHE"
+CAMERAS_ENV = "AGENTWORLD_TRAIN_CAMERAS"
+IMAGES = "observation.images."
 
 
 def _install_frame_cache() -> None:
@@ -81,7 +87,33 @@ def _install_frame_cache() -> None:
         install(os.environ[FRAME_CACHE_ENV])
 
 
+def _install_cameras() -> None:
+    """With ``AGENTWORLD_TRAIN_CAMERAS`` set (comma-separated, empty for none), the policy's features
+    and the data loader's video queries keep only those RGB cameras (run at import, as the frame cache)."""
+    if CAMERAS_ENV not in os.environ:
+        return
+    keep = {IMAGES + c for c in os.environ[CAMERAS_ENV].split(",") if c}
+    from lerobot.datasets.dataset_reader import DatasetReader
+    from lerobot.policies import factory
+
+    if getattr(DatasetReader._query_videos, "agentworld_cameras", False):
+        return
+    features_of, query = factory.dataset_to_policy_features, DatasetReader._query_videos
+
+    def dataset_to_policy_features(features):
+        return {k: v for k, v in features_of(features).items() if not k.startswith(IMAGES) or k in keep}
+
+    def _query_videos(self, query_timestamps, ep_idx):
+        wanted = {k: v for k, v in query_timestamps.items() if k in keep}  # depth: no policy input
+        return query(self, wanted, ep_idx) if wanted else {}
+
+    _query_videos.agentworld_cameras = True
+    factory.dataset_to_policy_features = dataset_to_policy_features
+    DatasetReader._query_videos = _query_videos
+
+
 _install_frame_cache()
+_install_cameras()
 
 
 class _Deadline(Exception):
@@ -111,16 +143,18 @@ def install_deadline(lerobot_train, deadline: float, stopped: Path) -> None:
 
 
 def main(argv: list[str]) -> int:
-    deadline = frames = None
-    while len(argv) >= 4 and argv[1] in ("--deadline", "--frame-cache"):
+    deadline = frames = cameras = None
+    while len(argv) >= 4 and argv[1] in ("--deadline", "--frame-cache", "--cameras"):
         if argv[1] == "--deadline":
             deadline = float(argv[2])
+        elif argv[1] == "--cameras":
+            cameras = argv[2]
         else:
             frames = Path(argv[2])
         argv = [argv[0], *argv[3:]]
     if len(argv) < 2 or argv[1] != "--":
         print("usage: python -m stages.policy.lerobot_train_run CURVE.csv [--deadline UNIX_TIME] "
-              "[--frame-cache DIR] -- "
+              "[--frame-cache DIR] [--cameras LIST] -- "
               "<lerobot-train arguments>", file=sys.stderr)
         return 2
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -136,6 +170,9 @@ def main(argv: list[str]) -> int:
     if frames is not None:  # here, and in the data loader's spawned workers (they import this module)
         os.environ[FRAME_CACHE_ENV] = str(frames)
         _install_frame_cache()
+    if cameras is not None:  # after the frame cache: the camera filter wraps its query
+        os.environ[CAMERAS_ENV] = cameras
+        _install_cameras()
     sys.argv = ["lerobot-train", *argv[2:]]
     try:
         lerobot_train.main()

@@ -53,7 +53,9 @@ class TrainConfig:
     None: lerobot's per-sample decoding; runs on one dataset may share it); init: a checkpoint
     (``pretrained_model`` folder, or a train-policy output folder) of the same policy whose weights
     the training starts from (lerobot's ``--policy.pretrained_path``: fresh optimizer and learning-rate
-    schedule, normalization from ``dataset``), so training can go on across machines."""
+    schedule, normalization from ``dataset``), so training can go on across machines; cameras: the
+    dataset's RGB cameras the policy takes (None: all; (): none, the policy then takes the state and
+    ``observation.environment_state``, which the dataset must have; only these videos are decoded)."""
 
     policy: str
     dataset: Path
@@ -71,6 +73,7 @@ class TrainConfig:
     max_seconds: float | None = None
     frame_cache: Path | None = None
     init: Path | None = None
+    cameras: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         problems = []
@@ -164,6 +167,23 @@ def env_state_normalization(dataset: Path, policy: str) -> dict[str, str] | None
     return {**mapping, "ENV": mapping["STATE"]}
 
 
+def check_cameras(cfg: TrainConfig) -> None:
+    """ValueError (one line, naming the dataset) when ``cfg.cameras`` names a camera the dataset has
+    not, or is empty on a dataset without ``observation.environment_state`` (no policy input but the
+    robot state: lerobot's ACT and Diffusion Policy need an image or the environment state)."""
+    if cfg.cameras is None:
+        return
+    feats = json.loads((Path(cfg.dataset) / "meta" / "info.json").read_text())["features"]
+    have = [k.removeprefix("observation.images.") for k, v in feats.items()
+            if k.startswith("observation.images.") and v.get("dtype") in ("video", "image")]
+    bad = [c for c in cfg.cameras if c not in have]
+    if bad:
+        raise ValueError(f"train-policy: {cfg.dataset}: no cameras {bad} (it has {have})")
+    if not cfg.cameras and "observation.environment_state" not in feats:
+        raise ValueError(f"train-policy: {cfg.dataset}: no camera and no observation.environment_state: "
+                         "the policy would see only the robot state")
+
+
 def checkpoint_of(out: Path) -> Path:
     """The evaluable checkpoint (``pretrained_model`` folder) of a train-policy output folder."""
     return Path(out) / CHECKPOINT
@@ -186,11 +206,14 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
         raise FileExistsError(f"train-policy: {out} exists (choose a new output folder)")
     if not (Path(cfg.dataset) / "meta" / "info.json").is_file():
         raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
+    check_cameras(cfg)
     out.mkdir(parents=True)
     args = lerobot_args(cfg)
     wrapper = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
     if cfg.frame_cache is not None:
         wrapper += ["--frame-cache", str(Path(cfg.frame_cache).resolve())]
+    if cfg.cameras is not None:
+        wrapper += ["--cameras", ",".join(cfg.cameras)]
     cmd = [sys.executable, "-m", "stages.policy.lerobot_train_run", str(out / "curve.csv"), *wrapper, "--", *args]
     env = dict(os.environ, HF_HUB_OFFLINE="1", TQDM_DISABLE="1", HF_DATASETS_DISABLE_PROGRESS_BARS="1")
     repo = str(Path(__file__).resolve().parents[2])

@@ -169,6 +169,8 @@ def train(a) -> int:
     runs.mkdir(parents=True, exist_ok=True)
     extra = {"act": [f"--lerobot-arg={x}" for x in a.act_arg],
              "diffusion": [f"--lerobot-arg={x}" for x in a.diffusion_arg]}
+    for args in extra.values() if getattr(a, "cameras", None) is not None else ():
+        args += ["--cameras", a.cameras]  # train-policy's: the cameras the policies take ("none": state only)
     t0 = time.perf_counter()
     if a.probe_steps == 0:  # no probe: every run trains until the budget's end, then saves
         cap, wall = a.max_steps or 100_000, max(10.0, a.seconds - 30.0)  # 30 s: the checkpoint, exit
@@ -486,7 +488,7 @@ def run_all(a) -> int:
             targs = argparse.Namespace(data=data, runs=runs, seconds=train_s, probe_steps=a.probe_steps,
                                        max_steps=a.max_steps, act_arg=a.act_arg, diffusion_arg=a.diffusion_arg,
                                        device=a.device, policies=tuple(policies), num_workers=a.num_workers,
-                                       batch_size=a.batch_size, place=a.place)
+                                       batch_size=a.batch_size, place=a.place, cameras=a.cameras)
             rc = train(targs)
             status("train", exit=rc, seconds=round(time.perf_counter() - t), budget_s=round(train_s),
                    policies=",".join(policies))
@@ -547,6 +549,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="samples per step, N or POLICY=N (repeatable; default train-policy's: 16)")
     t.add_argument("--place", action="append", default=None,
                    help="POLICY=GPU[,GPU...]: the GPUs that policy's runs share (default: round robin over all)")
+    t.add_argument("--cameras", default=None, help="the cameras the policies take, comma-separated or none")
     t.add_argument("--num-workers", type=int, default=None,
                    help="data loader workers per run (default: the cores left after one per run, shared)")
     al = sub.add_parser("all", help="data job, training, eval and table under one wall budget; one tgz in --out")
@@ -572,7 +575,7 @@ def main(argv: list[str] | None = None) -> int:
                      ("--scenes", {"default": "101-105"}), ("--seeds", {"default": "1000000-1000009"}),
                      ("--max-seconds", {"type": float, "default": None}),
                      ("--limit-factor", {"type": float, "default": 1.5}), ("--jobs", {"type": int, "default": 16}),
-                     ("--videos", {"type": int, "default": 1}),
+                     ("--videos", {"type": int, "default": 1}), ("--cameras", {"default": None}),
                      ("--device", {"choices": ("cuda", "cpu"), "default": "cuda"})):
         al.add_argument(name, **kw)
     a = p.parse_args(argv)
