@@ -379,3 +379,49 @@ def test_open_drawer_state_is_the_simulated_handle_and_opening(kitchen_catalog, 
         want = [*_base_frame(handle, b.x, b.y, b.theta), q - part.closed]
         np.testing.assert_allclose(frame.environment_state, want, atol=1e-4, err_msg=f"frame {k}")
     assert frames[-1].environment_state[3] > 0.75 * part.travel  # opened, as the predicate says
+
+
+def test_a_policy_of_no_camera_trains_on_the_states_and_evaluates_without_renders(env_dataset, kitchen_catalog,
+                                                                                  tmp_path):
+    """``cameras=()``: the checkpoint's inputs are the robot state and the environment state only, the
+    data loader decodes no video (the frame cache stays empty) and the evaluator renders nothing."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.policy.evaluate import EvalConfig, evaluate
+    from stages.policy.train import TrainConfig, train_policy
+
+    cache = tmp_path / "frames"
+    res = train_policy(TrainConfig(policy="act", dataset=env_dataset[0], out=tmp_path / "run", steps=2, batch_size=2,
+                                   chunk_size=10, device="cpu", num_workers=1, log_freq=1, extra_args=ACT_TINY,
+                                   frame_cache=cache, cameras=()), timeout=600)
+    cfg = json.loads((res.checkpoint / "config.json").read_text())
+    assert set(cfg["input_features"]) == {"observation.state", "observation.environment_state"}
+    assert res.steps == 2 and math.isfinite(res.last_loss)
+    assert not cache.exists() or not any(cache.iterdir())
+    work = link_kitchen_catalog(kitchen_catalog, tmp_path / "work" / "kitchens").parent
+    frames = []
+    rep = evaluate(EvalConfig(checkpoint=res.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7,), worlds=1,
+                              max_seconds=0.5, videos=1), tmp_path / "eval", work_dir=work,
+                   frame_listeners=[lambda w, frame: frames.append(frame)]).report
+    assert rep["overall"]["episodes"] == 1 and rep["policy"]["cameras"] == []
+    assert len(frames) == 15 and not any(f.rgb for f in frames)  # no image rendered for any frame
+    assert frames[-1].environment_state.shape == (6,) and not (tmp_path / "eval" / "videos").exists()
+
+
+def test_train_policy_refuses_unknown_cameras_and_a_camera_less_policy_without_environment_state(env_dataset,
+                                                                                                 tmp_path):
+    from stages.policy.train import TrainConfig, train_policy
+
+    def cfg(dataset, cameras):
+        return TrainConfig(policy="act", dataset=dataset, out=tmp_path / "never", device="cpu", cameras=cameras)
+
+    with pytest.raises(ValueError, match=r"no cameras \['nose'\]"):
+        train_policy(cfg(env_dataset[0], ("wrist", "nose")))
+    plain = tmp_path / "plain"
+    (plain / "meta").mkdir(parents=True)
+    info = json.loads((Path(env_dataset[0]) / "meta" / "info.json").read_text())
+    del info["features"]["observation.environment_state"]
+    (plain / "meta" / "info.json").write_text(json.dumps(info))
+    with pytest.raises(ValueError, match="no camera and no observation.environment_state"):
+        train_policy(cfg(plain, ()))
+    assert not (tmp_path / "never").exists()
