@@ -22,8 +22,9 @@ An episode ends when the task's success predicate holds (checked every ``check_s
 time limit (the task's, or ``max_seconds``); its result is the predicate's (success, or the failure
 reason). Outputs in ``out``: ``eval.json`` (per task and family: episodes, successes, rate, failure
 reasons; every episode; the held-out check; timings) and ``videos/<task>/<scene>_seed<seed>.mp4``
-(the policy's cameras side by side, for the first ``videos`` episodes of each task; a policy of no
-camera, which takes the state and the environment state, gets no render and no video).
+(the policy's cameras side by side, for the first ``videos`` episodes of each task; for a policy of no
+camera, which takes the state and the environment state, the third-person camera, rendered only when
+``videos`` > 0: with 0 such an evaluation renders nothing).
 
 Held out: the checkpoint's training dataset (its ``train_config.json``) lists its episodes' scene
 ids, tasks and seeds (``meta/episodes``); an evaluation episode whose kitchen or (task, seed) is
@@ -208,12 +209,12 @@ class Evaluator:
 
     def _begin(self, w: int, ticket):
         ep = self._episodes[w]
-        if self.video_quota[ticket.task] < self.cfg.videos and self.runner.loaded.cameras:
+        if self.video_quota[ticket.task] < self.cfg.videos and self.engine.config.record_images:
             from .video import RolloutVideo
 
             self.video_quota[ticket.task] += 1
             path = self.out / "videos" / ticket.task / f"{self.world.scene_id}_seed{ticket.seed}.mp4"
-            ep.video = RolloutVideo(path, fps=self.cfg.fps, cameras=self.runner.loaded.cameras)
+            ep.video = RolloutVideo(path, fps=self.cfg.fps, cameras=self.engine.config.cameras)
 
         def sink(frame) -> None:
             ep.frames += 1
@@ -352,7 +353,8 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     sizes = {s[1:] for s in loaded.image_shapes.values()}
     if len(sizes) > 1:
         raise ValueError(f"eval: the policy's cameras differ in size {sorted(sizes)}; the engine renders one size")
-    (h, wd), = sizes or {(96, 128)}  # no camera: nothing is rendered, the size is unused
+    (h, wd), = sizes or {(96, 128)}  # no camera: the videos' third-person view at the recorded size
+    cams = loaded.cameras or (("third_person",) if cfg.videos else ())  # rendered: the policy's, or the videos'
     env_names = env_layout(cfg, loaded)
     runner = BatchedRunner(loaded)
     episodes = [(t, int(s)) for t in cfg.tasks for s in cfg.seeds]
@@ -362,8 +364,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     for ws in cfg.scenes:
         world = build_kitchen(work / "kitchens", ws)
         ecfg = EngineConfig(worlds=min(cfg.worlds, len(episodes)), device=cfg.device, width=wd, height=h,
-                            fps=cfg.fps, cameras=loaded.cameras, environment_state=env_names,
-                            record_images=bool(loaded.cameras))
+                            fps=cfg.fps, cameras=cams, environment_state=env_names, record_images=bool(cams))
         engine = BatchEngine(world, panda_root=None, work_dir=work / f"engine_ws{ws}", config=ecfg, seed=ws)
         ev = Evaluator(engine, runner, cfg, world, out, quota)
         ev.observers.extend(observers)

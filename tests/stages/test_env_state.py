@@ -401,11 +401,19 @@ def test_a_policy_of_no_camera_trains_on_the_states_and_evaluates_without_render
     work = link_kitchen_catalog(kitchen_catalog, tmp_path / "work" / "kitchens").parent
     frames = []
     rep = evaluate(EvalConfig(checkpoint=res.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7,), worlds=1,
-                              max_seconds=0.5, videos=1), tmp_path / "eval", work_dir=work,
+                              max_seconds=0.5, videos=0), tmp_path / "eval", work_dir=work,
                    frame_listeners=[lambda w, frame: frames.append(frame)]).report
     assert rep["overall"]["episodes"] == 1 and rep["policy"]["cameras"] == []
     assert len(frames) == 15 and not any(f.rgb for f in frames)  # no image rendered for any frame
     assert frames[-1].environment_state.shape == (6,) and not (tmp_path / "eval" / "videos").exists()
+    # with a video asked for, the episode is filmed by the third-person camera (the policy still sees none)
+    seen = []
+    rep = evaluate(EvalConfig(checkpoint=res.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7,), worlds=1,
+                              max_seconds=0.5, videos=1), tmp_path / "eval_video", work_dir=work,
+                   observers=[lambda w, k, obs: seen.append(sorted(obs))]).report
+    video = Path(rep["episodes"][0]["video"])
+    assert video.is_file() and video.stat().st_size > 0
+    assert seen and all(keys == ["observation.environment_state", "observation.state"] for keys in seen)
 
 
 def test_train_policy_refuses_unknown_cameras_and_a_camera_less_policy_without_environment_state(env_dataset,
