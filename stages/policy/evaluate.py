@@ -353,7 +353,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     sizes = {s[1:] for s in loaded.image_shapes.values()}
     if len(sizes) > 1:
         raise ValueError(f"eval: the policy's cameras differ in size {sorted(sizes)}; the engine renders one size")
-    (h, wd), = sizes or {(96, 128)}  # no camera: the videos' third-person view at the recorded size
+    size = dict(zip(("height", "width"), *sizes)) if sizes else {}  # no camera: the engine's default (videos)
     cams = loaded.cameras or (("third_person",) if cfg.videos else ())  # rendered: the policy's, or the videos'
     env_names = env_layout(cfg, loaded)
     runner = BatchedRunner(loaded)
@@ -363,7 +363,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     engine_stats = []
     for ws in cfg.scenes:
         world = build_kitchen(work / "kitchens", ws)
-        ecfg = EngineConfig(worlds=min(cfg.worlds, len(episodes)), device=cfg.device, width=wd, height=h,
+        ecfg = EngineConfig(worlds=min(cfg.worlds, len(episodes)), device=cfg.device, **size,
                             fps=cfg.fps, cameras=cams, environment_state=env_names, record_images=bool(cams))
         engine = BatchEngine(world, panda_root=None, work_dir=work / f"engine_ws{ws}", config=ecfg, seed=ws)
         ev = Evaluator(engine, runner, cfg, world, out, quota)
