@@ -19,8 +19,12 @@ if [ ! -d "$HOME/site" ]; then
   (cd "$HOME/stash" && cat part0* | tar -x && python3 -m pip install -q --no-index --no-deps --no-compile \
      --no-cache-dir --target "$HOME/site" wheels/*.whl) >/dev/null 2>&1 || { _aw_fail "installing the staged wheels failed"; return 3; }
 fi
-if [ -d .whl ] && [ ! -f "$HOME/site/.aw_whl" ]; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$HOME/site" .whl/*.whl \
+# .whl/ and .loco/erd may instead be staged once on the machine ($HOME/stash/whl, $HOME/erd: one call each,
+# `cp -r .whl $HOME/stash/whl`, `cp -r .loco/erd $HOME/erd`), so later calls need not carry them beside a larger tree.
+_aw_whl=.whl; [ -d "$_aw_whl" ] || _aw_whl="$HOME/stash/whl"
+_aw_erd="$PWD/.loco/erd"; [ -d "$_aw_erd" ] || _aw_erd="$HOME/erd"
+if [ -d "$_aw_whl" ] && [ ! -f "$HOME/site/.aw_whl" ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$HOME/site" "$_aw_whl"/*.whl \
     >/dev/null 2>&1 && touch "$HOME/site/.aw_whl" || { _aw_fail "installing .whl/ failed"; return 3; }
 fi
 if ! python3 -c "import av" 2>/dev/null && [ -d .whl_av ]; then
@@ -28,7 +32,7 @@ if ! python3 -c "import av" 2>/dev/null && [ -d .whl_av ]; then
     >/dev/null 2>&1 || { _aw_fail "installing .whl_av/ failed"; return 3; }
 fi
 export PYTHONPATH="$HOME/site:$HOME/site/cmeel.prefix/lib/python3.12/site-packages:$PWD${PYTHONPATH:+:$PYTHONPATH}"
-[ -d .loco/erd ] && export PYTHONPATH="$PYTHONPATH:$PWD/.loco/erd"
+[ -d "$_aw_erd" ] && export PYTHONPATH="$PYTHONPATH:$_aw_erd"
 # The third-party robots the hands / dual-arm tasks read (../shared/assets is not on the GPU machine): carry
 # .carry_assets (tar -C ../shared/assets -cf .carry_assets/robots.tar robots/<the robots> README.md) once.
 if [ -f .carry_assets/robots.tar ] && [ ! -d "$HOME/shared_assets/robots" ]; then
@@ -37,6 +41,6 @@ if [ -f .carry_assets/robots.tar ] && [ ! -d "$HOME/shared_assets/robots" ]; the
 fi
 [ -d "$HOME/shared_assets/robots" ] && export AGENTWORLD_SHARED_ASSETS="$HOME/shared_assets"
 # greenlet (the engine's expert programs) is not in the staged wheels: carried in .loco/erd, copied once.
-[ -d .loco/erd/greenlet ] && [ ! -d "$HOME/site/greenlet" ] && cp -r .loco/erd/greenlet "$HOME/site/"
+[ -d "$_aw_erd/greenlet" ] && [ ! -d "$HOME/site/greenlet" ] && cp -r "$_aw_erd/greenlet" "$HOME/site/"
 export WARP_CACHE_PATH="$HOME/stash/warp-cache" PYTHONUNBUFFERED=1
 python3 -c "import newton, warp, lerobot, pydantic" 2>/dev/null || { _aw_fail "newton/warp/lerobot/pydantic do not import"; return 3; }
