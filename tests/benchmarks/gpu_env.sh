@@ -40,7 +40,7 @@ if [ -f .carry_assets/robots.tar ] && [ ! -d "$HOME/shared_assets/robots" ]; the
     || _aw_fail "unpacking .carry_assets/robots.tar failed"
 fi
 [ -d "$HOME/shared_assets/robots" ] && export AGENTWORLD_SHARED_ASSETS="$HOME/shared_assets"
-# greenlet (the engine's expert programs) is not in the staged wheels: carried in .loco/erd, copied once.
+# greenlet (the engine's expert programs) is not in the staged wheels: in .loco/erd (or $HOME/erd), copied once.
 [ -d "$_aw_erd/greenlet" ] && [ ! -d "$HOME/site/greenlet" ] && cp -r "$_aw_erd/greenlet" "$HOME/site/"
 export WARP_CACHE_PATH="$HOME/stash/warp-cache" PYTHONUNBUFFERED=1
 python3 -c "import newton, warp, lerobot, pydantic" 2>/dev/null || { _aw_fail "newton/warp/lerobot/pydantic do not import"; return 3; }
