@@ -64,13 +64,21 @@ def train_main(argv: list[str]) -> int:
                    help="start from this checkpoint's weights (same policy; pretrained_model or train-policy folder)")
     p.add_argument("--lerobot-arg", action="append", default=[], metavar="--KEY=VALUE",
                    help="a further lerobot-train argument (repeatable), e.g. --lerobot-arg=--policy.dim_model=256")
+    p.add_argument("--lerobot-frames", action="store_true",
+                   help="read samples through lerobot's own dataset reads (default: from columns held in memory, "
+                        "the same samples, faster)")
+    p.add_argument("--state-drop", default="", metavar="LIST",
+                   help="observation.state entries the policy does not take, comma-separated (e.g. "
+                        "base_x,base_y,base_theta: the base pose in the world); trains on a state view in OUT/dataset")
     a = p.parse_args(argv)
     try:
         cfg = TrainConfig(policy=a.policy, dataset=a.dataset, out=a.out, steps=a.steps, batch_size=a.batch_size,
                           chunk_size=a.chunk_size, temporal_ensemble=None if a.no_ensemble else 0.01,
                           device=a.device, seed=a.seed, num_workers=a.num_workers, log_freq=a.log_freq,
                           save_freq=a.save_freq, extra_args=tuple(a.lerobot_arg), max_seconds=a.max_seconds,
-                          frame_cache=a.frame_cache, init=a.init, cameras=camera_list(a.cameras))
+                          frame_cache=a.frame_cache, init=a.init, cameras=camera_list(a.cameras),
+                          state_drop=tuple(n.strip() for n in a.state_drop.split(",") if n.strip()),
+                          memory_frames=not a.lerobot_frames)
         print(f"train-policy: {a.policy} on {a.dataset} ({a.steps} steps, {a.device}); log {a.out / 'train.log'}",
               flush=True)
         res = train_policy(cfg)
@@ -121,13 +129,19 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--allow-seen", action="store_true", help="run kitchens / seeds the training data holds")
     p.add_argument("--out", type=Path, required=True, help="output folder: eval.json, videos/, eval.log")
     p.add_argument("--work", type=Path, default=None, help="where kitchens are built (default OUT/.work; reused)")
+    p.add_argument("--action-steps", type=int, default=None,
+                   help="actions run from each predicted chunk (default: the checkpoint's; for ACT it turns "
+                        "temporal ensembling off)")
+    p.add_argument("--ensemble-coeff", type=float, default=None,
+                   help="ACT's temporal ensembling coefficient (default: the checkpoint's)")
     p.add_argument("--verbose", action="store_true")
     a = p.parse_args(argv)
     ckpt = resolve_checkpoint(a.checkpoint)
     try:
         cfg = EvalConfig(checkpoint=ckpt, tasks=tuple(t for t in a.tasks.split(",") if t), scenes=_ints(a.scenes),
                          seeds=_ints(a.seeds), worlds=a.worlds, device=a.device, max_seconds=a.max_seconds,
-                         videos=a.videos, training_dataset=a.training_dataset, allow_seen=a.allow_seen)
+                         videos=a.videos, training_dataset=a.training_dataset, allow_seen=a.allow_seen,
+                         action_steps=a.action_steps, ensemble_coeff=a.ensemble_coeff)
     except ValueError as e:
         print(f"agentworld eval: {e}", file=sys.stderr)
         return 2

@@ -54,7 +54,10 @@ class EvalConfig:
     max_seconds: episode time limit [s] (None: the task's); check_seconds: how often the success
     predicate is checked [s]; videos: rollout videos per task; training_dataset: the dataset the
     policy was trained on (None: from the checkpoint's train_config.json); allow_seen: run episodes
-    whose kitchen or (task, seed) the training dataset holds."""
+    whose kitchen or (task, seed) the training dataset holds; action_steps: actions run from each
+    predicted chunk (None: the checkpoint's ``n_action_steps``; for ACT a value turns temporal
+    ensembling off); ensemble_coeff: ACT's temporal ensembling coefficient (None: the checkpoint's;
+    it needs one action per chunk). The last two are inference settings: the weights are the same."""
 
     checkpoint: Path
     tasks: tuple[str, ...]
@@ -68,6 +71,8 @@ class EvalConfig:
     videos: int = 2
     training_dataset: Path | None = None
     allow_seen: bool = False
+    action_steps: int | None = None
+    ensemble_coeff: float | None = None
 
     def __post_init__(self) -> None:
         from stages.demos.tasks import TASKS
@@ -82,6 +87,12 @@ class EvalConfig:
             problems.append("worlds and fps must be >= 1 and videos >= 0")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds) and self.max_seconds > 0):
             problems.append(f"max_seconds must be a positive number, got {self.max_seconds}")
+        if self.action_steps is not None and self.action_steps < 1:
+            problems.append(f"action_steps must be >= 1, got {self.action_steps}")
+        if self.ensemble_coeff is not None and not math.isfinite(self.ensemble_coeff):
+            problems.append(f"ensemble_coeff must be a finite number, got {self.ensemble_coeff}")
+        if self.ensemble_coeff is not None and self.action_steps not in (None, 1):
+            problems.append("temporal ensembling runs one action per chunk: action_steps must be 1 with ensemble_coeff")
         if problems:
             raise ValueError("eval: " + "; ".join(problems))
 
@@ -177,6 +188,7 @@ class Evaluator:
         self._taken: set[int] = set()  # worlds that took their action at this step
         self._queues: dict[int, list] = {}
         self._start: dict[int, int] = {}  # each acting world's episode start [global step]
+        self._state_cols = state_selection(engine.config.dataset_spec().state_names(), runner.loaded, cfg.checkpoint)
 
     # -- the engine's callbacks ----------------------------------------------------------------
     def run(self, episodes: list[tuple[str, int]]) -> list[EpisodeRecord]:
@@ -293,13 +305,16 @@ class Evaluator:
 
     def observe(self, worlds: list[int]) -> dict[int, dict[str, np.ndarray]]:
         """The policy's observations of ``worlds`` at this frame step: ``observation.state``
-        (arm q, end-effector pose in the base frame, base pose: the recorder's), the RGB image
+        (arm q, end-effector pose in the base frame, base pose: the recorder's; of a policy trained
+        on a state view, its entries of it: :func:`state_selection`), the RGB image
         of each policy camera (H, W, 3) uint8 and, if the policy takes it,
         ``observation.environment_state`` (D,) float32 (the recorder's)."""
         e = self.engine
         q, _, base = e.capture.robot_state(worlds)
         ee = e.arm_fk.pose7(q)  # as the recorder writes it
         state = np.concatenate([q, ee, base], axis=1).astype(np.float32)
+        if self._state_cols is not None:  # a policy of a state view takes these entries
+            state = state[:, self._state_cols]
         out = {w: {"observation.state": state[j]} for j, w in enumerate(worlds)}
         if self.runner.loaded.env_state_dim and worlds:  # the recorder's function on the same state read
             from stages.engine.env_state import ENV_STATE_KEY, engine_environment_state
@@ -350,6 +365,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     work = Path(work_dir) if work_dir is not None else out / ".work"
     held = held_out_check(cfg)
     loaded = load_policy(cfg.checkpoint, cfg.device)
+    inference_settings(loaded, cfg)
     sizes = {s[1:] for s in loaded.image_shapes.values()}
     if len(sizes) > 1:
         raise ValueError(f"eval: the policy's cameras differ in size {sorted(sizes)}; the engine renders one size")
@@ -375,6 +391,40 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
     report = summarize(cfg, records, held, loaded, runner, time.perf_counter() - t0, engine_stats)
     (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
     return EvalResult(report=report, records=records)
+
+
+def inference_settings(loaded, cfg: EvalConfig) -> None:
+    """Apply ``cfg``'s chunk execution settings to the loaded policy's config (the report reads
+    them back); ValueError (one line) when the policy's chunk is shorter than ``action_steps``."""
+    pc = loaded.policy.config
+    horizon = getattr(pc, "chunk_size", None) or getattr(pc, "horizon", None)
+    if cfg.action_steps is not None and horizon is not None and cfg.action_steps > horizon:
+        raise ValueError(f"eval: {cfg.checkpoint}: action_steps {cfg.action_steps} > the policy's chunk of {horizon}")
+    if loaded.type == "act":
+        if cfg.ensemble_coeff is not None:
+            pc.temporal_ensemble_coeff, pc.n_action_steps = float(cfg.ensemble_coeff), 1
+        elif cfg.action_steps is not None:
+            pc.temporal_ensemble_coeff, pc.n_action_steps = None, int(cfg.action_steps)
+    elif cfg.ensemble_coeff is not None:
+        raise ValueError(f"eval: {cfg.checkpoint}: temporal ensembling is ACT's; this is a {loaded.type} policy")
+    elif cfg.action_steps is not None:
+        pc.n_action_steps = int(cfg.action_steps)
+
+
+def state_selection(recorded: list[str], loaded, checkpoint) -> list[int] | None:
+    """Indices of the policy's state entries in the recorder's state ``recorded`` (None: the whole
+    state); ValueError (one line, naming the checkpoint) when the policy takes an entry the
+    recorder has not, or a state of another size without its names."""
+    from stages.dataset.view import state_columns
+
+    if loaded.state_names is None:
+        if loaded.state_dim != len(recorded):
+            raise ValueError(f"eval: {checkpoint}: the policy takes a state of {loaded.state_dim} entries, the robot's "
+                             f"has {len(recorded)} and the checkpoint names none (no agentworld_policy.json)")
+        return None
+    if list(loaded.state_names) == list(recorded):
+        return None
+    return state_columns(recorded, loaded.state_names, f"eval: {checkpoint}")
 
 
 def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:

@@ -37,6 +37,42 @@ STATE = "observation.state"
 ENV_STATE = "observation.environment_state"  # optional: the task objects' state (stages.engine.env_state)
 IMAGES = "observation.images"  # lerobot's stacked-camera key (OBS_IMAGES)
 SUPPORTED = ("act", "diffusion")
+POLICY_INFO = "agentworld_policy.json"
+"""beside a checkpoint's config.json: ``{"state": [names of observation.state's entries],
+"environment_state": [names] or []}`` from the training dataset (written by train-policy)."""
+
+
+def write_policy_info(checkpoint: Path, dataset: Path) -> Path:
+    """Write :data:`POLICY_INFO` into the ``pretrained_model`` folder ``checkpoint`` from the
+    training ``dataset``'s feature names (``meta/info.json``)."""
+    import json
+
+    feats = json.loads((Path(dataset) / "meta" / "info.json").read_text())["features"]
+
+    def names(key: str) -> list[str]:
+        n = feats.get(key, {}).get("names") or []
+        return list(next(iter(n.values()), []) if isinstance(n, dict) else n)
+
+    path = Path(checkpoint) / POLICY_INFO
+    path.write_text(json.dumps({"state": names(STATE), "environment_state": names(ENV_STATE)}, indent=2) + "\n")
+    return path
+
+
+def read_policy_info(checkpoint: Path, state_dim: int) -> tuple[str, ...] | None:
+    """The state names of :data:`POLICY_INFO` in ``checkpoint`` (None without the file); ValueError
+    when they do not match the policy's state size."""
+    import json
+
+    path = Path(checkpoint) / POLICY_INFO
+    if not path.is_file():
+        return None
+    try:
+        names = tuple(str(n) for n in json.loads(path.read_text())["state"])
+    except (KeyError, TypeError, json.JSONDecodeError) as e:
+        raise ValueError(f"{path}: unreadable ({e})") from None
+    if names and len(names) != state_dim:
+        raise ValueError(f"{path}: {len(names)} state names for a policy state of {state_dim} entries")
+    return names or None
 
 
 @dataclass(eq=False)
@@ -55,6 +91,10 @@ class LoadedPolicy:
     action_dim: int
     env_state_dim: int = 0
     """size of the policy's ``observation.environment_state`` input (0: it takes none)"""
+    state_names: tuple[str, ...] | None = None
+    """names of the policy's ``observation.state`` entries (its checkpoint's :data:`POLICY_INFO`; a
+    policy trained on a state view takes fewer entries than the recorder writes); None: not
+    recorded (checkpoints before it: the recorder's whole state)"""
 
     @property
     def cameras(self) -> tuple[str, ...]:
@@ -90,7 +130,8 @@ def load_policy(checkpoint: Path, device: str = "cpu") -> LoadedPolicy:
     return LoadedPolicy(policy=policy, preprocessor=pre, postprocessor=post, type=cfg.type, device=device,
                         image_shapes=shapes, state_dim=int(state.shape[0]),
                         action_dim=int(policy.config.action_feature.shape[0]),
-                        env_state_dim=int(env.shape[0]) if (env := policy.config.env_state_feature) else 0)
+                        env_state_dim=int(env.shape[0]) if (env := policy.config.env_state_feature) else 0,
+                        state_names=read_policy_info(path, int(state.shape[0])))
 
 
 def to_policy_batch(obs: list[dict[str, np.ndarray]], image_keys) -> dict[str, Any]:

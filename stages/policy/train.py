@@ -55,7 +55,13 @@ class TrainConfig:
     the training starts from (lerobot's ``--policy.pretrained_path``: fresh optimizer and learning-rate
     schedule, normalization from ``dataset``), so training can go on across machines; cameras: the
     dataset's RGB cameras the policy takes (None: all; (): none, the policy then takes the state and
-    ``observation.environment_state``, which the dataset must have; only these videos are decoded)."""
+    ``observation.environment_state``, which the dataset must have; only these videos are decoded);
+    state_drop: ``observation.state`` entries the policy does not take (``base_x,base_y,base_theta``:
+    the base pose in the world), trained on a state view of the dataset written to ``OUT/dataset``
+    (:mod:`stages.dataset.view`); every checkpoint records its state names (:data:`~stages.policy.runner.POLICY_INFO`),
+    which the evaluator feeds it; memory_frames: the data loader reads samples from the dataset's
+    columns held in memory (:mod:`stages.policy.memory_frames`: the same samples, ~25x fewer CPU
+    seconds each; False: lerobot's reads)."""
 
     policy: str
     dataset: Path
@@ -74,6 +80,8 @@ class TrainConfig:
     frame_cache: Path | None = None
     init: Path | None = None
     cameras: tuple[str, ...] | None = None
+    state_drop: tuple[str, ...] = ()
+    memory_frames: bool = True
 
     def __post_init__(self) -> None:
         problems = []
@@ -207,9 +215,27 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
     if not (Path(cfg.dataset) / "meta" / "info.json").is_file():
         raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
     check_cameras(cfg)
+    if cfg.state_drop:  # checked before the output folder is made
+        from stages.dataset.view import state_names
+
+        have = state_names(Path(cfg.dataset))
+        bad = [n for n in cfg.state_drop if n not in have]
+        if bad or len(set(cfg.state_drop)) >= len(have):
+            raise ValueError(f"train-policy: {cfg.dataset}: cannot drop state entries {list(cfg.state_drop)} "
+                             f"(it has {have})")
     out.mkdir(parents=True)
+    source = Path(cfg.dataset)
+    if cfg.state_drop:
+        from dataclasses import replace
+
+        from stages.dataset.view import write_state_view
+
+        write_state_view(source, out / "dataset", cfg.state_drop)
+        cfg = replace(cfg, dataset=out / "dataset")
     args = lerobot_args(cfg)
-    wrapper = [] if cfg.max_seconds is None else ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
+    wrapper = ["--memory-frames"] if cfg.memory_frames else []
+    if cfg.max_seconds is not None:
+        wrapper += ["--deadline", f"{time.time() + cfg.max_seconds:.3f}"]
     if cfg.frame_cache is not None:
         wrapper += ["--frame-cache", str(Path(cfg.frame_cache).resolve())]
     if cfg.cameras is not None:
@@ -227,6 +253,10 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
     ckpt = checkpoint_of(out)
     if not (ckpt / "model.safetensors").is_file():
         raise RuntimeError(f"train-policy: no checkpoint in {ckpt}; see {out / 'train.log'}")
+    from .runner import write_policy_info
+
+    for model in sorted((out / "lerobot" / "checkpoints").glob("*/pretrained_model")):
+        write_policy_info(model, Path(cfg.dataset))
     rows = list(csv.DictReader((out / "curve.csv").open())) if (out / "curve.csv").is_file() else []
     from .curve import plot_curve
 
@@ -237,6 +267,7 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
     res = TrainResult(checkpoint=ckpt, curve_csv=out / "curve.csv", curve_png=png, wall_seconds=round(wall, 2),
                       steps=steps, last_loss=last, command=("lerobot-train", *args), stopped=stop.is_file())
     summary = {"config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+               "source_dataset": str(source),
                "checkpoint": str(ckpt), "wall_seconds": res.wall_seconds, "steps": steps,
                "steps_planned": cfg.steps, "stopped_at_max_seconds": res.stopped,
                "curve_points": len(rows), "last_loss": last, "command": list(res.command)}

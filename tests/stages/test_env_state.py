@@ -433,3 +433,108 @@ def test_train_policy_refuses_unknown_cameras_and_a_camera_less_policy_without_e
     with pytest.raises(ValueError, match="no camera and no observation.environment_state"):
         train_policy(cfg(plain, ()))
     assert not (tmp_path / "never").exists()
+
+
+BASE_POSE = ("base_x", "base_y", "base_theta")
+
+
+def test_state_view_keeps_the_episodes_and_cuts_the_state(env_dataset, tmp_path):
+    """:func:`stages.dataset.view.write_state_view`: lerobot loads the view; its state is the source's
+    kept columns (values, names, statistics), every other column is the source's; bad names are refused
+    with nothing written."""
+    import pandas as pd
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from stages.dataset.view import state_names, write_state_view
+
+    src = Path(env_dataset[0])
+    names = state_names(src)
+    kept = write_state_view(src, tmp_path / "view", BASE_POSE)
+    assert kept == [n for n in names if n not in BASE_POSE] and len(kept) == len(names) - 3
+    cols = [names.index(n) for n in kept]
+    ds = LeRobotDataset("agentworld/view", root=tmp_path / "view")
+    a = pd.concat(pd.read_parquet(f) for f in sorted((src / "data").rglob("*.parquet")))
+    assert len(ds) == len(a) and tuple(ds[3]["observation.state"].shape) == (len(kept),)
+    np.testing.assert_allclose(ds[3]["observation.state"].numpy(), np.asarray(a["observation.state"].iloc[3])[cols])
+    np.testing.assert_array_equal(ds[3]["action"].numpy(), np.asarray(a["action"].iloc[3], np.float32))
+    src_stats = json.loads((src / "meta" / "stats.json").read_text())["observation.state"]
+    assert np.allclose(ds.meta.stats["observation.state"]["mean"], np.asarray(src_stats["mean"])[cols])
+    meta = json.loads((tmp_path / "view" / "meta" / "agentworld.json").read_text())["state_view"]
+    assert meta["source_state"] == names and meta["state"] == kept
+    with pytest.raises(ValueError, match="no state entries \\['base_z'\\]"):
+        write_state_view(src, tmp_path / "bad", ("base_z",))
+    with pytest.raises(FileExistsError):
+        write_state_view(src, tmp_path / "view", BASE_POSE)
+    assert not (tmp_path / "bad").exists() and not list(tmp_path.glob(".*partial"))
+
+
+def test_a_policy_of_a_state_view_is_fed_its_entries_in_closed_loop(env_dataset, kitchen_catalog, tmp_path):
+    """train-policy ``state_drop``: the checkpoint takes the kept entries and names them
+    (agentworld_policy.json); the evaluator gives it exactly those entries of the recorded state."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.policy.evaluate import EvalConfig, evaluate
+    from stages.policy.runner import POLICY_INFO
+    from stages.policy.train import TrainConfig, train_policy
+
+    res = train_policy(TrainConfig(policy="act", dataset=env_dataset[0], out=tmp_path / "run", steps=2, batch_size=2,
+                                   chunk_size=10, device="cpu", num_workers=0, log_freq=1, extra_args=ACT_TINY,
+                                   cameras=(), state_drop=BASE_POSE), timeout=600)
+    cfg = json.loads((res.checkpoint / "config.json").read_text())
+    info = json.loads((res.checkpoint / POLICY_INFO).read_text())
+    assert cfg["input_features"]["observation.state"]["shape"] == [14] and len(info["state"]) == 14
+    assert not set(BASE_POSE) & set(info["state"]) and info["environment_state"] == list(PUSH_NAMES)
+    work = link_kitchen_catalog(kitchen_catalog, tmp_path / "work" / "kitchens").parent
+    seen, recorded = {}, []
+    rep = evaluate(EvalConfig(checkpoint=res.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7,), worlds=1,
+                              max_seconds=0.5, videos=0), tmp_path / "eval", work_dir=work,
+                   observers=[lambda w, k, obs: seen.__setitem__(k, obs)],
+                   frame_listeners=[lambda w, frame: recorded.append(frame)]).report
+    assert rep["overall"]["episodes"] == 1 and len(recorded) == 15
+    for k, frame in enumerate(recorded):
+        np.testing.assert_array_equal(seen[k]["observation.state"], frame.state()[:14])  # the base pose is last
+    with pytest.raises(ValueError, match="cannot drop state entries"):
+        train_policy(TrainConfig(policy="act", dataset=env_dataset[0], out=tmp_path / "run2", steps=2,
+                                 device="cpu", cameras=(), state_drop=("base_z",)))
+    assert not (tmp_path / "run2").exists()
+
+
+def test_eval_refuses_a_policy_state_it_cannot_build():
+    from types import SimpleNamespace
+
+    from stages.policy.evaluate import state_selection
+
+    rec = ["arm_q0", "ee_x", "base_x"]
+    assert state_selection(rec, SimpleNamespace(state_names=None, state_dim=3), "ck") is None
+    assert state_selection(rec, SimpleNamespace(state_names=("ee_x", "arm_q0"), state_dim=2), "ck") == [1, 0]
+    with pytest.raises(ValueError, match="ck: the policy takes a state of 2 entries"):
+        state_selection(rec, SimpleNamespace(state_names=None, state_dim=2), "ck")
+    with pytest.raises(ValueError, match="state entries \\['hand_q0'\\] are not in the state"):
+        state_selection(rec, SimpleNamespace(state_names=("hand_q0",), state_dim=1), "ck")
+
+
+def test_memory_frames_give_lerobots_items(env_dataset):
+    """:mod:`stages.policy.memory_frames`: every item (ACT's action window with its padding at the
+    episode's end, a state history, the videos) equals lerobot's own read, dtype and shape too."""
+    import torch
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from stages.policy import memory_frames
+
+    delta = {"action": [i / 30 for i in range(20)], "observation.state": [-1 / 30, 0.0]}
+    ds = LeRobotDataset("agentworld/env", root=env_dataset[0], delta_timestamps=delta)
+    reader = ds._ensure_reader()
+    lerobot_get = getattr(type(reader).get_item, "lerobot_get_item", type(reader).get_item)
+    memory_frames.install()
+    memory_frames.install()  # idempotent
+    assert getattr(type(reader).get_item, "agentworld_memory_frames", False)
+    for i in [0, 1, len(ds) // 2, len(ds) - 3, len(ds) - 1]:
+        ref, new = lerobot_get(reader, i), ds[i]
+        assert ref.keys() == new.keys()
+        for k, v in ref.items():
+            if isinstance(v, torch.Tensor):
+                assert v.dtype == new[k].dtype and v.shape == new[k].shape and torch.equal(v, new[k]), k
+            else:
+                assert v == new[k], k
+    last = ds[len(ds) - 1]
+    assert last["action_is_pad"][1:].all() and not last["action_is_pad"][0] and not last["observation.state_is_pad"].any()
