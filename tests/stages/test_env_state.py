@@ -538,3 +538,33 @@ def test_memory_frames_give_lerobots_items(env_dataset):
                 assert v == new[k], k
     last = ds[len(ds) - 1]
     assert last["action_is_pad"][1:].all() and not last["action_is_pad"][0] and not last["observation.state_is_pad"].any()
+
+
+def test_eval_drives_the_arm_by_the_actions_end_effector_target(env_act, kitchen_catalog, tmp_path, monkeypatch):
+    """``arm_command="ee"``: every action's end-effector target (base frame) becomes arm joint targets
+    whose forward kinematics (the recorder's ``ee_*_target``) is that pose."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.policy import evaluate as ev
+
+    calls = []
+    solve = ev.ee_arm_targets
+
+    def spy(drv, arm_fk, ee7):
+        q = solve(drv, arm_fk, ee7)
+        calls.append((np.asarray(ee7, float), arm_fk.pose7(q[None])[0]))
+        return q
+
+    monkeypatch.setattr(ev, "ee_arm_targets", spy)
+    work = link_kitchen_catalog(kitchen_catalog, tmp_path / "work" / "kitchens").parent
+    cfg = ev.EvalConfig(checkpoint=env_act.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7,), worlds=1,
+                        max_seconds=0.5, videos=0, arm_command="ee")
+    recorded = []
+    rep = ev.evaluate(cfg, tmp_path / "eval", work_dir=work,
+                      frame_listeners=[lambda w, frame: recorded.append(frame)]).report
+    assert rep["overall"]["episodes"] == 1 and len(calls) == 15
+    pos = [np.linalg.norm(want[:3] - got[:3]) for want, got in calls]
+    rot = [1 - abs(float(np.dot(want[3:] / np.linalg.norm(want[3:]), got[3:]))) for want, got in calls]
+    assert np.median(pos) < 2e-3 and np.median(rot) < 1e-3, (pos, rot)
+    with pytest.raises(ValueError, match="arm_command must be"):
+        ev.EvalConfig(checkpoint=env_act.checkpoint, tasks=("push_object",), arm_command="cartesian")
