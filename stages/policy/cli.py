@@ -132,6 +132,8 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--action-steps", type=int, default=None,
                    help="actions run from each predicted chunk (default: the checkpoint's; for ACT it turns "
                         "temporal ensembling off)")
+    p.add_argument("--arm-command", choices=("joints", "ee"), default="joints",
+                   help="the arm follows the action's joint targets, or its end-effector target (through CLIK)")
     p.add_argument("--ensemble-coeff", type=float, default=None,
                    help="ACT's temporal ensembling coefficient (default: the checkpoint's)")
     p.add_argument("--verbose", action="store_true")
@@ -141,7 +143,8 @@ def eval_main(argv: list[str]) -> int:
         cfg = EvalConfig(checkpoint=ckpt, tasks=tuple(t for t in a.tasks.split(",") if t), scenes=_ints(a.scenes),
                          seeds=_ints(a.seeds), worlds=a.worlds, device=a.device, max_seconds=a.max_seconds,
                          videos=a.videos, training_dataset=a.training_dataset, allow_seen=a.allow_seen,
-                         action_steps=a.action_steps, ensemble_coeff=a.ensemble_coeff)
+                         action_steps=a.action_steps, ensemble_coeff=a.ensemble_coeff,
+                         arm_command=a.arm_command)
     except ValueError as e:
         print(f"agentworld eval: {e}", file=sys.stderr)
         return 2

@@ -57,7 +57,9 @@ class EvalConfig:
     whose kitchen or (task, seed) the training dataset holds; action_steps: actions run from each
     predicted chunk (None: the checkpoint's ``n_action_steps``; for ACT a value turns temporal
     ensembling off); ensemble_coeff: ACT's temporal ensembling coefficient (None: the checkpoint's;
-    it needs one action per chunk). The last two are inference settings: the weights are the same."""
+    it needs one action per chunk); arm_command: "joints" (the action's arm joint targets) or "ee"
+    (its end-effector target, through CLIK: :func:`ee_arm_targets`). The last three are inference
+    settings: the weights are the same."""
 
     checkpoint: Path
     tasks: tuple[str, ...]
@@ -73,6 +75,7 @@ class EvalConfig:
     allow_seen: bool = False
     action_steps: int | None = None
     ensemble_coeff: float | None = None
+    arm_command: str = "joints"
 
     def __post_init__(self) -> None:
         from stages.demos.tasks import TASKS
@@ -87,6 +90,8 @@ class EvalConfig:
             problems.append("worlds and fps must be >= 1 and videos >= 0")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds) and self.max_seconds > 0):
             problems.append(f"max_seconds must be a positive number, got {self.max_seconds}")
+        if self.arm_command not in ("joints", "ee"):
+            problems.append(f"arm_command must be 'joints' or 'ee', got {self.arm_command!r}")
         if self.action_steps is not None and self.action_steps < 1:
             problems.append(f"action_steps must be >= 1, got {self.action_steps}")
         if self.ensemble_coeff is not None and not math.isfinite(self.ensemble_coeff):
@@ -331,16 +336,36 @@ class Evaluator:
                 out[w][f"observation.images.{cam}"] = images[id(bank)][cam][0][i].copy()
         return out
 
-    @staticmethod
-    def _apply(drv, a: np.ndarray) -> None:
-        """The dataset's action vector -> commands (see the module docstring)."""
+    def _apply(self, drv, a: np.ndarray) -> None:
+        """The dataset's action vector -> commands (see the module docstring; with ``arm_command``
+        "ee" the arm follows the action's end-effector target through :func:`ee_arm_targets`)."""
         n = len(drv.sim.desc.arm_joints)
-        drv.ctl.set_arm_targets(a[:n])
+        if self.cfg.arm_command == "ee":
+            drv.ctl.set_arm_targets(ee_arm_targets(drv, self.engine.arm_fk, a[n:n + 7]))
+        else:
+            drv.ctl.set_arm_targets(a[:n])
         drv.base(tuple(float(x) for x in a[n + 7:n + 10]))
         g = float(np.clip(a[n + 10], 0.0, 1.0))
         drv.cmd.gripper = g
         drv.ctl.set_gripper(g)
         drv.cmd.mode = int(a[n + 11] >= 0.5)
+
+
+def ee_arm_targets(drv, arm_fk, ee7: np.ndarray) -> np.ndarray:
+    """Arm joint targets (n,) [rad] putting the end effector at ``ee7`` (x, y, z [m], qw, qx, qy,
+    qz in the base frame: the action's ``ee_*_target``, which the recorder writes as the forward
+    kinematics of the arm's joint targets): CLIK on the robot's model from the current targets and
+    base joints (the base frame placed in the robot's root frame by the same arm kinematics)."""
+    from scipy.spatial.transform import Rotation
+
+    ik = drv.ik
+    q_pin = ik.with_arm(ik.from_sim(drv.sim), drv.ctl.arm_targets())
+    root_base = ik.fk(q_pin) @ np.linalg.inv(arm_fk(ik.arm_q(q_pin)[None])[0])
+    goal = np.eye(4)
+    quat = np.asarray(ee7[3:7], float)
+    goal[:3, :3] = Rotation.from_quat([quat[1], quat[2], quat[3], quat[0]]).as_matrix()  # scipy: x, y, z, w
+    goal[:3, 3] = ee7[:3]
+    return ik.arm_q(ik.solve(root_base @ goal, q_pin, max_iters=100).q)
 
 
 @dataclass

@@ -8,7 +8,8 @@ with one worker). :func:`install` replaces ``get_item`` with the same computatio
 non-video columns held as tensors (built once per reader, ~5 s and ~40 bytes a frame entry for our
 no-camera sets): the frame's values, the delta windows clamped to the episode and their ``*_is_pad``
 masks, the task string. Video frames, image transforms and depth units go through lerobot's own code
-unchanged; a reader with language columns or an index mapping it cannot hold keeps lerobot's path.
+unchanged (string columns, such as our ``depth.*``, pass through as lerobot passes them); a reader
+with language columns or a column of another type keeps lerobot's path.
 The tests compare the two item by item.
 """
 
@@ -27,13 +28,21 @@ class MemoryColumns:
         import torch
 
         table = reader.hf_dataset.data.table if hasattr(reader.hf_dataset.data, "table") else reader.hf_dataset.data
+        import pyarrow as pa
+
         video = set(reader._meta.video_keys)
-        self.columns: dict[str, torch.Tensor] = {}
+        self.columns: dict[str, object] = {}
         for name in table.column_names:
             if name in video:
                 continue
             col = table.column(name).combine_chunks()
-            if hasattr(col, "flatten"):  # a list column: (rows, n)
+            kind = col.type.value_type if pa.types.is_list(col.type) or pa.types.is_fixed_size_list(col.type) else col.type
+            if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+                self.columns[name] = col.to_pylist()  # lerobot passes strings through (depth.* here)
+                continue
+            if not (pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind)):
+                raise TypeError(f"column {name!r} of type {col.type} is not held in memory")
+            if kind is not col.type:  # a list column: (rows, n)
                 values = col.flatten().to_numpy(zero_copy_only=False).reshape(len(col), -1)
             else:  # a scalar column: (rows,)
                 values = col.to_numpy(zero_copy_only=False)
@@ -60,9 +69,7 @@ def _get_item(self, idx) -> dict:
     """``DatasetReader.get_item`` on :class:`MemoryColumns` (see the module docstring)."""
     import torch
 
-    mem = getattr(self, "_aw_memory", None)
-    if mem is None:
-        mem = self._aw_memory = MemoryColumns(self)
+    mem = self._aw_memory
     item = mem.row(int(idx))
     ep_idx = int(item["episode_index"])
     abs_idx = int(item["index"])
@@ -115,11 +122,17 @@ def install() -> None:
 
 
 def usable(reader) -> bool:
-    """Whether :func:`_get_item` serves ``reader`` (a loaded dataset with no language columns)."""
+    """Whether :func:`_get_item` serves ``reader``: a loaded dataset with no language columns whose
+    other non-video columns are numbers or strings (its :class:`MemoryColumns` is built here, once)."""
     ok = getattr(reader, "_aw_memory_ok", None)
     if ok is None:
         from lerobot.datasets.io_utils import LANGUAGE_COLUMNS
 
         ok = reader.hf_dataset is not None and not (set(reader.hf_dataset.column_names) & set(LANGUAGE_COLUMNS))
+        if ok:
+            try:
+                reader._aw_memory = MemoryColumns(reader)
+            except TypeError:
+                ok = False
         reader._aw_memory_ok = ok
     return ok
