@@ -16,7 +16,10 @@ images one step later), and, for a policy trained with ``observation.environment
 objects' state as the recorder computes it (:mod:`stages.engine.env_state`, from the same state
 read; the evaluation engine then records it too). Actions are applied as the dataset's action
 vector reads: arm joint targets [rad], base velocity (vx, vy [m/s], vtheta [rad/s]) in the base frame, gripper command in
-[0, 1] (clipped); the end-effector target and mode entries are not commands.
+[0, 1] (clipped); the end-effector target and mode entries are not commands, unless ``arm_command``
+is "ee": the arm then follows the end-effector target through CLIK (:func:`ee_arm_targets`) and the
+joint targets are not commands. A policy trained on a state view (:mod:`stages.dataset.view`) is
+given the entries of the state its checkpoint names (:func:`state_selection`).
 
 An episode ends when the task's success predicate holds (checked every ``check_seconds``) or at the
 time limit (the task's, or ``max_seconds``); its result is the predicate's (success, or the failure
