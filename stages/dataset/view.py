@@ -25,19 +25,41 @@ from pathlib import Path
 STATE = "observation.state"
 
 
-def state_names(dataset: Path) -> list[str]:
-    """The names of ``dataset``'s ``observation.state`` entries (``meta/info.json``)."""
+def feature_names(dataset: Path, key: str = STATE) -> list[str] | None:
+    """The entry names of ``dataset``'s feature ``key`` (``meta/info.json``; lerobot's
+    ``{"motors": [...]}`` form too); None when the feature has none. ValueError naming the file when
+    it cannot be read."""
     info = Path(dataset) / "meta" / "info.json"
     try:
-        feat = json.loads(info.read_text())["features"][STATE]
+        feats = json.loads(info.read_text())["features"]
     except (OSError, KeyError, json.JSONDecodeError) as e:
-        raise ValueError(f"{info}: no readable {STATE} feature ({e})") from None
-    names = feat.get("names")
-    if isinstance(names, dict):  # lerobot's {"motors": [...]} form
+        raise ValueError(f"{info}: no readable features ({e})") from None
+    names = feats.get(key, {}).get("names")
+    if isinstance(names, dict):
         names = next(iter(names.values()), None)
-    if not isinstance(names, list) or len(names) != int(feat["shape"][0]):
-        raise ValueError(f"{info}: {STATE} has no names list of its shape {feat.get('shape')}")
-    return [str(n) for n in names]
+    return [str(n) for n in names] if isinstance(names, list) else None
+
+
+def state_names(dataset: Path) -> list[str]:
+    """The names of ``dataset``'s ``observation.state`` entries (``meta/info.json``)."""
+    names = feature_names(dataset, STATE)
+    shape = json.loads((Path(dataset) / "meta" / "info.json").read_text())["features"].get(STATE, {}).get("shape")
+    if names is None or [len(names)] != list(shape or []):
+        raise ValueError(f"{Path(dataset) / 'meta' / 'info.json'}: {STATE} has no names list of its shape {shape}")
+    return names
+
+
+def kept_names(dataset: Path, drop: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(the state names of ``dataset``, those left after dropping ``drop``); ValueError naming the
+    dataset for an unknown name or when nothing would be left."""
+    names = state_names(dataset)
+    unknown = [n for n in drop if n not in names]
+    if unknown:
+        raise ValueError(f"state view: {dataset}: no state entries {unknown} (it has {names})")
+    keep = [n for n in names if n not in set(drop)]
+    if not keep:
+        raise ValueError(f"state view: {dataset}: dropping {list(drop)} leaves no state entry")
+    return names, keep
 
 
 def state_columns(source: Sequence[str], wanted: Sequence[str], what: str = "state view") -> list[int]:
@@ -68,13 +90,7 @@ def write_state_view(src: Path, dst: Path, drop: Sequence[str]) -> list[str]:
     import pyarrow.parquet as pq
 
     src, dst = Path(src), Path(dst)
-    names = state_names(src)
-    unknown = [n for n in drop if n not in names]
-    if unknown:
-        raise ValueError(f"state view: {src}: no state entries {unknown} (it has {names})")
-    keep_names = [n for n in names if n not in set(drop)]
-    if not keep_names:
-        raise ValueError(f"state view: {src}: dropping {list(drop)} leaves no state entry")
+    names, keep_names = kept_names(src, drop)
     keep = state_columns(names, keep_names)
     if dst.exists():
         raise FileExistsError(f"state view: {dst} exists")

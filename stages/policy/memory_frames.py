@@ -25,10 +25,10 @@ class MemoryColumns:
     each episode's absolute [from, to) index range, and the absolute -> row index map (an array)."""
 
     def __init__(self, reader) -> None:
+        import pyarrow as pa
         import torch
 
         table = reader.hf_dataset.data.table if hasattr(reader.hf_dataset.data, "table") else reader.hf_dataset.data
-        import pyarrow as pa
 
         video = set(reader._meta.video_keys)
         self.columns: dict[str, object] = {}

@@ -47,14 +47,11 @@ def write_policy_info(checkpoint: Path, dataset: Path) -> Path:
     training ``dataset``'s feature names (``meta/info.json``)."""
     import json
 
-    feats = json.loads((Path(dataset) / "meta" / "info.json").read_text())["features"]
+    from stages.dataset.view import feature_names
 
-    def names(key: str) -> list[str]:
-        n = feats.get(key, {}).get("names") or []
-        return list(next(iter(n.values()), []) if isinstance(n, dict) else n)
-
+    info = {"state": feature_names(dataset, STATE) or [], "environment_state": feature_names(dataset, ENV_STATE) or []}
     path = Path(checkpoint) / POLICY_INFO
-    path.write_text(json.dumps({"state": names(STATE), "environment_state": names(ENV_STATE)}, indent=2) + "\n")
+    path.write_text(json.dumps(info, indent=2) + "\n")
     return path
 
 

@@ -216,13 +216,12 @@ def train_policy(cfg: TrainConfig, *, timeout: float | None = None) -> TrainResu
         raise FileNotFoundError(f"train-policy: {cfg.dataset}: no meta/info.json (not a LeRobot dataset)")
     check_cameras(cfg)
     if cfg.state_drop:  # checked before the output folder is made
-        from stages.dataset.view import state_names
+        from stages.dataset.view import kept_names
 
-        have = state_names(Path(cfg.dataset))
-        bad = [n for n in cfg.state_drop if n not in have]
-        if bad or len(set(cfg.state_drop)) >= len(have):
-            raise ValueError(f"train-policy: {cfg.dataset}: cannot drop state entries {list(cfg.state_drop)} "
-                             f"(it has {have})")
+        try:
+            kept_names(Path(cfg.dataset), cfg.state_drop)
+        except ValueError as e:
+            raise ValueError(f"train-policy: cannot drop state entries {list(cfg.state_drop)}: {e}") from None
     out.mkdir(parents=True)
     source = Path(cfg.dataset)
     if cfg.state_drop:

@@ -80,11 +80,11 @@ def main() -> int:
                      worlds=a.worlds, device="cpu", videos=0, arm_command=a.arm_command,
                      ensemble_coeff=a.ensemble_coeff, action_steps=a.action_steps, training_dataset=a.training_dataset)
     evaluate(cfg, a.out, work_dir=a.work, observers=[observe], episode_listeners=[done])
-    if names is None:  # a checkpoint without agentworld_policy.json takes the recorder's whole state (mobile Panda)
-        full = [*(f"arm_q{i}" for i in range(7)), "ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz",
-                "base_x", "base_y", "base_theta"]
+    if names is None:  # a checkpoint without agentworld_policy.json takes the recorder's whole state
+        from stages.engine import EngineConfig
+
         for t in trajs:
-            t["state_names"] = full
+            t["state_names"] = EngineConfig().dataset_spec().state_names()
     (a.out / "traj.json").write_text(json.dumps(trajs))
     print("\n".join(summary(trajs)))
     return 0
