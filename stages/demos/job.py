@@ -108,7 +108,9 @@ class DemosConfig(_Strict):
 
     environment_state: every frame records ``observation.environment_state``, the task objects'
     key points in the robot base frame (:mod:`stages.engine.env_state`; per-task items only, every
-    task of the step with the same layout; False: the feature is absent, the files as before)."""
+    task of the step with the same layout; False: the feature is absent, the files as before).
+    environment_gripper: that state ends with ``gripper_opening``, the fingers' opening [m] (needs
+    ``environment_state``)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -135,6 +137,7 @@ class DemosConfig(_Strict):
     merge: bool = True
     action_noise: _mixed.ActionNoiseSpec | None = None
     environment_state: bool = False
+    environment_gripper: bool = False
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -181,6 +184,8 @@ class DemosConfig(_Strict):
             if self.mixed:
                 raise ValueError("environment_state needs per-task items (mixed = false): a dataset holds one layout")
             common_layout(self.tasks)  # ValueError names a task without one, or the differing layouts
+        elif self.environment_gripper:
+            raise ValueError("environment_gripper needs environment_state = true")
         return self
 
     @field_validator("tasks")
@@ -221,6 +226,7 @@ class ShardParams(_Strict):
     max_seconds: float | None = None
     action_noise: _mixed.ActionNoiseSpec | None = None
     environment_state: bool = False
+    environment_gripper: bool = False
 
 
 class EpisodeRecord(_Strict):
@@ -327,6 +333,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  program_wait=config.program_wait, writer_procs=config.writer_procs,
                                  max_seconds=config.max_seconds, action_noise=config.action_noise,
                                  environment_state=config.environment_state,
+                                 environment_gripper=config.environment_gripper,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -374,7 +381,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None,
                           action_noise=None if params.action_noise is None else params.action_noise.engine(),
-                          environment_state=state_names(params.task) if params.environment_state else ())
+                          environment_state=(state_names(params.task, params.environment_gripper)
+                                             if params.environment_state else ()))
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)
     build = time.perf_counter() - t0

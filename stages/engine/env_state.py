@@ -21,13 +21,20 @@ end-effector pose), x forward, y left, z up [m]):
   joint coordinate, the rigid link's kinematics) and the joint opening from closed (1) [m for a
   drawer, rad for a door].
 
+With the gripper entry (``gripper=True`` of :func:`state_names`; the recorder's option
+``environment_gripper``), one more number ends the row: ``gripper_opening``, the sum of the
+parallel gripper's finger joint positions (the Panda hand: the distance between its fingers [m];
+0 closed). ``observation.state`` holds the arm, its end-effector pose and the base, not the
+fingers: without this entry a policy cannot tell a closed hand from an open one at the same arm
+pose (the grasp's dwell, the release).
+
 The dimension D is fixed per task (:func:`state_names`); a dataset holds one layout.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -37,6 +44,7 @@ _PICK = tuple(f"object_{c}" for c in _XYZ) + tuple(f"container_{c}" for c in _XY
 _PUSH = tuple(f"object_{c}" for c in _XYZ) + tuple(f"goal_{c}" for c in _XYZ)
 _PART = (*(f"handle_{c}" for c in _XYZ), "opening")
 _BODIES = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("pusher",)}
+GRIPPER = "gripper_opening"  # the optional last entry: the fingers' opening [m]
 
 
 def _part_target(task: str) -> str | None:
@@ -47,23 +55,25 @@ def _part_target(task: str) -> str | None:
     return which if kind in ("open", "close") and which in ARTICULATED else None
 
 
-def state_names(task: str) -> tuple[str, ...]:
-    """The names of ``task``'s environment state (D entries; module docstring); ValueError for a
-    task without one."""
+def state_names(task: str, gripper: bool = False) -> tuple[str, ...]:
+    """The names of ``task``'s environment state (D entries; module docstring), ending with
+    ``gripper_opening`` when ``gripper``; ValueError for a task without one."""
+    tail = (GRIPPER,) if gripper else ()
     if task == "pick_place_bowl":
-        return _PICK
+        return _PICK + tail
     if task == "push_object":
-        return _PUSH
+        return _PUSH + tail
     if _part_target(task) is not None:
-        return _PART
+        return _PART + tail
     raise ValueError(f"environment_state: task {task!r} has no environment state (supported: pick_place_bowl, "
                      f"push_object, open_/close_ of an articulated part)")
 
 
-def common_layout(tasks: Sequence[str]) -> tuple[str, ...]:
-    """The one environment-state layout of ``tasks`` (a dataset or a policy holds one); ValueError
-    naming a task without one, or the layouts when they differ."""
-    layouts = {t: state_names(t) for t in tasks}
+def common_layout(tasks: Sequence[str], gripper: bool = False) -> tuple[str, ...]:
+    """The one environment-state layout of ``tasks`` (a dataset or a policy holds one; with the
+    gripper entry when ``gripper``); ValueError naming a task without one, or the layouts when they
+    differ."""
+    layouts = {t: state_names(t, gripper) for t in tasks}
     if len(set(layouts.values())) > 1:
         raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
     return next(iter(layouts.values()), ())
@@ -83,36 +93,52 @@ def episode_goal(inst) -> tuple[float, ...]:
 class EnvKeys:
     """What one episode's environment state reads: ``bodies`` world-local body indices whose
     origins are key points; ``goal`` (3 g,) fixed world points [m]; ``part`` the articulated part
-    and ``coord`` its joint's world-local coordinate (open/close tasks; None otherwise)."""
+    and ``coord`` its joint's world-local coordinate (open/close tasks; None otherwise);
+    ``fingers`` the world-local coordinates of the gripper's finger joints whose sum is the
+    ``gripper_opening`` entry (() without it)."""
 
     task: str
     bodies: tuple[int, ...] = ()
     goal: tuple[float, ...] = ()
     part: object = None
     coord: int = -1
+    fingers: tuple[int, ...] = ()
 
     @property
     def dim(self) -> int:
-        return 3 * len(self.bodies) + len(self.goal) + (4 if self.part is not None else 0)
+        return (3 * len(self.bodies) + len(self.goal) + (4 if self.part is not None else 0)
+                + (1 if self.fingers else 0))
 
 
 class EnvResolver:
     """Builds :class:`EnvKeys` for episodes in one task world (a kitchen) simulated by an engine:
     body and joint indices resolved once per task. ``body_index``: scene prim path -> world-local
-    body index; ``scene_coord``: scene joint prim path -> world-local joint coordinate."""
+    body index; ``scene_coord``: scene joint prim path -> world-local joint coordinate;
+    ``fingers``: the world-local coordinates of the robot's finger joints."""
 
-    def __init__(self, world, body_index: dict[str, int], scene_coord: dict[str, int]) -> None:
+    def __init__(self, world, body_index: dict[str, int], scene_coord: dict[str, int],
+                 fingers: Sequence[int] = ()) -> None:
         self.world, self.body_index, self.scene_coord = world, body_index, scene_coord
+        self.fingers = tuple(int(c) for c in fingers)
         self._parts: dict[str, object] = {}
 
     @classmethod
     def of_engine(cls, engine) -> EnvResolver:
         sim = engine.banks[0].sim
-        return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord))
+        grip = sim.desc.gripper
+        fingers = [sim.robot.coord[n] for n in grip.finger_joints] if grip is not None else []
+        return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord), fingers)
 
-    def keys(self, task: str, goal: Sequence[float] = ()) -> EnvKeys:
-        """The keys of an episode of ``task`` with the fixed points ``goal`` (:func:`episode_goal`)."""
+    def keys(self, task: str, goal: Sequence[float] = (), gripper: bool = False) -> EnvKeys:
+        """The keys of an episode of ``task`` with the fixed points ``goal`` (:func:`episode_goal`),
+        with the gripper's opening when ``gripper`` (ValueError for a robot without finger joints)."""
         state_names(task)  # raises for a task without an environment state
+        if gripper and not self.fingers:
+            raise ValueError(f"environment_state: {GRIPPER} needs a robot with a parallel gripper's finger joints")
+        keys = self._keys(task, goal)
+        return replace(keys, fingers=self.fingers) if gripper else keys
+
+    def _keys(self, task: str, goal: Sequence[float]) -> EnvKeys:
         which = _part_target(task)
         if which is not None:
             if task not in self._parts:
@@ -144,7 +170,8 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
     poses (x, y [m], theta [rad]) in the world; body_xyz (K, B, 3): world positions of each world's
     bodies [m] (world-local body index); joint_q (K, C): each world's joint coordinates (world-local).
     Row k: the key points (bodies', then the goal's, then an articulated handle's) in world k's
-    base frame, then an articulated part's opening [m or rad]."""
+    base frame, then an articulated part's opening [m or rad], then the gripper's opening [m] (keys
+    with ``fingers``)."""
     k = len(keys)
     dims = {kk.dim for kk in keys}
     if len(dims) > 1:
@@ -161,6 +188,8 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
             q = float(joint_q[j, kk.coord])
             pts.append(kk.part.handle_at(q))
             extra.append(q - kk.part.closed)
+        if kk.fingers:
+            extra.append(float(sum(joint_q[j, c] for c in kk.fingers)))
         rows.append((np.asarray(pts, np.float64).reshape(-1, 3), extra))
     pts = to_base_frame(np.stack([r[0] for r in rows]), base).reshape(k, -1)
     extra = np.asarray([r[1] for r in rows], np.float64).reshape(k, -1)
@@ -193,11 +222,13 @@ def ticket_keys(engine, ticket) -> EnvKeys:
 
 def episode_keys(engine, task: str, goal: Sequence[float] = ()) -> EnvKeys:
     """:meth:`EnvResolver.keys` of an episode of ``task`` (fixed points ``goal``) on ``engine``, with
-    the engine's one resolver (made on first use): the recorder's and the evaluator's."""
+    the engine's one resolver (made on first use): the recorder's and the evaluator's. The gripper's
+    opening is in when the engine's ``environment_state`` names end with it."""
     res = getattr(engine, "_env_resolver", None)
     if res is None:
         res = engine._env_resolver = EnvResolver.of_engine(engine)
-    return res.keys(task, goal)
+    names = tuple(engine.config.environment_state)
+    return res.keys(task, goal, gripper=bool(names) and names[-1] == GRIPPER)
 
 
 def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
@@ -214,14 +245,14 @@ def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) 
 
 def check_names(names: Sequence[str], task: str, where: str) -> None:
     """ValueError when ``task``'s environment state is not laid out as ``names`` (a dataset or a
-    policy holds one layout)."""
-    mine = state_names(task)
+    policy holds one layout; with or without the gripper's entry)."""
+    mine = state_names(task, gripper=bool(names) and names[-1] == GRIPPER)
     if tuple(names) != mine:
         raise ValueError(f"{where}: task {task!r} has environment state {list(mine)}, but "
                          f"{len(names)} entries {list(names)} are recorded or expected")
 
 
-__all__ = ["ENV_STATE_KEY", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
+__all__ = ["ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
            "environment_state", "episode_goal", "episode_keys", "recorded_environment_state", "state_names", "ticket_keys",
            "to_base_frame"]
 

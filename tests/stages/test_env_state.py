@@ -568,3 +568,71 @@ def test_eval_drives_the_arm_by_the_actions_end_effector_target(env_act, kitchen
     assert np.median(pos) < 2e-3 and np.median(rot) < 1e-3, (pos, rot)
     with pytest.raises(ValueError, match="arm_command must be"):
         ev.EvalConfig(checkpoint=env_act.checkpoint, tasks=("push_object",), arm_command="cartesian")
+
+
+def test_gripper_opening_ends_the_state_and_follows_the_fingers(kitchen_catalog, tmp_path):
+    """With the gripper entry (``environment_gripper``) a whole scripted pick_place_bowl episode (no
+    cameras) records 7 numbers a frame: the mug and bowl as without it, then the fingers' opening, the
+    sum of the finger joints' simulated positions [m]: open before the grasp, closed on the mug while
+    it is carried, and it moves as the distance between the finger bodies does."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.env_state import GRIPPER, state_names
+    from stages.engine.programs import Listed
+    from stages.policy.evaluate import build_kitchen
+
+    names = state_names("pick_place_bowl", gripper=True)
+    assert names[-1] == GRIPPER and names[:-1] == state_names("pick_place_bowl")
+    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
+    cfg = EngineConfig(worlds=1, record_images=False, environment_state=names)
+    assert cfg.dataset_spec().features()["observation.environment_state"]["names"] == list(names)
+    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
+    frames, results = [], []
+    probes = _probe_frames(engine)
+    engine.run(Listed(world, {0: [("pick_place_bowl", 2, None)]}), begin=lambda w, t: frames.append,
+               end=lambda w, t, res: results.append(res))
+    assert [r.success for r in results] == [True], results
+    assert len(frames) == len(probes) > 100
+    fingers = [i for i, n in enumerate(probes[0].robot.joint_names) if "finger" in n]
+    assert len(fingers) == 2
+    env = np.array([f.environment_state for f in frames])
+    assert env.shape == (len(frames), 7)
+    want = np.array([sum(st.robot.q[i] for i in fingers) for st in probes])
+    np.testing.assert_allclose(env[:, -1], want, atol=1e-5)
+    dist = np.array([st.robot.gripper_opening for st in probes])  # finger bodies' distance: the same motion
+    np.testing.assert_allclose(env[:, -1] - env[0, -1], dist - dist[0], atol=2e-3)
+    assert env[0, -1] > 0.07  # open at the start (the Panda's fingers: 0.08 m)
+    closed = np.array([f.gripper for f in frames]) > 0.5
+    shut = env[0, -1] - 0.005  # the fingers stop on the mug (its width), not at 0
+    assert closed.any() and env[closed, -1].min() < shut
+    lifted = env[:, 2] > env[0, 2] + 0.05  # while the mug is up, the hand holds it
+    assert lifted.any() and env[lifted, -1].max() < shut
+
+
+def test_gripper_entry_options_are_checked():
+    from pydantic import ValidationError
+
+    from stages.demos.job import DemosConfig
+    from stages.engine.env_state import GRIPPER, check_names, common_layout, state_names
+
+    assert DemosConfig(tasks=("open_drawer",), environment_state=True, environment_gripper=True).environment_gripper
+    with pytest.raises(ValidationError, match="environment_gripper needs environment_state"):
+        DemosConfig(tasks=("open_drawer",), environment_gripper=True)
+    assert common_layout(("open_drawer",), gripper=True) == ("handle_x", "handle_y", "handle_z", "opening", GRIPPER)
+    check_names(state_names("push_object", gripper=True), "push_object", "test")  # either layout is one
+    with pytest.raises(ValueError, match="has environment state"):
+        check_names(state_names("push_object", gripper=True), "pick_place_bowl", "test")
+
+
+def test_eval_takes_the_gripper_layout_for_a_policy_one_entry_larger():
+    from types import SimpleNamespace
+
+    from stages.engine.env_state import GRIPPER, state_names
+    from stages.policy.evaluate import EvalConfig, env_layout
+
+    cfg = EvalConfig(checkpoint=Path("ck"), tasks=("pick_place_bowl",), scenes=(101,), seeds=(1,))
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=6)) == state_names("pick_place_bowl")
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=7))[-1] == GRIPPER
+    with pytest.raises(ValueError, match="environment state of 8 entries"):
+        env_layout(cfg, SimpleNamespace(env_state_dim=8))
