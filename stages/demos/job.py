@@ -25,6 +25,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     # base_std = [0.05, 0.05, 0.1]   # base velocity vx, vy [m/s], vtheta [rad/s]
     # hold_seconds = 0.3        # each draw held this long [s]
     # environment_state = true  # frames record the task objects' state (stages.engine.env_state)
+    # environment_gripper = true  # ... ending with the gripper's opening [m]
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
