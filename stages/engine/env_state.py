@@ -47,6 +47,11 @@ _BODIES = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("pusher",)}
 GRIPPER = "gripper_opening"  # the optional last entry: the fingers' opening [m]
 
 
+def has_gripper(names: Sequence[str]) -> bool:
+    """Whether an environment-state layout ``names`` ends with the gripper's opening."""
+    return bool(names) and names[-1] == GRIPPER
+
+
 def _part_target(task: str) -> str | None:
     """The articulated target of an open/close task (``drawer`` of ``open_drawer``), else None."""
     from stages.demos.tasks import ARTICULATED
@@ -228,7 +233,7 @@ def episode_keys(engine, task: str, goal: Sequence[float] = ()) -> EnvKeys:
     if res is None:
         res = engine._env_resolver = EnvResolver.of_engine(engine)
     names = tuple(engine.config.environment_state)
-    return res.keys(task, goal, gripper=bool(names) and names[-1] == GRIPPER)
+    return res.keys(task, goal, gripper=has_gripper(names))
 
 
 def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
@@ -246,13 +251,13 @@ def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) 
 def check_names(names: Sequence[str], task: str, where: str) -> None:
     """ValueError when ``task``'s environment state is not laid out as ``names`` (a dataset or a
     policy holds one layout; with or without the gripper's entry)."""
-    mine = state_names(task, gripper=bool(names) and names[-1] == GRIPPER)
+    mine = state_names(task, gripper=has_gripper(names))
     if tuple(names) != mine:
         raise ValueError(f"{where}: task {task!r} has environment state {list(mine)}, but "
                          f"{len(names)} entries {list(names)} are recorded or expected")
 
 
 __all__ = ["ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
-           "environment_state", "episode_goal", "episode_keys", "recorded_environment_state", "state_names", "ticket_keys",
+           "environment_state", "episode_goal", "has_gripper", "episode_keys", "recorded_environment_state", "state_names", "ticket_keys",
            "to_base_frame"]
 
