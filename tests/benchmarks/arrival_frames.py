@@ -1,7 +1,8 @@
-"""How a pick_place_bowl dataset's base arrives at the table (issue 17, session 25).
+"""How a dataset's base arrives at its task (issue 17, session 25): pick_place_bowl, push_object, open/close.
 
-Per episode: the driving frames (a nonzero base velocity action) whose mug position in the base frame
-(``observation.environment_state``'s ``object_x, object_y``) already lies within ``--radius`` of where it is
+Per episode: the driving frames (a nonzero base velocity action) whose first key point in the base frame
+(``observation.environment_state``'s first two entries: ``object_x, object_y`` or ``handle_x, handle_y``)
+already lies within ``--radius`` of where it is
 when the base stops for good, and the frames from that stop to the arm's first move (its end-effector target
 moving by more than 5 mm). A state policy has no phase input: the more driving frames look like the stop,
 the more it learns to keep driving there. Prints the median, 90th percentile and mean of each; writes JSON.
@@ -26,7 +27,8 @@ def arrival(dataset: Path, radius: float) -> dict:
     en = info["features"]["observation.environment_state"]["names"]
     base = [an.index(n) for n in ("base_vx", "base_vy", "base_vtheta")]
     ee = [an.index(n) for n in ("ee_x_target", "ee_y_target", "ee_z_target")]
-    obj = [en.index("object_x"), en.index("object_y")]
+    obj = [0, 1]  # the first key point's x, y
+    assert en[0].endswith("_x") and en[1].endswith("_y"), en
     near, wait = [], []
     for p in sorted((dataset / "data").glob("*/*.parquet")):
         df = pd.read_parquet(p)
