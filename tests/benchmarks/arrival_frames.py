@@ -15,17 +15,29 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+BASE_V = ("base_vx", "base_vy", "base_vtheta")
+
+
+def last_drive(action: np.ndarray, base: list[int]) -> int:
+    """The index of an episode's last frame whose base velocity action (columns ``base``) is nonzero:
+    the base's final stop."""
+    return int(np.where(np.abs(action[:, base]).sum(1) > 1e-3)[0][-1])
+
 
 def arrival(dataset: Path, radius: float) -> dict:
-    info = json.loads((dataset / "meta" / "info.json").read_text())
-    an = info["features"]["action"]["names"]
-    en = info["features"]["observation.environment_state"]["names"]
-    base = [an.index(n) for n in ("base_vx", "base_vy", "base_vtheta")]
+    from stages.dataset.view import feature_names
+
+    an = feature_names(dataset, "action")
+    en = feature_names(dataset, "observation.environment_state")
+    base = [an.index(n) for n in BASE_V]
     ee = [an.index(n) for n in ("ee_x_target", "ee_y_target", "ee_z_target")]
     obj = [0, 1]  # the first key point's x, y
     assert en[0].endswith("_x") and en[1].endswith("_y"), en
@@ -35,7 +47,7 @@ def arrival(dataset: Path, radius: float) -> dict:
         for _, g in df.groupby("episode_index"):
             a = np.stack(g["action"].values)
             e = np.stack(g["observation.environment_state"].values)
-            last = int(np.where(np.abs(a[:, base]).sum(1) > 1e-3)[0][-1])  # the last driving frame
+            last = last_drive(a, base)
             d = np.linalg.norm(e[:last + 1, obj] - e[last + 1, obj], axis=1)
             near.append(int((d < radius).sum()))
             moved = np.linalg.norm(a[last + 1:, ee] - a[last, ee], axis=1) > 0.005

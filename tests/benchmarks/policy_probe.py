@@ -14,7 +14,6 @@ the stop (the data: 0).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -22,9 +21,11 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from arrival_frames import BASE_V, last_drive  # noqa: E402  (tests/benchmarks, the script's folder)
 
 
 def main() -> None:
+    from stages.dataset.view import feature_names
     from stages.policy.runner import BatchedRunner, load_policy
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -34,10 +35,9 @@ def main() -> None:
     p.add_argument("--summary-episodes", type=int, default=50)
     a = p.parse_args()
     lp = load_policy(a.checkpoint, "cpu")
-    info = json.loads((a.view / "meta" / "info.json").read_text())
-    an = info["features"]["action"]["names"]
+    an = feature_names(a.view, "action")
     ee = [an.index(n) for n in ("ee_x_target", "ee_y_target", "ee_z_target")]
-    base = [an.index(n) for n in ("base_vx", "base_vy", "base_vtheta")]
+    base = [an.index(n) for n in BASE_V]
     grip = an.index("gripper")
     df = pd.concat(pd.read_parquet(f) for f in sorted((a.view / "data").glob("*/*.parquet")))
     runner = BatchedRunner(lp)
@@ -51,7 +51,7 @@ def main() -> None:
         g = df[df.episode_index == idx]
         s, e = np.stack(g["observation.state"].values), np.stack(g["observation.environment_state"].values)
         act = np.stack(g["action"].values)
-        stop = int(np.where(np.abs(act[:, base]).sum(1) > 1e-3)[0][-1])
+        stop = last_drive(act, base)
         return s, e, act, stop
 
     for idx in (int(x) for x in a.episodes.split(",")):
