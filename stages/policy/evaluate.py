@@ -180,7 +180,8 @@ class Evaluator:
     ``observers``: functions ``f(world, frame, observation)`` called with what the policy was given
     (tests compare it with the recorded frames); ``frame_listeners``: ``f(world, frame)`` with each
     recorded :class:`~stages.dataset.Frame`; ``episode_listeners``: ``f(record)`` with each
-    finished episode's :class:`EpisodeRecord` (progress)."""
+    finished episode's :class:`EpisodeRecord` (progress); ``action_listeners``: ``f(world, frame,
+    action)`` with each action (the dataset's action vector, as the policy returned it) before it is applied."""
 
     def __init__(self, engine, runner, cfg: EvalConfig, world, out: Path, video_quota: Counter) -> None:
         self.engine, self.runner, self.cfg, self.world, self.out = engine, runner, cfg, world, Path(out)
@@ -189,6 +190,7 @@ class Evaluator:
         self.observers: list = []
         self.frame_listeners: list = []
         self.episode_listeners: list = []
+        self.action_listeners: list = []
         self._active: set[int] = set()
         self._episodes: dict[int, _Episode] = {}
         self._cache: dict[int, np.ndarray] = {}
@@ -303,6 +305,9 @@ class Evaluator:
                 for fn in self.observers:
                     fn(v, self._frame_index(v), obs[v])
             self._cache.update(self.runner.act(obs))
+            for v in worlds if self.action_listeners else ():
+                for fn in self.action_listeners:
+                    fn(v, self._frame_index(v), self._cache[v])
         self._taken.add(w)
         return self._cache.pop(w)
 
@@ -380,9 +385,10 @@ class EvalResult:
 
 
 def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observers=(),
-             frame_listeners=(), episode_listeners=()) -> EvalResult:
+             frame_listeners=(), episode_listeners=(), action_listeners=()) -> EvalResult:
     """Evaluate ``cfg.checkpoint`` (see the module docstring); writes ``out/eval.json`` and the videos.
-    ``episode_listeners``: ``f(record)`` with each finished episode (:class:`Evaluator`)."""
+    ``episode_listeners``: ``f(record)`` with each finished episode; ``action_listeners``: ``f(world,
+    frame, action)`` with each action (:class:`Evaluator`)."""
     from stages.engine import BatchEngine, EngineConfig
 
     from .runner import BatchedRunner, load_policy
@@ -414,6 +420,7 @@ def evaluate(cfg: EvalConfig, out: Path, *, work_dir: Path | None = None, observ
         ev.observers.extend(observers)
         ev.frame_listeners.extend(frame_listeners)
         ev.episode_listeners.extend(episode_listeners)
+        ev.action_listeners.extend(action_listeners)
         records += ev.run(episodes)
         engine_stats.append(engine.stats.to_json())
     report = summarize(cfg, records, held, loaded, runner, time.perf_counter() - t0, engine_stats)

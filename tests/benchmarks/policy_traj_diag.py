@@ -1,4 +1,4 @@
-"""Trajectory diagnostics of a pick_place_bowl policy in closed loop (issue 17, session 24).
+"""Trajectory diagnostics of a pick_place_bowl or open_drawer policy in closed loop (issue 17, sessions 24, 26).
 
 Runs ``agentworld eval``'s evaluator with an observer that keeps what the policy saw at every frame
 (``observation.state``: the end effector in the base frame; ``observation.environment_state``: the
@@ -6,11 +6,18 @@ mug and the bowl in the base frame) and prints per episode: the start distance o
 base, the closest end-effector approach to the mug's origin and its offset (x, y, z [m]), the mug's
 largest lift and its final distance from the bowl. The scripted expert closes the gripper 0.080 m
 above the mug's origin (2.5 cm below the rim); a grasp from 0.10-0.11 m lifts the mug ~3.5 cm and drops it.
+Both tasks also print where the policy first commands the gripper shut (action ``gripper`` > 0.5): the end
+effector's offset from the mug or the drawer's handle then (x, y, z [m], base frame).
+
+open_drawer (``--task open_drawer``; environment state: the handle's grasp centre and the opening [m]): the
+closest approach to the handle and its offset, the frame of the first close command, the largest and the final
+opening [m] and the base's travel (the frame's ``base_vx`` commands integrated over the episode [m]; the expert
+backs away holding the bar).
 
     python tests/benchmarks/policy_traj_diag.py CHECKPOINT --scenes 101 --seeds 1000000-1000009 --out /tmp/diag \\
-        [--arm-command ee] [--ensemble-coeff -0.1] [--action-steps 10]
+        [--task open_drawer] [--arm-command ee] [--ensemble-coeff -0.1] [--action-steps 10]
 
-Writes OUT/eval.json and OUT/traj.json (per episode: the record and the per-frame observations).
+Writes OUT/eval.json and OUT/traj.json (per episode: the record, the per-frame observations and actions).
 """
 
 from __future__ import annotations
@@ -30,7 +37,16 @@ def _ints(text: str) -> tuple[int, ...]:
     return tuple(range(int(a), int(b or a) + 1))
 
 
-def summary(trajs: list[dict]) -> list[str]:
+def _close(t: dict, ee: np.ndarray, obj: np.ndarray) -> str:
+    """The first frame whose action commands the gripper shut, and the end effector's offset then."""
+    g = np.array([a[t["action_names"].index("gripper")] for a in t["actions"]]) if t.get("actions") else None
+    if g is None or not (g > 0.5).any():
+        return "close=never"
+    k = min(int(np.argmax(g > 0.5)), len(ee) - 1)
+    return f"close@{k} offset={np.round(ee[k] - obj[k], 3)}"
+
+
+def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0) -> list[str]:
     """One line per episode (see the module docstring)."""
     lines = []
     for t in trajs:
@@ -39,12 +55,19 @@ def summary(trajs: list[dict]) -> list[str]:
         e = np.array([x[2] for x in log])
         names = t["state_names"]
         ee = s[:, [names.index(c) for c in ("ee_x", "ee_y", "ee_z")]]
-        obj, tgt = e[:, 0:3], e[:, 3:6]
+        obj = e[:, 0:3]
         d = np.linalg.norm(ee - obj, axis=1)
         k = int(np.argmin(d))
-        lines.append(f"{r['seed']} {'ok ' if r['success'] else 'BAD'} {r['reason'][:24]:24s} frames={len(log)} "
-                     f"start={np.linalg.norm(obj[0, :2]):.2f} m closest={d.min():.3f} m offset={np.round(ee[k] - obj[k], 3)} "
-                     f"lift={(obj[:, 2] - obj[0, 2]).max():.3f} m final_to_bowl={np.linalg.norm(obj[-1] - tgt[-1]):.3f} m")
+        head = (f"{r['seed']} {'ok ' if r['success'] else 'BAD'} {r['reason'][:24]:24s} frames={len(log)} "
+                f"start={np.linalg.norm(obj[0, :2]):.2f} m closest={d.min():.3f} m offset={np.round(ee[k] - obj[k], 3)} ")
+        if task == "open_drawer":
+            vx = np.array([a[t["action_names"].index("base_vx")] for a in t["actions"]]) if t.get("actions") else np.zeros(1)
+            lines.append(head + f"{_close(t, ee, obj)} max_open={e[:, 3].max():.3f} m final_open={e[-1, 3]:.3f} m "
+                                f"base_travel={vx.sum() / fps:+.2f} m")
+        else:
+            tgt = e[:, 3:6]
+            lines.append(head + f"{_close(t, ee, obj)} lift={(obj[:, 2] - obj[0, 2]).max():.3f} m "
+                                f"final_to_bowl={np.linalg.norm(obj[-1] - tgt[-1]):.3f} m")
     return lines
 
 
@@ -54,6 +77,7 @@ def main() -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("checkpoint", type=Path)
+    p.add_argument("--task", default="pick_place_bowl", choices=("pick_place_bowl", "open_drawer"))
     p.add_argument("--scenes", default="101")
     p.add_argument("--seeds", default="1000000-1000009")
     p.add_argument("--worlds", type=int, default=10)
@@ -66,27 +90,33 @@ def main() -> int:
     a = p.parse_args()
     names = load_policy(a.checkpoint).state_names
     log: dict[int, list] = {}
+    acts: dict[int, list] = {}
     trajs: list[dict] = []
+    from stages.engine import EngineConfig
+
+    action_names = EngineConfig().dataset_spec().action_names()
 
     def observe(w, frame, obs):
         log.setdefault(w, []).append((frame, obs["observation.state"].tolist(),
                                       obs["observation.environment_state"].tolist()))
 
+    def act(w, frame, action):
+        acts.setdefault(w, []).append([float(x) for x in action])
+
     def done(rec):
         trajs.append({"rec": {k: getattr(rec, k) for k in ("task", "scene", "seed", "success", "reason", "frames")},
-                      "state_names": list(names) if names else None, "log": log.pop(rec.world, [])})
+                      "state_names": list(names) if names else None, "log": log.pop(rec.world, []),
+                      "action_names": list(action_names), "actions": acts.pop(rec.world, [])})
 
-    cfg = EvalConfig(checkpoint=a.checkpoint, tasks=("pick_place_bowl",), scenes=_ints(a.scenes), seeds=_ints(a.seeds),
+    cfg = EvalConfig(checkpoint=a.checkpoint, tasks=(a.task,), scenes=_ints(a.scenes), seeds=_ints(a.seeds),
                      worlds=a.worlds, device="cpu", videos=0, arm_command=a.arm_command,
                      ensemble_coeff=a.ensemble_coeff, action_steps=a.action_steps, training_dataset=a.training_dataset)
-    evaluate(cfg, a.out, work_dir=a.work, observers=[observe], episode_listeners=[done])
+    evaluate(cfg, a.out, work_dir=a.work, observers=[observe], episode_listeners=[done], action_listeners=[act])
     if names is None:  # a checkpoint without agentworld_policy.json takes the recorder's whole state
-        from stages.engine import EngineConfig
-
         for t in trajs:
             t["state_names"] = EngineConfig().dataset_spec().state_names()
     (a.out / "traj.json").write_text(json.dumps(trajs))
-    print("\n".join(summary(trajs)))
+    print("\n".join(summary(trajs, a.task, cfg.fps)))
     return 0
 
 

@@ -112,15 +112,20 @@ def test_eval_sees_the_recorded_frame_and_batches_worlds(trained_act, eval_work,
     recorded frame k (state and RGB), and the worlds share network calls."""
     import av
 
+    from stages.engine import EngineConfig
     from stages.policy.evaluate import EvalConfig, evaluate
 
     seen: dict[tuple[int, int], dict] = {}
+    acts: dict[tuple[int, int], np.ndarray] = {}
     recorded: dict[int, list] = {0: [], 1: []}
     cfg = EvalConfig(checkpoint=trained_act.checkpoint, tasks=("push_object",), scenes=(6,), seeds=(7, 8),
                      worlds=2, max_seconds=0.5, videos=1)
     res = evaluate(cfg, tmp_path / "eval", work_dir=eval_work,
                    observers=[lambda w, k, obs: seen.__setitem__((w, k), obs)],
-                   frame_listeners=[lambda w, frame: recorded[w].append(frame)])
+                   frame_listeners=[lambda w, frame: recorded[w].append(frame)],
+                   action_listeners=[lambda w, k, a: acts.__setitem__((w, k), np.array(a))])
+    assert set(acts) == set(seen)  # one action per observation, at the same frame
+    assert {a.shape for a in acts.values()} == {(len(EngineConfig().dataset_spec().action_names()),)}
     r = res.report
     assert [(e["task"], e["scene"], e["seed"], e["world"]) for e in sorted(r["episodes"], key=lambda e: e["seed"])] == [
         ("push_object", "kitchen_ws6", 7, 0), ("push_object", "kitchen_ws6", 8, 1)]
