@@ -2,7 +2,8 @@
 # Here, from the repository root: the training wheels as one tar split into parts .loco/parts/wNN (lerobot and what it
 # needs beyond the GPU image, from tests/benchmarks/gpu_wheels.sh's .whl/ and .whl_av/: 47 MB in 4 parts), and
 # datasets (args) as one tar.xz split into parts .loco/parts/<PREFIX>NN (a 400-episode state set: ~12 MB), 14 MB
-# each: a device call carries the ~52 MB tree plus at most ~15 MB.
+# each: a device call carries the tree plus one part (session 26: 52.6 + 10 MB went, 52.6 + 14 MB was refused; the tree
+# is ~45 MB since then).
 # Session 25's device recipe for no-camera ACT (README, issue 17), calls back to back (a machine idle 30 s goes back):
 #   stage.sh per part (carry one part each), then train.sh, poll.sh (<= 580 s a call), ck.sh (<= 8 files a call).
 # Usage: pack.sh wheels | pack.sh PREFIX DATASET_DIR...  (PREFIX d, e, ...: one bundle each)
