@@ -10,9 +10,10 @@ Both tasks also print where the policy first commands the gripper shut (action `
 effector's offset from the mug or the drawer's handle then (x, y, z [m], base frame).
 
 open_drawer (``--task open_drawer``; environment state: the handle's grasp centre and the opening [m]): the
-closest approach to the handle and its offset, the frame of the first close command, the largest and the final
-opening [m] and the base's travel (the frame's ``base_vx`` commands integrated over the episode [m]; the expert
-backs away holding the bar).
+closest approach to the handle and its offset, the frame of the first close command, the pull (the first frame
+after it commanding the base back; with the gripper entry the fingers' opening then and 15 frames on), the base
+travel commanded from the close on (the ``base_vx`` commands integrated [m]; the expert backs away holding the
+bar), the largest and the final opening [m].
 
     python tests/benchmarks/policy_traj_diag.py CHECKPOINT --scenes 101 --seeds 1000000-1000009 --out /tmp/diag \\
         [--task open_drawer] [--arm-command ee] [--ensemble-coeff -0.1] [--action-steps 10]
@@ -46,6 +47,27 @@ def _close(t: dict, ee: np.ndarray, obj: np.ndarray) -> str:
     return f"close@{k} offset={np.round(ee[k] - obj[k], 3)}"
 
 
+def _pull(t: dict, e: np.ndarray, fps: float) -> str:
+    """open_drawer after the first close command: the first frame commanding the base back (``base_vx`` < -0.02
+    m/s), the gripper's opening [m] then and 15 frames on (the environment state's last entry, with the gripper
+    entry: ~0.012 on the drawer's bar, below it closed on nothing) and the base travel commanded from the close on [m]."""
+    if not t.get("actions"):
+        return "pull=?"
+    a = np.array(t["actions"])
+    vx, g = a[:, t["action_names"].index("base_vx")], a[:, t["action_names"].index("gripper")]
+    if not (g > 0.5).any():
+        return "pull=never"
+    c = int(np.argmax(g > 0.5))
+    back = np.flatnonzero(vx[c:] < -0.02)
+    travel = f"travel_after_close={vx[c:].sum() / fps:+.2f} m"
+    if not len(back):
+        return f"pull=never {travel}"
+    k = c + int(back[0])
+    grip = (f" grip@pull={e[min(k, len(e) - 1), -1]:.3f} grip@pull+15={e[min(k + 15, len(e) - 1), -1]:.3f}"
+            if e.shape[1] > 4 else "")
+    return f"pull@{k}{grip} {travel}"
+
+
 def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0) -> list[str]:
     """One line per episode (see the module docstring)."""
     lines = []
@@ -61,9 +83,8 @@ def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0)
         head = (f"{r['seed']} {'ok ' if r['success'] else 'BAD'} {r['reason'][:24]:24s} frames={len(log)} "
                 f"start={np.linalg.norm(obj[0, :2]):.2f} m closest={d.min():.3f} m offset={np.round(ee[k] - obj[k], 3)} ")
         if task == "open_drawer":
-            vx = np.array([a[t["action_names"].index("base_vx")] for a in t["actions"]]) if t.get("actions") else np.zeros(1)
-            lines.append(head + f"{_close(t, ee, obj)} max_open={e[:, 3].max():.3f} m final_open={e[-1, 3]:.3f} m "
-                                f"base_travel={vx.sum() / fps:+.2f} m")
+            lines.append(head + f"{_close(t, ee, obj)} {_pull(t, e, fps)} max_open={e[:, 3].max():.3f} m "
+                                f"final_open={e[-1, 3]:.3f} m")
         else:
             tgt = e[:, 3:6]
             lines.append(head + f"{_close(t, ee, obj)} lift={(obj[:, 2] - obj[0, 2]).max():.3f} m "
