@@ -16,14 +16,13 @@ pull frames where the policy commands less than half the recorded pull speed.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from policy_probe import probe_args, probe_setup  # noqa: E402  (tests/benchmarks, the script's folder)
 
 PULL_VX = -0.02  # [m/s] a frame pulls when its base_vx command is below this
 
@@ -39,25 +38,9 @@ def pull_frames(act: np.ndarray, vx: int, grip: int) -> tuple[int, np.ndarray]:
 
 
 def main() -> None:
-    from stages.dataset.view import feature_names
-    from stages.policy.runner import BatchedRunner, load_policy
-
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("checkpoint", type=Path)
-    p.add_argument("view", type=Path)
-    p.add_argument("--episodes", default="0,5")
-    p.add_argument("--summary-episodes", type=int, default=50)
-    a = p.parse_args()
-    lp = load_policy(a.checkpoint, "cpu")
-    an = feature_names(a.view, "action")
+    a = probe_args(__doc__)
+    an, df, first_action = probe_setup(a.checkpoint, a.view)
     vx, grip = an.index("base_vx"), an.index("gripper")
-    df = pd.concat(pd.read_parquet(f) for f in sorted((a.view / "data").glob("*/*.parquet")))
-    runner = BatchedRunner(lp)
-
-    def first_action(s: np.ndarray, e: np.ndarray) -> np.ndarray:
-        runner.reset(0, 0)
-        return runner.act({0: {"observation.state": s.astype(np.float32),
-                               "observation.environment_state": e.astype(np.float32)}})[0]
 
     def episode(idx: int):
         g = df[df.episode_index == idx]

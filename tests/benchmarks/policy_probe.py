@@ -24,28 +24,39 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from arrival_frames import BASE_V, last_drive  # noqa: E402  (tests/benchmarks, the script's folder)
 
 
-def main() -> None:
-    from stages.dataset.view import feature_names
-    from stages.policy.runner import BatchedRunner, load_policy
-
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def probe_args(doc: str) -> argparse.Namespace:
+    """The probes' command line: CHECKPOINT VIEW [--episodes 0,5] [--summary-episodes 50]."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("checkpoint", type=Path)
     p.add_argument("view", type=Path)
     p.add_argument("--episodes", default="0,5")
     p.add_argument("--summary-episodes", type=int, default=50)
-    a = p.parse_args()
-    lp = load_policy(a.checkpoint, "cpu")
-    an = feature_names(a.view, "action")
-    ee = [an.index(n) for n in ("ee_x_target", "ee_y_target", "ee_z_target")]
-    base = [an.index(n) for n in BASE_V]
-    grip = an.index("gripper")
-    df = pd.concat(pd.read_parquet(f) for f in sorted((a.view / "data").glob("*/*.parquet")))
-    runner = BatchedRunner(lp)
+    return p.parse_args()
+
+
+def probe_setup(checkpoint: Path, view: Path):
+    """(action names, the view's frames as one DataFrame, first_action(state, env_state) -> action): the policy's
+    first action from a fresh chunk (no ensembling history) on the CPU."""
+    from stages.dataset.view import feature_names
+    from stages.policy.runner import BatchedRunner, load_policy
+
+    runner = BatchedRunner(load_policy(checkpoint, "cpu"))
+    df = pd.concat(pd.read_parquet(f) for f in sorted((view / "data").glob("*/*.parquet")))
 
     def first_action(s: np.ndarray, e: np.ndarray) -> np.ndarray:
         runner.reset(0, 0)
         return runner.act({0: {"observation.state": s.astype(np.float32),
                                "observation.environment_state": e.astype(np.float32)}})[0]
+
+    return feature_names(view, "action"), df, first_action
+
+
+def main() -> None:
+    a = probe_args(__doc__)
+    an, df, first_action = probe_setup(a.checkpoint, a.view)
+    ee = [an.index(n) for n in ("ee_x_target", "ee_y_target", "ee_z_target")]
+    base = [an.index(n) for n in BASE_V]
+    grip = an.index("gripper")
 
     def episode(idx: int):
         g = df[df.episode_index == idx]
