@@ -258,6 +258,6 @@ def check_names(names: Sequence[str], task: str, where: str) -> None:
 
 
 __all__ = ["ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
-           "environment_state", "episode_goal", "has_gripper", "episode_keys", "recorded_environment_state", "state_names", "ticket_keys",
-           "to_base_frame"]
+           "environment_state", "episode_goal", "episode_keys", "has_gripper", "recorded_environment_state", "state_names",
+           "ticket_keys", "to_base_frame"]
 

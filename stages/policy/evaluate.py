@@ -305,8 +305,8 @@ class Evaluator:
                 for fn in self.observers:
                     fn(v, self._frame_index(v), obs[v])
             self._cache.update(self.runner.act(obs))
-            for v in worlds if self.action_listeners else ():
-                for fn in self.action_listeners:
+            for fn in self.action_listeners:
+                for v in worlds:
                     fn(v, self._frame_index(v), self._cache[v])
         self._taken.add(w)
         return self._cache.pop(w)
