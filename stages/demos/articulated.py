@@ -119,13 +119,16 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     # drawer in and miss the grasp); opening grasps it
     d.grip(1.0 if closing else 0.0, 0.3)
     d.move(handle_pose(part, q0, pitch, GRASP_BACK), 1.5, segments=3, settle=0.1, tol=APPROACH_TOL)
-    d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF if closing else 0.0), 1.0, segments=2, settle=0.2)
     if closing:
+        d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF), 1.0, segments=2, settle=0.2)
         q_now = d.sim.joint_q_of_path(part.joint_path)
         _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.25)
         _slide(d, -0.03, speed=0.05)  # straight off the bar before the diagonal retreat drags it
     else:
-        d.grip(1.0, 0.6)
+        with d.steady():  # no DART noise from the last approach to the grip: the fingers close on the bar
+            d.move(handle_pose(part, q0, pitch, 0.0), 1.0, segments=2, settle=0.5)
+            d.grip(1.0, 0.6)
+            d.step(0.1)  # the grip held still before the pull
         _check_grasp(part, d)
         _slide(d, q0 - q1)
     log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,6 +134,16 @@ class Driver:
         self.step(min(seconds, self.pace.min_wait))
         while self.sim.time < t_end and not done():
             self.step(self.frame_dt)
+
+    @contextmanager
+    def steady(self):
+        """Within: the expert's commands run without DART noise (:mod:`stages.engine.action_noise`;
+        without noise, no effect)."""
+        self.cmd.steady = True
+        try:
+            yield
+        finally:
+            self.cmd.steady = False
 
     def grip(self, g: float, seconds: float = 0.6) -> None:
         """Gripper command ``g`` (0 open .. 1 closed); waits until the fingers stop (closed on

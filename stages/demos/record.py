@@ -60,11 +60,13 @@ class Timings:
 @dataclass
 class Commands:
     """The commands currently in force (what an action records). base_velocity (3,) base frame;
-    gripper in [0, 1]; mode 0 locomotion / 1 manipulation."""
+    gripper in [0, 1]; mode 0 locomotion / 1 manipulation; steady: the expert asks that its
+    commands run without DART noise now (:mod:`stages.engine.action_noise`; not recorded)."""
 
     base_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gripper: float = 0.0
     mode: int = 0
+    steady: bool = False
 
 
 def quat_wxyz(rot: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:

@@ -14,7 +14,9 @@ redrawn. The draws come from a generator seeded by (task, episode seed): a recor
 whatever other worlds run beside it. The offsets reach the simulation through
 :meth:`stages.simulate.control.RobotControl.set_execution_offset` (added at the upload only);
 ``mode_aware``: base offsets only while the expert drives (mode 0, a nonzero base command), arm
-offsets only in manipulation (mode 1).
+offsets only in manipulation (mode 1). An expert may ask for none for a while
+(:attr:`stages.demos.record.Commands.steady`, :meth:`stages.demos.driver.Driver.steady`: the
+drawer's grasp, so that the fingers close with the hand on the bar); the draws go on in order.
 """
 
 from __future__ import annotations
@@ -119,6 +121,7 @@ def apply_noise(engine, k: int) -> int:
     moving = [w for w in range(len(engine.held)) if not engine.held[w]]
     live = [w for w in moving if proc.active(w) and engine.rec_active[w]]
     base_v, _, modes = engine.capture.commands(live) if live else (None, None, None)
+    steady = engine.capture.steady(live) if live else []
     row = {w: j for j, w in enumerate(live)}
     for w in moving:
         bank, i = engine._where[w]
@@ -127,7 +130,7 @@ def apply_noise(engine, k: int) -> int:
             bank.ctl.set_execution_offset(i)
             continue
         step = int(engine.steps[w])
-        arm, base = proc.offsets(w, step, modes[j], base_v[j])
-        bank.ctl.set_execution_offset(i, arm, base)
+        arm, base = proc.offsets(w, step, modes[j], base_v[j])  # drawn even when steady: the stream stays in order
+        bank.ctl.set_execution_offset(i, *((None, None) if steady[j] else (arm, base)))
         k = min(k, proc.steps_to_redraw(step))
     return k

@@ -272,3 +272,11 @@ class FrameCapture:
         cmds = [e.side.cmds[w] for w in worlds]
         return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
                 [float(c.gripper) for c in cmds], [int(c.mode) for c in cmds])
+
+    def steady(self, worlds: list[int]) -> list[bool]:
+        """Per world of ``worlds``: whether its expert asks for execution without DART noise now
+        (:attr:`stages.demos.record.Commands.steady`)."""
+        e = self.e
+        if e.config.program_procs:
+            return (e.lockstep.a["cmdrec"][worlds, 5] != 0).tolist()
+        return [bool(e.side.cmds[w].steady) for w in worlds]

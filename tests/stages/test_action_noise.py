@@ -29,10 +29,12 @@ def room(kitchen_room):
 
 
 def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | None = None, *,
-         layout: str = "auto", program_procs: int = 0) -> dict:
+         layout: str = "auto", program_procs: int = 0, steady: tuple[int, int] | None = None) -> dict:
     """Run ``queues`` (world -> [(task, seed, limit)]; default EPISODE in one world) without images;
     per (task, seed): frames, result, and the arm targets uploaded to the simulation at each frame
-    step (what the next steps execute), read in a pre-step hook after the controller's upload."""
+    step (what the next steps execute), read in a pre-step hook after the controller's upload.
+    ``steady`` (first, last) frames: the expert's commands ask for no noise between them
+    (``Commands.steady``, set by the hook as an expert would; programs in threads)."""
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
 
@@ -51,6 +53,8 @@ def _run(room, work: Path, noise: ActionNoise | None, queues: dict[int, list] | 
             if uploads[w] and step < max(uploads[w]):  # the world was reset: a new episode
                 uploads[w].clear()
             uploads[w].setdefault(step, sim.control.joint_target_q.numpy()[arm].copy())
+            if steady is not None:
+                eng.side.cmds[w].steady = steady[0] <= step * eng.config.fps / eng.steps_per_second < steady[1]
 
         bank.sim.pre_step.append(hook)
 
@@ -112,6 +116,22 @@ def test_the_robot_executes_noise_while_the_frames_record_the_clean_command(runs
     a, b = dq[1:], off[:-1]
     assert np.corrcoef(a.ravel(), b.ravel())[0, 1] > 0.85
     assert np.abs(a - b).mean() < 0.4 * np.abs(b).mean()
+
+
+def test_a_steady_expert_executes_its_commands_without_noise_and_the_draws_go_on(room, runs, tmp_path):
+    # the expert asks for no noise over frames 20-40 (the drawer's grasp does, Driver.steady): the
+    # uploads there are the clean commands; before and after, the noisy run's own (the draws in order)
+    key = EPISODE[:2]
+    quiet = _run(room, tmp_path, ARM_ONLY, steady=(20, 40))[key]
+    noisy, clean = runs["noisy"], runs["none"]
+    assert len(quiet["frames"]) == len(noisy["frames"]) == 61
+    rec = _field(quiet["frames"], "arm_joint_target")
+    np.testing.assert_array_equal(rec, _field(clean["frames"], "arm_joint_target"))
+    off = quiet["uploaded"] - rec
+    assert np.abs(off[22:38]).max() < 1e-6, "no noise while steady"
+    assert (np.abs(off[:19]).max(axis=1) > 1e-3).all() and (np.abs(off[42:]).max(axis=1) > 1e-3).all()
+    np.testing.assert_array_equal(quiet["uploaded"][:19], noisy["uploaded"][:19])
+    np.testing.assert_array_equal(off[45:], (noisy["uploaded"] - rec)[45:])
 
 
 def test_noise_off_and_zero_noise_record_the_frames_of_an_engine_without_noise(runs):
