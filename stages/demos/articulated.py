@@ -50,7 +50,7 @@ from stages.demos.part_grasps import (
     lateral,
 )
 from stages.demos.part_checks import _check_grasp
-from stages.demos.part_planning import choose_base, is_free, reach, swept_grid
+from stages.demos.part_planning import STANCE_JITTER, choose_base, is_free, reach, swept_grid
 from stages.demos.part_turn import is_vertical, plan_here, plan_stage_or_turn, push_on, resolve, turn_about_hinge
 from stages.demos.part_turn import turn_limit
 from stages.demos.parts import ArticulatedPart
@@ -109,9 +109,10 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
         return [handle_pose(part, q0, pitch, GRASP_BACK), handle_pose(part, q0, pitch)]
 
     p0 = drawer_pitch(float(part.handle[2]))
-    cands = [(dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
-             for dn in (0.72, 0.66, 0.78, 0.60, 0.84)
-             for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
+    jn, jl = d.rng.uniform(-1.0, 1.0, 2) * STANCE_JITTER  # a varied stance first (part_planning)
+    cands = [(0.72 + jn + out, jl, 0.0, p0)] + [
+        (dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
+        for dn in (0.72, 0.66, 0.78, 0.60, 0.84) for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
     base, pitch = choose_base(d, part, grid, cands, targets)
     _drive(d, base, grid)
     closing = q1 < q0
