@@ -16,6 +16,7 @@ for spec in "$@"; do
     --state-drop base_x,base_y,base_theta --out $HOME/runs/$name --steps 100000 --batch-size 128 --device cuda \
     --num-workers 2 --max-seconds ${SEC:-1000} --save-freq 100000 --log-freq 500 "${args[@]}" $more \
     > $HOME/runs/$name.out 2>&1 < /dev/null &
+  echo $! > $HOME/runs/$name.pid  # poll.sh waits on these (a pattern match would also find the calling shell)
   echo "started $name on GPU $gpu: $ds $size $more"
 done
-sleep 20; ps aux | grep -c "[t]rain-policy"
+sleep 20; for f in $HOME/runs/*.pid; do kill -0 $(cat $f) 2>/dev/null && echo "$(basename $f .pid) running"; done
