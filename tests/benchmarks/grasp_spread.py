@@ -5,8 +5,8 @@ Per episode of a LeRobot dataset written by a ``demos`` step with ``environment_
 - close: the first frame whose action commands the gripper shut (> 0.5);
 - ee - handle [m]: the measured end effector (``observation.state``'s ee_x/y/z, base frame) minus
   the handle's grasp centre (``observation.environment_state``'s handle_x/y/z) at the close;
-- pull: the first frame from the close on that commands the base back (``base_vx`` < -0.02 m/s),
-  its gap to the close [frames] and the fingers' opening there (the state's last entry) [m].
+- pull: the first frame from the close on that commands the base back with the hand shut
+  (``open_pull_probe.pull_frames``: ``base_vx`` < -0.02 m/s), its gap to the close [frames] and the fingers' opening there (the state's last entry) [m].
 
 Prints the first episodes and the spread: |ee - handle| median / p90 / max, the gap's median and p90.
 Session 27: DART noise on the arm up to the grip (``open_armdart``) closes the hand a median 7.5 mm
@@ -20,15 +20,13 @@ Run::
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-
-def _names(feature: dict) -> list[str]:
-    n = feature["names"]
-    return list(next(iter(n.values()))) if isinstance(n, dict) else list(n)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from open_pull_probe import pull_frames  # noqa: E402  (tests/benchmarks, the script's folder)
 
 
 def spread(root: Path) -> np.ndarray:
@@ -36,10 +34,11 @@ def spread(root: Path) -> np.ndarray:
     opening at the pull [m]) of every episode in dataset ``root``."""
     import pyarrow.parquet as pq
 
-    feats = json.loads((root / "meta" / "info.json").read_text())["features"]
-    sn, an = _names(feats["observation.state"]), _names(feats["action"])
-    en = _names(feats["observation.environment_state"])
-    if en[-1] != "gripper_opening" or en[:3] != ["handle_x", "handle_y", "handle_z"]:
+    from stages.dataset.view import feature_names
+
+    sn, an = feature_names(root), feature_names(root, "action")
+    en = feature_names(root, "observation.environment_state") or []
+    if not en or en[-1] != "gripper_opening" or en[:3] != ["handle_x", "handle_y", "handle_z"]:
         raise SystemExit(f"{root}: needs an open/close set with the gripper entry, has {en}")
     files = sorted((root / "data").rglob("*.parquet"))
     cols = ["episode_index", "observation.state", "observation.environment_state", "action"]
@@ -55,12 +54,10 @@ def spread(root: Path) -> np.ndarray:
     rows = []
     for e in np.unique(ep):
         i = np.flatnonzero(ep == e)
-        shut = np.flatnonzero(A[i, g] > 0.5)
-        if not len(shut):
+        c, pull = pull_frames(A[i], vx, g)
+        if c < 0:
             continue
-        c = int(shut[0])
-        back = np.flatnonzero(A[i[c:], vx] < -0.02)
-        p = c + int(back[0]) if len(back) else -1
+        p = int(pull[0]) if len(pull) else -1
         rows.append((e, c, p - c if p >= 0 else -1, *(S[i[c], ee] - E[i[c], :3]), E[i[c], -1],
                      E[i[p], -1] if p >= 0 else np.nan))
     return np.array(rows, float)
