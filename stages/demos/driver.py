@@ -257,25 +257,31 @@ class Driver:
     def follow(self, path: np.ndarray, gyaw: float, *, timeout: float = 15.0, tuck: np.ndarray | None = None) -> None:
         """Follow ``path`` (N, 2) [m] to its end, turning to ``gyaw`` [rad]; mode 0 (locomotion).
         ``tuck``: arm joint targets (7,) [rad] reached linearly at ``pace.joint_speed`` meanwhile
-        (from the start; a drive shorter than that waits for the arm)."""
+        (from the start; a drive shorter than that waits for the arm). Meanwhile
+        ``cmd.stop_distance`` is the base's distance to the path's end [m] (inf after)."""
         goal = (*path[-1], gyaw)
         follower = PathFollower(path, gyaw, dt=self.frame_dt)
         self.cmd.mode = 0
         t_end = self.sim.time + timeout
         arm = self._arm_ramp(tuck)
-        while True:
-            if arm:
-                self.ctl.set_arm_targets(arm.pop(0))
-            t1 = time.perf_counter()
-            v, done = follower.command(*base_pose(self.sim))
-            self.plan_seconds += time.perf_counter() - t1
-            self.base(v)
-            if done:
-                break
-            if self.sim.time > t_end:
-                self.base((0.0, 0.0, 0.0))
-                raise ExpertFailure("drive_timeout", f"base at {base_pose(self.sim)}, goal {goal}")
-            self.step(self.frame_dt)
+        try:
+            while True:
+                if arm:
+                    self.ctl.set_arm_targets(arm.pop(0))
+                t1 = time.perf_counter()
+                pose = base_pose(self.sim)
+                v, done = follower.command(*pose)
+                self.plan_seconds += time.perf_counter() - t1
+                self.cmd.stop_distance = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+                self.base(v)
+                if done:
+                    break
+                if self.sim.time > t_end:
+                    self.base((0.0, 0.0, 0.0))
+                    raise ExpertFailure("drive_timeout", f"base at {pose}, goal {goal}")
+                self.step(self.frame_dt)
+        finally:
+            self.cmd.stop_distance = math.inf
         for q in arm:
             self.ctl.set_arm_targets(q)
             self.step(self.frame_dt)

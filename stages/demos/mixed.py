@@ -54,19 +54,22 @@ class ActionNoiseSpec(_Strict):
     :mod:`stages.engine.action_noise`): the robot executes the expert's commands plus held random
     offsets while the frames record the clean commands. arm_std: per arm joint [rad]; base_std:
     base velocity (vx, vy [m/s], vtheta [rad/s]); hold_seconds: each draw held this long [s];
-    mode_aware: base noise only while the base drives, arm noise only in manipulation."""
+    mode_aware: base noise only while the base drives, arm noise only in manipulation;
+    base_quiet_radius: no base noise within this distance [m] of a drive's stop."""
 
     arm_std: _Std = 0.02
     base_std: tuple[_Std, _Std, _Std] = (0.05, 0.05, 0.1)
     hold_seconds: float = Field(default=0.3, gt=0.0, le=60.0, allow_inf_nan=False)
     mode_aware: bool = True
+    base_quiet_radius: float = Field(default=0.0, ge=0.0, le=10.0, allow_inf_nan=False)
 
     def engine(self):
         """The engine's :class:`~stages.engine.action_noise.ActionNoise`."""
         from stages.engine.action_noise import ActionNoise
 
         return ActionNoise(arm_std=self.arm_std, base_std=tuple(self.base_std),
-                           hold_seconds=self.hold_seconds, mode_aware=self.mode_aware)
+                           hold_seconds=self.hold_seconds, mode_aware=self.mode_aware,
+                           base_quiet_radius=self.base_quiet_radius)
 
 
 class MixedParams(_Strict):

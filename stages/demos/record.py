@@ -61,12 +61,15 @@ class Timings:
 class Commands:
     """The commands currently in force (what an action records). base_velocity (3,) base frame;
     gripper in [0, 1]; mode 0 locomotion / 1 manipulation; steady: the expert asks that its
-    commands run without DART noise now (:mod:`stages.engine.action_noise`; not recorded)."""
+    commands run without DART noise now (:mod:`stages.engine.action_noise`; not recorded);
+    stop_distance: while the base follows a path, its distance to the path's end [m] (inf
+    otherwise; not recorded: :attr:`stages.engine.action_noise.ActionNoise.base_quiet_radius`)."""
 
     base_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gripper: float = 0.0
     mode: int = 0
     steady: bool = False
+    stop_distance: float = math.inf
 
 
 def quat_wxyz(rot: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:

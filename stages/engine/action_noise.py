@@ -17,6 +17,9 @@ whatever other worlds run beside it. The offsets reach the simulation through
 offsets only in manipulation (mode 1). An expert may ask for none for a while
 (:attr:`stages.demos.record.Commands.steady`, :meth:`stages.demos.driver.Driver.steady`: the
 drawer's grasp, so that the fingers close with the hand on the bar); the draws go on in order.
+``base_quiet_radius`` [m]: no base offsets while the base is within this distance of the end of
+the path it follows (:attr:`stages.demos.record.Commands.stop_distance`): the drive is perturbed,
+its arrival is not (session 25: base noise up to the stop taught policies to keep driving there).
 """
 
 from __future__ import annotations
@@ -36,12 +39,14 @@ class ActionNoise:
     velocity offsets (vx, vy [m/s], vtheta [rad/s]) in the base frame; hold_seconds: each draw is
     held this long [s] of episode time, then redrawn; mode_aware: base offsets only while the base
     is driven (mode 0 with a nonzero base command), arm offsets only in manipulation (mode 1)
-    (False: both always)."""
+    (False: both always); base_quiet_radius: no base offsets within this distance [m] of the
+    stop of the drive in progress (0: none kept quiet)."""
 
     arm_std: float = 0.02
     base_std: tuple[float, float, float] = (0.05, 0.05, 0.1)
     hold_seconds: float = 0.3
     mode_aware: bool = True
+    base_quiet_radius: float = 0.0
 
     def __post_init__(self) -> None:
         stds = (self.arm_std, *self.base_std)
@@ -50,6 +55,8 @@ class ActionNoise:
         if not all(math.isfinite(s) and s >= 0 for s in stds):
             raise ValueError(f"action noise: standard deviations must be finite and >= 0, got arm_std "
                              f"{self.arm_std}, base_std {self.base_std}")
+        if not (math.isfinite(self.base_quiet_radius) and self.base_quiet_radius >= 0):
+            raise ValueError(f"action noise: base_quiet_radius must be >= 0 [m], got {self.base_quiet_radius}")
         if not (math.isfinite(self.hold_seconds) and self.hold_seconds > 0):
             raise ValueError(f"action noise: hold_seconds must be > 0 [s], got {self.hold_seconds}")
 
@@ -122,6 +129,8 @@ def apply_noise(engine, k: int) -> int:
     live = [w for w in moving if proc.active(w) and engine.rec_active[w]]
     base_v, _, modes = engine.capture.commands(live) if live else (None, None, None)
     steady = engine.capture.steady(live) if live else []
+    radius = proc.cfg.base_quiet_radius
+    near = (engine.capture.stop_distance(live) < radius).tolist() if live and radius > 0 else [False] * len(live)
     row = {w: j for j, w in enumerate(live)}
     for w in moving:
         bank, i = engine._where[w]
@@ -131,6 +140,8 @@ def apply_noise(engine, k: int) -> int:
             continue
         step = int(engine.steps[w])
         arm, base = proc.offsets(w, step, modes[j], base_v[j])  # drawn even when steady: the stream stays in order
+        if near[j]:
+            base = np.zeros(3)
         bank.ctl.set_execution_offset(i, *((None, None) if steady[j] else (arm, base)))
         k = min(k, proc.steps_to_redraw(step))
     return k

@@ -280,3 +280,11 @@ class FrameCapture:
         if e.config.program_procs:
             return (e.lockstep.a["cmdrec"][worlds, 5] != 0).tolist()
         return [bool(e.side.cmds[w].steady) for w in worlds]
+
+    def stop_distance(self, worlds: list[int]) -> np.ndarray:
+        """Per world of ``worlds`` (K,): its base's distance to the end of the path it follows [m]
+        (inf when not following one; :attr:`stages.demos.record.Commands.stop_distance`)."""
+        e = self.e
+        if e.config.program_procs:
+            return e.lockstep.a["cmdrec"][worlds, 6].copy()
+        return np.array([float(e.side.cmds[w].stop_distance) for w in worlds], float)

@@ -152,6 +152,7 @@ class WorldSide:
         view, ctl = self.views[w], self.controls[w]
         cmd = self.cmds[w]
         cmd.base_velocity, cmd.gripper, cmd.mode, cmd.steady = np.zeros(3), 0.0, 0, False
+        cmd.stop_distance = math.inf
         drv = Driver(view, ctl, self.ik, cmd, _Rec(self.fps), np.random.default_rng(inst.seed))
         t0 = time.perf_counter()
         if limit is None:

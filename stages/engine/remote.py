@@ -176,6 +176,7 @@ def _worker(conn, init: dict) -> None:
             c = side.cmds[w]
             a["cmdrec"][w, :3] = c.base_velocity
             a["cmdrec"][w, 3], a["cmdrec"][w, 4], a["cmdrec"][w, 5] = c.gripper, c.mode, float(c.steady)
+            a["cmdrec"][w, 6] = c.stop_distance
             conn.send(("ok", w, events[w]))
             events[w] = []
     finally:
@@ -201,7 +202,7 @@ class RemotePrograms:
             "body_q": ((st.body_q.shape[0], 7), np.float32),
             "peaks": ((n, max(1, len(bank.peaks.paths))), np.float32),
             "targets": (bank.ctl._targets.shape, bank.ctl._targets.dtype), "cmd": ((n, 3), np.float32),
-            "cmdrec": ((n, 6), np.float64), "steps": ((n,), np.int64), "rec_active": ((n,), np.int8),
+            "cmdrec": ((n, 7), np.float64), "steps": ((n,), np.int64), "rec_active": ((n,), np.int8),
             "rec_max": ((n,), np.int64), "pending": ((n,), np.int64), "flags": ((n, 4), np.int8),
         }
         self.shared = _Shared(specs=specs)

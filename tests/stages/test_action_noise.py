@@ -134,6 +134,39 @@ def test_a_steady_expert_executes_its_commands_without_noise_and_the_draws_go_on
     np.testing.assert_array_equal(off[45:], (noisy["uploaded"] - rec)[45:])
 
 
+def test_base_noise_stays_off_within_the_quiet_radius_of_the_drive_stop(room, tmp_path):
+    # base DART with base_quiet_radius: per physics step, the base offset in force is zero while the
+    # expert's base is within the radius of its path's end (Commands.stop_distance, set by
+    # Driver.follow) and drawn (nonzero while driving) farther out
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+
+    radius = 0.6
+    noise = ActionNoise(arm_std=0.0, base_std=(0.1, 0.1, 0.15), hold_seconds=0.1, base_quiet_radius=radius)
+    eng = BatchEngine(room, panda_root=None, work_dir=tmp_path,
+                      config=EngineConfig(worlds=1, record_images=False, action_noise=noise))
+    bank, i = eng._where[0]
+    seen: list[tuple[float, bool, bool]] = []  # (stop distance [m], driving, base offset nonzero)
+
+    def hook(sim):
+        cmd = eng.side.cmds[0]
+        seen.append((float(cmd.stop_distance), cmd.mode == 0 and bool(np.any(cmd.base_velocity != 0)),
+                     bool(np.any(bank.ctl._base_off[i] != 0))))
+
+    bank.sim.pre_step.append(hook)
+    eng.run(Listed(room, {0: [("push_object", 1, 8.0)]}), begin=lambda w, inst: (lambda f: None),
+            end=lambda w, inst, res: None)
+    d = np.array([x[0] for x in seen])
+    driving, offset = np.array([x[1] for x in seen]), np.array([x[2] for x in seen])
+    near, far = driving & (d < radius), driving & (d >= radius) & np.isfinite(d)
+    assert near.sum() > 100 and far.sum() > 100, (near.sum(), far.sum())
+    assert not offset[np.isinf(d)].any(), "no base noise outside a drive"
+    assert not offset[d < radius].any(), "no base noise near the stop"
+    assert offset[far].mean() > 0.95, "base noise on the drive farther out"
+    with pytest.raises(ValueError, match="base_quiet_radius"):
+        ActionNoise(base_quiet_radius=-0.1)
+
+
 def test_noise_off_and_zero_noise_record_the_frames_of_an_engine_without_noise(runs):
     _assert_same(runs["none"], runs["zero"])
     np.testing.assert_array_equal(runs["none"]["uploaded"], runs["zero"]["uploaded"])
