@@ -24,6 +24,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     # arm_std = 0.02            # [rad] per arm joint
     # base_std = [0.05, 0.05, 0.1]   # base velocity vx, vy [m/s], vtheta [rad/s]
     # hold_seconds = 0.3        # each draw held this long [s]
+    # base_quiet_radius = 0.6   # [m] no base noise this close to a drive's stop (default 0)
     # environment_state = true  # frames record the task objects' state (stages.engine.env_state)
     # environment_gripper = true  # ... ending with the gripper's opening [m]
 
