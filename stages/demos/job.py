@@ -27,6 +27,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     # base_quiet_radius = 0.6   # [m] no base noise this close to a drive's stop (default 0)
     # environment_state = true  # frames record the task objects' state (stages.engine.env_state)
     # environment_gripper = true  # ... ending with the gripper's opening [m]
+    # environment_base_velocity = true  # ... holding the base's measured velocity (base frame)
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
@@ -112,7 +113,8 @@ class DemosConfig(_Strict):
     key points in the robot base frame (:mod:`stages.engine.env_state`; per-task items only, every
     task of the step with the same layout; False: the feature is absent, the files as before).
     environment_gripper: that state ends with ``gripper_opening``, the fingers' opening [m] (needs
-    ``environment_state``)."""
+    ``environment_state``). environment_base_velocity: it holds the base's measured velocity in its
+    own frame (``base_vx``, ``base_vy`` [m/s], ``base_vtheta`` [rad/s]; needs ``environment_state``)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -140,6 +142,7 @@ class DemosConfig(_Strict):
     action_noise: _mixed.ActionNoiseSpec | None = None
     environment_state: bool = False
     environment_gripper: bool = False
+    environment_base_velocity: bool = False
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -188,6 +191,8 @@ class DemosConfig(_Strict):
             common_layout(self.tasks)  # ValueError names a task without one, or the differing layouts
         elif self.environment_gripper:
             raise ValueError("environment_gripper needs environment_state = true")
+        elif self.environment_base_velocity:
+            raise ValueError("environment_base_velocity needs environment_state = true")
         return self
 
     @field_validator("tasks")
@@ -229,6 +234,7 @@ class ShardParams(_Strict):
     action_noise: _mixed.ActionNoiseSpec | None = None
     environment_state: bool = False
     environment_gripper: bool = False
+    environment_base_velocity: bool = False
 
 
 class EpisodeRecord(_Strict):
@@ -336,6 +342,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  max_seconds=config.max_seconds, action_noise=config.action_noise,
                                  environment_state=config.environment_state,
                                  environment_gripper=config.environment_gripper,
+                                 environment_base_velocity=config.environment_base_velocity,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -383,7 +390,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           program_procs=params.program_procs if n > 1 else 0,
                           program_wait=params.program_wait if n > 1 and params.program_procs else None,
                           action_noise=None if params.action_noise is None else params.action_noise.engine(),
-                          environment_state=(state_names(params.task, params.environment_gripper)
+                          environment_state=(state_names(params.task, params.environment_gripper,
+                                                         params.environment_base_velocity)
                                              if params.environment_state else ()))
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)

@@ -28,6 +28,13 @@ parallel gripper's finger joint positions (the Panda hand: the distance between 
 fingers: without this entry a policy cannot tell a closed hand from an open one at the same arm
 pose (the grasp's dwell, the release).
 
+With the base-velocity entries (``base_velocity=True``; the recorder's option
+``environment_base_velocity``), three numbers come before the gripper's: ``base_vx``, ``base_vy``
+[m/s] and ``base_vtheta`` [rad/s], the base's measured velocity in its own frame (the planar
+joints' velocities turned by the base's yaw). ``observation.state`` holds poses only: without them a
+policy cannot tell a base that has stopped from one still braking at the same pose, nor a base
+pushing against furniture from one driving (session 28: the drawer policies' stalls and pushes).
+
 The dimension D is fixed per task (:func:`state_names`); a dataset holds one layout.
 """
 
@@ -45,11 +52,17 @@ _PUSH = tuple(f"object_{c}" for c in _XYZ) + tuple(f"goal_{c}" for c in _XYZ)
 _PART = (*(f"handle_{c}" for c in _XYZ), "opening")
 _BODIES = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("pusher",)}
 GRIPPER = "gripper_opening"  # the optional last entry: the fingers' opening [m]
+BASE_VELOCITY = ("base_vx", "base_vy", "base_vtheta")  # optional, before the gripper's: [m/s, m/s, rad/s]
 
 
 def has_gripper(names: Sequence[str]) -> bool:
     """Whether an environment-state layout ``names`` ends with the gripper's opening."""
     return bool(names) and names[-1] == GRIPPER
+
+
+def has_base_velocity(names: Sequence[str]) -> bool:
+    """Whether an environment-state layout ``names`` holds the base's velocity entries."""
+    return BASE_VELOCITY[-1] in tuple(names)
 
 
 def _part_target(task: str) -> str | None:
@@ -60,10 +73,11 @@ def _part_target(task: str) -> str | None:
     return which if kind in ("open", "close") and which in ARTICULATED else None
 
 
-def state_names(task: str, gripper: bool = False) -> tuple[str, ...]:
-    """The names of ``task``'s environment state (D entries; module docstring), ending with
-    ``gripper_opening`` when ``gripper``; ValueError for a task without one."""
-    tail = (GRIPPER,) if gripper else ()
+def state_names(task: str, gripper: bool = False, base_velocity: bool = False) -> tuple[str, ...]:
+    """The names of ``task``'s environment state (D entries; module docstring), then the base's
+    velocity when ``base_velocity``, ending with ``gripper_opening`` when ``gripper``; ValueError
+    for a task without one."""
+    tail = (BASE_VELOCITY if base_velocity else ()) + ((GRIPPER,) if gripper else ())
     if task == "pick_place_bowl":
         return _PICK + tail
     if task == "push_object":
@@ -74,11 +88,11 @@ def state_names(task: str, gripper: bool = False) -> tuple[str, ...]:
                      f"push_object, open_/close_ of an articulated part)")
 
 
-def common_layout(tasks: Sequence[str], gripper: bool = False) -> tuple[str, ...]:
+def common_layout(tasks: Sequence[str], gripper: bool = False, base_velocity: bool = False) -> tuple[str, ...]:
     """The one environment-state layout of ``tasks`` (a dataset or a policy holds one; with the
     gripper entry when ``gripper``); ValueError naming a task without one, or the layouts when they
     differ."""
-    layouts = {t: state_names(t, gripper) for t in tasks}
+    layouts = {t: state_names(t, gripper, base_velocity) for t in tasks}
     if len(set(layouts.values())) > 1:
         raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
     return next(iter(layouts.values()), ())
@@ -100,7 +114,8 @@ class EnvKeys:
     origins are key points; ``goal`` (3 g,) fixed world points [m]; ``part`` the articulated part
     and ``coord`` its joint's world-local coordinate (open/close tasks; None otherwise);
     ``fingers`` the world-local coordinates of the gripper's finger joints whose sum is the
-    ``gripper_opening`` entry (() without it)."""
+    ``gripper_opening`` entry (() without it); ``base`` the world-local (coordinates, dofs) of the
+    base's planar joints x, y, yaw whose velocities are the base-velocity entries (() without them)."""
 
     task: str
     bodies: tuple[int, ...] = ()
@@ -108,23 +123,26 @@ class EnvKeys:
     part: object = None
     coord: int = -1
     fingers: tuple[int, ...] = ()
+    base: tuple[tuple[int, ...], tuple[int, ...]] | tuple = ()
 
     @property
     def dim(self) -> int:
         return (3 * len(self.bodies) + len(self.goal) + (4 if self.part is not None else 0)
-                + (1 if self.fingers else 0))
+                + (3 if self.base else 0) + (1 if self.fingers else 0))
 
 
 class EnvResolver:
     """Builds :class:`EnvKeys` for episodes in one task world (a kitchen) simulated by an engine:
     body and joint indices resolved once per task. ``body_index``: scene prim path -> world-local
     body index; ``scene_coord``: scene joint prim path -> world-local joint coordinate;
-    ``fingers``: the world-local coordinates of the robot's finger joints."""
+    ``fingers``: the world-local coordinates of the robot's finger joints; ``base``: the world-local
+    (coordinates, dofs) of its planar base joints x, y, yaw."""
 
     def __init__(self, world, body_index: dict[str, int], scene_coord: dict[str, int],
-                 fingers: Sequence[int] = ()) -> None:
+                 fingers: Sequence[int] = (), base: tuple = ()) -> None:
         self.world, self.body_index, self.scene_coord = world, body_index, scene_coord
         self.fingers = tuple(int(c) for c in fingers)
+        self.base = tuple(tuple(int(i) for i in part) for part in base)
         self._parts: dict[str, object] = {}
 
     @classmethod
@@ -132,16 +150,24 @@ class EnvResolver:
         sim = engine.banks[0].sim
         grip = sim.desc.gripper
         fingers = [sim.robot.coord[n] for n in grip.finger_joints] if grip is not None else []
-        return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord), fingers)
+        joints = tuple(sim.desc.base_joints)
+        base = ((tuple(sim.robot.coord[n] for n in joints), tuple(sim.robot.dof[n] for n in joints))
+                if len(joints) == 3 else ())
+        return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord), fingers,
+                   base)
 
-    def keys(self, task: str, goal: Sequence[float] = (), gripper: bool = False) -> EnvKeys:
+    def keys(self, task: str, goal: Sequence[float] = (), gripper: bool = False,
+             base_velocity: bool = False) -> EnvKeys:
         """The keys of an episode of ``task`` with the fixed points ``goal`` (:func:`episode_goal`),
-        with the gripper's opening when ``gripper`` (ValueError for a robot without finger joints)."""
+        with the gripper's opening when ``gripper`` (ValueError for a robot without finger joints)
+        and the base's velocity when ``base_velocity`` (ValueError for a robot without a planar base)."""
         state_names(task)  # raises for a task without an environment state
         if gripper and not self.fingers:
             raise ValueError(f"environment_state: {GRIPPER} needs a robot with a parallel gripper's finger joints")
+        if base_velocity and not self.base:
+            raise ValueError("environment_state: the base velocity needs a robot with planar base joints x, y, yaw")
         keys = self._keys(task, goal)
-        return replace(keys, fingers=self.fingers) if gripper else keys
+        return replace(keys, fingers=self.fingers if gripper else (), base=self.base if base_velocity else ())
 
     def _keys(self, task: str, goal: Sequence[float]) -> EnvKeys:
         which = _part_target(task)
@@ -168,15 +194,17 @@ def to_base_frame(points: np.ndarray, base: np.ndarray) -> np.ndarray:
 
 
 def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.ndarray,
-                      joint_q: np.ndarray) -> np.ndarray:
+                      joint_q: np.ndarray, joint_qd: np.ndarray | None = None) -> np.ndarray:
     """The environment state of K worlds at one instant, float32 (K, D).
 
     keys: per world its episode's :class:`EnvKeys` (all of one dimension D); base (K, 3): base
     poses (x, y [m], theta [rad]) in the world; body_xyz (K, B, 3): world positions of each world's
-    bodies [m] (world-local body index); joint_q (K, C): each world's joint coordinates (world-local).
+    bodies [m] (world-local body index); joint_q (K, C): each world's joint coordinates (world-local);
+    joint_qd (K, D): its joint velocities (world-local dofs; needed by keys with ``base``).
     Row k: the key points (bodies', then the goal's, then an articulated handle's) in world k's
-    base frame, then an articulated part's opening [m or rad], then the gripper's opening [m] (keys
-    with ``fingers``)."""
+    base frame, then an articulated part's opening [m or rad], then the base's velocity in its own
+    frame [m/s, m/s, rad/s] (keys with ``base``), then the gripper's opening [m] (keys with
+    ``fingers``)."""
     k = len(keys)
     dims = {kk.dim for kk in keys}
     if len(dims) > 1:
@@ -193,6 +221,13 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
             q = float(joint_q[j, kk.coord])
             pts.append(kk.part.handle_at(q))
             extra.append(q - kk.part.closed)
+        if kk.base:
+            if joint_qd is None:
+                raise ValueError("environment_state: the base velocity needs the joint velocities")
+            (_, _, cyaw), (dx, dy, dyaw) = kk.base
+            c, s = np.cos(joint_q[j, cyaw]), np.sin(joint_q[j, cyaw])
+            vx, vy = float(joint_qd[j, dx]), float(joint_qd[j, dy])
+            extra += [c * vx + s * vy, -s * vx + c * vy, float(joint_qd[j, dyaw])]
         if kk.fingers:
             extra.append(float(sum(joint_q[j, c] for c in kk.fingers)))
         rows.append((np.asarray(pts, np.float64).reshape(-1, 3), extra))
@@ -207,15 +242,19 @@ def engine_environment_state(engine, worlds: Sequence[int], keys: Sequence[EnvKe
     snapshot of this step (the state read that gives ``observation.state``); ``base`` (K, 3): their
     base poses (:meth:`~stages.engine.capture.FrameCapture.robot_state`). float32 (K, D)."""
     sim = engine.banks[0].sim
-    nb, nc = sim.bodies_per_world, sim.coords_per_world
-    body, jq = [], []
+    nb, nc, nd = sim.bodies_per_world, sim.coords_per_world, sim.dofs_per_world
+    need_qd = any(kk.base for kk in keys)
+    body, jq, jqd = [], [], []
     for w in worlds:
         bank, i = engine._where[w]
         body.append(bank.snapshot.get("body_q")[i * nb:(i + 1) * nb, :3])
         jq.append(bank.snapshot.get("joint_q")[i * nc:(i + 1) * nc])
+        if need_qd:
+            jqd.append(bank.snapshot.get("joint_qd")[i * nd:(i + 1) * nd])
     k = len(worlds)
     body_xyz = np.asarray(body, np.float64).reshape(k, nb, 3)
-    return environment_state(keys, base, body_xyz, np.asarray(jq, np.float64).reshape(k, nc))
+    qd = np.asarray(jqd, np.float64).reshape(k, nd) if need_qd else None
+    return environment_state(keys, base, body_xyz, np.asarray(jq, np.float64).reshape(k, nc), qd)
 
 
 def ticket_keys(engine, ticket) -> EnvKeys:
@@ -228,12 +267,13 @@ def ticket_keys(engine, ticket) -> EnvKeys:
 def episode_keys(engine, task: str, goal: Sequence[float] = ()) -> EnvKeys:
     """:meth:`EnvResolver.keys` of an episode of ``task`` (fixed points ``goal``) on ``engine``, with
     the engine's one resolver (made on first use): the recorder's and the evaluator's. The gripper's
-    opening is in when the engine's ``environment_state`` names end with it."""
+    opening is in when the engine's ``environment_state`` names end with it, the base's velocity
+    when they hold it."""
     res = getattr(engine, "_env_resolver", None)
     if res is None:
         res = engine._env_resolver = EnvResolver.of_engine(engine)
     names = tuple(engine.config.environment_state)
-    return res.keys(task, goal, gripper=has_gripper(names))
+    return res.keys(task, goal, gripper=has_gripper(names), base_velocity=has_base_velocity(names))
 
 
 def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
@@ -251,13 +291,13 @@ def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) 
 def check_names(names: Sequence[str], task: str, where: str) -> None:
     """ValueError when ``task``'s environment state is not laid out as ``names`` (a dataset or a
     policy holds one layout; with or without the gripper's entry)."""
-    mine = state_names(task, gripper=has_gripper(names))
+    mine = state_names(task, gripper=has_gripper(names), base_velocity=has_base_velocity(names))
     if tuple(names) != mine:
         raise ValueError(f"{where}: task {task!r} has environment state {list(mine)}, but "
                          f"{len(names)} entries {list(names)} are recorded or expected")
 
 
-__all__ = ["ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
-           "environment_state", "episode_goal", "episode_keys", "has_gripper", "recorded_environment_state", "state_names",
+__all__ = ["BASE_VELOCITY", "ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
+           "environment_state", "episode_goal", "episode_keys", "has_base_velocity", "has_gripper", "recorded_environment_state", "state_names",
            "ticket_keys", "to_base_frame"]
 

@@ -473,8 +473,11 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
         names = common_layout(cfg.tasks)
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
-    if len(names) + 1 == loaded.env_state_dim:  # the layout ending with the gripper's opening
-        names = common_layout(cfg.tasks, gripper=True)
+    for gripper, base_velocity in ((True, False), (False, True), (True, True)):  # the optional entries
+        if len(names) != loaded.env_state_dim:
+            names = common_layout(cfg.tasks, gripper=gripper, base_velocity=base_velocity)
+    if len(names) != loaded.env_state_dim:
+        names = common_layout(cfg.tasks)
     if len(names) != loaded.env_state_dim:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes an environment state of {loaded.env_state_dim} "
                          f"entries; the tasks' layouts are {dict.fromkeys(cfg.tasks, names)}")

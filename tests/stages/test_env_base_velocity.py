@@ -1,0 +1,82 @@
+"""The environment state's base-velocity entries (``environment_base_velocity``; stages/engine/env_state.py):
+the base's measured velocity in its own frame, beside the task's entries, before the gripper's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_env_state import _probe_frames
+
+
+def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame(kitchen_catalog, tmp_path):
+    """A whole scripted open_drawer episode (no cameras) with the base-velocity and gripper entries
+    records 8 numbers a frame: the handle and the opening as without them, then base_vx, base_vy
+    [m/s], base_vtheta [rad/s] (the planar joints' velocities turned into the base frame: the
+    simulation's own reading at the same frame), then the fingers' opening. They show the drive
+    (speeds up to the expert's) and the stop (zero while the hand works at the drawer)."""
+    pytest.importorskip("newton")
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.env_state import BASE_VELOCITY, GRIPPER, has_base_velocity, state_names
+    from stages.engine.programs import Listed
+    from stages.policy.evaluate import build_kitchen
+
+    names = state_names("open_drawer", gripper=True, base_velocity=True)
+    assert names == (*state_names("open_drawer"), *BASE_VELOCITY, GRIPPER) and has_base_velocity(names)
+    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
+    cfg = EngineConfig(worlds=1, record_images=False, environment_state=names)
+    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
+    frames, results = [], []
+    probes = _probe_frames(engine)
+    engine.run(Listed(world, {0: [("open_drawer", 2, None)]}), begin=lambda w, t: frames.append,
+               end=lambda w, t, res: results.append(res))
+    assert [r.success for r in results] == [True], results
+    assert len(frames) == len(probes) > 100
+    env = np.array([f.environment_state for f in frames], np.float64)
+    assert env.shape == (len(frames), 8)
+    jn = list(probes[0].robot.joint_names)
+    ix, iy, iyaw = jn.index("base_x"), jn.index("base_y"), jn.index("base_yaw")
+    q = np.array([st.robot.q for st in probes])
+    qd = np.array([st.robot.qd for st in probes])
+    c, s = np.cos(q[:, iyaw]), np.sin(q[:, iyaw])
+    want = np.stack([c * qd[:, ix] + s * qd[:, iy], -s * qd[:, ix] + c * qd[:, iy], qd[:, iyaw]], axis=1)
+    np.testing.assert_allclose(env[:, 4:7], want, atol=1e-4)
+    assert np.abs(env[:, 4]).max() > 0.3, "the drive shows"
+    manip = np.array([f.mode for f in frames]).reshape(-1) == 1
+    assert manip.sum() > 30 and np.abs(env[manip][:, 4:7]).max(axis=1).min() < 1e-3, "the stop shows"
+    # the base frame's speeds agree with the world pose's motion between frames
+    base = np.array([(st.robot.base.x, st.robot.base.y, st.robot.base.theta) for st in probes], np.float64)
+    dt = 1.0 / cfg.fps
+    vw = np.diff(base[:, :2], axis=0) / dt
+    th = base[:-1, 2]
+    vb = np.stack([np.cos(th) * vw[:, 0] + np.sin(th) * vw[:, 1], -np.sin(th) * vw[:, 0] + np.cos(th) * vw[:, 1]], 1)
+    mid = 0.5 * (env[:-1, 4:6] + env[1:, 4:6])
+    assert np.median(np.abs(vb - mid)) < 0.02
+    np.testing.assert_allclose(env[:, 7], [sum(st.robot.q[i] for i, n in enumerate(jn) if "finger" in n)
+                                           for st in probes], atol=1e-5)
+
+
+def test_base_velocity_options_are_checked_and_eval_finds_the_layout():
+    from types import SimpleNamespace
+
+    from pydantic import ValidationError
+
+    from stages.demos.job import DemosConfig
+    from stages.engine.env_state import BASE_VELOCITY, GRIPPER, check_names, state_names
+    from stages.policy.evaluate import EvalConfig, env_layout
+
+    assert DemosConfig(tasks=("open_drawer",), environment_state=True,
+                       environment_base_velocity=True).environment_base_velocity
+    with pytest.raises(ValidationError, match="environment_base_velocity needs environment_state"):
+        DemosConfig(tasks=("open_drawer",), environment_base_velocity=True)
+    with pytest.raises(ValueError, match="has environment state"):
+        check_names(state_names("open_drawer", base_velocity=True)[:-1], "open_drawer", "test")
+    cfg = EvalConfig(checkpoint=Path("ck"), tasks=("open_drawer",), scenes=(101,), seeds=(1,))
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=7))[-3:] == BASE_VELOCITY
+    got = env_layout(cfg, SimpleNamespace(env_state_dim=8))
+    assert got[-1] == GRIPPER and got[-4:-1] == BASE_VELOCITY
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=5))[-1] == GRIPPER
