@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_env_state import _probe_frames
+from test_env_state import scripted_episode
 
 
 def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame(kitchen_catalog, tmp_path):
@@ -18,24 +18,12 @@ def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame
     simulation's own reading at the same frame), then the fingers' opening. They show the drive
     (speeds up to the expert's) and the stop (zero while the hand works at the drawer)."""
     pytest.importorskip("newton")
-    from kitchen_testutil import link_kitchen_catalog
-
-    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine import EngineConfig
     from stages.engine.env_state import BASE_VELOCITY, GRIPPER, has_base_velocity, state_names
-    from stages.engine.programs import Listed
-    from stages.policy.evaluate import build_kitchen
 
     names = state_names("open_drawer", gripper=True, base_velocity=True)
     assert names == (*state_names("open_drawer"), *BASE_VELOCITY, GRIPPER) and has_base_velocity(names)
-    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
-    cfg = EngineConfig(worlds=1, record_images=False, environment_state=names)
-    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
-    frames, results = [], []
-    probes = _probe_frames(engine)
-    engine.run(Listed(world, {0: [("open_drawer", 2, None)]}), begin=lambda w, t: frames.append,
-               end=lambda w, t, res: results.append(res))
-    assert [r.success for r in results] == [True], results
-    assert len(frames) == len(probes) > 100
+    frames, probes = scripted_episode(kitchen_catalog, tmp_path, "open_drawer", names)
     env = np.array([f.environment_state for f in frames], np.float64)
     assert env.shape == (len(frames), 8)
     jn = list(probes[0].robot.joint_names)
@@ -50,7 +38,7 @@ def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame
     assert manip.sum() > 30 and np.abs(env[manip][:, 4:7]).max(axis=1).min() < 1e-3, "the stop shows"
     # the base frame's speeds agree with the world pose's motion between frames
     base = np.array([(st.robot.base.x, st.robot.base.y, st.robot.base.theta) for st in probes], np.float64)
-    dt = 1.0 / cfg.fps
+    dt = 1.0 / EngineConfig(worlds=1).fps
     vw = np.diff(base[:, :2], axis=0) / dt
     th = base[:-1, 2]
     vb = np.stack([np.cos(th) * vw[:, 0] + np.sin(th) * vw[:, 1], -np.sin(th) * vw[:, 0] + np.cos(th) * vw[:, 1]], 1)

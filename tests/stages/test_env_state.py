@@ -570,30 +570,39 @@ def test_eval_drives_the_arm_by_the_actions_end_effector_target(env_act, kitchen
         ev.EvalConfig(checkpoint=env_act.checkpoint, tasks=("push_object",), arm_command="cartesian")
 
 
+def scripted_episode(kitchen_catalog, tmp_path: Path, task: str, names) -> tuple[list, list]:
+    """One scripted episode of ``task`` (seed 2, kitchen 5, no cameras) recording the environment
+    state ``names``: its frames and the simulation's own reading at each (:func:`_probe_frames`);
+    asserts it succeeded over more than 100 frames."""
+    from kitchen_testutil import link_kitchen_catalog
+
+    from stages.engine import BatchEngine, EngineConfig
+    from stages.engine.programs import Listed
+    from stages.policy.evaluate import build_kitchen
+
+    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
+    cfg = EngineConfig(worlds=1, record_images=False, environment_state=tuple(names))
+    assert cfg.dataset_spec().features()["observation.environment_state"]["names"] == list(names)
+    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
+    frames, results = [], []
+    probes = _probe_frames(engine)
+    engine.run(Listed(world, {0: [(task, 2, None)]}), begin=lambda w, t: frames.append,
+               end=lambda w, t, res: results.append(res))
+    assert [r.success for r in results] == [True], results
+    assert len(frames) == len(probes) > 100
+    return frames, probes
+
+
 def test_gripper_opening_ends_the_state_and_follows_the_fingers(kitchen_catalog, tmp_path):
     """With the gripper entry (``environment_gripper``) a whole scripted pick_place_bowl episode (no
     cameras) records 7 numbers a frame: the mug and bowl as without it, then the fingers' opening, the
     sum of the finger joints' simulated positions [m]: open before the grasp, closed on the mug while
     it is carried, and it moves as the distance between the finger bodies does."""
-    from kitchen_testutil import link_kitchen_catalog
-
-    from stages.engine import BatchEngine, EngineConfig
     from stages.engine.env_state import GRIPPER, state_names
-    from stages.engine.programs import Listed
-    from stages.policy.evaluate import build_kitchen
 
     names = state_names("pick_place_bowl", gripper=True)
     assert names[-1] == GRIPPER and names[:-1] == state_names("pick_place_bowl")
-    world = build_kitchen(link_kitchen_catalog(kitchen_catalog, tmp_path / "work"), 5)
-    cfg = EngineConfig(worlds=1, record_images=False, environment_state=names)
-    assert cfg.dataset_spec().features()["observation.environment_state"]["names"] == list(names)
-    engine = BatchEngine(world, panda_root=None, work_dir=tmp_path / "engine", config=cfg, seed=5)
-    frames, results = [], []
-    probes = _probe_frames(engine)
-    engine.run(Listed(world, {0: [("pick_place_bowl", 2, None)]}), begin=lambda w, t: frames.append,
-               end=lambda w, t, res: results.append(res))
-    assert [r.success for r in results] == [True], results
-    assert len(frames) == len(probes) > 100
+    frames, probes = scripted_episode(kitchen_catalog, tmp_path, "pick_place_bowl", names)
     fingers = [i for i, n in enumerate(probes[0].robot.joint_names) if "finger" in n]
     assert len(fingers) == 2
     env = np.array([f.environment_state for f in frames])
