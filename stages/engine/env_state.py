@@ -114,8 +114,9 @@ class EnvKeys:
     origins are key points; ``goal`` (3 g,) fixed world points [m]; ``part`` the articulated part
     and ``coord`` its joint's world-local coordinate (open/close tasks; None otherwise);
     ``fingers`` the world-local coordinates of the gripper's finger joints whose sum is the
-    ``gripper_opening`` entry (() without it); ``base`` the world-local (coordinates, dofs) of the
-    base's planar joints x, y, yaw whose velocities are the base-velocity entries (() without them)."""
+    ``gripper_opening`` entry (() without it); ``base`` the world-local coordinate of the base's yaw
+    joint, then the dofs of its planar joints x, y, yaw, whose velocities are the base-velocity
+    entries (() without them)."""
 
     task: str
     bodies: tuple[int, ...] = ()
@@ -123,7 +124,7 @@ class EnvKeys:
     part: object = None
     coord: int = -1
     fingers: tuple[int, ...] = ()
-    base: tuple[tuple[int, ...], tuple[int, ...]] | tuple = ()
+    base: tuple[int, ...] = ()
 
     @property
     def dim(self) -> int:
@@ -136,13 +137,13 @@ class EnvResolver:
     body and joint indices resolved once per task. ``body_index``: scene prim path -> world-local
     body index; ``scene_coord``: scene joint prim path -> world-local joint coordinate;
     ``fingers``: the world-local coordinates of the robot's finger joints; ``base``: the world-local
-    (coordinates, dofs) of its planar base joints x, y, yaw."""
+    yaw coordinate and x, y, yaw dofs of its planar base (:attr:`EnvKeys.base`)."""
 
     def __init__(self, world, body_index: dict[str, int], scene_coord: dict[str, int],
-                 fingers: Sequence[int] = (), base: tuple = ()) -> None:
+                 fingers: Sequence[int] = (), base: Sequence[int] = ()) -> None:
         self.world, self.body_index, self.scene_coord = world, body_index, scene_coord
         self.fingers = tuple(int(c) for c in fingers)
-        self.base = tuple(tuple(int(i) for i in part) for part in base)
+        self.base = tuple(int(i) for i in base)
         self._parts: dict[str, object] = {}
 
     @classmethod
@@ -150,9 +151,8 @@ class EnvResolver:
         sim = engine.banks[0].sim
         grip = sim.desc.gripper
         fingers = [sim.robot.coord[n] for n in grip.finger_joints] if grip is not None else []
-        joints = tuple(sim.desc.base_joints)
-        base = ((tuple(sim.robot.coord[n] for n in joints), tuple(sim.robot.dof[n] for n in joints))
-                if len(joints) == 3 else ())
+        joints = tuple(sim.desc.base_joints)  # x, y, yaw
+        base = (sim.robot.coord[joints[2]], *(sim.robot.dof[n] for n in joints)) if len(joints) == 3 else ()
         return cls(engine.world, {p: b for b, p in sim.scene.body_path.items()}, dict(engine._scene_coord), fingers,
                    base)
 
@@ -224,7 +224,7 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
         if kk.base:
             if joint_qd is None:
                 raise ValueError("environment_state: the base velocity needs the joint velocities")
-            (_, _, cyaw), (dx, dy, dyaw) = kk.base
+            cyaw, dx, dy, dyaw = kk.base
             c, s = np.cos(joint_q[j, cyaw]), np.sin(joint_q[j, cyaw])
             vx, vy = float(joint_qd[j, dx]), float(joint_qd[j, dy])
             extra += [c * vx + s * vy, -s * vx + c * vy, float(joint_qd[j, dyaw])]

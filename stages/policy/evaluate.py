@@ -469,18 +469,14 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
         return ()
     from stages.engine.env_state import common_layout
 
-    try:
-        names = common_layout(cfg.tasks)
+    try:  # with and without the optional entries (the base's velocity, the gripper's opening)
+        layouts = [common_layout(cfg.tasks, gripper=g, base_velocity=b) for b in (False, True) for g in (False, True)]
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
-    for gripper, base_velocity in ((True, False), (False, True), (True, True)):  # the optional entries
-        if len(names) != loaded.env_state_dim:
-            names = common_layout(cfg.tasks, gripper=gripper, base_velocity=base_velocity)
-    if len(names) != loaded.env_state_dim:
-        names = common_layout(cfg.tasks)
-    if len(names) != loaded.env_state_dim:
+    names = next((n for n in layouts if len(n) == loaded.env_state_dim), None)
+    if names is None:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes an environment state of {loaded.env_state_dim} "
-                         f"entries; the tasks' layouts are {dict.fromkeys(cfg.tasks, names)}")
+                         f"entries; the tasks' layouts are {dict.fromkeys(cfg.tasks, layouts[0])}")
     return names
 
 
