@@ -463,8 +463,9 @@ def state_selection(recorded: list[str], loaded, checkpoint) -> list[int] | None
 
 
 def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
-    """The environment state's names of a policy that takes one (() otherwise); ValueError (one
-    line) when the tasks' layouts differ or their size is not the policy's input size."""
+    """The environment state's names of a policy that takes one (() otherwise): its checkpoint's
+    names (:data:`~stages.policy.runner.POLICY_INFO`) when recorded, else the tasks' layout of the
+    policy's input size; ValueError (one line) when the tasks' layouts differ or none is the policy's."""
     if not loaded.env_state_dim:
         return ()
     from stages.engine.env_state import common_layout
@@ -473,6 +474,12 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
         layouts = [common_layout(cfg.tasks, gripper=g, base_velocity=b) for b in (False, True) for g in (False, True)]
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
+    recorded = getattr(loaded, "env_state_names", None)  # the checkpoint's names when it has them
+    if recorded is not None:
+        if tuple(recorded) not in layouts:
+            raise ValueError(f"eval: {cfg.checkpoint}: the policy's environment state {list(recorded)} is none of the "
+                             f"tasks' layouts {[list(n) for n in layouts]}")
+        return tuple(recorded)
     names = next((n for n in layouts if len(n) == loaded.env_state_dim), None)
     if names is None:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes an environment state of {loaded.env_state_dim} "

@@ -55,21 +55,28 @@ def write_policy_info(checkpoint: Path, dataset: Path) -> Path:
     return path
 
 
-def read_policy_info(checkpoint: Path, state_dim: int) -> tuple[str, ...] | None:
-    """The state names of :data:`POLICY_INFO` in ``checkpoint`` (None without the file); ValueError
-    when they do not match the policy's state size."""
+def read_policy_info(checkpoint: Path, state_dim: int,
+                     env_state_dim: int = 0) -> tuple[tuple[str, ...] | None, tuple[str, ...] | None]:
+    """The ``(state, environment_state)`` names of :data:`POLICY_INFO` in ``checkpoint`` (each None
+    without the file or when it names none); ValueError (one line, naming the file) when it is
+    unreadable or a list does not match the policy's input size."""
     import json
 
     path = Path(checkpoint) / POLICY_INFO
     if not path.is_file():
-        return None
+        return None, None
     try:
-        names = tuple(str(n) for n in json.loads(path.read_text())["state"])
-    except (KeyError, TypeError, json.JSONDecodeError) as e:
+        info = json.loads(path.read_text())
+        names = tuple(str(n) for n in info["state"])
+        env = tuple(str(n) for n in info.get("environment_state") or ())
+    except (KeyError, TypeError, AttributeError, json.JSONDecodeError) as e:
         raise ValueError(f"{path}: unreadable ({e})") from None
     if names and len(names) != state_dim:
         raise ValueError(f"{path}: {len(names)} state names for a policy state of {state_dim} entries")
-    return names or None
+    if env and len(env) != env_state_dim:
+        raise ValueError(f"{path}: {len(env)} environment-state names for a policy environment state of "
+                         f"{env_state_dim} entries")
+    return names or None, env or None
 
 
 @dataclass(eq=False)
@@ -92,6 +99,9 @@ class LoadedPolicy:
     """names of the policy's ``observation.state`` entries (its checkpoint's :data:`POLICY_INFO`; a
     policy trained on a state view takes fewer entries than the recorder writes); None: not
     recorded (checkpoints before it: the recorder's whole state)"""
+    env_state_names: tuple[str, ...] | None = None
+    """names of the policy's ``observation.environment_state`` entries (:data:`POLICY_INFO`); None:
+    not recorded (eval then finds the layout by size)"""
 
     @property
     def cameras(self) -> tuple[str, ...]:
@@ -124,11 +134,12 @@ def load_policy(checkpoint: Path, device: str = "cpu") -> LoadedPolicy:
     state = policy.config.robot_state_feature
     if state is None:
         raise ValueError(f"{path}: the policy has no {STATE} input")
+    env_dim = int(env.shape[0]) if (env := policy.config.env_state_feature) else 0
+    names, env_names = read_policy_info(path, int(state.shape[0]), env_dim)
     return LoadedPolicy(policy=policy, preprocessor=pre, postprocessor=post, type=cfg.type, device=device,
                         image_shapes=shapes, state_dim=int(state.shape[0]),
-                        action_dim=int(policy.config.action_feature.shape[0]),
-                        env_state_dim=int(env.shape[0]) if (env := policy.config.env_state_feature) else 0,
-                        state_names=read_policy_info(path, int(state.shape[0])))
+                        action_dim=int(policy.config.action_feature.shape[0]), env_state_dim=env_dim,
+                        state_names=names, env_state_names=env_names)
 
 
 def to_policy_batch(obs: list[dict[str, np.ndarray]], image_keys) -> dict[str, Any]:

@@ -3,6 +3,7 @@ the base's measured velocity in its own frame, beside the task's entries, before
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -68,3 +69,31 @@ def test_base_velocity_options_are_checked_and_eval_finds_the_layout():
     got = env_layout(cfg, SimpleNamespace(env_state_dim=8))
     assert got[-1] == GRIPPER and got[-4:-1] == BASE_VELOCITY
     assert env_layout(cfg, SimpleNamespace(env_state_dim=5))[-1] == GRIPPER
+
+
+def test_eval_takes_the_environment_layout_the_checkpoint_names(tmp_path):
+    """agentworld_policy.json's environment-state names choose the layout (not the size alone);
+    names of another size or of no task layout fail in one line naming the file or checkpoint."""
+    from types import SimpleNamespace
+
+    from stages.engine.env_state import state_names
+    from stages.policy.evaluate import EvalConfig, env_layout
+    from stages.policy.runner import POLICY_INFO, read_policy_info
+
+    cfg = EvalConfig(checkpoint=Path("ck"), tasks=("open_drawer",), scenes=(101,), seeds=(1,))
+    both = state_names("open_drawer", gripper=True, base_velocity=True)
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=8, env_state_names=both)) == both
+    swapped = both[:4] + both[5:7] + both[4:5] + both[7:]  # a layout of the right size in no task's order
+    with pytest.raises(ValueError, match="ck: the policy's environment state .* is none of the tasks' layouts"):
+        env_layout(cfg, SimpleNamespace(env_state_dim=8, env_state_names=swapped))
+    info = {"state": [f"s{i}" for i in range(3)], "environment_state": list(both)}
+    (tmp_path / POLICY_INFO).write_text(json.dumps(info))
+    assert read_policy_info(tmp_path, 3, 8) == (tuple(info["state"]), both)
+    with pytest.raises(ValueError, match=f"{POLICY_INFO}: 8 environment-state names for a policy environment state of 5"):
+        read_policy_info(tmp_path, 3, 5)
+    (tmp_path / POLICY_INFO).write_text(json.dumps({"state": [], "environment_state": []}))
+    assert read_policy_info(tmp_path, 3, 8) == (None, None)
+    (tmp_path / POLICY_INFO).write_text("[1, 2]")
+    with pytest.raises(ValueError, match="unreadable"):
+        read_policy_info(tmp_path, 3, 8)
+    assert read_policy_info(tmp_path / "none", 3, 8) == (None, None)
