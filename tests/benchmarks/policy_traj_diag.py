@@ -22,7 +22,10 @@ Writes OUT/eval.json and OUT/traj.json (per episode: the record, the per-frame o
 open_drawer with ``--training-dataset`` (its environment state with the gripper entry) also prints the expert's
 reference from that dataset: the measured end effector's offset from the handle at the close command [mm] and the
 fingers' opening 8 frames on [m], as percentiles over its episodes (session 29: the expert closes within ~0.6 mm,
-opening 0.0117 m; policies that slip at the pull close 9-14 mm off, opening 0.016-0.019 m).
+opening 0.0117 m; policies that slip at the pull close 9-16 mm off, opening 0.016-0.019 m), and each episode's
+line then ends with the fingers' opening 8 frames after the close command and the hand's rotation then from the
+expert's median hand orientation at that frame (rotation vector in the hand frame [deg]; session 29: the failing
+grasps turn 0.19-0.36 deg about y, the expert's p95 is 0.23).
 """
 
 from __future__ import annotations
@@ -72,17 +75,38 @@ def _pull(t: dict, e: np.ndarray, fps: float) -> str:
     return f"pull@{k}{grip} {travel}"
 
 
-def expert_grasp(dataset: Path) -> str:
+def _quat_rot(q):
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat([q[1], q[2], q[3], q[0]])  # (w, x, y, z) -> scipy's (x, y, z, w)
+
+
+def _grasp(t: dict, s: np.ndarray, e: np.ndarray, ref) -> str:
+    """The opening [m] 8 frames after the first close command and the hand's rotation then from ``ref`` (the
+    expert's median orientation; rotation vector in the hand frame [deg])."""
+    names = t["state_names"]
+    g = np.array([a[t["action_names"].index("gripper")] for a in t["actions"]]) if t.get("actions") else None
+    if g is None or not (g > 0.5).any():
+        return ""
+    k = min(int(np.argmax(g > 0.5)) + 8, len(s) - 1)
+    q = s[k, [names.index(c) for c in ("ee_qw", "ee_qx", "ee_qy", "ee_qz")]]
+    rv = np.degrees((ref.inv() * _quat_rot(q)).as_rotvec())
+    return f" open@close+8={e[k, -1]:.4f} rot@close+8={np.round(rv, 2).tolist()} deg"
+
+
+def expert_grasp(dataset: Path):
     """The expert's drawer grasp in ``dataset`` (a LeRobot v3 set with ``ee_*`` state entries and the environment
     state's handle, opening, ..., gripper_opening): percentiles (5, 50, 95) over episodes of the measured end
-    effector's offset from the handle at the first close command [mm] and of the opening 8 frames on [m]."""
+    effector's offset from the handle at the first close command [mm] and of the opening 8 frames on [m], as a line;
+    and the expert's median hand orientation 8 frames on (a scipy Rotation). Returns ``(line, rotation)``."""
     import pandas as pd
 
     info = json.loads((dataset / "meta" / "info.json").read_text())
     snames, anames = info["features"]["observation.state"]["names"], info["features"]["action"]["names"]
     ix, gi = [snames.index(c) for c in ("ee_x", "ee_y", "ee_z")], anames.index("gripper")
     df = pd.concat([pd.read_parquet(f) for f in sorted((dataset / "data").rglob("*.parquet"))])
-    off, opening = [], []
+    off, opening, quats = [], [], []
+    qi = [snames.index(c) for c in ("ee_qw", "ee_qx", "ee_qy", "ee_qz")]
     for _, g in df.groupby("episode_index"):
         a, st = np.stack(g["action"].to_numpy()), np.stack(g["observation.state"].to_numpy())
         e = np.stack(g["observation.environment_state"].to_numpy())
@@ -91,14 +115,15 @@ def expert_grasp(dataset: Path) -> str:
         c = int(np.argmax(a[:, gi] > 0.5))
         off.append((st[c, ix] - e[c, :3]) * 1000)
         opening.append(e[min(c + 8, len(e) - 1), -1])
-    q = (5, 50, 95)
+        quats.append(st[min(c + 8, len(st) - 1), qi])
+    q, med = (5, 50, 95), np.median(quats, axis=0)
     return (f"expert ({len(off)} episodes of {dataset.name}): offset at close [mm] x/y/z p5,p50,p95 = "
             f"{np.round(np.percentile(off, q, axis=0).T, 1).tolist()}; opening at close+8 [m] = "
-            f"{np.round(np.percentile(opening, q), 4).tolist()}")
+            f"{np.round(np.percentile(opening, q), 4).tolist()}"), _quat_rot(med / np.linalg.norm(med))
 
 
-def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0) -> list[str]:
-    """One line per episode (see the module docstring)."""
+def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0, ref=None) -> list[str]:
+    """One line per episode (see the module docstring); ``ref``: the expert's hand orientation (expert_grasp)."""
     lines = []
     for t in trajs:
         r, log = t["rec"], t["log"]
@@ -113,7 +138,7 @@ def summary(trajs: list[dict], task: str = "pick_place_bowl", fps: float = 30.0)
                 f"start={np.linalg.norm(obj[0, :2]):.2f} m closest={d.min():.3f} m offset={np.round(ee[k] - obj[k], 3)} ")
         if task == "open_drawer":
             lines.append(head + f"{_close(t, ee, obj)} {_pull(t, e, fps)} max_open={e[:, 3].max():.3f} m "
-                                f"final_open={e[-1, 3]:.3f} m")
+                                f"final_open={e[-1, 3]:.3f} m" + (_grasp(t, s, e, ref) if ref is not None else ""))
         else:
             tgt = e[:, 3:6]
             lines.append(head + f"{_close(t, ee, obj)} lift={(obj[:, 2] - obj[0, 2]).max():.3f} m "
@@ -166,9 +191,11 @@ def main() -> int:
         for t in trajs:
             t["state_names"] = EngineConfig().dataset_spec().state_names()
     (a.out / "traj.json").write_text(json.dumps(trajs))
-    print("\n".join(summary(trajs, a.task, cfg.fps)))
-    if a.task == "open_drawer" and a.training_dataset is not None:
-        print(expert_grasp(a.training_dataset))
+    line, ref = (expert_grasp(a.training_dataset) if a.task == "open_drawer" and a.training_dataset is not None
+                 else (None, None))
+    print("\n".join(summary(trajs, a.task, cfg.fps, ref)))
+    if line:
+        print(line)
     return 0
 
 
