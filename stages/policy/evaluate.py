@@ -474,7 +474,7 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
         layouts = [common_layout(cfg.tasks, gripper=g, base_velocity=b) for b in (False, True) for g in (False, True)]
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
-    recorded = getattr(loaded, "env_state_names", None)  # the checkpoint's names when it has them
+    recorded = loaded.env_state_names  # the checkpoint's names (None: not recorded)
     if recorded is not None:
         if tuple(recorded) not in layouts:
             raise ValueError(f"eval: {cfg.checkpoint}: the policy's environment state {list(recorded)} is none of the "

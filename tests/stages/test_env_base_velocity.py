@@ -65,10 +65,10 @@ def test_base_velocity_options_are_checked_and_eval_finds_the_layout():
     with pytest.raises(ValueError, match="has environment state"):
         check_names(state_names("open_drawer", base_velocity=True)[:-1], "open_drawer", "test")
     cfg = EvalConfig(checkpoint=Path("ck"), tasks=("open_drawer",), scenes=(101,), seeds=(1,))
-    assert env_layout(cfg, SimpleNamespace(env_state_dim=7))[-3:] == BASE_VELOCITY
-    got = env_layout(cfg, SimpleNamespace(env_state_dim=8))
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=7, env_state_names=None))[-3:] == BASE_VELOCITY
+    got = env_layout(cfg, SimpleNamespace(env_state_dim=8, env_state_names=None))
     assert got[-1] == GRIPPER and got[-4:-1] == BASE_VELOCITY
-    assert env_layout(cfg, SimpleNamespace(env_state_dim=5))[-1] == GRIPPER
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=5, env_state_names=None))[-1] == GRIPPER
 
 
 def test_eval_takes_the_environment_layout_the_checkpoint_names(tmp_path):
@@ -89,7 +89,7 @@ def test_eval_takes_the_environment_layout_the_checkpoint_names(tmp_path):
     info = {"state": [f"s{i}" for i in range(3)], "environment_state": list(both)}
     (tmp_path / POLICY_INFO).write_text(json.dumps(info))
     assert read_policy_info(tmp_path, 3, 8) == (tuple(info["state"]), both)
-    with pytest.raises(ValueError, match=f"{POLICY_INFO}: 8 environment-state names for a policy environment state of 5"):
+    with pytest.raises(ValueError, match=f"{POLICY_INFO}: 8 environment-state names for a policy environment state"):
         read_policy_info(tmp_path, 3, 5)
     (tmp_path / POLICY_INFO).write_text(json.dumps({"state": [], "environment_state": []}))
     assert read_policy_info(tmp_path, 3, 8) == (None, None)

@@ -641,7 +641,7 @@ def test_eval_takes_the_gripper_layout_for_a_policy_one_entry_larger():
     from stages.policy.evaluate import EvalConfig, env_layout
 
     cfg = EvalConfig(checkpoint=Path("ck"), tasks=("pick_place_bowl",), scenes=(101,), seeds=(1,))
-    assert env_layout(cfg, SimpleNamespace(env_state_dim=6)) == state_names("pick_place_bowl")
-    assert env_layout(cfg, SimpleNamespace(env_state_dim=7))[-1] == GRIPPER
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=6, env_state_names=None)) == state_names("pick_place_bowl")
+    assert env_layout(cfg, SimpleNamespace(env_state_dim=7, env_state_names=None))[-1] == GRIPPER
     with pytest.raises(ValueError, match="environment state of 8 entries"):
-        env_layout(cfg, SimpleNamespace(env_state_dim=8))
+        env_layout(cfg, SimpleNamespace(env_state_dim=8, env_state_names=None))
