@@ -3,15 +3,18 @@
 Runs the scripted open_drawer expert (one world, no cameras) in one kitchen and seed once per offset, with the
 final grasp pose (``stages.demos.articulated.handle_pose`` at ``back == 0``) moved in the tool frame: x along
 the bar, y the fingers' closing direction (about vertical), z the approach axis (negative: short of the bar) [m],
-and optionally turned by a rotation vector [deg] in the tool frame. Prints and writes OUT (JSON) one row per
-offset: success and failure reason.
+and optionally turned by a rotation vector [deg] in the tool frame; ``--stance-yaw`` [rad] also turns the base's
+stance from square to the drawer (its pull then runs at that angle to the drawer's axis). Prints and writes OUT
+(JSON) one row per offset: success, failure reason and the fingers' opening after closing [m].
 
     python tests/benchmarks/drawer_grasp_tolerance.py --kitchen 101 --seed 1000005 --work WORK_WITH_KITCHENS \\
         --offsets '[[0,0,-0.01],[0,0,0,0,3,0]]' --out tol.json
 
 WORK: a folder whose ``kitchens`` catalog ``agentworld eval --work`` built (or builds there on first use).
 Session 29 (kitchen 101, seed 1000005): the grasp holds 1 cm along the bar, 6 mm across, 3 deg about any tool
-axis and up to 12 mm short along the approach; 13.5 mm short the drawer stays shut.
+axis and up to 12 mm short along the approach; 13.5 mm short the drawer stays shut. The fingers stop at 0.0117 m
+square on the bar, narrower short of it (0.0095 at 12 mm) and wider rolled about the approach axis (0.0132 at 5 deg,
+0.0167 at 15, 0.0187 at 20: all opened); a stance turned 0.3 rad still opens it.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ def main() -> int:
     from scipy.spatial.transform import Rotation
 
     import stages.demos.articulated as art
+    from stages.demos.part_checks import _finger_gap
     from stages.engine import BatchEngine, EngineConfig
     from stages.engine.programs import Listed
     from stages.policy.evaluate import build_kitchen
@@ -39,6 +43,7 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=1000005)
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--offsets", required=True, help="JSON list of [dx, dy, dz] or [dx, dy, dz, rx, ry, rz]")
+    p.add_argument("--stance-yaw", type=float, default=0.0, help="[rad] added to the stance candidates' yaw")
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args()
     offsets = [np.asarray(o, float) for o in json.loads(a.offsets)]
@@ -46,6 +51,16 @@ def main() -> int:
         raise SystemExit("drawer_grasp_tolerance: each offset is [dx, dy, dz] or [dx, dy, dz, rx, ry, rz]")
     world = build_kitchen(a.work / "kitchens", a.kitchen)
     orig, rows = art.handle_pose, []
+    orig_check, orig_base, gaps = art._check_grasp, art.choose_base, []
+
+    def check(part, d, *args, **kw):  # the expert's own check after closing: note the fingers' opening there
+        gaps.append(_finger_gap(d))
+        return orig_check(part, d, *args, **kw)
+
+    def turned(d, part, grid, cands, targets):
+        return orig_base(d, part, grid, [(c[0], c[1], c[2] + a.stance_yaw, c[3]) for c in cands], targets)
+
+    art._check_grasp, art.choose_base = check, turned
     try:
         for k, off in enumerate(offsets):
             def moved(part, q, pitch, back=0.0, _off=off):
@@ -60,14 +75,18 @@ def main() -> int:
             art.handle_pose = moved
             engine = BatchEngine(world, panda_root=None, work_dir=a.work / f"tolerance_{a.kitchen}_{a.seed}_{k}",
                                  config=EngineConfig(worlds=1, record_images=False), seed=a.seed)
-            res = []
+            res, gaps[:] = [], []
             engine.run(Listed(world, {0: [("open_drawer", a.seed, None)]}), begin=lambda w, t: (lambda f: None),
                        end=lambda w, t, r: res.append(r))
-            rows.append({"offset": off.tolist(), "success": bool(res[0].success), "reason": res[0].reason or ""})
-            print(f"offset {off.tolist()}: {'opened' if res[0].success else 'failed ' + str(res[0].reason)}", flush=True)
+            gap = round(gaps[0], 4) if gaps else None
+            rows.append({"offset": off.tolist(), "success": bool(res[0].success), "reason": res[0].reason or "",
+                         "finger_gap": gap})
+            print(f"offset {off.tolist()}: {'opened' if res[0].success else 'failed ' + str(res[0].reason)}, "
+                  f"fingers {gap} m", flush=True)
     finally:
-        art.handle_pose = orig
-    a.out.write_text(json.dumps({"kitchen": a.kitchen, "seed": a.seed, "rows": rows}, indent=1) + "\n")
+        art.handle_pose, art._check_grasp, art.choose_base = orig, orig_check, orig_base
+    a.out.write_text(json.dumps({"kitchen": a.kitchen, "seed": a.seed, "stance_yaw": a.stance_yaw, "rows": rows},
+                                indent=1) + "\n")
     return 0
 
 
