@@ -4,7 +4,9 @@ Runs the scripted open_drawer expert (one world, no cameras) in one kitchen and 
 final grasp pose (``stages.demos.articulated.handle_pose`` at ``back == 0``) moved in the tool frame: x along
 the bar, y the fingers' closing direction (about vertical), z the approach axis (negative: short of the bar) [m],
 and optionally turned by a rotation vector [deg] in the tool frame; ``--stance-yaw`` [rad] also turns the base's
-stance from square to the drawer (its pull then runs at that angle to the drawer's axis). Prints and writes OUT
+stance from square to the drawer (its pull then runs at that angle to the drawer's axis), and with ``--hand-turns``
+the hand turns with it (the grasp and pre-grasp turned by that yaw about the vertical, as a policy that keeps the
+hand's orientation in the base frame would hold it). Prints and writes OUT
 (JSON) one row per offset: success, failure reason and the fingers' opening after closing [m].
 
     python tests/benchmarks/drawer_grasp_tolerance.py --kitchen 101 --seed 1000005 --work WORK_WITH_KITCHENS \\
@@ -14,7 +16,9 @@ WORK: a folder whose ``kitchens`` catalog ``agentworld eval --work`` built (or b
 Session 29 (kitchen 101, seed 1000005): the grasp holds 1 cm along the bar, 6 mm across, 3 deg about any tool
 axis and up to 12 mm short along the approach; 13.5 mm short the drawer stays shut. The fingers stop at 0.0117 m
 square on the bar, narrower short of it (0.0095 at 12 mm) and wider rolled about the approach axis (0.0132 at 5 deg,
-0.0167 at 15, 0.0187 at 20: all opened); a stance turned 0.3 rad still opens it.
+0.0167 at 15, 0.0187 at 20: all opened); a stance turned 0.3 rad still opens it. With the hand turned too the
+fingers stop wider as the yaw grows (0.0130 m at 0.2 rad, 0.0141 at 0.35, 0.0153 at 0.5) and at -0.5 rad the
+drawer stays shut: the policy's wide stops (0.016-0.019 m) are stances turned ~0.5 rad or more from square.
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ def main() -> int:
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--offsets", required=True, help="JSON list of [dx, dy, dz] or [dx, dy, dz, rx, ry, rz]")
     p.add_argument("--stance-yaw", type=float, default=0.0, help="[rad] added to the stance candidates' yaw")
+    p.add_argument("--hand-turns", action="store_true", help="the hand turns with --stance-yaw")
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args()
     offsets = [np.asarray(o, float) for o in json.loads(a.offsets)]
@@ -65,6 +70,11 @@ def main() -> int:
         for k, off in enumerate(offsets):
             def moved(part, q, pitch, back=0.0, _off=off):
                 m = orig(part, q, pitch, back)
+                if a.hand_turns:  # about the vertical through the grasp point, keeping the pre-grasp behind it
+                    c, s_ = np.cos(a.stance_yaw), np.sin(a.stance_yaw)
+                    m = orig(part, q, pitch, 0.0).copy()
+                    m[:3, :3] = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]) @ m[:3, :3]
+                    m[:3, 3] = m[:3, 3] - back * m[:3, 2]
                 if back == 0.0:  # the grasp itself, not the pre-grasp
                     m = m.copy()
                     m[:3, 3] = m[:3, 3] + m[:3, :3] @ _off[:3]
@@ -85,7 +95,8 @@ def main() -> int:
                   f"fingers {gap} m", flush=True)
     finally:
         art.handle_pose, art._check_grasp, art.choose_base = orig, orig_check, orig_base
-    a.out.write_text(json.dumps({"kitchen": a.kitchen, "seed": a.seed, "stance_yaw": a.stance_yaw, "rows": rows},
+    a.out.write_text(json.dumps({"kitchen": a.kitchen, "seed": a.seed, "stance_yaw": a.stance_yaw,
+                                 "hand_turns": a.hand_turns, "rows": rows},
                                 indent=1) + "\n")
     return 0
 
