@@ -66,17 +66,15 @@ def main() -> int:
         return orig_base(d, part, grid, [(c[0], c[1], c[2] + a.stance_yaw, c[3]) for c in cands], targets)
 
     art._check_grasp, art.choose_base = check, turned
+    hand_turn = Rotation.from_euler("z", a.stance_yaw).as_matrix()  # world vertical
     try:
         for k, off in enumerate(offsets):
             def moved(part, q, pitch, back=0.0, _off=off):
-                m = orig(part, q, pitch, back)
+                m = orig(part, q, pitch, 0.0 if a.hand_turns else back).copy()
                 if a.hand_turns:  # about the vertical through the grasp point, keeping the pre-grasp behind it
-                    c, s_ = np.cos(a.stance_yaw), np.sin(a.stance_yaw)
-                    m = orig(part, q, pitch, 0.0).copy()
-                    m[:3, :3] = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]) @ m[:3, :3]
+                    m[:3, :3] = hand_turn @ m[:3, :3]
                     m[:3, 3] = m[:3, 3] - back * m[:3, 2]
                 if back == 0.0:  # the grasp itself, not the pre-grasp
-                    m = m.copy()
                     m[:3, 3] = m[:3, 3] + m[:3, :3] @ _off[:3]
                     if len(_off) == 6:
                         m[:3, :3] = m[:3, :3] @ Rotation.from_rotvec(np.radians(_off[3:])).as_matrix()

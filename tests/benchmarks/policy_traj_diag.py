@@ -45,12 +45,23 @@ def _ints(text: str) -> tuple[int, ...]:
     return tuple(range(int(a), int(b or a) + 1))
 
 
+EE_QUAT = ("ee_qw", "ee_qx", "ee_qy", "ee_qz")  # the hand's orientation in observation.state, (w, x, y, z)
+
+
+def _close_frame(t: dict) -> int | None:
+    """The first frame whose action commands the gripper shut (``gripper`` > 0.5); None: none does."""
+    if not t.get("actions"):
+        return None
+    g = np.array([a[t["action_names"].index("gripper")] for a in t["actions"]])
+    return int(np.argmax(g > 0.5)) if (g > 0.5).any() else None
+
+
 def _close(t: dict, ee: np.ndarray, obj: np.ndarray) -> str:
     """The first frame whose action commands the gripper shut, and the end effector's offset then."""
-    g = np.array([a[t["action_names"].index("gripper")] for a in t["actions"]]) if t.get("actions") else None
-    if g is None or not (g > 0.5).any():
+    c = _close_frame(t)
+    if c is None:
         return "close=never"
-    k = min(int(np.argmax(g > 0.5)), len(ee) - 1)
+    k = min(c, len(ee) - 1)
     return f"close@{k} offset={np.round(ee[k] - obj[k], 3)}"
 
 
@@ -60,11 +71,10 @@ def _pull(t: dict, e: np.ndarray, fps: float) -> str:
     entry: ~0.012 on the drawer's bar, below it closed on nothing) and the base travel commanded from the close on [m]."""
     if not t.get("actions"):
         return "pull=?"
-    a = np.array(t["actions"])
-    vx, g = a[:, t["action_names"].index("base_vx")], a[:, t["action_names"].index("gripper")]
-    if not (g > 0.5).any():
+    vx = np.array(t["actions"])[:, t["action_names"].index("base_vx")]
+    c = _close_frame(t)
+    if c is None:
         return "pull=never"
-    c = int(np.argmax(g > 0.5))
     back = np.flatnonzero(vx[c:] < -0.02)
     travel = f"travel_after_close={vx[c:].sum() / fps:+.2f} m"
     if not len(back):
@@ -84,12 +94,11 @@ def _quat_rot(q):
 def _grasp(t: dict, s: np.ndarray, e: np.ndarray, ref) -> str:
     """The opening [m] 8 frames after the first close command and the hand's rotation then from ``ref`` (the
     expert's median orientation; rotation vector in the hand frame [deg])."""
-    names = t["state_names"]
-    g = np.array([a[t["action_names"].index("gripper")] for a in t["actions"]]) if t.get("actions") else None
-    if g is None or not (g > 0.5).any():
+    c = _close_frame(t)
+    if c is None:
         return ""
-    k = min(int(np.argmax(g > 0.5)) + 8, len(s) - 1)
-    q = s[k, [names.index(c) for c in ("ee_qw", "ee_qx", "ee_qy", "ee_qz")]]
+    k = min(c + 8, len(s) - 1)
+    q = s[k, [t["state_names"].index(n) for n in EE_QUAT]]
     rv = np.degrees((ref.inv() * _quat_rot(q)).as_rotvec())
     return f" open@close+8={e[k, -1]:.4f} rot@close+8={np.round(rv, 2).tolist()} deg"
 
@@ -101,12 +110,13 @@ def expert_grasp(dataset: Path):
     and the expert's median hand orientation 8 frames on (a scipy Rotation). Returns ``(line, rotation)``."""
     import pandas as pd
 
-    info = json.loads((dataset / "meta" / "info.json").read_text())
-    snames, anames = info["features"]["observation.state"]["names"], info["features"]["action"]["names"]
-    ix, gi = [snames.index(c) for c in ("ee_x", "ee_y", "ee_z")], anames.index("gripper")
+    from stages.dataset.view import feature_names
+
+    snames, anames = feature_names(dataset), feature_names(dataset, "action")
+    ix, qi = [snames.index(c) for c in ("ee_x", "ee_y", "ee_z")], [snames.index(c) for c in EE_QUAT]
+    gi = anames.index("gripper")
     df = pd.concat([pd.read_parquet(f) for f in sorted((dataset / "data").rglob("*.parquet"))])
     off, opening, quats = [], [], []
-    qi = [snames.index(c) for c in ("ee_qw", "ee_qx", "ee_qy", "ee_qz")]
     for _, g in df.groupby("episode_index"):
         a, st = np.stack(g["action"].to_numpy()), np.stack(g["observation.state"].to_numpy())
         e = np.stack(g["observation.environment_state"].to_numpy())
