@@ -40,17 +40,10 @@ import math
 import numpy as np
 
 from stages.demos.driver import APPROACH_TOL, ROBOT_RADIUS, ExpertFailure, stow
-from stages.demos.part_grasps import (
-    GRASP_BACK,
-    PUSH_STANDOFF,
-    drawer_pitch,
-    edge_point,
-    gesture,
-    handle_pose,
-    lateral,
-)
+from stages.demos.part_grasps import GRASP_BACK, PUSH_STANDOFF, drawer_pitch, edge_point, gesture, handle_pose
+from stages.demos.part_grasps import heading, lateral
 from stages.demos.part_checks import _check_grasp
-from stages.demos.part_planning import STANCE_JITTER, choose_base, is_free, reach, swept_grid
+from stages.demos.part_planning import STANCE_JITTER, STANCE_YAW_JITTER, choose_base, is_free, reach, swept_grid
 from stages.demos.part_turn import is_vertical, plan_here, plan_stage_or_turn, push_on, resolve, turn_about_hinge
 from stages.demos.part_turn import turn_limit
 from stages.demos.parts import ArticulatedPart
@@ -77,13 +70,16 @@ INNER_FROM = 0.3  # a vertically hinged leaf opened this far [fraction of travel
 ESCAPE_MARGIN = 0.1  # an escape from a blocked spot goes this far into the free region where it can [m]
 
 
-def _slide(d, distance: float, speed: float = 0.3) -> None:
-    """Base straight along its heading by ``distance`` [m] (negative: backwards), arm held; closed
-    on the measured displacement (velocity commands alone fall a few centimetres short)."""
+def _slide(d, distance: float, speed: float = 0.3, along: float | None = None) -> None:
+    """Base straight by ``distance`` [m] (negative: backwards) along the world direction ``along``
+    [rad] (None: its heading) without turning, arm held; closed on the measured displacement
+    (velocity commands alone fall a few centimetres short)."""
     from stages.demos.record import base_pose
 
     x0, y0, yaw0 = base_pose(d.sim)
-    u = np.array([math.cos(yaw0), math.sin(yaw0)]) * math.copysign(1.0, distance)
+    along = yaw0 if along is None else along
+    u = np.array([math.cos(along), math.sin(along)]) * math.copysign(1.0, distance)
+    cu, su = math.cos(along - yaw0), math.sin(along - yaw0)  # the direction in the base frame
     d.cmd.mode = 1
     t_end = d.sim.time + abs(distance) / speed * 2.0 + 1.0
     v_prev = 0.0
@@ -94,7 +90,7 @@ def _slide(d, distance: float, speed: float = 0.3) -> None:
             break
         v = min(speed, max(0.03, 3.0 * left), v_prev + SHIFT_ACCEL * d.frame_dt)
         v_prev = v
-        d.base((math.copysign(v, distance), 0.0, 0.0))
+        d.base((math.copysign(v, distance) * cu, math.copysign(v, distance) * su, 0.0))
         d.step(d.frame_dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.2)
@@ -110,12 +106,13 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
 
     p0 = drawer_pitch(float(part.handle[2]))
     jn, jl = d.rng.uniform(-1.0, 1.0, 2) * STANCE_JITTER  # a varied stance first (part_planning)
-    cands = [(0.72 + jn + out, jl, 0.0, p0)] + [
+    jyaw = d.rng.uniform(-1.0, 1.0) * STANCE_YAW_JITTER
+    cands = [(0.72 + jn + out, jl, jyaw, p0)] + [
         (dn + out, dl, 0.0, p0 + dp) for dp in (0.0, math.radians(-10), math.radians(15))
         for dn in (0.72, 0.66, 0.78, 0.60, 0.84) for dl in (0.0, 0.05, -0.05, 0.1, -0.1)]
     base, pitch = choose_base(d, part, grid, cands, targets)
     _drive(d, base, grid)
-    closing = q1 < q0
+    closing, along = q1 < q0, heading(-np.asarray(part.front, float))  # slides along the drawer axis
     # closing pushes the bar with the closed hand (the approaching fingers would nudge an open
     # drawer in and miss the grasp); opening grasps it
     d.grip(1.0 if closing else 0.0, 0.3)
@@ -123,15 +120,15 @@ def _drawer(part: ArticulatedPart, d, grid, q0: float, q1: float) -> None:
     if closing:
         d.move(handle_pose(part, q0, pitch, PUSH_STANDOFF), 1.0, segments=2, settle=0.2)
         q_now = d.sim.joint_q_of_path(part.joint_path)
-        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.25)
-        _slide(d, -0.03, speed=0.05)  # straight off the bar before the diagonal retreat drags it
+        _slide(d, (q_now - q1) + PUSH_STANDOFF + 0.008, speed=0.25, along=along)
+        _slide(d, -0.03, speed=0.05, along=along)  # straight off the bar before the diagonal retreat drags it
     else:
         with d.steady():  # no DART noise from the last approach to the grip: the fingers close on the bar
             d.move(handle_pose(part, q0, pitch, 0.0), 1.0, segments=2, settle=0.5)
             d.grip(1.0, 0.6)
             d.step(0.1)  # the grip held still before the pull
         _check_grasp(part, d)
-        _slide(d, q0 - q1)
+        _slide(d, q0 - q1, along=along)
     log.debug("%s: slid to %.3f (goal %.3f)", part.joint_path, d.sim.joint_q_of_path(part.joint_path), q1)
     _retreat_from_leaf(part, d, q1, grid, push=closing)
     d.home(1.0)

@@ -28,6 +28,7 @@ Job file (after a ``default_catalog`` step and an ``ingest`` step of the same jo
     # environment_state = true  # frames record the task objects' state (stages.engine.env_state)
     # environment_gripper = true  # ... ending with the gripper's opening [m]
     # environment_base_velocity = true  # ... holding the base's measured velocity (base frame)
+    # environment_front = true  # ... holding the part front's direction (base frame; open/close tasks)
 
 Items are ``<task>_w<k>``: each authors its world (a kitchen from the ingested catalog, see
 :mod:`stages.demos.kitchen`: asset variants, poses and colours from the world's seed, shared by
@@ -114,7 +115,9 @@ class DemosConfig(_Strict):
     task of the step with the same layout; False: the feature is absent, the files as before).
     environment_gripper: that state ends with ``gripper_opening``, the fingers' opening [m] (needs
     ``environment_state``). environment_base_velocity: it holds the base's measured velocity in its
-    own frame (``base_vx``, ``base_vy`` [m/s], ``base_vtheta`` [rad/s]; needs ``environment_state``)."""
+    own frame (``base_vx``, ``base_vy`` [m/s], ``base_vtheta`` [rad/s]; needs ``environment_state``).
+    environment_front: it holds the articulated part front's planar direction in the base frame
+    (``front_x``, ``front_y``; open/close tasks; needs ``environment_state``)."""
 
     catalog_step: str = "catalog"
     assets_step: str = "assets"
@@ -143,6 +146,7 @@ class DemosConfig(_Strict):
     environment_state: bool = False
     environment_gripper: bool = False
     environment_base_velocity: bool = False
+    environment_front: bool = False
 
     def item_device(self, index: int) -> str:
         """The device of item ``index``: ``devices`` round robin, else ``device``."""
@@ -188,11 +192,14 @@ class DemosConfig(_Strict):
 
             if self.mixed:
                 raise ValueError("environment_state needs per-task items (mixed = false): a dataset holds one layout")
-            common_layout(self.tasks)  # ValueError names a task without one, or the differing layouts
+            # ValueError names a task without one (or without a part, for the front), or the differing layouts
+            common_layout(self.tasks, front=self.environment_front)
         elif self.environment_gripper:
             raise ValueError("environment_gripper needs environment_state = true")
         elif self.environment_base_velocity:
             raise ValueError("environment_base_velocity needs environment_state = true")
+        elif self.environment_front:
+            raise ValueError("environment_front needs environment_state = true")
         return self
 
     @field_validator("tasks")
@@ -235,6 +242,7 @@ class ShardParams(_Strict):
     environment_state: bool = False
     environment_gripper: bool = False
     environment_base_velocity: bool = False
+    environment_front: bool = False
 
 
 class EpisodeRecord(_Strict):
@@ -343,6 +351,7 @@ def plan_demos(config: DemosConfig, ctx: PlanContext) -> list[WorkItem | Planned
                                  environment_state=config.environment_state,
                                  environment_gripper=config.environment_gripper,
                                  environment_base_velocity=config.environment_base_velocity,
+                                 environment_front=config.environment_front,
                                  generated=str(generated), packages=packages, panda_root=panda_root)
             items.append(WorkItem(item_id=f"{t}_w{w:03d}", fn=FN, params=params, input_files=inputs))
     return items
@@ -391,7 +400,8 @@ def _record_shard(params: ShardParams, ctx: ItemContext) -> ShardResult:
                           program_wait=params.program_wait if n > 1 and params.program_procs else None,
                           action_noise=None if params.action_noise is None else params.action_noise.engine(),
                           environment_state=(state_names(params.task, params.environment_gripper,
-                                                         params.environment_base_velocity)
+                                                         params.environment_base_velocity,
+                                                         params.environment_front)
                                              if params.environment_state else ()))
     engine = BatchEngine(world, panda_root=None if params.panda_root is None else Path(params.panda_root),
                          work_dir=ctx.out_dir / "world", config=config, seed=params.world_seed)

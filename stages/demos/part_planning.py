@@ -69,6 +69,11 @@ def is_free(grid, blocked, x: float, y: float) -> bool:
 # 1 mm over 400 episodes), and a policy arriving a few centimetres off reached to that place and
 # closed its hand on nothing (issue 17, session 27).
 STANCE_JITTER = np.array([0.06, 0.06])
+# How far its yaw is turned at random from square to the front [rad]: the grasp is a world pose, so
+# the expert's hand stays square to the bar from a turned stance, and the data shows a policy how a
+# turned base turns the hand (session 29: a policy that kept the hand's base-frame orientation from
+# a stance 0.5 rad off square gripped the bar rolled, and it slipped).
+STANCE_YAW_JITTER = 0.5
 
 
 def choose_base(d, part: ArticulatedPart, grid, candidates,

@@ -35,6 +35,14 @@ joints' velocities turned by the base's yaw). ``observation.state`` holds poses 
 policy cannot tell a base that has stopped from one still braking at the same pose, nor a base
 pushing against furniture from one driving (session 28: the drawer policies' stalls and pushes).
 
+With the front entries (``front=True``, open/close tasks only; the recorder's option
+``environment_front``), two numbers follow the part's opening: ``front_x``, ``front_y``, the
+planar direction of the part's front (its outward normal where the joint value puts it,
+:meth:`~stages.demos.parts.ArticulatedPart.front_at`) in the base frame ((-1, 0) when the robot
+stands square to it). The handle's point alone does not say how the robot stands to the bar: a
+policy that keeps the hand's base-frame orientation from a turned stance grips the bar rolled and
+the fingers stop wide and slip (session 29's drawer failures).
+
 The dimension D is fixed per task (:func:`state_names`); a dataset holds one layout.
 """
 
@@ -53,6 +61,7 @@ _PART = (*(f"handle_{c}" for c in _XYZ), "opening")
 _BODIES = {"pick_place_bowl": ("mug", "bowl"), "push_object": ("pusher",)}
 GRIPPER = "gripper_opening"  # the optional last entry: the fingers' opening [m]
 BASE_VELOCITY = ("base_vx", "base_vy", "base_vtheta")  # optional, before the gripper's: [m/s, m/s, rad/s]
+FRONT = ("front_x", "front_y")  # optional for open/close tasks, after the opening: unit direction, base frame
 
 
 def has_gripper(names: Sequence[str]) -> bool:
@@ -65,6 +74,11 @@ def has_base_velocity(names: Sequence[str]) -> bool:
     return BASE_VELOCITY[-1] in tuple(names)
 
 
+def has_front(names: Sequence[str]) -> bool:
+    """Whether an environment-state layout ``names`` holds the part front's direction."""
+    return FRONT[0] in tuple(names)
+
+
 def _part_target(task: str) -> str | None:
     """The articulated target of an open/close task (``drawer`` of ``open_drawer``), else None."""
     from stages.demos.tasks import ARTICULATED
@@ -73,29 +87,50 @@ def _part_target(task: str) -> str | None:
     return which if kind in ("open", "close") and which in ARTICULATED else None
 
 
-def state_names(task: str, gripper: bool = False, base_velocity: bool = False) -> tuple[str, ...]:
-    """The names of ``task``'s environment state (D entries; module docstring), then the base's
-    velocity when ``base_velocity``, ending with ``gripper_opening`` when ``gripper``; ValueError
-    for a task without one."""
+def state_names(task: str, gripper: bool = False, base_velocity: bool = False,
+                front: bool = False) -> tuple[str, ...]:
+    """The names of ``task``'s environment state (D entries; module docstring), with the part
+    front's direction when ``front`` (open/close tasks), then the base's velocity when
+    ``base_velocity``, ending with ``gripper_opening`` when ``gripper``; ValueError for a task
+    without one, or ``front`` for a task without a part."""
     tail = (BASE_VELOCITY if base_velocity else ()) + ((GRIPPER,) if gripper else ())
+    if front and _part_target(task) is None:
+        raise ValueError(f"environment_state: task {task!r} has no articulated part: {list(FRONT)} are for "
+                         f"open_/close_ tasks")
     if task == "pick_place_bowl":
         return _PICK + tail
     if task == "push_object":
         return _PUSH + tail
     if _part_target(task) is not None:
-        return _PART + tail
+        return _PART + (FRONT if front else ()) + tail
     raise ValueError(f"environment_state: task {task!r} has no environment state (supported: pick_place_bowl, "
                      f"push_object, open_/close_ of an articulated part)")
 
 
-def common_layout(tasks: Sequence[str], gripper: bool = False, base_velocity: bool = False) -> tuple[str, ...]:
+def common_layout(tasks: Sequence[str], gripper: bool = False, base_velocity: bool = False,
+                  front: bool = False) -> tuple[str, ...]:
     """The one environment-state layout of ``tasks`` (a dataset or a policy holds one; with the
-    gripper entry when ``gripper``); ValueError naming a task without one, or the layouts when they
-    differ."""
-    layouts = {t: state_names(t, gripper, base_velocity) for t in tasks}
+    optional entries as in :func:`state_names`); ValueError naming a task without one, or the
+    layouts when they differ."""
+    layouts = {t: state_names(t, gripper, base_velocity, front) for t in tasks}
     if len(set(layouts.values())) > 1:
         raise ValueError(f"environment_state: the tasks' layouts differ ({layouts}); one step, one layout")
     return next(iter(layouts.values()), ())
+
+
+def optional_layouts(tasks: Sequence[str]) -> list[tuple[str, ...]]:
+    """Every layout ``tasks`` share, with and without each optional entry (the front's direction
+    where the tasks have a part, the base's velocity, the gripper's opening); ValueError as
+    :func:`common_layout` for the plain layout."""
+    out = [common_layout(tasks)]
+    fronts = (False, True) if all(_part_target(t) is not None for t in tasks) else (False,)
+    for f in fronts:
+        for b in (False, True):
+            for g in (False, True):
+                names = common_layout(tasks, gripper=g, base_velocity=b, front=f)
+                if names not in out:
+                    out.append(names)
+    return out
 
 
 def episode_goal(inst) -> tuple[float, ...]:
@@ -116,7 +151,8 @@ class EnvKeys:
     ``fingers`` the world-local coordinates of the gripper's finger joints whose sum is the
     ``gripper_opening`` entry (() without it); ``base`` the world-local coordinate of the base's yaw
     joint, then the dofs of its planar joints x, y, yaw, whose velocities are the base-velocity
-    entries (() without them)."""
+    entries (() without them); ``front``: whether the part front's direction is in (open/close
+    tasks)."""
 
     task: str
     bodies: tuple[int, ...] = ()
@@ -125,11 +161,12 @@ class EnvKeys:
     coord: int = -1
     fingers: tuple[int, ...] = ()
     base: tuple[int, ...] = ()
+    front: bool = False
 
     @property
     def dim(self) -> int:
         return (3 * len(self.bodies) + len(self.goal) + (4 if self.part is not None else 0)
-                + (3 if self.base else 0) + (1 if self.fingers else 0))
+                + (2 if self.front else 0) + (3 if self.base else 0) + (1 if self.fingers else 0))
 
 
 class EnvResolver:
@@ -157,17 +194,19 @@ class EnvResolver:
                    base)
 
     def keys(self, task: str, goal: Sequence[float] = (), gripper: bool = False,
-             base_velocity: bool = False) -> EnvKeys:
+             base_velocity: bool = False, front: bool = False) -> EnvKeys:
         """The keys of an episode of ``task`` with the fixed points ``goal`` (:func:`episode_goal`),
-        with the gripper's opening when ``gripper`` (ValueError for a robot without finger joints)
-        and the base's velocity when ``base_velocity`` (ValueError for a robot without a planar base)."""
-        state_names(task)  # raises for a task without an environment state
+        with the gripper's opening when ``gripper`` (ValueError for a robot without finger joints),
+        the base's velocity when ``base_velocity`` (ValueError for a robot without a planar base)
+        and the part front's direction when ``front`` (ValueError for a task without a part)."""
+        state_names(task, front=front)  # raises for a task without an environment state
         if gripper and not self.fingers:
             raise ValueError(f"environment_state: {GRIPPER} needs a robot with a parallel gripper's finger joints")
         if base_velocity and not self.base:
             raise ValueError("environment_state: the base velocity needs a robot with planar base joints x, y, yaw")
         keys = self._keys(task, goal)
-        return replace(keys, fingers=self.fingers if gripper else (), base=self.base if base_velocity else ())
+        return replace(keys, fingers=self.fingers if gripper else (), base=self.base if base_velocity else (),
+                       front=front)
 
     def _keys(self, task: str, goal: Sequence[float]) -> EnvKeys:
         which = _part_target(task)
@@ -202,7 +241,8 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
     bodies [m] (world-local body index); joint_q (K, C): each world's joint coordinates (world-local);
     joint_qd (K, D): its joint velocities (world-local dofs; needed by keys with ``base``).
     Row k: the key points (bodies', then the goal's, then an articulated handle's) in world k's
-    base frame, then an articulated part's opening [m or rad], then the base's velocity in its own
+    base frame, then an articulated part's opening [m or rad], then its front's planar direction
+    in the base frame (keys with ``front``), then the base's velocity in its own
     frame [m/s, m/s, rad/s] (keys with ``base``), then the gripper's opening [m] (keys with
     ``fingers``)."""
     k = len(keys)
@@ -221,6 +261,12 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
             q = float(joint_q[j, kk.coord])
             pts.append(kk.part.handle_at(q))
             extra.append(q - kk.part.closed)
+            if kk.front:
+                n = kk.part.front_at(q)
+                c, s = np.cos(base[j, 2]), np.sin(base[j, 2])
+                fx, fy = c * n[0] + s * n[1], -s * n[0] + c * n[1]
+                r = float(np.hypot(fx, fy))  # the planar part (an oven door's front tilts down)
+                extra += [fx / r, fy / r] if r > 1e-9 else [0.0, 0.0]
         if kk.base:
             if joint_qd is None:
                 raise ValueError("environment_state: the base velocity needs the joint velocities")
@@ -268,12 +314,13 @@ def episode_keys(engine, task: str, goal: Sequence[float] = ()) -> EnvKeys:
     """:meth:`EnvResolver.keys` of an episode of ``task`` (fixed points ``goal``) on ``engine``, with
     the engine's one resolver (made on first use): the recorder's and the evaluator's. The gripper's
     opening is in when the engine's ``environment_state`` names end with it, the base's velocity
-    when they hold it."""
+    and the front's direction when they hold them."""
     res = getattr(engine, "_env_resolver", None)
     if res is None:
         res = engine._env_resolver = EnvResolver.of_engine(engine)
     names = tuple(engine.config.environment_state)
-    return res.keys(task, goal, gripper=has_gripper(names), base_velocity=has_base_velocity(names))
+    return res.keys(task, goal, gripper=has_gripper(names), base_velocity=has_base_velocity(names),
+                    front=has_front(names))
 
 
 def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) -> np.ndarray:
@@ -291,13 +338,14 @@ def recorded_environment_state(engine, worlds: Sequence[int], base: np.ndarray) 
 def check_names(names: Sequence[str], task: str, where: str) -> None:
     """ValueError when ``task``'s environment state is not laid out as ``names`` (a dataset or a
     policy holds one layout; with or without the gripper's entry)."""
-    mine = state_names(task, gripper=has_gripper(names), base_velocity=has_base_velocity(names))
+    mine = state_names(task, gripper=has_gripper(names), base_velocity=has_base_velocity(names),
+                       front=has_front(names) and _part_target(task) is not None)
     if tuple(names) != mine:
         raise ValueError(f"{where}: task {task!r} has environment state {list(mine)}, but "
                          f"{len(names)} entries {list(names)} are recorded or expected")
 
 
-__all__ = ["BASE_VELOCITY", "ENV_STATE_KEY", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
-           "environment_state", "episode_goal", "episode_keys", "has_base_velocity", "has_gripper", "recorded_environment_state", "state_names",
+__all__ = ["BASE_VELOCITY", "ENV_STATE_KEY", "FRONT", "GRIPPER", "EnvKeys", "EnvResolver", "check_names", "common_layout", "engine_environment_state",
+           "environment_state", "episode_goal", "episode_keys", "has_base_velocity", "has_front", "has_gripper", "optional_layouts", "recorded_environment_state", "state_names",
            "ticket_keys", "to_base_frame"]
 

@@ -468,10 +468,10 @@ def env_layout(cfg: EvalConfig, loaded) -> tuple[str, ...]:
     policy's input size; ValueError (one line) when the tasks' layouts differ or none is the policy's."""
     if not loaded.env_state_dim:
         return ()
-    from stages.engine.env_state import common_layout
+    from stages.engine.env_state import optional_layouts
 
-    try:  # with and without the optional entries (the base's velocity, the gripper's opening)
-        layouts = [common_layout(cfg.tasks, gripper=g, base_velocity=b) for b in (False, True) for g in (False, True)]
+    try:  # with and without the optional entries (the front's direction, the base's velocity, the gripper's opening)
+        layouts = optional_layouts(cfg.tasks)
     except ValueError as e:
         raise ValueError(f"eval: {cfg.checkpoint}: the policy takes observation.environment_state; {e}") from None
     recorded = loaded.env_state_names  # the checkpoint's names (None: not recorded)
