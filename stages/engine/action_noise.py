@@ -127,10 +127,9 @@ def apply_noise(engine, k: int) -> int:
     proc: NoiseProcess = engine.noise
     moving = [w for w in range(len(engine.held)) if not engine.held[w]]
     live = [w for w in moving if proc.active(w) and engine.rec_active[w]]
-    base_v, _, modes = engine.capture.commands(live) if live else (None, None, None)
-    steady = engine.capture.steady(live) if live else []
+    base_v, modes, steady, stop = engine.capture.noise_inputs(live) if live else (None, [], [], np.zeros(0))
     radius = proc.cfg.base_quiet_radius
-    near = (engine.capture.stop_distance(live) < radius).tolist() if live and radius > 0 else [False] * len(live)
+    near = (stop < radius).tolist() if radius > 0 else [False] * len(live)
     row = {w: j for j, w in enumerate(live)}
     for w in moving:
         bank, i = engine._where[w]

@@ -273,18 +273,18 @@ class FrameCapture:
         return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
                 [float(c.gripper) for c in cmds], [int(c.mode) for c in cmds])
 
-    def steady(self, worlds: list[int]) -> list[bool]:
-        """Per world of ``worlds``: whether its expert asks for execution without DART noise now
-        (:attr:`stages.demos.record.Commands.steady`)."""
+    def noise_inputs(self, worlds: list[int]) -> tuple[np.ndarray, list[int], list[bool], np.ndarray]:
+        """What the execution noise (:func:`~stages.engine.action_noise.apply_noise`) reads of
+        ``worlds``' commands in force, in one read of the worker processes' shared record (or of the
+        threads' :class:`~stages.demos.record.Commands`): base velocities (K, 3) [m/s, m/s, rad/s],
+        modes (K), whether the expert asks for execution without noise now (K;
+        :attr:`~stages.demos.record.Commands.steady`) and the base's distance to the end of the path
+        it follows (K,) [m] (inf when not following one; ``Commands.stop_distance``)."""
         e = self.e
         if e.config.program_procs:
-            return (e.lockstep.a["cmdrec"][worlds, 5] != 0).tolist()
-        return [bool(e.side.cmds[w].steady) for w in worlds]
-
-    def stop_distance(self, worlds: list[int]) -> np.ndarray:
-        """Per world of ``worlds`` (K,): its base's distance to the end of the path it follows [m]
-        (inf when not following one; :attr:`stages.demos.record.Commands.stop_distance`)."""
-        e = self.e
-        if e.config.program_procs:
-            return e.lockstep.a["cmdrec"][worlds, 6].copy()
-        return np.array([float(e.side.cmds[w].stop_distance) for w in worlds], float)
+            c = e.lockstep.a["cmdrec"][worlds]  # one copy of the rows
+            return c[:, :3], c[:, 4].astype(int).tolist(), (c[:, 5] != 0).tolist(), c[:, 6]
+        cmds = [e.side.cmds[w] for w in worlds]
+        return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
+                [int(c.mode) for c in cmds], [bool(c.steady) for c in cmds],
+                np.array([float(c.stop_distance) for c in cmds], float))
