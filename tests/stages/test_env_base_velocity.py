@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_env_state import scripted_episode
+from test_env_state import scripted_env
 
 
 def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame(kitchen_catalog, tmp_path):
@@ -24,9 +24,8 @@ def test_base_velocity_entries_are_the_simulated_base_velocity_in_the_base_frame
 
     names = state_names("open_drawer", gripper=True, base_velocity=True)
     assert names == (*state_names("open_drawer"), *BASE_VELOCITY, GRIPPER) and has_base_velocity(names)
-    frames, probes = scripted_episode(kitchen_catalog, tmp_path, "open_drawer", names)
-    env = np.array([f.environment_state for f in frames], np.float64)
-    assert env.shape == (len(frames), 8)
+    env, frames, probes = scripted_env(kitchen_catalog, tmp_path, "open_drawer", names)
+    assert env.shape[1] == 8
     jn = list(probes[0].robot.joint_names)
     ix, iy, iyaw = jn.index("base_x"), jn.index("base_y"), jn.index("base_yaw")
     q = np.array([st.robot.q for st in probes])

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from test_env_state import scripted_episode
+from test_env_state import scripted_env
 
 
 def test_front_entries_are_the_drawer_axis_the_simulation_moves_the_handle_along(kitchen_catalog, tmp_path):
@@ -25,9 +25,7 @@ def test_front_entries_are_the_drawer_axis_the_simulation_moves_the_handle_along
 
     names = state_names("open_drawer", gripper=True, front=True)
     assert names == (*state_names("open_drawer"), *FRONT, GRIPPER) and has_front(names)
-    frames, probes = scripted_episode(kitchen_catalog, tmp_path, "open_drawer", names)
-    env = np.array([f.environment_state for f in frames], np.float64)
-    assert env.shape == (len(frames), 7)
+    env, _, probes = scripted_env(kitchen_catalog, tmp_path, "open_drawer", names)
     np.testing.assert_allclose(np.hypot(env[:, 4], env[:, 5]), 1.0, atol=1e-5)
     base = np.array([(st.robot.base.x, st.robot.base.y, st.robot.base.theta) for st in probes], np.float64)
     c, s = np.cos(base[:, 2]), np.sin(base[:, 2])

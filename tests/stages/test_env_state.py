@@ -593,6 +593,15 @@ def scripted_episode(kitchen_catalog, tmp_path: Path, task: str, names) -> tuple
     return frames, probes
 
 
+def scripted_env(kitchen_catalog, tmp_path: Path, task: str, names) -> tuple[np.ndarray, list, list]:
+    """:func:`scripted_episode`, with its recorded environment state (frames, len(names)) float64
+    first (its shape checked)."""
+    frames, probes = scripted_episode(kitchen_catalog, tmp_path, task, names)
+    env = np.array([f.environment_state for f in frames], np.float64)
+    assert env.shape == (len(frames), len(names))
+    return env, frames, probes
+
+
 def test_gripper_opening_ends_the_state_and_follows_the_fingers(kitchen_catalog, tmp_path):
     """With the gripper entry (``environment_gripper``) a whole scripted pick_place_bowl episode (no
     cameras) records 7 numbers a frame: the mug and bowl as without it, then the fingers' opening, the
