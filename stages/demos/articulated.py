@@ -90,7 +90,8 @@ def _slide(d, distance: float, speed: float = 0.3, along: float | None = None) -
             break
         v = min(speed, max(0.03, 3.0 * left), v_prev + SHIFT_ACCEL * d.frame_dt)
         v_prev = v
-        d.base((math.copysign(v, distance) * cu, math.copysign(v, distance) * su, 0.0))
+        sv = math.copysign(v, distance)
+        d.base((sv * cu, sv * su, 0.0))
         d.step(d.frame_dt)
     d.base((0.0, 0.0, 0.0))
     d.step(0.2)

@@ -71,6 +71,16 @@ class Commands:
     steady: bool = False
     stop_distance: float = math.inf
 
+    def row(self) -> np.ndarray:
+        """These commands as one record (:data:`COMMAND_ROW`,) float64: base_velocity (3), gripper,
+        mode, steady (0 or 1), stop_distance: a row of the worker processes' shared record
+        (:mod:`stages.engine.remote`) and of the engine's reads of the threads' commands."""
+        return np.array([*np.asarray(self.base_velocity, float), self.gripper, self.mode, float(self.steady),
+                         self.stop_distance], np.float64)
+
+
+COMMAND_ROW = 7  # the length of Commands.row()
+
 
 def quat_wxyz(rot: np.ndarray, ref: np.ndarray | None = None) -> np.ndarray:
     """Rotation matrix (3, 3) -> unit quaternion (w, x, y, z) in the hemisphere of ``ref`` (4,)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stages.dataset.columns import FrameColumns, Images, frame_images
+from stages.demos.record import COMMAND_ROW
 
 
 @dataclass
@@ -261,30 +262,26 @@ class FrameCapture:
         q, t = self._rows(worlds, np.array([sim.robot.coord[n] for n in names]))
         return q.astype(float), t.astype(float)
 
-    def commands(self, worlds: list[int]) -> tuple[np.ndarray, list[float], list[int]]:
-        """The commands in force of ``worlds``: base velocities (K, 3) [m/s, m/s, rad/s], gripper
-        commands and modes (K each), from the worker processes' shared record in one read, or
-        from the threads' :class:`~stages.demos.record.Commands`."""
+    def _command_rows(self, worlds: list[int]) -> np.ndarray:
+        """The commands in force of ``worlds`` as records (K, :data:`~stages.demos.record.COMMAND_ROW`)
+        (:meth:`~stages.demos.record.Commands.row`): from the worker processes' shared record in
+        one read, or from the threads' :class:`~stages.demos.record.Commands`."""
         e = self.e
         if e.config.program_procs:
-            c = e.lockstep.a["cmdrec"][worlds]
-            return c[:, :3].copy(), c[:, 3].tolist(), c[:, 4].astype(int).tolist()
-        cmds = [e.side.cmds[w] for w in worlds]
-        return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
-                [float(c.gripper) for c in cmds], [int(c.mode) for c in cmds])
+            return e.lockstep.a["cmdrec"][worlds]  # one copy of the rows
+        return np.array([e.side.cmds[w].row() for w in worlds], np.float64).reshape(len(worlds), COMMAND_ROW)
+
+    def commands(self, worlds: list[int]) -> tuple[np.ndarray, list[float], list[int]]:
+        """The commands in force of ``worlds``: base velocities (K, 3) [m/s, m/s, rad/s], gripper
+        commands and modes (K each)."""
+        c = self._command_rows(worlds)
+        return c[:, :3], c[:, 3].tolist(), c[:, 4].astype(int).tolist()
 
     def noise_inputs(self, worlds: list[int]) -> tuple[np.ndarray, list[int], list[bool], np.ndarray]:
         """What the execution noise (:func:`~stages.engine.action_noise.apply_noise`) reads of
-        ``worlds``' commands in force, in one read of the worker processes' shared record (or of the
-        threads' :class:`~stages.demos.record.Commands`): base velocities (K, 3) [m/s, m/s, rad/s],
-        modes (K), whether the expert asks for execution without noise now (K;
+        ``worlds``' commands in force, in one read: base velocities (K, 3) [m/s, m/s, rad/s], modes
+        (K), whether the expert asks for execution without noise now (K;
         :attr:`~stages.demos.record.Commands.steady`) and the base's distance to the end of the path
         it follows (K,) [m] (inf when not following one; ``Commands.stop_distance``)."""
-        e = self.e
-        if e.config.program_procs:
-            c = e.lockstep.a["cmdrec"][worlds]  # one copy of the rows
-            return c[:, :3], c[:, 4].astype(int).tolist(), (c[:, 5] != 0).tolist(), c[:, 6]
-        cmds = [e.side.cmds[w] for w in worlds]
-        return (np.array([np.asarray(c.base_velocity, float) for c in cmds]).reshape(len(worlds), 3),
-                [int(c.mode) for c in cmds], [bool(c.steady) for c in cmds],
-                np.array([float(c.stop_distance) for c in cmds], float))
+        c = self._command_rows(worlds)
+        return c[:, :3], c[:, 4].astype(int).tolist(), (c[:, 5] != 0).tolist(), c[:, 6]

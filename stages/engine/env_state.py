@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from itertools import product
 
 import numpy as np
 
@@ -122,15 +123,9 @@ def optional_layouts(tasks: Sequence[str]) -> list[tuple[str, ...]]:
     """Every layout ``tasks`` share, with and without each optional entry (the front's direction
     where the tasks have a part, the base's velocity, the gripper's opening); ValueError as
     :func:`common_layout` for the plain layout."""
-    out = [common_layout(tasks)]
     fronts = (False, True) if all(_part_target(t) is not None for t in tasks) else (False,)
-    for f in fronts:
-        for b in (False, True):
-            for g in (False, True):
-                names = common_layout(tasks, gripper=g, base_velocity=b, front=f)
-                if names not in out:
-                    out.append(names)
-    return out
+    return [common_layout(tasks, gripper=g, base_velocity=b, front=f)
+            for f, b, g in product(fronts, (False, True), (False, True))]
 
 
 def episode_goal(inst) -> tuple[float, ...]:
@@ -232,6 +227,12 @@ def to_base_frame(points: np.ndarray, base: np.ndarray) -> np.ndarray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, p[..., 2]], axis=-1)
 
 
+def _in_base(x: float, y: float, yaw: float) -> tuple[float, float]:
+    """A world planar vector (x, y) in the frame of a base of heading ``yaw`` [rad]: R(yaw)^T (x, y)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return float(c * x + s * y), float(-s * x + c * y)
+
+
 def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.ndarray,
                       joint_q: np.ndarray, joint_qd: np.ndarray | None = None) -> np.ndarray:
     """The environment state of K worlds at one instant, float32 (K, D).
@@ -263,17 +264,15 @@ def environment_state(keys: Sequence[EnvKeys], base: np.ndarray, body_xyz: np.nd
             extra.append(q - kk.part.closed)
             if kk.front:
                 n = kk.part.front_at(q)
-                c, s = np.cos(base[j, 2]), np.sin(base[j, 2])
-                fx, fy = c * n[0] + s * n[1], -s * n[0] + c * n[1]
+                fx, fy = _in_base(n[0], n[1], base[j, 2])
                 r = float(np.hypot(fx, fy))  # the planar part (an oven door's front tilts down)
                 extra += [fx / r, fy / r] if r > 1e-9 else [0.0, 0.0]
         if kk.base:
             if joint_qd is None:
                 raise ValueError("environment_state: the base velocity needs the joint velocities")
             cyaw, dx, dy, dyaw = kk.base
-            c, s = np.cos(joint_q[j, cyaw]), np.sin(joint_q[j, cyaw])
-            vx, vy = float(joint_qd[j, dx]), float(joint_qd[j, dy])
-            extra += [c * vx + s * vy, -s * vx + c * vy, float(joint_qd[j, dyaw])]
+            extra += [*_in_base(float(joint_qd[j, dx]), float(joint_qd[j, dy]), joint_q[j, cyaw]),
+                      float(joint_qd[j, dyaw])]
         if kk.fingers:
             extra.append(float(sum(joint_q[j, c] for c in kk.fingers)))
         rows.append((np.asarray(pts, np.float64).reshape(-1, 3), extra))

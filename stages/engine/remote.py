@@ -173,10 +173,7 @@ def _worker(conn, init: dict) -> None:
             a["pending"][w] = s.pending  # one answer per world, as soon as its program blocks again
             a["flags"][w, SYNC] = int(s.sync)
             a["flags"][w, DONE] = int(s.done)
-            c = side.cmds[w]
-            a["cmdrec"][w, :3] = c.base_velocity
-            a["cmdrec"][w, 3], a["cmdrec"][w, 4], a["cmdrec"][w, 5] = c.gripper, c.mode, float(c.steady)
-            a["cmdrec"][w, 6] = c.stop_distance
+            a["cmdrec"][w] = side.cmds[w].row()
             conn.send(("ok", w, events[w]))
             events[w] = []
     finally:
@@ -193,6 +190,8 @@ class RemotePrograms:
 
         self.engine = engine
         bank = engine.banks[0]
+        from stages.demos.record import COMMAND_ROW
+
         sim = bank.sim
         n = engine.config.worlds
         k = max(1, min(engine.config.program_procs, n))
@@ -202,7 +201,7 @@ class RemotePrograms:
             "body_q": ((st.body_q.shape[0], 7), np.float32),
             "peaks": ((n, max(1, len(bank.peaks.paths))), np.float32),
             "targets": (bank.ctl._targets.shape, bank.ctl._targets.dtype), "cmd": ((n, 3), np.float32),
-            "cmdrec": ((n, 7), np.float64), "steps": ((n,), np.int64), "rec_active": ((n,), np.int8),
+            "cmdrec": ((n, COMMAND_ROW), np.float64), "steps": ((n,), np.int64), "rec_active": ((n,), np.int8),
             "rec_max": ((n,), np.int64), "pending": ((n,), np.int64), "flags": ((n, 4), np.int8),
         }
         self.shared = _Shared(specs=specs)
@@ -358,10 +357,6 @@ class RemotePrograms:
         """A world's program still runs, or its last answer (with its episode's end) has not
         arrived yet: a worker sets DONE before its answer reaches the engine."""
         return bool(((self.a["flags"][:, DONE] == 0) | self.in_flight).any())
-
-    def commands(self, w: int) -> tuple:
-        c = self.a["cmdrec"][w]
-        return c[:3].copy(), float(c[3]), int(c[4])
 
     def shutdown(self) -> None:
         e = self.engine
